@@ -1,0 +1,1 @@
+//! Procedural demo scene.

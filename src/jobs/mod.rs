@@ -1,0 +1,120 @@
+//! Jobs: what a long computation is asked to do, how it reports progress and how it is stopped.
+//!
+//! Every solver takes a `&dyn Fn(Event)` sink and a `CancelToken`. The CLI turns events into a
+//! progress bar; the app runs the job on a worker thread (`spawn`) and streams events over a
+//! crossbeam channel.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// A cheap, cloneable cancel flag checked by solvers between small units of work.
+#[derive(Clone, Debug, Default)]
+pub struct CancelToken(Arc<AtomicBool>);
+
+impl CancelToken {
+    /// A fresh, un-cancelled token.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Ask the job to stop.
+    pub fn cancel(&self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+    /// Has a stop been requested?
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+    /// `Err(Error::Cancelled)` once a stop was requested.
+    pub fn check(&self) -> crate::Result<()> {
+        if self.is_cancelled() {
+            Err(crate::Error::Cancelled)
+        } else {
+            Ok(())
+        }
+    }
+}
+
+/// One correspondence: a source vertex and one or more target vertices (one-to-many), in the
+/// files' own vertex numbering.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Correspondence {
+    /// Source file vertex index.
+    pub source_vertex: u32,
+    /// Target file vertex indices (several = one-to-many).
+    pub target_vertices: Vec<u32>,
+}
+
+/// The correspondences file: `{"correspondences": [...]}`.
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct CorrespondenceFile {
+    /// The pairs.
+    pub correspondences: Vec<Correspondence>,
+}
+
+impl CorrespondenceFile {
+    /// Read and parse a correspondences JSON file.
+    pub fn load(path: &std::path::Path) -> crate::Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| crate::Error::io(path, e))?;
+        serde_json::from_str(&text)
+            .map_err(|e| crate::Error::format(path, format!("invalid correspondences JSON: {e}")))
+    }
+    /// Write as pretty JSON (atomically).
+    pub fn save(&self, path: &std::path::Path) -> crate::Result<()> {
+        let text = serde_json::to_string_pretty(self).expect("serialisable");
+        crate::mesh::io::write_atomic(path, text.as_bytes())
+    }
+}
+
+/// A progress report from a running job.
+#[derive(Clone, Debug, Default)]
+pub struct Progress {
+    /// Stage name ("refine", "hierarchy", "features", "fans", "solve", "deliver").
+    pub stage: &'static str,
+    /// Current level (0 = finest) while solving.
+    pub level: usize,
+    /// Number of levels.
+    pub levels: usize,
+    /// EM iteration within the level (1-based), 0 outside the solve.
+    pub iteration: usize,
+    /// Mean patch distance of the current NNF (lower is better), 0 when not known.
+    pub energy: f64,
+    /// Seconds since the job started.
+    pub elapsed: f64,
+    /// Overall fraction done, in [0, 1].
+    pub fraction: f32,
+}
+
+/// What a job reports.
+#[derive(Clone, Debug)]
+pub enum Event {
+    /// Progress through the stages.
+    Progress(Progress),
+    /// A partial result: per-vertex signal on the displayed (working-resolution) target mesh,
+    /// sent after every level and EM iteration.
+    Partial {
+        /// The progress at the time of the result.
+        progress: Progress,
+        /// Per-vertex sRGB colour (or signal) on the working target mesh.
+        signal: Arc<[[f32; 3]]>,
+    },
+    /// A stage finished, with its wall time in seconds (for per-stage timings).
+    StageTime(&'static str, f64),
+}
+
+/// A sink that drops every event.
+pub fn no_events(_: Event) {}
+
+/// Wall-clock helper for stage timings.
+pub struct Stopwatch(Instant);
+
+impl Stopwatch {
+    /// Start now.
+    pub fn start() -> Self {
+        Stopwatch(Instant::now())
+    }
+    /// Seconds since start.
+    pub fn secs(&self) -> f64 {
+        self.0.elapsed().as_secs_f64()
+    }
+}

@@ -1,0 +1,182 @@
+//! Connectivity: CSR adjacency, connected components, boundary loops.
+
+use std::collections::HashMap;
+
+/// Compressed sparse row adjacency: the neighbours of `i` are `indices[offsets[i]..offsets[i+1]]`.
+#[derive(Clone, Debug, Default)]
+pub struct Csr {
+    /// Row offsets, length `n + 1`.
+    pub offsets: Vec<u32>,
+    /// Concatenated neighbour lists.
+    pub indices: Vec<u32>,
+}
+
+impl Csr {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+    /// True when there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Neighbours of row `i`.
+    #[inline]
+    pub fn row(&self, i: usize) -> &[u32] {
+        &self.indices[self.offsets[i] as usize..self.offsets[i + 1] as usize]
+    }
+    /// Build from a list of (row, col) pairs; duplicates removed, rows sorted.
+    pub fn from_pairs(n: usize, pairs: &mut Vec<(u32, u32)>) -> Csr {
+        pairs.sort_unstable();
+        pairs.dedup();
+        let mut offsets = vec![0u32; n + 1];
+        for &(r, _) in pairs.iter() {
+            offsets[r as usize + 1] += 1;
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let indices = pairs.iter().map(|&(_, c)| c).collect();
+        Csr { offsets, indices }
+    }
+}
+
+/// Vertex-vertex adjacency of a triangle list (symmetric, sorted, no self loops).
+pub fn vertex_adjacency(n: usize, faces: &[[u32; 3]]) -> Csr {
+    let mut pairs = Vec::with_capacity(faces.len() * 6);
+    for f in faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            if a != b && (a as usize) < n && (b as usize) < n {
+                pairs.push((a, b));
+                pairs.push((b, a));
+            }
+        }
+    }
+    Csr::from_pairs(n, &mut pairs)
+}
+
+/// Connected components over faces: per-vertex component label (vertices in no face get their
+/// own label) and the number of components that contain at least one face.
+pub fn connected_components(n: usize, faces: &[[u32; 3]]) -> (Vec<u32>, usize) {
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(p: &mut [u32], mut x: u32) -> u32 {
+        while p[x as usize] != x {
+            p[x as usize] = p[p[x as usize] as usize];
+            x = p[x as usize];
+        }
+        x
+    }
+    for f in faces {
+        let r0 = find(&mut parent, f[0]);
+        for &v in &f[1..] {
+            let r = find(&mut parent, v);
+            if r != r0 {
+                let (a, b) = (r0.min(r), r0.max(r));
+                parent[b as usize] = a;
+            }
+        }
+        // re-find root after merges
+        let _ = find(&mut parent, f[0]);
+    }
+    let mut label = vec![u32::MAX; n];
+    let mut used = vec![false; n];
+    for f in faces {
+        for &v in f {
+            used[v as usize] = true;
+        }
+    }
+    let mut next = 0u32;
+    let mut root_label = HashMap::new();
+    let mut with_faces = 0usize;
+    for v in 0..n {
+        let r = find(&mut parent, v as u32);
+        let l = *root_label.entry(r).or_insert_with(|| {
+            let l = next;
+            next += 1;
+            l
+        });
+        label[v] = l;
+    }
+    let mut seen = vec![false; next as usize];
+    for v in 0..n {
+        if used[v] && !seen[label[v] as usize] {
+            seen[label[v] as usize] = true;
+            with_faces += 1;
+        }
+    }
+    (label, with_faces)
+}
+
+/// Boundary loops: chains of directed edges used by exactly one face, as vertex sequences.
+/// Non-manifold boundary vertices may split or join loops arbitrarily; every boundary edge is
+/// in exactly one returned loop (an open chain is returned as is).
+pub fn boundary_loops(faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
+    let mut count: HashMap<(u32, u32), u32> = HashMap::with_capacity(faces.len() * 3);
+    for f in faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+        }
+    }
+    // directed boundary half-edges a->b (the face's orientation)
+    let mut next: HashMap<u32, Vec<u32>> = HashMap::new();
+    let mut nedges = 0usize;
+    for f in faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            if count[&(a.min(b), a.max(b))] == 1 {
+                next.entry(a).or_default().push(b);
+                nedges += 1;
+            }
+        }
+    }
+    let mut starts: Vec<u32> = next.keys().copied().collect();
+    starts.sort_unstable();
+    let mut loops = Vec::new();
+    let mut used = 0usize;
+    for s in starts {
+        while next.get(&s).is_some_and(|v| !v.is_empty()) {
+            let mut lp = vec![s];
+            let mut cur = s;
+            loop {
+                let Some(nb) = next.get_mut(&cur).and_then(|v| v.pop()) else {
+                    break;
+                };
+                used += 1;
+                if nb == s {
+                    break;
+                }
+                lp.push(nb);
+                cur = nb;
+                if used > nedges {
+                    break;
+                }
+            }
+            loops.push(lp);
+        }
+    }
+    loops
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    #[test]
+    fn square_has_one_loop_one_component() {
+        let faces = vec![[0, 1, 2], [0, 2, 3]];
+        let loops = boundary_loops(&faces);
+        assert_eq!(loops.len(), 1);
+        assert_eq!(loops[0].len(), 4);
+        let (_, c) = connected_components(4, &faces);
+        assert_eq!(c, 1);
+        let adj = vertex_adjacency(4, &faces);
+        assert_eq!(adj.row(0), &[1, 2, 3]);
+        assert_eq!(adj.row(1), &[0, 2]);
+    }
+    #[test]
+    fn tetrahedron_is_closed() {
+        let faces = vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]];
+        assert!(boundary_loops(&faces).is_empty());
+    }
+}
