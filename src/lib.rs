@@ -14,6 +14,7 @@ pub mod jobs;
 pub mod mesh;
 pub mod meshmatch;
 pub mod synthesis;
+pub mod testdata;
 
 #[cfg(feature = "gui")]
 pub mod app;
