@@ -1,0 +1,374 @@
+//! The command-line interface: `meshmatch [COMMAND]`. No command opens the app.
+
+use crate::jobs::{CancelToken, CorrespondenceFile, Event};
+use crate::mesh::{io, TriMesh};
+use crate::{Error, Result};
+use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
+
+/// Example-based texturing of 3D meshes.
+#[derive(Parser, Debug)]
+#[command(name = "meshmatch", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do; without a command the desktop app opens on the demo scene.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// The subcommands.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Print counts, bounds, components, boundary loops, signal kind and repairs of mesh files.
+    Info {
+        /// Mesh files (.obj, .ply, .gltf, .glb).
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// One JSON object per line per file.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Convert a mesh between formats (by extension), keeping vertex order, UVs, colours, texture.
+    Convert {
+        /// Input mesh.
+        input: PathBuf,
+        /// Output mesh (.ply, .obj, .glb).
+        output: PathBuf,
+    },
+    /// Write the procedural demo scene (zebra, giraffe, cerberus, vase) as GLB files.
+    Demo {
+        /// Output directory (created if missing).
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Transfer a texture from a source mesh to a target mesh (MeshMatch).
+    Transfer(TransferArgs),
+    /// Render a mesh to a PNG offscreen (headlight Lambert shading, vertex colours or texture).
+    #[cfg(feature = "gui")]
+    Render {
+        /// The mesh to render.
+        mesh: PathBuf,
+        /// Output PNG.
+        #[arg(long)]
+        out: PathBuf,
+        /// Camera azimuth around the up axis, degrees.
+        #[arg(long, default_value_t = 30.0, allow_hyphen_values = true)]
+        azimuth: f32,
+        /// Camera elevation, degrees.
+        #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
+        elevation: f32,
+        /// Image size as WxH.
+        #[arg(long, default_value = "800x600")]
+        size: String,
+        /// Draw the wireframe over the shading.
+        #[arg(long)]
+        wireframe: bool,
+    },
+}
+
+/// Arguments of `meshmatch transfer`.
+#[derive(clap::Args, Debug)]
+pub struct TransferArgs {
+    /// Source mesh carrying the texture or vertex colours.
+    #[arg(long)]
+    pub source: PathBuf,
+    /// Texture image for the source (overrides the one its material names; needs UVs).
+    #[arg(long)]
+    pub source_texture: Option<PathBuf>,
+    /// Target mesh to texture.
+    #[arg(long)]
+    pub target: PathBuf,
+    /// Correspondences JSON (`{"correspondences": [{"source_vertex": i, "target_vertices": [j, ..]}]}`).
+    #[arg(long)]
+    pub correspondences: Option<PathBuf>,
+    /// Output: .ply (vertex colours), .glb (baked texture if the target has UVs, else COLOR_0), .obj (+MTL+PNG).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write the dense working-resolution target with its colours (.ply/.glb/.obj).
+    #[arg(long)]
+    pub out_dense: Option<PathBuf>,
+    /// Write the nearest-neighbour field as CSV: target_vertex,source_vertex,rotation_deg.
+    #[arg(long)]
+    pub nnf_out: Option<PathBuf>,
+    /// Working resolution (vertices per mesh; denser meshes are used as they are).
+    #[arg(long, default_value_t = 64_000)]
+    pub vertices: usize,
+    /// Number of hierarchy levels (default: down to about 128 vertices, at most 7).
+    #[arg(long)]
+    pub levels: Option<usize>,
+    /// EM iterations per level.
+    #[arg(long, default_value_t = 5)]
+    pub iterations: usize,
+    /// Random seed (runs with the same seed are identical).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Weight of shape features against colour (1 = equal).
+    #[arg(long, default_value_t = 1.0)]
+    pub shape_weight: f32,
+    /// Keep the filtered vote at the finest level instead of the nearest-neighbour copy.
+    #[arg(long)]
+    pub no_sharpen: bool,
+    /// Size of the baked texture (pixels per side) when the target has UVs.
+    #[arg(long, default_value_t = 1024)]
+    pub texture_size: u32,
+}
+
+/// Run the CLI; returns the process exit code.
+pub fn main() -> i32 {
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown".into());
+        let at = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
+        eprintln!("meshmatch: internal error: {msg}{at}");
+    }));
+    let cli = Cli::parse();
+    let res = std::panic::catch_unwind(|| run(cli));
+    match res {
+        Ok(Ok(code)) => code,
+        Ok(Err(e)) => {
+            eprintln!("meshmatch: {e}");
+            2
+        }
+        Err(_) => 2,
+    }
+}
+
+fn run(cli: Cli) -> Result<i32> {
+    match cli.command {
+        None => open_app(),
+        Some(Command::Info { files, json }) => Ok(info(&files, json)),
+        Some(Command::Convert { input, output }) => {
+            let mesh = io::load(&input)?;
+            mesh.check_usable()?;
+            io::save(&mesh, &output)?;
+            eprintln!("wrote {}", output.display());
+            Ok(0)
+        }
+        Some(Command::Demo { out }) => demo(&out),
+        Some(Command::Transfer(args)) => transfer(&args),
+        #[cfg(feature = "gui")]
+        Some(Command::Render { mesh, out, azimuth, elevation, size, wireframe }) => {
+            let (width, height) = parse_size(&size)?;
+            let m = io::load(&mesh)?;
+            m.check_usable()?;
+            let colors = m.vertex_signal();
+            let opts = crate::render::RenderOptions { azimuth_deg: azimuth, elevation_deg: elevation, width, height, wireframe };
+            crate::render::render_to_png(&m, colors.as_deref(), &opts, &out)?;
+            eprintln!("wrote {}", out.display());
+            Ok(0)
+        }
+    }
+}
+
+#[cfg(feature = "gui")]
+fn parse_size(s: &str) -> Result<(u32, u32)> {
+    let bad = || Error::InvalidInput(format!("--size {s}: expected WxH, e.g. 800x600"));
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    let (w, h): (u32, u32) = (w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?);
+    if w == 0 || h == 0 || w > 8192 || h > 8192 {
+        return Err(bad());
+    }
+    Ok((w, h))
+}
+
+#[cfg(feature = "gui")]
+fn open_app() -> Result<i32> {
+    crate::app::run(crate::app::Startup::default())?;
+    Ok(0)
+}
+
+#[cfg(not(feature = "gui"))]
+fn open_app() -> Result<i32> {
+    eprintln!("meshmatch was built without the `gui` feature; run `meshmatch --help` for the commands");
+    Ok(2)
+}
+
+/// The `info` report of one file as a JSON object.
+pub fn info_json(path: &Path) -> Result<serde_json::Value> {
+    let mesh = io::load(path)?;
+    let report = mesh.validate();
+    let mut repaired = mesh.clone();
+    let repairs = repaired.repair()?;
+    let (lo, hi) = mesh.bounds().unwrap_or(([0.0; 3], [0.0; 3]));
+    Ok(serde_json::json!({
+        "path": path.display().to_string(),
+        "vertices": mesh.file_vertex_count,
+        "faces": mesh.num_faces(),
+        "components": report.components,
+        "boundary_loops": report.boundary_loops,
+        "signal": mesh.signal_kind().as_str(),
+        "uvs": mesh.uvs.is_some(),
+        "normals": mesh.normals.is_some(),
+        "texture": mesh.texture.as_ref().map(|t| format!("{}x{}", t.image.width(), t.image.height())),
+        "bounds": {"min": lo, "max": hi},
+        "area": mesh.area(),
+        "non_manifold_edges": report.non_manifold_edges,
+        "non_manifold_vertices": report.non_manifold_vertices,
+        "degenerate_faces": report.degenerate_faces,
+        "duplicate_faces": report.duplicate_faces,
+        "isolated_vertices": report.isolated_vertices,
+        "non_finite_vertices": report.non_finite_vertices,
+        "repairs": repairs,
+        "repairs_summary": repairs.summary(),
+    }))
+}
+
+fn info(files: &[PathBuf], json: bool) -> i32 {
+    let mut code = 0;
+    for f in files {
+        match info_json(f) {
+            Ok(v) => {
+                if json {
+                    println!("{v}");
+                } else {
+                    print_info(&v);
+                }
+            }
+            Err(e) => {
+                eprintln!("meshmatch: {e}");
+                code = 2;
+            }
+        }
+    }
+    code
+}
+
+fn print_info(v: &serde_json::Value) {
+    let b = &v["bounds"];
+    println!("{}", v["path"].as_str().unwrap_or(""));
+    println!("  vertices        {}", v["vertices"]);
+    println!("  faces           {}", v["faces"]);
+    println!("  components      {}", v["components"]);
+    println!("  boundary loops  {}", v["boundary_loops"]);
+    println!("  bounds          {} .. {}", b["min"], b["max"]);
+    println!("  area            {:.6}", v["area"].as_f64().unwrap_or(0.0));
+    println!(
+        "  signal          {}{}",
+        v["signal"].as_str().unwrap_or(""),
+        v["texture"].as_str().map(|t| format!(" ({t})")).unwrap_or_default()
+    );
+    println!("  uvs / normals   {} / {}", v["uvs"], v["normals"]);
+    println!(
+        "  defects         {} non-manifold edges, {} non-manifold vertices, {} degenerate faces, {} duplicate faces, {} isolated vertices, {} non-finite vertices",
+        v["non_manifold_edges"], v["non_manifold_vertices"], v["degenerate_faces"], v["duplicate_faces"], v["isolated_vertices"], v["non_finite_vertices"]
+    );
+    println!("  repairs         {}", v["repairs_summary"].as_str().unwrap_or(""));
+}
+
+fn demo(out: &Path) -> Result<i32> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let t = std::time::Instant::now();
+    let scene = crate::demo::scene();
+    eprintln!("generated the demo scene in {:.2} s", t.elapsed().as_secs_f64());
+    for (name, mesh) in [("zebra", &scene.zebra), ("giraffe", &scene.giraffe), ("cerberus", &scene.cerberus), ("vase", &scene.vase)] {
+        let path = out.join(format!("{name}.glb"));
+        io::save(mesh, &path)?;
+        println!("{} ({} vertices, {} faces)", path.display(), mesh.num_vertices(), mesh.num_faces());
+    }
+    Ok(0)
+}
+
+fn load_usable(path: &Path) -> Result<TriMesh> {
+    let m = io::load(path)?;
+    m.check_usable()?;
+    Ok(m)
+}
+
+fn transfer(a: &TransferArgs) -> Result<i32> {
+    use crate::meshmatch::{self as mm, TransferParams};
+    for p in [Some(&a.out), a.out_dense.as_ref()].into_iter().flatten() {
+        let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+        if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
+            return Err(Error::InvalidInput(format!("{}: output must end in .ply, .glb or .obj", p.display())));
+        }
+    }
+    let mut source = load_usable(&a.source)?;
+    if let Some(tex) = &a.source_texture {
+        if source.uvs.is_none() {
+            return Err(Error::InvalidInput(format!("{}: --source-texture needs a source with UVs", a.source.display())));
+        }
+        source.texture = Some(std::sync::Arc::new(io::load_texture(tex)?));
+        source.colors = None;
+    }
+    if source.vertex_signal().is_none() {
+        return Err(Error::InvalidInput(format!(
+            "{}: the source carries no texture or vertex colours to transfer (use --source-texture)",
+            a.source.display()
+        )));
+    }
+    let target = load_usable(&a.target)?;
+    let corr = match &a.correspondences {
+        Some(p) => CorrespondenceFile::load(p)?.correspondences,
+        None => Vec::new(),
+    };
+    let params = TransferParams {
+        vertices: a.vertices,
+        levels: a.levels,
+        iterations: a.iterations,
+        seed: a.seed,
+        shape_weight: a.shape_weight,
+        sharpen: !a.no_sharpen,
+        ..TransferParams::default()
+    };
+    let bar = indicatif::ProgressBar::new(1000);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}")
+            .expect("valid template"),
+    );
+    let sink = |e: Event| match e {
+        Event::Progress(p) | Event::Partial { progress: p, .. } => {
+            bar.set_position((p.fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+            if p.iteration > 0 {
+                bar.set_message(format!("{} level {}/{} iteration {} energy {:.4}", p.stage, p.level, p.levels, p.iteration, p.energy));
+            } else {
+                bar.set_message(p.stage.to_string());
+            }
+        }
+        Event::StageTime(name, s) => bar.println(format!("  {name:<12} {s:8.3} s")),
+    };
+    let cancel = CancelToken::new();
+    let t = std::time::Instant::now();
+    let prepared_source = mm::prepare(&source, &params, &sink, &cancel)?;
+    let prepared_target = mm::prepare(&target, &params, &sink, &cancel)?;
+    let result = mm::solve(&prepared_source, &prepared_target, &corr, &params, &sink, &cancel)?;
+    bar.finish_and_clear();
+    eprintln!("transfer finished in {:.2} s (energy {:.4})", t.elapsed().as_secs_f64(), result.energy);
+    for (name, s) in &result.timings {
+        eprintln!("  {name:<12} {s:8.3} s");
+    }
+
+    // Deliver on the target's own vertices (file order), or baked into its UV layout.
+    let mut out_mesh = target.clone();
+    out_mesh.colors = Some(result.file_signal.clone());
+    out_mesh.texture = None;
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if ext != "ply" && target.uvs.is_some() {
+        let img = mm::bake_texture(&target, &prepared_target, &result.working_signal, a.texture_size);
+        out_mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture { image: img, path: None }));
+        if ext == "glb" {
+            out_mesh.colors = None;
+        }
+    }
+    io::save(&out_mesh, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
+    if let Some(dense) = &a.out_dense {
+        let mut d = prepared_target.working_mesh().clone();
+        d.colors = Some(result.working_signal.clone());
+        d.texture = None;
+        d.uvs = None;
+        io::save(&d, dense)?;
+        eprintln!("wrote {}", dense.display());
+    }
+    if let Some(nnf) = &a.nnf_out {
+        let mut csv = String::from("target_vertex,source_vertex,rotation_deg\n");
+        for (t, (s, r)) in result.file_nnf.iter().enumerate() {
+            csv.push_str(&format!("{t},{s},{r}\n"));
+        }
+        io::write_atomic(nnf, csv.as_bytes())?;
+        eprintln!("wrote {}", nnf.display());
+    }
+    Ok(0)
+}
