@@ -71,14 +71,12 @@ fn read_uri(uri: &str, path: &Path) -> Result<Vec<u8>> {
             format!("external URI '{}' is not supported", clip(uri)),
         ));
     }
-    let file = path
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join(percent_decode(uri));
+    let name = percent_decode(uri);
+    let file = path.parent().unwrap_or(Path::new(".")).join(&name);
     std::fs::read(&file).map_err(|e| {
         Error::format(
             path,
-            format!("cannot read buffer/image '{}': {e}", clip(uri)),
+            format!("cannot read buffer/image '{}': {e}", clip(&name)),
         )
     })
 }
