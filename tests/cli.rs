@@ -1,0 +1,113 @@
+//! End-to-end tests of the `meshmatch` command line: `info` on every shared mesh, bad inputs,
+//! `convert`, `demo`.
+
+use meshmatch::testdata::data_path;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_meshmatch"))
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("meshmatch-cli-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn info_json(path: &Path) -> serde_json::Value {
+    let out = bin().arg("info").arg("--json").arg(path).output().unwrap();
+    assert!(out.status.success(), "info failed on {}: {}", path.display(), String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 1, "one JSON line per file");
+    serde_json::from_str(lines[0]).unwrap()
+}
+
+#[test]
+fn info_reports_documented_counts_for_every_shared_mesh() {
+    // (file, vertices, signal, triangles)
+    let cases = [
+        ("spot/spot.obj", 2930, "texture", 5856),
+        ("cow/cow.ply", 2903, "none", 5804),
+        ("robustness/cow_tristrips.ply", 2903, "none", 5804),
+        ("horse/horse.ply", 48485, "none", 96966),
+        ("igea/igea.ply", 134345, "none", 268686),
+        ("nefertiti/nefertiti.obj", 49971, "none", 99938),
+        ("cat/cat.obj", 7949, "none", 15894),
+        ("human/human_man.obj", 6890, "none", 13776),
+        ("human/human_woman.obj", 6890, "none", 13776),
+        ("bunny/bunny.obj", 3301, "none", 6598),
+        ("penguin/penguin.obj", 3362, "none", 6720),
+    ];
+    for (rel, nv, signal, nf) in cases {
+        let v = info_json(&data_path(rel));
+        assert_eq!(v["vertices"], nv, "{rel}");
+        assert_eq!(v["signal"], signal, "{rel}");
+        assert_eq!(v["faces"], nf, "{rel}");
+        assert!(v["components"].as_u64().unwrap() >= 1, "{rel}");
+        assert!(v["boundary_loops"].is_u64(), "{rel}");
+        assert!(v["repairs"].is_object(), "{rel}");
+        assert_eq!(v["path"], data_path(rel).display().to_string());
+    }
+    // Closed, single-piece meshes.
+    for rel in ["spot/spot.obj", "cow/cow.ply", "bunny/bunny.obj"] {
+        let v = info_json(&data_path(rel));
+        assert_eq!(v["components"], 1, "{rel}");
+        assert_eq!(v["boundary_loops"], 0, "{rel}");
+    }
+}
+
+fn expect_clean_failure(args: &[&std::ffi::OsStr], mention: &str) {
+    let out = bin().args(args).output().unwrap();
+    assert_eq!(out.status.code(), Some(2), "exit code for {args:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "one-line message, got: {err}");
+    assert!(err.contains(mention), "message should name {mention}: {err}");
+    assert!(!err.contains("panicked") && !err.contains("internal error"), "no panic: {err}");
+}
+
+#[test]
+fn bad_inputs_give_one_line_errors_and_exit_code_2() {
+    let d = tmpdir("bad");
+    let empty = d.join("empty.obj");
+    std::fs::write(&empty, b"").unwrap();
+    let png_as_obj = d.join("image.obj");
+    std::fs::copy(data_path("spot/spot_texture.png"), &png_as_obj).unwrap();
+    let bad_index = d.join("bad_index.obj");
+    std::fs::write(&bad_index, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap();
+    let nan = d.join("nan.obj");
+    std::fs::write(&nan, "v nan nan nan\nv inf 0 0\nv 0 nan 0\nf 1 2 3\n").unwrap();
+    let horse = std::fs::read(data_path("horse/horse.ply")).unwrap();
+    let trunc = d.join("truncated.ply");
+    std::fs::write(&trunc, &horse[..horse.len() / 2]).unwrap();
+    let missing = d.join("does_not_exist.ply");
+    for p in [&empty, &png_as_obj, &bad_index, &nan, &trunc, &missing] {
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        expect_clean_failure(&["info".as_ref(), p.as_os_str()], &name);
+        expect_clean_failure(&["convert".as_ref(), p.as_os_str(), d.join("out.ply").as_os_str()], &name);
+    }
+    // A bad file among good ones: the good one still prints, exit code 2.
+    let out = bin().args(["info", "--json"]).arg(data_path("cow/cow.ply")).arg(&empty).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 1);
+}
+
+#[test]
+fn convert_keeps_counts_across_formats() {
+    let d = tmpdir("convert");
+    for ext in ["ply", "obj", "glb"] {
+        let out = d.join(format!("spot.{ext}"));
+        let st = bin().arg("convert").arg(data_path("spot/spot.obj")).arg(&out).status().unwrap();
+        assert!(st.success());
+        let v = info_json(&out);
+        assert_eq!(v["faces"], 5856, "{ext}");
+        assert_eq!(v["signal"], "texture", "{ext}");
+        if ext != "glb" {
+            assert_eq!(v["vertices"], 2930, "{ext}");
+        } else {
+            // GLB splits UV seams; the file's first 2930 vertices are Spot's, seam copies follow.
+            assert!(v["vertices"].as_u64().unwrap() >= 2930);
+        }
+    }
+}
