@@ -4,8 +4,10 @@
 
 mod basic;
 mod eigen;
+mod heat;
 mod laplacian;
 
 pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, vertex_normals, weld};
 pub use eigen::{hks, hks_times, laplacian_eigen};
+pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
