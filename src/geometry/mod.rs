@@ -3,11 +3,15 @@
 //! BVH, working-resolution refinement and Taubin smoothing.
 
 mod basic;
+mod bvh;
 mod eigen;
+mod frames;
 mod heat;
 mod laplacian;
 
 pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, vertex_normals, weld};
+pub use bvh::TriangleBvh;
 pub use eigen::{hks, hks_times, laplacian_eigen};
+pub use frames::{parallel_transport_angle, tangent_frames};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
