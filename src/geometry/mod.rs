@@ -8,6 +8,7 @@ mod eigen;
 mod frames;
 mod heat;
 mod laplacian;
+mod refine;
 
 pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, vertex_normals, weld};
 pub use bvh::TriangleBvh;
@@ -15,3 +16,4 @@ pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use frames::{parallel_transport_angle, tangent_frames};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
+pub use refine::{Refined, nearest_original, refine_to_density};
