@@ -32,6 +32,38 @@ impl Default for GlbOptions {
 /// Most nested nodes followed (guards against cyclic or absurdly deep node graphs).
 const MAX_NODE_DEPTH: usize = 64;
 
+/// Validate every index of the document (so the `gltf` wrappers cannot panic) while tolerating
+/// a missing POSITION `min`/`max`, which the loader does not need.
+fn validate(root: &gltf::json::Root, path: &Path) -> Result<()> {
+    use gltf::json::validation::Validate;
+    // gltf-json 1.4's POSITION min/max check indexes `accessors` unchecked: check it first.
+    for (mi, m) in root.meshes.iter().enumerate() {
+        for p in &m.primitives {
+            if p.attributes.values().any(|a| a.value() >= root.accessors.len()) {
+                return Err(Error::format(
+                    path,
+                    format!("invalid glTF: mesh {mi} refers to a missing accessor"),
+                ));
+            }
+        }
+    }
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |p, e| {
+        let p = p();
+        let s = p.as_str();
+        if !(s.contains("POSITION") && (s.ends_with(".min") || s.ends_with(".max"))) {
+            errors.push(format!("{s}: {e}"));
+        }
+    });
+    match errors.first() {
+        None => Ok(()),
+        Some(e) => Err(Error::format(
+            path,
+            format!("invalid glTF: {}", clip(e)),
+        )),
+    }
+}
+
 /// Decode a `%XX`-escaped relative URI.
 fn percent_decode(s: &str) -> String {
     let b = s.as_bytes();
@@ -259,8 +291,9 @@ struct Acc {
 /// converted to triangles.
 pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     check_content(bytes, super::MeshFormat::Glb, path)?;
-    let gltf = gltf::Gltf::from_slice(bytes)
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| Error::format(path, format!("invalid glTF: {e}")))?;
+    validate(gltf.document.as_json(), path)?;
     let doc = &gltf.document;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for b in doc.buffers() {
