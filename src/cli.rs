@@ -1,7 +1,7 @@
 //! The command-line interface: `meshmatch [COMMAND]`. No command opens the app.
 
 use crate::jobs::{CancelToken, CorrespondenceFile, Event};
-use crate::mesh::{io, TriMesh};
+use crate::mesh::{TriMesh, io};
 use crate::{Error, Result};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -121,7 +121,10 @@ pub fn main() -> i32 {
             .map(|s| s.to_string())
             .or_else(|| info.payload().downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "unknown".into());
-        let at = info.location().map(|l| format!(" at {}:{}", l.file(), l.line())).unwrap_or_default();
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
         eprintln!("meshmatch: internal error: {msg}{at}");
     }));
     let cli = Cli::parse();
@@ -150,12 +153,25 @@ fn run(cli: Cli) -> Result<i32> {
         Some(Command::Demo { out }) => demo(&out),
         Some(Command::Transfer(args)) => transfer(&args),
         #[cfg(feature = "gui")]
-        Some(Command::Render { mesh, out, azimuth, elevation, size, wireframe }) => {
+        Some(Command::Render {
+            mesh,
+            out,
+            azimuth,
+            elevation,
+            size,
+            wireframe,
+        }) => {
             let (width, height) = parse_size(&size)?;
             let m = io::load(&mesh)?;
             m.check_usable()?;
             let colors = m.vertex_signal();
-            let opts = crate::render::RenderOptions { azimuth_deg: azimuth, elevation_deg: elevation, width, height, wireframe };
+            let opts = crate::render::RenderOptions {
+                azimuth_deg: azimuth,
+                elevation_deg: elevation,
+                width,
+                height,
+                wireframe,
+            };
             crate::render::render_to_png(&m, colors.as_deref(), &opts, &out)?;
             eprintln!("wrote {}", out.display());
             Ok(0)
@@ -167,7 +183,10 @@ fn run(cli: Cli) -> Result<i32> {
 fn parse_size(s: &str) -> Result<(u32, u32)> {
     let bad = || Error::InvalidInput(format!("--size {s}: expected WxH, e.g. 800x600"));
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
-    let (w, h): (u32, u32) = (w.trim().parse().map_err(|_| bad())?, h.trim().parse().map_err(|_| bad())?);
+    let (w, h): (u32, u32) = (
+        w.trim().parse().map_err(|_| bad())?,
+        h.trim().parse().map_err(|_| bad())?,
+    );
     if w == 0 || h == 0 || w > 8192 || h > 8192 {
         return Err(bad());
     }
@@ -182,7 +201,9 @@ fn open_app() -> Result<i32> {
 
 #[cfg(not(feature = "gui"))]
 fn open_app() -> Result<i32> {
-    eprintln!("meshmatch was built without the `gui` feature; run `meshmatch --help` for the commands");
+    eprintln!(
+        "meshmatch was built without the `gui` feature; run `meshmatch --help` for the commands"
+    );
     Ok(2)
 }
 
@@ -248,25 +269,49 @@ fn print_info(v: &serde_json::Value) {
     println!(
         "  signal          {}{}",
         v["signal"].as_str().unwrap_or(""),
-        v["texture"].as_str().map(|t| format!(" ({t})")).unwrap_or_default()
+        v["texture"]
+            .as_str()
+            .map(|t| format!(" ({t})"))
+            .unwrap_or_default()
     );
     println!("  uvs / normals   {} / {}", v["uvs"], v["normals"]);
     println!(
         "  defects         {} non-manifold edges, {} non-manifold vertices, {} degenerate faces, {} duplicate faces, {} isolated vertices, {} non-finite vertices",
-        v["non_manifold_edges"], v["non_manifold_vertices"], v["degenerate_faces"], v["duplicate_faces"], v["isolated_vertices"], v["non_finite_vertices"]
+        v["non_manifold_edges"],
+        v["non_manifold_vertices"],
+        v["degenerate_faces"],
+        v["duplicate_faces"],
+        v["isolated_vertices"],
+        v["non_finite_vertices"]
     );
-    println!("  repairs         {}", v["repairs_summary"].as_str().unwrap_or(""));
+    println!(
+        "  repairs         {}",
+        v["repairs_summary"].as_str().unwrap_or("")
+    );
 }
 
 fn demo(out: &Path) -> Result<i32> {
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let t = std::time::Instant::now();
     let scene = crate::demo::scene();
-    eprintln!("generated the demo scene in {:.2} s", t.elapsed().as_secs_f64());
-    for (name, mesh) in [("zebra", &scene.zebra), ("giraffe", &scene.giraffe), ("cerberus", &scene.cerberus), ("vase", &scene.vase)] {
+    eprintln!(
+        "generated the demo scene in {:.2} s",
+        t.elapsed().as_secs_f64()
+    );
+    for (name, mesh) in [
+        ("zebra", &scene.zebra),
+        ("giraffe", &scene.giraffe),
+        ("cerberus", &scene.cerberus),
+        ("vase", &scene.vase),
+    ] {
         let path = out.join(format!("{name}.glb"));
         io::save(mesh, &path)?;
-        println!("{} ({} vertices, {} faces)", path.display(), mesh.num_vertices(), mesh.num_faces());
+        println!(
+            "{} ({} vertices, {} faces)",
+            path.display(),
+            mesh.num_vertices(),
+            mesh.num_faces()
+        );
     }
     Ok(0)
 }
@@ -277,98 +322,8 @@ fn load_usable(path: &Path) -> Result<TriMesh> {
     Ok(m)
 }
 
-fn transfer(a: &TransferArgs) -> Result<i32> {
-    use crate::meshmatch::{self as mm, TransferParams};
-    for p in [Some(&a.out), a.out_dense.as_ref()].into_iter().flatten() {
-        let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
-        if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
-            return Err(Error::InvalidInput(format!("{}: output must end in .ply, .glb or .obj", p.display())));
-        }
-    }
-    let mut source = load_usable(&a.source)?;
-    if let Some(tex) = &a.source_texture {
-        if source.uvs.is_none() {
-            return Err(Error::InvalidInput(format!("{}: --source-texture needs a source with UVs", a.source.display())));
-        }
-        source.texture = Some(std::sync::Arc::new(io::load_texture(tex)?));
-        source.colors = None;
-    }
-    if source.vertex_signal().is_none() {
-        return Err(Error::InvalidInput(format!(
-            "{}: the source carries no texture or vertex colours to transfer (use --source-texture)",
-            a.source.display()
-        )));
-    }
-    let target = load_usable(&a.target)?;
-    let corr = match &a.correspondences {
-        Some(p) => CorrespondenceFile::load(p)?.correspondences,
-        None => Vec::new(),
-    };
-    let params = TransferParams {
-        vertices: a.vertices,
-        levels: a.levels,
-        iterations: a.iterations,
-        seed: a.seed,
-        shape_weight: a.shape_weight,
-        sharpen: !a.no_sharpen,
-        ..TransferParams::default()
-    };
-    let bar = indicatif::ProgressBar::new(1000);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}")
-            .expect("valid template"),
-    );
-    let sink = |e: Event| match e {
-        Event::Progress(p) | Event::Partial { progress: p, .. } => {
-            bar.set_position((p.fraction.clamp(0.0, 1.0) * 1000.0) as u64);
-            if p.iteration > 0 {
-                bar.set_message(format!("{} level {}/{} iteration {} energy {:.4}", p.stage, p.level, p.levels, p.iteration, p.energy));
-            } else {
-                bar.set_message(p.stage.to_string());
-            }
-        }
-        Event::StageTime(name, s) => bar.println(format!("  {name:<12} {s:8.3} s")),
-    };
-    let cancel = CancelToken::new();
-    let t = std::time::Instant::now();
-    let prepared_source = mm::prepare(&source, &params, &sink, &cancel)?;
-    let prepared_target = mm::prepare(&target, &params, &sink, &cancel)?;
-    let result = mm::solve(&prepared_source, &prepared_target, &corr, &params, &sink, &cancel)?;
-    bar.finish_and_clear();
-    eprintln!("transfer finished in {:.2} s (energy {:.4})", t.elapsed().as_secs_f64(), result.energy);
-    for (name, s) in &result.timings {
-        eprintln!("  {name:<12} {s:8.3} s");
-    }
-
-    // Deliver on the target's own vertices (file order), or baked into its UV layout.
-    let mut out_mesh = target.clone();
-    out_mesh.colors = Some(result.file_signal.clone());
-    out_mesh.texture = None;
-    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    if ext != "ply" && target.uvs.is_some() {
-        let img = mm::bake_texture(&target, &prepared_target, &result.working_signal, a.texture_size);
-        out_mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture { image: img, path: None }));
-        if ext == "glb" {
-            out_mesh.colors = None;
-        }
-    }
-    io::save(&out_mesh, &a.out)?;
-    eprintln!("wrote {}", a.out.display());
-    if let Some(dense) = &a.out_dense {
-        let mut d = prepared_target.working_mesh().clone();
-        d.colors = Some(result.working_signal.clone());
-        d.texture = None;
-        d.uvs = None;
-        io::save(&d, dense)?;
-        eprintln!("wrote {}", dense.display());
-    }
-    if let Some(nnf) = &a.nnf_out {
-        let mut csv = String::from("target_vertex,source_vertex,rotation_deg\n");
-        for (t, (s, r)) in result.file_nnf.iter().enumerate() {
-            csv.push_str(&format!("{t},{s},{r}\n"));
-        }
-        io::write_atomic(nnf, csv.as_bytes())?;
-        eprintln!("wrote {}", nnf.display());
-    }
-    Ok(0)
+fn transfer(_a: &TransferArgs) -> Result<i32> {
+    Err(Error::InvalidInput(
+        "transfer: engine not merged yet".into(),
+    ))
 }

@@ -17,7 +17,12 @@ fn tmpdir(name: &str) -> PathBuf {
 
 fn info_json(path: &Path) -> serde_json::Value {
     let out = bin().arg("info").arg("--json").arg(path).output().unwrap();
-    assert!(out.status.success(), "info failed on {}: {}", path.display(), String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "info failed on {}: {}",
+        path.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines.len(), 1, "one JSON line per file");
@@ -62,9 +67,19 @@ fn expect_clean_failure(args: &[&std::ffi::OsStr], mention: &str) {
     let out = bin().args(args).output().unwrap();
     assert_eq!(out.status.code(), Some(2), "exit code for {args:?}");
     let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(err.trim_end().lines().count(), 1, "one-line message, got: {err}");
-    assert!(err.contains(mention), "message should name {mention}: {err}");
-    assert!(!err.contains("panicked") && !err.contains("internal error"), "no panic: {err}");
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "one-line message, got: {err}"
+    );
+    assert!(
+        err.contains(mention),
+        "message should name {mention}: {err}"
+    );
+    assert!(
+        !err.contains("panicked") && !err.contains("internal error"),
+        "no panic: {err}"
+    );
 }
 
 #[test]
@@ -85,10 +100,22 @@ fn bad_inputs_give_one_line_errors_and_exit_code_2() {
     for p in [&empty, &png_as_obj, &bad_index, &nan, &trunc, &missing] {
         let name = p.file_name().unwrap().to_string_lossy().into_owned();
         expect_clean_failure(&["info".as_ref(), p.as_os_str()], &name);
-        expect_clean_failure(&["convert".as_ref(), p.as_os_str(), d.join("out.ply").as_os_str()], &name);
+        expect_clean_failure(
+            &[
+                "convert".as_ref(),
+                p.as_os_str(),
+                d.join("out.ply").as_os_str(),
+            ],
+            &name,
+        );
     }
     // A bad file among good ones: the good one still prints, exit code 2.
-    let out = bin().args(["info", "--json"]).arg(data_path("cow/cow.ply")).arg(&empty).output().unwrap();
+    let out = bin()
+        .args(["info", "--json"])
+        .arg(data_path("cow/cow.ply"))
+        .arg(&empty)
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 1);
 }
@@ -98,7 +125,12 @@ fn convert_keeps_counts_across_formats() {
     let d = tmpdir("convert");
     for ext in ["ply", "obj", "glb"] {
         let out = d.join(format!("spot.{ext}"));
-        let st = bin().arg("convert").arg(data_path("spot/spot.obj")).arg(&out).status().unwrap();
+        let st = bin()
+            .arg("convert")
+            .arg(data_path("spot/spot.obj"))
+            .arg(&out)
+            .status()
+            .unwrap();
         assert!(st.success());
         let v = info_json(&out);
         assert_eq!(v["faces"], 5856, "{ext}");

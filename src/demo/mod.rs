@@ -76,7 +76,9 @@ pub fn vertex_normals(mesh: &TriMesh) -> Vec<[f32; 3]> {
             acc[v as usize] += n;
         }
     }
-    acc.iter().map(|n| n.normalize_or(Vec3::Y).to_array()).collect()
+    acc.iter()
+        .map(|n| n.normalize_or(Vec3::Y).to_array())
+        .collect()
 }
 
 /// Mean edge length (used as the antialiasing width of painted patterns).
