@@ -2,14 +2,14 @@
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
+use faer::sparse::SparseColMat;
 use faer::sparse::linalg::solvers::Llt;
-use faer::sparse::{SparseColMat, Triplet};
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
-use super::laplacian::{check_faces, cotan_triplets, mass_matrix_voronoi};
+use super::laplacian::{LaplacePattern, check_faces, cotan_triplets, mass_matrix_voronoi};
 use crate::{Error, Result};
 
 /// Reduced systems up to this size are solved densely.
@@ -276,18 +276,17 @@ fn krylov_eigen(
         )));
     }
 
-    let mut trip: Vec<Triplet<usize, usize, f64>> = Vec::with_capacity(faces.len() * 12 + nr);
-    cotan_triplets(pos, faces, 1.0, &mut trip);
-    let lmat = SparseColMat::try_new_from_triplets(nr, nr, &trip)
-        .map_err(|e| Error::InvalidMesh(format!("Laplacian assembly failed: {e:?}")))?;
-    let trace_l: f64 = trip.iter().filter(|t| t.row == t.col).map(|t| t.val).sum();
+    let pat = LaplacePattern::new(nr, faces);
+    let lval = pat.cotan_values(pos, faces);
+    let trace_l: f64 = pat.diag.iter().map(|&d| lval[d]).sum();
     let trace_m: f64 = mass.iter().sum();
     let sigma = 1e-6 * trace_l / trace_m;
+    let mut kval = lval.clone();
     for (r, &m) in mass.iter().enumerate() {
-        trip.push(Triplet::new(r, r, sigma * m));
+        kval[pat.diag[r]] += sigma * m;
     }
-    let kmat = SparseColMat::try_new_from_triplets(nr, nr, &trip)
-        .map_err(|e| Error::InvalidMesh(format!("Laplacian assembly failed: {e:?}")))?;
+    let lmat = pat.matrix(lval);
+    let kmat = pat.matrix(kval);
     let llt: Llt<usize, f64> = kmat
         .sp_cholesky(Side::Lower)
         .map_err(|e| Error::InvalidMesh(format!("sparse Cholesky of L + σM failed: {e:?}")))?;

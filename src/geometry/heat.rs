@@ -2,13 +2,12 @@
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMat, Triplet};
 use faer::{MatMut, Side};
 use glam::DVec3;
 use rayon::prelude::*;
 
 use super::basic::{d3, mean_edge_length};
-use super::laplacian::{check_faces, cotan_triplets, mass_matrix_voronoi};
+use super::laplacian::{LaplacePattern, check_faces, mass_matrix_voronoi};
 use crate::{Error, Result};
 
 /// Geodesic distances by the heat method, prepared once per mesh and reusable for any number of
@@ -76,31 +75,32 @@ impl HeatGeodesics {
                 (0.5 * a2, g)
             })
             .collect();
-        let mut ltrip: Vec<Triplet<usize, usize, f64>> = Vec::with_capacity(faces.len() * 12);
-        cotan_triplets(positions, &faces, 1.0, &mut ltrip);
-        let trace_l: f64 = ltrip.iter().filter(|t| t.row == t.col).map(|t| t.val).sum();
+        let pat = LaplacePattern::new(n, &faces);
+        let lval = pat.cotan_values(positions, &faces);
+        let trace_l: f64 = pat.diag.iter().map(|&d| lval[d]).sum();
         let trace_m: f64 = mass.iter().sum();
         let eps = 1e-10 * trace_l / trace_m;
         let build = |lscale: f64, mscale: f64| {
-            let mut trip: Vec<Triplet<usize, usize, f64>> = ltrip
-                .iter()
-                .map(|tr| Triplet::new(tr.row, tr.col, tr.val * lscale))
-                .collect();
+            let mut val: Vec<f64> = lval.iter().map(|&x| x * lscale).collect();
             for (i, &m) in mass.iter().enumerate() {
                 // vertices in no face keep an identity row so the system stays definite
-                trip.push(Triplet::new(i, i, if m > 0.0 { m * mscale } else { 1.0 }));
+                val[pat.diag[i]] += if m > 0.0 { m * mscale } else { 1.0 };
             }
-            SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip)
-                .map_err(|e| Error::InvalidMesh(format!("operator assembly failed: {e:?}")))
+            pat.matrix(val)
         };
-        let heat_mat = build(t, 1.0)?;
-        let poisson_mat = build(1.0, eps)?;
+        let heat_mat = build(t, 1.0);
+        let poisson_mat = build(1.0, eps);
         let sym = SymbolicLlt::try_new(heat_mat.symbolic(), Side::Lower)
             .map_err(|e| Error::InvalidMesh(format!("symbolic Cholesky failed: {e:?}")))?;
-        let heat = Llt::try_new_with_symbolic(sym.clone(), heat_mat.as_ref(), Side::Lower)
-            .map_err(|e| Error::InvalidMesh(format!("Cholesky of M + tL failed: {e:?}")))?;
-        let poisson = Llt::try_new_with_symbolic(sym, poisson_mat.as_ref(), Side::Lower)
-            .map_err(|e| Error::InvalidMesh(format!("Cholesky of L + εM failed: {e:?}")))?;
+        // the two numeric factorisations are independent
+        let (heat, poisson) = rayon::join(
+            || Llt::try_new_with_symbolic(sym.clone(), heat_mat.as_ref(), Side::Lower),
+            || Llt::try_new_with_symbolic(sym.clone(), poisson_mat.as_ref(), Side::Lower),
+        );
+        let heat =
+            heat.map_err(|e| Error::InvalidMesh(format!("Cholesky of M + tL failed: {e:?}")))?;
+        let poisson =
+            poisson.map_err(|e| Error::InvalidMesh(format!("Cholesky of L + εM failed: {e:?}")))?;
         let (label, ncomp) = crate::mesh::connected_components(n, &faces);
         let ncomp = ncomp.max(label.iter().map(|&l| l as usize + 1).max().unwrap_or(0));
         Ok(HeatGeodesics {
