@@ -96,7 +96,8 @@ pub fn laplacian_eigen(
     let (label, ncomp) = crate::mesh::connected_components(nr, &rfaces);
     let ncomp = ncomp.max(label.iter().map(|&l| l as usize + 1).max().unwrap_or(0));
 
-    let (vals, vecs) = if nr <= DENSE_MAX {
+    // dense when small, or when nearly the whole spectrum is asked for (Krylov gains nothing)
+    let (vals, vecs) = if nr <= DENSE_MAX || (4 * k >= nr && nr <= 4000) {
         dense_eigen(&rpos, &rfaces, &mass, k)?
     } else {
         krylov_eigen(&rpos, &rfaces, &mass, &label, ncomp, k)?
