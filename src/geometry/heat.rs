@@ -221,5 +221,29 @@ mod tests {
             d2[c as usize]
         );
         assert!(hg.distance(&[]).iter().all(|x| x.is_infinite()));
+
+        // a second, disjoint copy: unreachable from a source in the first
+        let nv = pos.len() as u32;
+        let mut pos2 = pos.clone();
+        pos2.extend(pos.iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
+        let mut faces2 = faces.clone();
+        faces2.extend(faces.iter().map(|f| f.map(|v| v + nv)));
+        let hg2 = HeatGeodesics::new(&pos2, &faces2).unwrap();
+        let d3 = hg2.distance(&[c, nv + c, 10 * nv]);
+        assert!(
+            d3[..nv as usize]
+                .iter()
+                .zip(&d)
+                .all(|(a, b)| (a - b).abs() < 1e-6)
+        );
+        assert!(
+            d3[nv as usize..]
+                .iter()
+                .zip(&d)
+                .all(|(a, b)| (a - b).abs() < 1e-6)
+        );
+        let d4 = hg2.distance(&[c]);
+        assert!(d4[nv as usize..].iter().all(|x| x.is_infinite()));
+        assert!(HeatGeodesics::new(&pos, &[[0, 1, 99_999]]).is_err());
     }
 }
