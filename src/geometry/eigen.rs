@@ -33,8 +33,10 @@ pub(crate) fn spmv(a: &SparseColMat<usize, f64>, x: &[f64], y: &mut [f64]) {
     }
 }
 
+/// The dense kernels here are small (a few hundred columns): sequential code avoids rayon
+/// hand-off costs and lets callers run several eigen-solves in parallel.
 fn par() -> Par {
-    faer::get_global_parallelism()
+    Par::Seq
 }
 
 /// Smallest `k` eigenpairs of the generalized problem `L φ = λ M φ` with `L` the cotan stiffness
