@@ -126,6 +126,11 @@ impl HeatGeodesics {
         self.t
     }
 
+    /// [`HeatGeodesics::distance`] for many source sets at once, in parallel.
+    pub fn distances(&self, source_sets: &[Vec<u32>]) -> Vec<Vec<f64>> {
+        source_sets.par_iter().map(|s| self.distance(s)).collect()
+    }
+
     /// Distance from every vertex to the nearest of `sources`, shifted per connected component
     /// so that the smallest value over the component's sources is 0. Vertices in components
     /// without a source (or in no face) get `f64::INFINITY`; out-of-range sources are ignored.
@@ -242,7 +247,12 @@ mod tests {
                 .zip(&d)
                 .all(|(a, b)| (a - b).abs() < 1e-6)
         );
+        let batch = hg2.distances(&[vec![c], vec![c, nv + c, 10 * nv]]);
+        let close =
+            |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x == y || (x - y).abs() < 1e-9);
+        assert!(close(&batch[1], &d3));
         let d4 = hg2.distance(&[c]);
+        assert!(close(&batch[0], &d4));
         assert!(d4[nv as usize..].iter().all(|x| x.is_infinite()));
         assert!(HeatGeodesics::new(&pos, &[[0, 1, 99_999]]).is_err());
     }
