@@ -184,8 +184,8 @@ fn weld_matches_reference_counts_and_area() {
         println!("{}: area {area:.6} (reference {ra:.6})", c.name);
         assert!((area - ra).abs() / ra < 1e-6, "{}", c.name);
         let v0 = f64s(&c.r["vertex0_position"]);
-        for k in 0..3 {
-            assert!((m.positions[0][k] as f64 - v0[k]).abs() < 1e-5);
+        for (x, r) in m.positions[0].iter().zip(&v0) {
+            assert!((*x as f64 - r).abs() < 1e-5);
         }
         let mv: f64 = mass_matrix_voronoi(&m.positions, &m.faces).iter().sum();
         assert!((mv - ra).abs() / ra < 1e-6, "Voronoi mass sums to the area");

@@ -134,23 +134,19 @@ pub fn vertex_normals(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<[f32; 3
 
 /// Mean length of the mesh's undirected edges (each interior edge counted once; 0 without faces).
 pub fn mean_edge_length(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> f32 {
-    // every face contributes its three edges; an interior edge is seen twice, a boundary edge
-    // once, so weight each half-edge by 1/(number of faces using it).
-    let mut count: HashMap<(u32, u32), u32> = HashMap::with_capacity(faces.len() * 2);
-    for f in faces {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+    let adj = crate::mesh::vertex_adjacency(positions.len(), faces);
+    let (mut sum, mut count) = (0.0f64, 0usize);
+    for i in 0..adj.len() {
+        for &j in adj.row(i).iter().filter(|&&j| j as usize > i) {
+            sum += d3(positions[i]).distance(d3(positions[j as usize]));
+            count += 1;
         }
     }
-    if count.is_empty() {
-        return 0.0;
+    if count == 0 {
+        0.0
+    } else {
+        (sum / count as f64) as f32
     }
-    let sum: f64 = count
-        .keys()
-        .map(|&(a, b)| d3(positions[a as usize]).distance(d3(positions[b as usize])))
-        .sum();
-    (sum / count.len() as f64) as f32
 }
 
 /// Taubin λ|μ smoothing (Taubin 1995, "A signal processing approach to fair surface design"):

@@ -2,20 +2,20 @@
 
 use faer::linalg::matmul::matmul;
 use faer::linalg::solvers::Solve;
+use faer::sparse::SparseColMat;
 use faer::sparse::linalg::solvers::Llt;
-use faer::sparse::{SparseColMat, Triplet};
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
-use super::laplacian::{check_faces, cotan_triplets, mass_matrix_voronoi};
+use super::laplacian::{LaplacePattern, check_faces, cotan_triplets, mass_matrix_voronoi};
 use crate::{Error, Result};
 
 /// Reduced systems up to this size are solved densely.
 const DENSE_MAX: usize = 400;
 /// Relative residual `|L x - λ M x| / (λ |M x|)` every returned Ritz pair must reach.
-const RESIDUAL_TOL: f64 = 1e-6;
+const RESIDUAL_TOL: f64 = 2e-5;
 
 /// `y = A x` for a CSC matrix.
 pub(crate) fn spmv(a: &SparseColMat<usize, f64>, x: &[f64], y: &mut [f64]) {
@@ -33,8 +33,10 @@ pub(crate) fn spmv(a: &SparseColMat<usize, f64>, x: &[f64], y: &mut [f64]) {
     }
 }
 
+/// The dense kernels here are small (a few hundred columns): sequential code avoids rayon
+/// hand-off costs and lets callers run several eigen-solves in parallel.
 fn par() -> Par {
-    faer::get_global_parallelism()
+    Par::Seq
 }
 
 /// Smallest `k` eigenpairs of the generalized problem `L φ = λ M φ` with `L` the cotan stiffness
@@ -96,7 +98,8 @@ pub fn laplacian_eigen(
     let (label, ncomp) = crate::mesh::connected_components(nr, &rfaces);
     let ncomp = ncomp.max(label.iter().map(|&l| l as usize + 1).max().unwrap_or(0));
 
-    let (vals, vecs) = if nr <= DENSE_MAX {
+    // dense when small, or when nearly the whole spectrum is asked for (Krylov gains nothing)
+    let (vals, vecs) = if nr <= DENSE_MAX || (4 * k >= nr && nr <= 4000) {
         dense_eigen(&rpos, &rfaces, &mass, k)?
     } else {
         krylov_eigen(&rpos, &rfaces, &mass, &label, ncomp, k)?
@@ -276,128 +279,151 @@ fn krylov_eigen(
         )));
     }
 
-    let mut trip: Vec<Triplet<usize, usize, f64>> = Vec::with_capacity(faces.len() * 12 + nr);
-    cotan_triplets(pos, faces, 1.0, &mut trip);
-    let lmat = SparseColMat::try_new_from_triplets(nr, nr, &trip)
-        .map_err(|e| Error::InvalidMesh(format!("Laplacian assembly failed: {e:?}")))?;
-    let trace_l: f64 = trip.iter().filter(|t| t.row == t.col).map(|t| t.val).sum();
+    let pat = LaplacePattern::new(nr, faces);
+    let lval = pat.cotan_values(pos, faces);
+    let trace_l: f64 = pat.diag.iter().map(|&d| lval[d]).sum();
     let trace_m: f64 = mass.iter().sum();
     let sigma = 1e-6 * trace_l / trace_m;
+    let mut kval = lval.clone();
     for (r, &m) in mass.iter().enumerate() {
-        trip.push(Triplet::new(r, r, sigma * m));
+        kval[pat.diag[r]] += sigma * m;
     }
-    let kmat = SparseColMat::try_new_from_triplets(nr, nr, &trip)
-        .map_err(|e| Error::InvalidMesh(format!("Laplacian assembly failed: {e:?}")))?;
+    let lmat = pat.matrix(lval);
+    let kmat = pat.matrix(kval);
     let llt: Llt<usize, f64> = kmat
         .sp_cholesky(Side::Lower)
         .map_err(|e| Error::InvalidMesh(format!("sparse Cholesky of L + σM failed: {e:?}")))?;
 
     let b = (nev / 3).clamp(4, 12).min(avail);
-    let mut dim = (4 * nev).max(nev + 60).div_ceil(b) * b;
-    dim = dim.min(avail / b * b).max(b);
+    let max_m = avail / b * b;
+    if max_m < nev {
+        return Err(Error::InvalidInput(format!(
+            "cannot find {nev} non-null eigenpairs in a Krylov space of size {max_m}"
+        )));
+    }
+    let first_check = ((5 * nev).max(nev + 40).div_ceil(b) * b).min(max_m);
     let mut rng = SmallRng::seed_from_u64(0x6d65_7368);
     let mut lx = vec![0.0; nr];
-    loop {
-        let blocks = dim / b;
-        let m = blocks * b;
-        let mut v = vec![0.0; nr * m];
-        let mut av = vec![0.0; nr * m];
-        {
-            let first = &mut v[..nr * b];
-            first
-                .iter_mut()
-                .for_each(|x| *x = rng.random_range(-1.0..1.0));
-            project_null(first, nr, mass, label, &comp_mass);
-            let mut w = first.to_vec();
-            orthonormalize_block(&[], 0, &mut w, nr, mass, label, &comp_mass, &mut rng);
-            v[..nr * b].copy_from_slice(&w);
-        }
-        let mut w = vec![0.0; nr * b];
-        for j in 0..blocks {
-            // W = (L + σM)⁻¹ M V_j, kept M-orthogonal to the null space
-            for c in 0..b {
-                for r in 0..nr {
-                    w[c * nr + r] = mass[r] * v[(j * b + c) * nr + r];
-                }
-            }
-            llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut w, nr, b));
-            project_null(&mut w, nr, mass, label, &comp_mass);
-            av[j * b * nr..(j + 1) * b * nr].copy_from_slice(&w);
-            if j + 1 < blocks {
-                let used = (j + 1) * b;
-                orthonormalize_block(&v, used, &mut w, nr, mass, label, &comp_mass, &mut rng);
-                v[used * nr..(used + b) * nr].copy_from_slice(&w);
-            }
-        }
-        // Rayleigh–Ritz: H = Vᵀ M A V
-        let mut mav = av;
-        for col in mav.chunks_mut(nr) {
-            for r in 0..nr {
-                col[r] *= mass[r];
-            }
-        }
-        let mut h = Mat::<f64>::zeros(m, m);
-        matmul(
-            h.as_mut(),
-            Accum::Replace,
-            MatRef::from_column_major_slice(&v, nr, m).transpose(),
-            MatRef::from_column_major_slice(&mav, nr, m),
-            1.0,
-            par(),
-        );
-        let hs = Mat::<f64>::from_fn(m, m, |i, j| 0.5 * (h[(i, j)] + h[(j, i)]));
-        let evd = hs
-            .self_adjoint_eigen(Side::Lower)
-            .map_err(|e| Error::InvalidMesh(format!("Ritz eigen-decomposition failed: {e:?}")))?;
-        let theta = evd.S().column_vector();
-        let y = evd.U();
-        // largest θ ↔ smallest λ
-        let mut ysel = Mat::<f64>::zeros(m, nev);
-        let mut lam = Vec::with_capacity(nev);
-        for i in 0..nev {
-            let col = m - 1 - i;
-            lam.push(1.0 / theta[col] - sigma);
-            for r in 0..m {
-                ysel[(r, i)] = y[(r, col)];
-            }
-        }
-        let mut x = vec![0.0; nr * nev];
-        matmul(
-            MatMut::from_column_major_slice_mut(&mut x, nr, nev),
-            Accum::Replace,
-            MatRef::from_column_major_slice(&v, nr, m),
-            ysel.as_ref(),
-            1.0,
-            par(),
-        );
-        let mut worst = 0.0f64;
-        for i in 0..nev {
-            let xi = &x[i * nr..(i + 1) * nr];
-            spmv(&lmat, xi, &mut lx);
-            let (mut rn, mut mn) = (0.0, 0.0);
-            for r in 0..nr {
-                let mx = mass[r] * xi[r];
-                rn += (lx[r] - lam[i] * mx).powi(2);
-                mn += mx * mx;
-            }
-            let rel = rn.sqrt() / (lam[i].abs() * mn.sqrt()).max(f64::MIN_POSITIVE);
-            worst = worst.max(rel);
-        }
-        if worst <= RESIDUAL_TOL || m >= avail / b * b {
-            evals.extend_from_slice(&lam);
-            evecs.extend_from_slice(&x);
-            // sort ascending (Ritz values come sorted, null space first; keep it robust)
-            let mut order: Vec<usize> = (0..k).collect();
-            order.sort_by(|&a, &b| evals[a].total_cmp(&evals[b]));
-            let sv = order.iter().map(|&i| evals[i]).collect();
-            let mut se = Vec::with_capacity(k * nr);
-            for &i in &order {
-                se.extend_from_slice(&evecs[i * nr..(i + 1) * nr]);
-            }
-            return Ok((sv, se));
-        }
-        dim = (2 * m).min(avail / b * b);
+    let mut v: Vec<f64> = Vec::with_capacity(nr * 2 * first_check);
+    let mut av: Vec<f64> = Vec::with_capacity(nr * 2 * first_check);
+    {
+        let mut w: Vec<f64> = (0..nr * b).map(|_| rng.random_range(-1.0..1.0)).collect();
+        project_null(&mut w, nr, mass, label, &comp_mass);
+        orthonormalize_block(&[], 0, &mut w, nr, mass, label, &comp_mass, &mut rng);
+        v.extend_from_slice(&w);
     }
+    let mut w = vec![0.0; nr * b];
+    let mut next_check = first_check;
+    let mut blocks = 0usize;
+    loop {
+        // W = (L + σM)⁻¹ M V_j, kept M-orthogonal to the null space
+        let j = blocks;
+        for c in 0..b {
+            for r in 0..nr {
+                w[c * nr + r] = mass[r] * v[(j * b + c) * nr + r];
+            }
+        }
+        llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut w, nr, b));
+        project_null(&mut w, nr, mass, label, &comp_mass);
+        av.extend_from_slice(&w);
+        blocks += 1;
+        let m = blocks * b;
+        if m >= next_check || m >= max_m {
+            let (lam, x, worst) =
+                rayleigh_ritz(&v[..nr * m], &av, nr, m, nev, mass, sigma, &lmat, &mut lx)?;
+            if worst <= RESIDUAL_TOL || m >= max_m {
+                evals.extend_from_slice(&lam);
+                evecs.extend_from_slice(&x);
+                let mut order: Vec<usize> = (0..k).collect();
+                order.sort_by(|&a, &b| evals[a].total_cmp(&evals[b]));
+                let sv = order.iter().map(|&i| evals[i]).collect();
+                let mut se = Vec::with_capacity(k * nr);
+                for &i in &order {
+                    se.extend_from_slice(&evecs[i * nr..(i + 1) * nr]);
+                }
+                return Ok((sv, se));
+            }
+            next_check = (m + (2 * b).max(m / 4)).min(max_m);
+        }
+        if m + b > max_m {
+            // the space cannot grow by a whole block: check what we have
+            next_check = m;
+            continue;
+        }
+        orthonormalize_block(&v, m, &mut w, nr, mass, label, &comp_mass, &mut rng);
+        v.extend_from_slice(&w);
+    }
+}
+
+/// Rayleigh–Ritz on the M-orthonormal basis `v` (nr × m) with `av = A v`: the `nev` Ritz pairs
+/// of largest θ, mapped back to `λ = 1/θ - σ`, and the worst relative residual
+/// `|L x - λ M x| / (λ |M x|)`.
+#[allow(clippy::too_many_arguments)]
+fn rayleigh_ritz(
+    v: &[f64],
+    av: &[f64],
+    nr: usize,
+    m: usize,
+    nev: usize,
+    mass: &[f64],
+    sigma: f64,
+    lmat: &SparseColMat<usize, f64>,
+    lx: &mut [f64],
+) -> Result<(Vec<f64>, Vec<f64>, f64)> {
+    let mut mav = av.to_vec();
+    for col in mav.chunks_mut(nr) {
+        for r in 0..nr {
+            col[r] *= mass[r];
+        }
+    }
+    let mut h = Mat::<f64>::zeros(m, m);
+    matmul(
+        h.as_mut(),
+        Accum::Replace,
+        MatRef::from_column_major_slice(v, nr, m).transpose(),
+        MatRef::from_column_major_slice(&mav, nr, m),
+        1.0,
+        par(),
+    );
+    let hs = Mat::<f64>::from_fn(m, m, |i, j| 0.5 * (h[(i, j)] + h[(j, i)]));
+    let evd = hs
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| Error::InvalidMesh(format!("Ritz eigen-decomposition failed: {e:?}")))?;
+    let theta = evd.S().column_vector();
+    let y = evd.U();
+    // largest θ ↔ smallest λ
+    let mut ysel = Mat::<f64>::zeros(m, nev);
+    let mut lam = Vec::with_capacity(nev);
+    for i in 0..nev {
+        let col = m - 1 - i;
+        lam.push(1.0 / theta[col] - sigma);
+        for r in 0..m {
+            ysel[(r, i)] = y[(r, col)];
+        }
+    }
+    let mut x = vec![0.0; nr * nev];
+    matmul(
+        MatMut::from_column_major_slice_mut(&mut x, nr, nev),
+        Accum::Replace,
+        MatRef::from_column_major_slice(v, nr, m),
+        ysel.as_ref(),
+        1.0,
+        par(),
+    );
+    let mut worst = 0.0f64;
+    for i in 0..nev {
+        let xi = &x[i * nr..(i + 1) * nr];
+        spmv(lmat, xi, lx);
+        let (mut rn, mut mn) = (0.0, 0.0);
+        for r in 0..nr {
+            let mx = mass[r] * xi[r];
+            rn += (lx[r] - lam[i] * mx).powi(2);
+            mn += mx * mx;
+        }
+        let rel = rn.sqrt() / (lam[i].abs() * mn.sqrt()).max(f64::MIN_POSITIVE);
+        worst = worst.max(rel);
+    }
+    Ok((lam, x, worst))
 }
 
 /// Heat kernel signature (Sun, Ovsjanikov & Guibas 2009):

@@ -88,7 +88,7 @@ mod tests {
                 let ba = parallel_transport_angle(normals[j], fr[j], normals[i], fr[i]);
                 let d = (ab + ba).rem_euclid(std::f32::consts::TAU);
                 assert!(
-                    d < 1e-4 || d > std::f32::consts::TAU - 1e-4,
+                    !(1e-4..=std::f32::consts::TAU - 1e-4).contains(&d),
                     "{i} {j} {ab} {ba}"
                 );
             }

@@ -2,13 +2,12 @@
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::sparse::{SparseColMat, Triplet};
 use faer::{MatMut, Side};
 use glam::DVec3;
 use rayon::prelude::*;
 
 use super::basic::{d3, mean_edge_length};
-use super::laplacian::{check_faces, cotan_triplets, mass_matrix_voronoi};
+use super::laplacian::{LaplacePattern, check_faces, mass_matrix_voronoi};
 use crate::{Error, Result};
 
 /// Geodesic distances by the heat method, prepared once per mesh and reusable for any number of
@@ -76,31 +75,32 @@ impl HeatGeodesics {
                 (0.5 * a2, g)
             })
             .collect();
-        let mut ltrip: Vec<Triplet<usize, usize, f64>> = Vec::with_capacity(faces.len() * 12);
-        cotan_triplets(positions, &faces, 1.0, &mut ltrip);
-        let trace_l: f64 = ltrip.iter().filter(|t| t.row == t.col).map(|t| t.val).sum();
+        let pat = LaplacePattern::new(n, &faces);
+        let lval = pat.cotan_values(positions, &faces);
+        let trace_l: f64 = pat.diag.iter().map(|&d| lval[d]).sum();
         let trace_m: f64 = mass.iter().sum();
         let eps = 1e-10 * trace_l / trace_m;
         let build = |lscale: f64, mscale: f64| {
-            let mut trip: Vec<Triplet<usize, usize, f64>> = ltrip
-                .iter()
-                .map(|tr| Triplet::new(tr.row, tr.col, tr.val * lscale))
-                .collect();
+            let mut val: Vec<f64> = lval.iter().map(|&x| x * lscale).collect();
             for (i, &m) in mass.iter().enumerate() {
                 // vertices in no face keep an identity row so the system stays definite
-                trip.push(Triplet::new(i, i, if m > 0.0 { m * mscale } else { 1.0 }));
+                val[pat.diag[i]] += if m > 0.0 { m * mscale } else { 1.0 };
             }
-            SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip)
-                .map_err(|e| Error::InvalidMesh(format!("operator assembly failed: {e:?}")))
+            pat.matrix(val)
         };
-        let heat_mat = build(t, 1.0)?;
-        let poisson_mat = build(1.0, eps)?;
+        let heat_mat = build(t, 1.0);
+        let poisson_mat = build(1.0, eps);
         let sym = SymbolicLlt::try_new(heat_mat.symbolic(), Side::Lower)
             .map_err(|e| Error::InvalidMesh(format!("symbolic Cholesky failed: {e:?}")))?;
-        let heat = Llt::try_new_with_symbolic(sym.clone(), heat_mat.as_ref(), Side::Lower)
-            .map_err(|e| Error::InvalidMesh(format!("Cholesky of M + tL failed: {e:?}")))?;
-        let poisson = Llt::try_new_with_symbolic(sym, poisson_mat.as_ref(), Side::Lower)
-            .map_err(|e| Error::InvalidMesh(format!("Cholesky of L + εM failed: {e:?}")))?;
+        // the two numeric factorisations are independent
+        let (heat, poisson) = rayon::join(
+            || Llt::try_new_with_symbolic(sym.clone(), heat_mat.as_ref(), Side::Lower),
+            || Llt::try_new_with_symbolic(sym.clone(), poisson_mat.as_ref(), Side::Lower),
+        );
+        let heat =
+            heat.map_err(|e| Error::InvalidMesh(format!("Cholesky of M + tL failed: {e:?}")))?;
+        let poisson =
+            poisson.map_err(|e| Error::InvalidMesh(format!("Cholesky of L + εM failed: {e:?}")))?;
         let (label, ncomp) = crate::mesh::connected_components(n, &faces);
         let ncomp = ncomp.max(label.iter().map(|&l| l as usize + 1).max().unwrap_or(0));
         Ok(HeatGeodesics {
@@ -124,6 +124,11 @@ impl HeatGeodesics {
     /// The diffusion time `t = h²` used in step (I).
     pub fn time(&self) -> f64 {
         self.t
+    }
+
+    /// [`HeatGeodesics::distance`] for many source sets at once, in parallel.
+    pub fn distances(&self, source_sets: &[Vec<u32>]) -> Vec<Vec<f64>> {
+        source_sets.par_iter().map(|s| self.distance(s)).collect()
     }
 
     /// Distance from every vertex to the nearest of `sources`, shifted per connected component
@@ -221,5 +226,34 @@ mod tests {
             d2[c as usize]
         );
         assert!(hg.distance(&[]).iter().all(|x| x.is_infinite()));
+
+        // a second, disjoint copy: unreachable from a source in the first
+        let nv = pos.len() as u32;
+        let mut pos2 = pos.clone();
+        pos2.extend(pos.iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
+        let mut faces2 = faces.clone();
+        faces2.extend(faces.iter().map(|f| f.map(|v| v + nv)));
+        let hg2 = HeatGeodesics::new(&pos2, &faces2).unwrap();
+        let d3 = hg2.distance(&[c, nv + c, 10 * nv]);
+        assert!(
+            d3[..nv as usize]
+                .iter()
+                .zip(&d)
+                .all(|(a, b)| (a - b).abs() < 1e-6)
+        );
+        assert!(
+            d3[nv as usize..]
+                .iter()
+                .zip(&d)
+                .all(|(a, b)| (a - b).abs() < 1e-6)
+        );
+        let batch = hg2.distances(&[vec![c], vec![c, nv + c, 10 * nv]]);
+        let close =
+            |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x == y || (x - y).abs() < 1e-9);
+        assert!(close(&batch[1], &d3));
+        let d4 = hg2.distance(&[c]);
+        assert!(close(&batch[0], &d4));
+        assert!(d4[nv as usize..].iter().all(|x| x.is_infinite()));
+        assert!(HeatGeodesics::new(&pos, &[[0, 1, 99_999]]).is_err());
     }
 }

@@ -1,6 +1,6 @@
 //! Cotangent Laplacian and lumped mass matrices (Pinkall & Polthier 1993; Meyer et al. 2003).
 
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
 use glam::DVec3;
 
 use super::basic::d3;
@@ -60,9 +60,85 @@ pub(crate) fn check_faces(n: usize, faces: &[[u32; 3]]) -> Result<()> {
     Ok(())
 }
 
+/// The sparsity pattern of a mesh Laplacian: vertex adjacency plus the diagonal, in compressed
+/// sparse column form with sorted row indices (symmetric, so it is also the CSR form).
+pub(crate) struct LaplacePattern {
+    pub n: usize,
+    pub col_ptr: Vec<usize>,
+    pub row_idx: Vec<usize>,
+    /// Position of the diagonal entry of each column in `row_idx`.
+    pub diag: Vec<usize>,
+}
+
+impl LaplacePattern {
+    /// The pattern of the faces' edges (faces must index into `0..n`).
+    pub fn new(n: usize, faces: &[[u32; 3]]) -> Self {
+        let adj = crate::mesh::vertex_adjacency(n, faces);
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        let mut row_idx = Vec::with_capacity(adj.indices.len() + n);
+        let mut diag = Vec::with_capacity(n);
+        col_ptr.push(0);
+        for i in 0..n {
+            let row = adj.row(i);
+            let split = row.partition_point(|&j| (j as usize) < i);
+            row_idx.extend(row[..split].iter().map(|&j| j as usize));
+            diag.push(row_idx.len());
+            row_idx.push(i);
+            row_idx.extend(row[split..].iter().map(|&j| j as usize));
+            col_ptr.push(row_idx.len());
+        }
+        LaplacePattern {
+            n,
+            col_ptr,
+            row_idx,
+            diag,
+        }
+    }
+
+    /// Index of entry (row, col) in the value array.
+    #[inline]
+    fn find(&self, row: usize, col: usize) -> usize {
+        let (s, e) = (self.col_ptr[col], self.col_ptr[col + 1]);
+        s + self.row_idx[s..e].partition_point(|&r| r < row)
+    }
+
+    /// The cotan stiffness values on this pattern (see [`cotan_laplacian`]).
+    pub fn cotan_values(&self, positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<f64> {
+        let mut val = vec![0.0; self.row_idx.len()];
+        for f in faces {
+            let p = f.map(|i| d3(positions[i as usize]));
+            let w = face_cot_weights(p);
+            for k in 0..3 {
+                let (j, l) = (f[(k + 1) % 3] as usize, f[(k + 2) % 3] as usize);
+                if j == l || w[k] == 0.0 {
+                    continue;
+                }
+                val[self.find(l, j)] -= w[k];
+                val[self.find(j, l)] -= w[k];
+                val[self.diag[j]] += w[k];
+                val[self.diag[l]] += w[k];
+            }
+        }
+        val
+    }
+
+    /// A sparse matrix with this pattern and the given values.
+    pub fn matrix(&self, val: Vec<f64>) -> SparseColMat<usize, f64> {
+        let sym = SymbolicSparseColMat::new_checked(
+            self.n,
+            self.n,
+            self.col_ptr.clone(),
+            None,
+            self.row_idx.clone(),
+        );
+        SparseColMat::new(sym, val)
+    }
+}
+
 /// Positive semi-definite cotangent stiffness matrix (Pinkall & Polthier 1993):
 /// `L_ij = -(cot α_ij + cot β_ij) / 2` for an edge ij with opposite angles α, β, and
-/// `L_ii = -sum_j L_ij` — i.e. `L = -cotmatrix` of libigl. Degenerate faces contribute nothing.
+/// `L_ii = -sum_j L_ij` — i.e. `L = -cotmatrix` of libigl. Degenerate faces contribute nothing;
+/// every edge and diagonal entry is stored (possibly as an explicit zero).
 ///
 /// Faces must index into `positions` (out-of-range faces are skipped).
 pub fn cotan_laplacian(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> SparseColMat<usize, f64> {
@@ -72,10 +148,9 @@ pub fn cotan_laplacian(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> SparseColM
         .copied()
         .filter(|f| f.iter().all(|&v| (v as usize) < n))
         .collect();
-    let mut trip = Vec::with_capacity(valid.len() * 12);
-    cotan_triplets(positions, &valid, 1.0, &mut trip);
-    SparseColMat::try_new_from_triplets(n, n, &trip)
-        .expect("cotan triplets are in range by construction")
+    let pat = LaplacePattern::new(n, &valid);
+    let val = pat.cotan_values(positions, &valid);
+    pat.matrix(val)
 }
 
 /// Diagonal mixed-Voronoi mass (Meyer, Desbrun, Schröder & Barr 2003, Fig. 4): for a non-obtuse

@@ -1,6 +1,15 @@
-//! Shared geometric primitives: welding, normals, cotan Laplacian and mass matrices, Laplacian
-//! eigenpairs and the heat kernel signature, heat-method geodesics, tangent frames, a triangle
-//! BVH, working-resolution refinement and Taubin smoothing.
+//! Shared geometric primitives, one implementation each, as free functions on flat arrays:
+//!
+//! - [`weld`], [`face_normals`], [`vertex_normals`], [`face_areas`], [`mean_edge_length`]
+//! - [`cotan_laplacian`] (PSD stiffness `L = -cotmatrix`), [`mass_matrix_voronoi`],
+//!   [`mass_matrix_barycentric`]
+//! - [`laplacian_eigen`] (smallest eigenpairs of `L φ = λ M φ`, flat column-major vectors),
+//!   [`hks`] (flat vertex-major `n × times`), [`hks_times`]
+//! - [`HeatGeodesics`] (heat-method distances, factorised once, many source sets)
+//! - [`tangent_frames`], [`parallel_transport_angle`]
+//! - [`TriangleBvh`] (closest point, ray hit)
+//! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
+//! - [`taubin_smooth`]
 
 mod basic;
 mod bvh;

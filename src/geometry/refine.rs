@@ -125,8 +125,10 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
     let mut normals = mesh.normals.clone().filter(|n| n.len() == n0);
     let mut parent_map: Vec<[u32; 2]> = (0..n0 as u32).map(|i| [i, i]).collect();
 
+    // vertex indices are u32: never grow past that (a huge target refines until it is reached)
+    let target_vertices = target_vertices.min(u32::MAX as usize / 2);
     if target_vertices > n0 && !faces.is_empty() {
-        let extra = target_vertices - n0;
+        let extra = (target_vertices - n0).min(1 << 24);
         positions.reserve(extra);
         parent_map.reserve(extra);
         faces.reserve(2 * extra + 16);
