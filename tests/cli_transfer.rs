@@ -20,10 +20,22 @@ fn tmpdir(name: &str) -> PathBuf {
 fn spot_to_cow_writes_every_output_in_file_order() {
     let d = tmpdir("cow");
     let corr = d.join("corr.json");
-    std::fs::write(&corr, r#"{"correspondences": [{"source_vertex": 0, "target_vertices": [5]}]}"#).unwrap();
+    std::fs::write(
+        &corr,
+        r#"{"correspondences": [{"source_vertex": 0, "target_vertices": [5]}]}"#,
+    )
+    .unwrap();
     let (out, dense, nnf) = (d.join("cow.ply"), d.join("dense.ply"), d.join("nnf.csv"));
     let st = bin()
-        .args(["transfer", "--vertices", "6000", "--iterations", "2", "--seed", "3"])
+        .args([
+            "transfer",
+            "--vertices",
+            "6000",
+            "--iterations",
+            "2",
+            "--seed",
+            "3",
+        ])
         .arg("--source")
         .arg(data_path("spot/spot.obj"))
         .arg("--target")
@@ -38,22 +50,35 @@ fn spot_to_cow_writes_every_output_in_file_order() {
         .arg(&nnf)
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     let cow = io::load(&data_path("cow/cow.ply")).unwrap();
     let result = io::load(&out).unwrap();
     assert_eq!(result.num_vertices(), cow.num_vertices());
     assert_eq!(result.faces, cow.faces, "faces in the file's own order");
-    assert_eq!(result.positions, cow.positions, "positions in the file's own order");
+    assert_eq!(
+        result.positions, cow.positions,
+        "positions in the file's own order"
+    );
     let colors = result.colors.expect("vertex colours");
     // Spot's palette: mostly white with black patches; the cow must get both, not one flat colour.
-    let lum: Vec<f32> = colors.iter().map(|c| meshmatch::color::srgb_to_lab(*c)[0]).collect();
+    let lum: Vec<f32> = colors
+        .iter()
+        .map(|c| meshmatch::color::srgb_to_lab(*c)[0])
+        .collect();
     let dark = lum.iter().filter(|&&l| l < 40.0).count() as f32 / lum.len() as f32;
     let light = lum.iter().filter(|&&l| l > 70.0).count() as f32 / lum.len() as f32;
     assert!(dark > 0.02 && light > 0.3, "dark {dark}, light {light}");
 
     let text = std::fs::read_to_string(&nnf).unwrap();
     let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("target_vertex,source_vertex,rotation_deg"));
+    assert_eq!(
+        lines.next(),
+        Some("target_vertex,source_vertex,rotation_deg")
+    );
     let rows: Vec<_> = lines.collect();
     assert_eq!(rows.len(), cow.num_vertices());
     for (i, row) in rows.iter().enumerate() {
@@ -65,7 +90,11 @@ fn spot_to_cow_writes_every_output_in_file_order() {
         assert!((0.0..360.0).contains(&r));
     }
     let dense = io::load(&dense).unwrap();
-    assert!(dense.num_vertices() >= 5000, "dense working mesh has {} vertices", dense.num_vertices());
+    assert!(
+        dense.num_vertices() >= 5000,
+        "dense working mesh has {} vertices",
+        dense.num_vertices()
+    );
     assert!(dense.colors.is_some());
 }
 
@@ -74,7 +103,15 @@ fn textured_target_gets_a_baked_texture_in_its_own_uv_layout() {
     let d = tmpdir("bake");
     let out = d.join("spot_onto_spot.glb");
     let st = bin()
-        .args(["transfer", "--vertices", "6000", "--iterations", "1", "--texture-size", "256"])
+        .args([
+            "transfer",
+            "--vertices",
+            "6000",
+            "--iterations",
+            "1",
+            "--texture-size",
+            "256",
+        ])
         .arg("--source")
         .arg(data_path("spot/spot.obj"))
         .arg("--target")
@@ -83,14 +120,21 @@ fn textured_target_gets_a_baked_texture_in_its_own_uv_layout() {
         .arg(&out)
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     let m = io::load(&out).unwrap();
     let tex = m.texture.as_ref().expect("baked baseColorTexture");
     assert_eq!((tex.image.width(), tex.image.height()), (256, 256));
     assert!(m.uvs.is_some());
     // The bake is not one flat colour.
     let px: Vec<[u8; 3]> = tex.image.pixels().map(|p| p.0).collect();
-    let dark = px.iter().filter(|p| p[0] < 60 && p[1] < 60 && p[2] < 60).count();
+    let dark = px
+        .iter()
+        .filter(|p| p[0] < 60 && p[1] < 60 && p[2] < 60)
+        .count();
     assert!(dark > 100, "dark texels: {dark}");
 }
 
@@ -98,7 +142,11 @@ fn textured_target_gets_a_baked_texture_in_its_own_uv_layout() {
 fn bad_correspondences_and_outputs_fail_cleanly() {
     let d = tmpdir("bad");
     let corr = d.join("corr.json");
-    std::fs::write(&corr, r#"{"correspondences": [{"source_vertex": 999999, "target_vertices": [5]}]}"#).unwrap();
+    std::fs::write(
+        &corr,
+        r#"{"correspondences": [{"source_vertex": 999999, "target_vertices": [5]}]}"#,
+    )
+    .unwrap();
     let garbage = d.join("garbage.json");
     std::fs::write(&garbage, "{not json").unwrap();
     for (c, out, mention) in [
