@@ -29,6 +29,13 @@ impl Default for GlbOptions {
     }
 }
 
+/// Required extensions the loader can ignore safely (they only change shading).
+const SUPPORTED_REQUIRED: &[&str] = &[
+    "KHR_materials_unlit",
+    "KHR_materials_pbrSpecularGlossiness",
+    "KHR_texture_transform",
+];
+
 /// Most nested nodes followed (guards against cyclic or absurdly deep node graphs).
 const MAX_NODE_DEPTH: usize = 64;
 
@@ -39,7 +46,10 @@ fn validate(root: &gltf::json::Root, path: &Path) -> Result<()> {
     // gltf-json 1.4's POSITION min/max check indexes `accessors` unchecked: check it first.
     for (mi, m) in root.meshes.iter().enumerate() {
         for p in &m.primitives {
-            if p.attributes.values().any(|a| a.value() >= root.accessors.len()) {
+            if p.attributes
+                .values()
+                .any(|a| a.value() >= root.accessors.len())
+            {
                 return Err(Error::format(
                     path,
                     format!("invalid glTF: mesh {mi} refers to a missing accessor"),
@@ -57,10 +67,7 @@ fn validate(root: &gltf::json::Root, path: &Path) -> Result<()> {
     });
     match errors.first() {
         None => Ok(()),
-        Some(e) => Err(Error::format(
-            path,
-            format!("invalid glTF: {}", clip(e)),
-        )),
+        Some(e) => Err(Error::format(path, format!("invalid glTF: {}", clip(e)))),
     }
 }
 
@@ -125,7 +132,10 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Resu
     if matches!(dims, Dimensions::Mat2 | Dimensions::Mat3 | Dimensions::Mat4) {
         return Err(Error::format(
             path,
-            format!("accessor {}: matrix accessors are not vertex data", acc.index()),
+            format!(
+                "accessor {}: matrix accessors are not vertex data",
+                acc.index()
+            ),
         ));
     }
     let m = dims.multiplicity();
@@ -179,7 +189,9 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Resu
         let bytes = view_bytes(&view)?;
         let stride = view.stride().unwrap_or(elem);
         if stride < elem {
-            return Err(bad(format!("byte stride {stride} smaller than element size {elem}")));
+            return Err(bad(format!(
+                "byte stride {stride} smaller than element size {elem}"
+            )));
         }
         if count > 0 {
             let need = stride
@@ -294,12 +306,28 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     let gltf = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| Error::format(path, format!("invalid glTF: {e}")))?;
     validate(gltf.document.as_json(), path)?;
+    if let Some(ext) = gltf
+        .document
+        .extensions_required()
+        .find(|e| !SUPPORTED_REQUIRED.contains(e))
+    {
+        return Err(Error::format(
+            path,
+            format!(
+                "requires glTF extension {} which is not supported",
+                clip(ext)
+            ),
+        ));
+    }
     let doc = &gltf.document;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for b in doc.buffers() {
         let data = match b.source() {
             gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
-                Error::format(path, format!("buffer {} refers to a missing BIN chunk", b.index()))
+                Error::format(
+                    path,
+                    format!("buffer {} refers to a missing BIN chunk", b.index()),
+                )
             })?,
             gltf::buffer::Source::Uri(uri) => read_uri(uri, path)?,
         };
@@ -319,7 +347,9 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     let mut acc = Acc::default();
     // (node, world matrix) roots.
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| {
-        (doc.scenes().len() == 1).then(|| doc.scenes().next()).flatten()
+        (doc.scenes().len() == 1)
+            .then(|| doc.scenes().next())
+            .flatten()
     }) {
         Some(scene) => scene.nodes().collect(),
         None => {
@@ -444,9 +474,11 @@ fn read_mesh(
                     acc.colors = vec![[1.0; 3]; base];
                     acc.any_colors = true;
                 }
-                acc.colors.extend(v.chunks_exact(m).map(|c| {
-                    [c[0], c[1], c[2]].map(|x| crate::color::linear_to_srgb(x as f32))
-                }));
+                acc.colors.extend(
+                    v.chunks_exact(m).map(|c| {
+                        [c[0], c[1], c[2]].map(|x| crate::color::linear_to_srgb(x as f32))
+                    }),
+                );
             }
             _ => {
                 if acc.any_colors {
@@ -531,7 +563,11 @@ fn read_mesh(
             acc.faces.push(t.map(|v| v + base as u32));
         }
         // Base colour texture of the material (the first one found is used).
-        if let Some(info) = prim.material().pbr_metallic_roughness().base_color_texture() {
+        if let Some(info) = prim
+            .material()
+            .pbr_metallic_roughness()
+            .base_color_texture()
+        {
             let src = info.texture().source();
             match acc.texture_source {
                 None if !acc.texture_failed => match read_image(&src, buffers, path) {
@@ -565,7 +601,7 @@ struct GlbData {
 
 /// Append `data` to `bin` at a 4-byte aligned offset, returning (offset, length).
 fn push_aligned(bin: &mut Vec<u8>, data: &[u8]) -> (usize, usize) {
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let off = bin.len();
@@ -615,22 +651,19 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
     let mut views = Vec::new();
     let mut accessors = Vec::new();
     let mut attributes = serde_json::Map::new();
-    let mut add = |bin: &mut Vec<u8>,
-                   data: Vec<u8>,
-                   target: Option<u32>,
-                   acc: serde_json::Value|
-     -> usize {
-        let (off, len) = push_aligned(bin, &data);
-        let mut view = json!({"buffer": 0, "byteOffset": off, "byteLength": len});
-        if let Some(t) = target {
-            view["target"] = json!(t);
-        }
-        views.push(view);
-        let mut acc = acc;
-        acc["bufferView"] = json!(views.len() - 1);
-        accessors.push(acc);
-        accessors.len() - 1
-    };
+    let mut add =
+        |bin: &mut Vec<u8>, data: Vec<u8>, target: Option<u32>, acc: serde_json::Value| -> usize {
+            let (off, len) = push_aligned(bin, &data);
+            let mut view = json!({"buffer": 0, "byteOffset": off, "byteLength": len});
+            if let Some(t) = target {
+                view["target"] = json!(t);
+            }
+            views.push(view);
+            let mut acc = acc;
+            acc["bufferView"] = json!(views.len() - 1);
+            accessors.push(acc);
+            accessors.len() - 1
+        };
     let pos: Vec<[f32; 3]> = src.iter().map(|&s| mesh.positions[s as usize]).collect();
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
@@ -665,10 +698,9 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
     if let Some(c) = mesh.colors.as_ref().filter(|_| opts.vertex_colors) {
         let a = add(
             &mut bin,
-            f32_bytes(
-                src.iter()
-                    .flat_map(|&s| c[s as usize].map(|x| crate::color::srgb_to_linear(x.clamp(0.0, 1.0)))),
-            ),
+            f32_bytes(src.iter().flat_map(|&s| {
+                c[s as usize].map(|x| crate::color::srgb_to_linear(x.clamp(0.0, 1.0)))
+            })),
             Some(34962),
             json!({"componentType": 5126, "count": m, "type": "VEC3"}),
         );
@@ -706,7 +738,7 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
         images.push(json!({"bufferView": views.len() - 1, "mimeType": "image/png"}));
         material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let mut root = json!({
@@ -722,7 +754,8 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
     });
     if !images.is_empty() {
         root["images"] = json!(images);
-        root["samplers"] = json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]);
+        root["samplers"] =
+            json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]);
         root["textures"] = json!([{"sampler": 0, "source": 0}]);
     }
     Ok(GlbData { json: root, bin })
@@ -735,7 +768,7 @@ pub fn save_glb(mesh: &TriMesh, path: &Path, opts: &GlbOptions) -> Result<()> {
     check_exportable(mesh, path)?;
     let d = build(mesh, opts, path)?;
     let mut js = serde_json::to_vec(&d.json).map_err(|e| Error::format(path, e.to_string()))?;
-    while js.len() % 4 != 0 {
+    while !js.len().is_multiple_of(4) {
         js.push(b' ');
     }
     let total = 12 + 8 + js.len() + 8 + d.bin.len();
