@@ -610,9 +610,13 @@ fn gltf_node_transforms_strips_and_colours() {
             {"mesh": 0, "scale": [-1.0, 1.0, 1.0]}
         ],
         "meshes": [{"primitives": [
-            {"attributes": {"POSITION": 0, "COLOR_0": 1}, "indices": 2, "mode": 5},
+            {"attributes": {"POSITION": 0, "COLOR_0": 1}, "indices": 2, "mode": 5, "material": 0},
             {"attributes": {"POSITION": 0}, "mode": 0}
         ]}],
+        // An image with no mimeType whose bytes are not an image: a warning, no texture.
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+        "textures": [{"source": 0}],
+        "images": [{"bufferView": 2}],
         "buffers": [{"byteLength": bin.len(), "uri": format!("data:application/octet-stream;base64,{}", b64(&bin))}],
         "bufferViews": [
             {"buffer": 0, "byteOffset": 0, "byteLength": 48},
@@ -643,6 +647,7 @@ fn gltf_node_transforms_strips_and_colours() {
     assert_eq!(m.faces[..2], [[0, 1, 2], [2, 1, 3]]);
     // The mirrored instance flips winding back so its faces stay counter-clockwise.
     assert_eq!(m.faces[2..], [[4, 6, 5], [6, 7, 5]]);
+    assert!(m.texture.is_none());
     let c = m.colors.as_ref().unwrap();
     assert!((c[0][0] - 1.0).abs() < 1e-6 && c[0][1] == 0.0 && c[0][2] == 0.0);
     // 188/255 linear is about 0.737 -> sRGB about 0.874

@@ -262,21 +262,37 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Resu
     Ok(out)
 }
 
-/// Decode the image of a texture (buffer view or URI); errors describe what failed.
-fn read_image(img: &gltf::image::Image, buffers: &[Vec<u8>], path: &Path) -> Result<Texture> {
-    let bytes: Vec<u8> = match img.source() {
-        gltf::image::Source::View { view, .. } => {
-            let buf = buffers
-                .get(view.buffer().index())
-                .ok_or_else(|| Error::format(path, "image buffer missing"))?;
-            let end = view
-                .offset()
-                .checked_add(view.length())
-                .filter(|&e| e <= buf.len())
-                .ok_or_else(|| Error::format(path, "image buffer view out of range"))?;
-            buf[view.offset()..end].to_vec()
-        }
-        gltf::image::Source::Uri { uri, .. } => read_uri(uri, path)?,
+/// Decode the image of a texture (buffer view or URI); errors describe what failed. Reads the
+/// JSON directly: `gltf::Image::source` unwraps a missing `mimeType` / `uri`.
+fn read_image(
+    img: &gltf::image::Image,
+    doc: &gltf::Document,
+    buffers: &[Vec<u8>],
+    path: &Path,
+) -> Result<Texture> {
+    let json = doc
+        .as_json()
+        .images
+        .get(img.index())
+        .ok_or_else(|| Error::format(path, "image index out of range"))?;
+    let bytes: Vec<u8> = if let Some(vi) = &json.buffer_view {
+        let view = doc
+            .views()
+            .nth(vi.value())
+            .ok_or_else(|| Error::format(path, "image buffer view out of range"))?;
+        let buf = buffers
+            .get(view.buffer().index())
+            .ok_or_else(|| Error::format(path, "image buffer missing"))?;
+        let end = view
+            .offset()
+            .checked_add(view.length())
+            .filter(|&e| e <= buf.len())
+            .ok_or_else(|| Error::format(path, "image buffer view out of range"))?;
+        buf[view.offset()..end].to_vec()
+    } else if let Some(uri) = &json.uri {
+        read_uri(uri, path)?
+    } else {
+        return Err(Error::format(path, "image has neither bufferView nor uri"));
     };
     super::decode_texture(&bytes, path)
 }
@@ -365,7 +381,7 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     if roots.is_empty() && doc.nodes().len() == 0 {
         // No scene graph at all: take the meshes as they are.
         for mesh in doc.meshes() {
-            read_mesh(&mesh, glam::Mat4::IDENTITY, &buffers, path, &mut acc)?;
+            read_mesh(&mesh, glam::Mat4::IDENTITY, &buffers, path, &mut acc, doc)?;
         }
     }
     let mut visited = vec![false; doc.nodes().len()];
@@ -383,7 +399,7 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         }
         let world = parent * glam::Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(mesh) = node.mesh() {
-            read_mesh(&mesh, world, &buffers, path, &mut acc)?;
+            read_mesh(&mesh, world, &buffers, path, &mut acc, doc)?;
         }
         let children: Vec<gltf::Node> = node.children().collect();
         for c in children.into_iter().rev() {
@@ -415,6 +431,7 @@ fn read_mesh(
     buffers: &[Vec<u8>],
     path: &Path,
     acc: &mut Acc,
+    doc: &gltf::Document,
 ) -> Result<()> {
     let normal_m = glam::Mat3::from_mat4(world).inverse().transpose();
     let flip = glam::Mat3::from_mat4(world).determinant() < 0.0;
@@ -570,7 +587,7 @@ fn read_mesh(
         {
             let src = info.texture().source();
             match acc.texture_source {
-                None if !acc.texture_failed => match read_image(&src, buffers, path) {
+                None if !acc.texture_failed => match read_image(&src, doc, buffers, path) {
                     Ok(t) => {
                         acc.texture = Some(Arc::new(t));
                         acc.texture_source = Some(src.index());
