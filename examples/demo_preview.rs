@@ -32,15 +32,24 @@ fn render(mesh: &TriMesh, eye_dir: Vec3, img: &mut image::RgbImage, x0: u32, w: 
         .normals
         .clone()
         .unwrap_or_else(|| meshmatch::demo::vertex_normals(mesh));
-    let light = (Vec3::new(0.0, 1.0, 0.0) * 0.8 + eye_dir.normalize() * 0.6 + right * -0.5).normalize();
+    let light =
+        (Vec3::new(0.0, 1.0, 0.0) * 0.8 + eye_dir.normalize() * 0.6 + right * -0.5).normalize();
     let base = [0.78f32, 0.74, 0.66];
-    let sp: Vec<Vec3> = mesh.positions.iter().map(|&p| proj(Vec3::from(p))).collect();
+    let sp: Vec<Vec3> = mesh
+        .positions
+        .iter()
+        .map(|&p| proj(Vec3::from(p)))
+        .collect();
     let mut zbuf = vec![f32::INFINITY; (w * h) as usize];
     // Background.
     for y in 0..h {
         for x in 0..w {
             let g = 0.92 - 0.18 * y as f32 / h as f32;
-            img.put_pixel(x0 + x, y, image::Rgb([(g * 255.0) as u8, (g * 255.0) as u8, (g * 250.0) as u8]));
+            img.put_pixel(
+                x0 + x,
+                y,
+                image::Rgb([(g * 255.0) as u8, (g * 255.0) as u8, (g * 250.0) as u8]),
+            );
         }
     }
     for f in &mesh.faces {
@@ -87,14 +96,22 @@ fn render(mesh: &TriMesh, eye_dir: Vec3, img: &mut image::RgbImage, x0: u32, w: 
                 } else {
                     col.map(|c| linear_to_srgb(srgb_to_linear(c) * lam))
                 };
-                img.put_pixel(x0 + px as u32, py as u32, image::Rgb(rgb.map(|c| (c * 255.0).round() as u8)));
+                img.put_pixel(
+                    x0 + px as u32,
+                    py as u32,
+                    image::Rgb(rgb.map(|c| (c * 255.0).round() as u8)),
+                );
             }
         }
     }
 }
 
 fn main() {
-    let dir = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "/tmp/demo_preview".into()));
+    let dir = PathBuf::from(
+        std::env::args()
+            .nth(1)
+            .unwrap_or_else(|| "/tmp/demo_preview".into()),
+    );
     std::fs::create_dir_all(&dir).expect("create output dir");
     let t = std::time::Instant::now();
     let scene = meshmatch::demo::scene();
@@ -117,14 +134,30 @@ fn main() {
         }
         let path = dir.join(format!("{name}.png"));
         img.save(&path).expect("write png");
-        println!("{name}: {} vertices, {} faces -> {}", mesh.num_vertices(), mesh.num_faces(), path.display());
+        println!(
+            "{name}: {} vertices, {} faces -> {}",
+            mesh.num_vertices(),
+            mesh.num_faces(),
+            path.display()
+        );
     }
     // Close-up of the zebra's head and neck.
     let mut img = image::RgbImage::new(w, h);
     let mut head = scene.zebra.clone();
-    let keep: Vec<bool> = head.positions.iter().map(|p| p[0] > 0.35 && p[1] > 0.95).collect();
+    let keep: Vec<bool> = head
+        .positions
+        .iter()
+        .map(|p| p[0] > 0.35 && p[1] > 0.95)
+        .collect();
     head.faces.retain(|f| f.iter().all(|&v| keep[v as usize]));
-    render(&head_only(&head), Vec3::new(0.6, 0.3, -1.0), &mut img, 0, w, h);
+    render(
+        &head_only(&head),
+        Vec3::new(0.6, 0.3, -1.0),
+        &mut img,
+        0,
+        w,
+        h,
+    );
     img.save(dir.join("zebra_head.png")).expect("write png");
 }
 
@@ -140,11 +173,20 @@ fn head_only(m: &TriMesh) -> TriMesh {
                 remap[v as usize] = pos.len() as u32;
                 pos.push(m.positions[v as usize]);
                 col.push(m.colors.as_ref().map(|c| c[v as usize]).unwrap_or([0.8; 3]));
-                nrm.push(m.normals.as_ref().map(|c| c[v as usize]).unwrap_or([0.0, 1.0, 0.0]));
+                nrm.push(
+                    m.normals
+                        .as_ref()
+                        .map(|c| c[v as usize])
+                        .unwrap_or([0.0, 1.0, 0.0]),
+                );
             }
         }
     }
-    let faces = m.faces.iter().map(|f| f.map(|v| remap[v as usize])).collect();
+    let faces = m
+        .faces
+        .iter()
+        .map(|f| f.map(|v| remap[v as usize]))
+        .collect();
     let mut out = TriMesh::new(pos, faces);
     out.colors = Some(col);
     out.normals = Some(nrm);

@@ -30,9 +30,15 @@ fn assert_clean(name: &str, m: &TriMesh) {
     // Closed surface: Euler characteristic of a sphere-like genus-0 surface is 2.
     let edges = 3 * r.faces / 2;
     let chi = r.vertices as i64 - edges as i64 + r.faces as i64;
-    assert_eq!(chi, 2, "{name}: Euler characteristic {chi} (expected genus 0)");
+    assert_eq!(
+        chi, 2,
+        "{name}: Euler characteristic {chi} (expected genus 0)"
+    );
     let vol = signed_volume(m);
-    assert!(vol > 0.0, "{name}: signed volume {vol} (faces must face outward)");
+    assert!(
+        vol > 0.0,
+        "{name}: signed volume {vol} (faces must face outward)"
+    );
     if let Some(n) = &m.normals {
         assert_eq!(n.len(), m.num_vertices());
     }
@@ -80,10 +86,18 @@ fn animals_stand_on_the_ground_and_have_sensible_size() {
     );
     let n = s.zebra.num_vertices();
     assert!((20_000..=60_000).contains(&n), "zebra has {n} vertices");
-    for (name, m) in [("zebra", &s.zebra), ("giraffe", &s.giraffe), ("cerberus", &s.cerberus)] {
+    for (name, m) in [
+        ("zebra", &s.zebra),
+        ("giraffe", &s.giraffe),
+        ("cerberus", &s.cerberus),
+    ] {
         let (lo, hi) = m.bounds().unwrap();
         println!("{name}: bounds {lo:?} .. {hi:?}");
-        assert!(lo[1].abs() < 0.005, "{name}: lowest point {} not on y=0", lo[1]);
+        assert!(
+            lo[1].abs() < 0.005,
+            "{name}: lowest point {} not on y=0",
+            lo[1]
+        );
         let len = hi[0] - lo[0];
         assert!((1.2..2.2).contains(&len), "{name}: length {len}");
         // Longer along X (facing +X) than wide along Z.
@@ -142,10 +156,24 @@ fn zebra_stripes_look_like_a_zebra() {
     // Crisp: only a thin antialiasing band is neither black nor white.
     assert!(grey < 0.15, "too much grey: {grey}");
     // Dark brown-black and slightly warm off-white, not pure.
-    let darkest = cols.iter().copied().min_by(|a, b| luminance(*a).total_cmp(&luminance(*b))).unwrap();
-    let lightest = cols.iter().copied().max_by(|a, b| luminance(*a).total_cmp(&luminance(*b))).unwrap();
-    assert!(darkest[0] > 0.02 && darkest[0] >= darkest[2], "black {darkest:?}");
-    assert!(lightest[0] < 0.99 && lightest[0] >= lightest[2], "white {lightest:?}");
+    let darkest = cols
+        .iter()
+        .copied()
+        .min_by(|a, b| luminance(*a).total_cmp(&luminance(*b)))
+        .unwrap();
+    let lightest = cols
+        .iter()
+        .copied()
+        .max_by(|a, b| luminance(*a).total_cmp(&luminance(*b)))
+        .unwrap();
+    assert!(
+        darkest[0] > 0.02 && darkest[0] >= darkest[2],
+        "black {darkest:?}"
+    );
+    assert!(
+        lightest[0] < 0.99 && lightest[0] >= lightest[2],
+        "white {lightest:?}"
+    );
 
     let marks = demo::landmarks_zebra();
     let neck = transitions_per_area(&s.zebra, mark(&marks, Landmark::Neck), 0.12);
@@ -153,8 +181,14 @@ fn zebra_stripes_look_like_a_zebra() {
     let fl = mark(&marks, Landmark::FrontLeftFoot);
     let leg = transitions_per_area(&s.zebra, fl + Vec3::new(0.0, 0.25, 0.0), 0.12);
     println!("stripe edges per unit area: neck {neck:.0}, legs {leg:.0}, hindquarters {rump:.0}");
-    assert!(neck > 1.4 * rump, "neck stripes ({neck}) not denser than hindquarters ({rump})");
-    assert!(leg > 1.4 * rump, "leg stripes ({leg}) not denser than hindquarters ({rump})");
+    assert!(
+        neck > 1.4 * rump,
+        "neck stripes ({neck}) not denser than hindquarters ({rump})"
+    );
+    assert!(
+        leg > 1.4 * rump,
+        "leg stripes ({leg}) not denser than hindquarters ({rump})"
+    );
 }
 
 fn assert_marks_on_mesh(name: &str, m: &TriMesh, marks: &[(Landmark, [f32; 3])]) {
@@ -177,7 +211,10 @@ fn landmarks_lie_on_their_meshes_and_make_sense() {
     for (name, marks) in [("zebra", &z), ("giraffe", &g), ("cerberus", &c)] {
         let nose = mark(marks, Landmark::Nose);
         let tail = mark(marks, Landmark::Tail);
-        assert!(nose.x > tail.x + 1.0, "{name}: nose must be at +X, far from the tail");
+        assert!(
+            nose.x > tail.x + 1.0,
+            "{name}: nose must be at +X, far from the tail"
+        );
         assert!(mark(marks, Landmark::Back).y > mark(marks, Landmark::Belly).y + 0.2);
         for f in [
             Landmark::FrontLeftFoot,
@@ -197,14 +234,28 @@ fn landmarks_lie_on_their_meshes_and_make_sense() {
     let zr = mark(&z, Landmark::HeadTop).y / mark(&z, Landmark::Back).y;
     assert!(zr < 1.4, "zebra head/back ratio {zr}");
     // Cerberus: three heads, pairwise far apart.
-    let noses: Vec<Vec3> = c.iter().filter(|m| m.0 == Landmark::Nose).map(|m| Vec3::from(m.1)).collect();
-    let tops: Vec<Vec3> = c.iter().filter(|m| m.0 == Landmark::HeadTop).map(|m| Vec3::from(m.1)).collect();
+    let noses: Vec<Vec3> = c
+        .iter()
+        .filter(|m| m.0 == Landmark::Nose)
+        .map(|m| Vec3::from(m.1))
+        .collect();
+    let tops: Vec<Vec3> = c
+        .iter()
+        .filter(|m| m.0 == Landmark::HeadTop)
+        .map(|m| Vec3::from(m.1))
+        .collect();
     assert_eq!(noses.len(), 3);
     assert_eq!(tops.len(), 3);
     for i in 0..3 {
         for j in i + 1..3 {
-            assert!((noses[i] - noses[j]).length() > 0.25, "noses {i} {j} too close");
-            assert!((tops[i] - tops[j]).length() > 0.25, "head tops {i} {j} too close");
+            assert!(
+                (noses[i] - noses[j]).length() > 0.25,
+                "noses {i} {j} too close"
+            );
+            assert!(
+                (tops[i] - tops[j]).length() > 0.25,
+                "head tops {i} {j} too close"
+            );
         }
     }
 }
@@ -229,14 +280,25 @@ fn default_correspondences_map_landmarks() {
         .iter()
         .find(|k| k.source_vertex == nose_v)
         .expect("nose correspondence");
-    assert_eq!(nose.target_vertices.len(), 3, "one-to-many to the three heads");
-    let heads: Vec<Vec3> =
-        nose.target_vertices.iter().map(|&v| Vec3::from(s.cerberus.positions[v as usize])).collect();
+    assert_eq!(
+        nose.target_vertices.len(),
+        3,
+        "one-to-many to the three heads"
+    );
+    let heads: Vec<Vec3> = nose
+        .target_vertices
+        .iter()
+        .map(|&v| Vec3::from(s.cerberus.positions[v as usize]))
+        .collect();
     assert!((heads[0] - heads[2]).length() > 0.25);
     // Every index is valid and the JSON round-trips.
     for k in &zc.correspondences {
         assert!((k.source_vertex as usize) < s.zebra.num_vertices());
-        assert!(k.target_vertices.iter().all(|&v| (v as usize) < s.cerberus.num_vertices()));
+        assert!(
+            k.target_vertices
+                .iter()
+                .all(|&v| (v as usize) < s.cerberus.num_vertices())
+        );
     }
     let json = serde_json::to_string(&zc).unwrap();
     let back: meshmatch::jobs::CorrespondenceFile = serde_json::from_str(&json).unwrap();
@@ -250,7 +312,10 @@ fn vase_is_painted_on_its_upper_part_only() {
     assert_eq!(painted.len(), m.num_vertices());
     let (lo, hi) = m.bounds().unwrap();
     let frac = painted.iter().filter(|&&p| p).count() as f32 / painted.len() as f32;
-    println!("vase: {} vertices, painted fraction {frac:.3}", m.num_vertices());
+    println!(
+        "vase: {} vertices, painted fraction {frac:.3}",
+        m.num_vertices()
+    );
     assert!((0.2..0.6).contains(&frac), "painted fraction {frac}");
     let cols = m.colors.as_ref().unwrap();
     let clay = cols[0];
@@ -272,7 +337,11 @@ fn vase_is_painted_on_its_upper_part_only() {
         .collect();
     distinct.sort();
     distinct.dedup();
-    assert!(distinct.len() >= 3, "painted zone has {} colours", distinct.len());
+    assert!(
+        distinct.len() >= 3,
+        "painted zone has {} colours",
+        distinct.len()
+    );
     // A vase, not a cylinder: it has a foot and a lip wider than its neck.
     let radius_at = |y: f32| {
         m.positions
@@ -281,6 +350,13 @@ fn vase_is_painted_on_its_upper_part_only() {
             .map(|p| (p[0] * p[0] + p[2] * p[2]).sqrt())
             .fold(0.0f32, f32::max)
     };
-    let (belly, neck, lip) = (radius_at(0.36 * h), radius_at(0.78 * h), radius_at(0.99 * h));
-    assert!(belly > 1.8 * neck && lip > neck * 1.2, "belly {belly} neck {neck} lip {lip}");
+    let (belly, neck, lip) = (
+        radius_at(0.36 * h),
+        radius_at(0.78 * h),
+        radius_at(0.99 * h),
+    );
+    assert!(
+        belly > 1.8 * neck && lip > neck * 1.2,
+        "belly {belly} neck {neck} lip {lip}"
+    );
 }

@@ -42,14 +42,25 @@ impl Chain {
     fn new(joints: &[(Vec3, f32)]) -> Chain {
         let spheres: Vec<(Vec3, f32)> = joints
             .windows(2)
-            .map(|w| ((w[0].0 + w[1].0) * 0.5, (w[1].0 - w[0].0).length() * 0.5 + w[0].1.max(w[1].1)))
+            .map(|w| {
+                (
+                    (w[0].0 + w[1].0) * 0.5,
+                    (w[1].0 - w[0].0).length() * 0.5 + w[0].1.max(w[1].1),
+                )
+            })
             .collect();
         let (a, b) = (joints[0].0, joints[joints.len() - 1].0);
         let r = joints
             .iter()
             .map(|&(j, r)| capsule(j, a, b, 0.0) + r)
             .fold(0.0f32, f32::max);
-        Chain { joints: joints.to_vec(), spheres, a, b, r }
+        Chain {
+            joints: joints.to_vec(),
+            spheres,
+            a,
+            b,
+            r,
+        }
     }
     /// The leg's distance.
     fn dist(&self, p: Vec3) -> f32 {
@@ -60,14 +71,21 @@ impl Chain {
         if capsule(p, self.a, self.b, self.r) >= d + k {
             return d;
         }
-        let lb = self.spheres.iter().map(|&(c, r)| (p - c).length() - r).fold(f32::INFINITY, f32::min);
+        let lb = self
+            .spheres
+            .iter()
+            .map(|&(c, r)| (p - c).length() - r)
+            .fold(f32::INFINITY, f32::min);
         blend_lazy(d, k, lb, || self.dist(p))
     }
 }
 
 /// Smooth-min of a slice of distances with blend radius `k`.
 fn smin_all(ds: &[f32], k: f32) -> f32 {
-    ds.iter().copied().reduce(|a, b| smin(a, b, k)).unwrap_or(f32::INFINITY)
+    ds.iter()
+        .copied()
+        .reduce(|a, b| smin(a, b, k))
+        .unwrap_or(f32::INFINITY)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -110,10 +128,30 @@ fn zebra_leg_joints(front: bool, s: f32) -> [(Vec3, f32); 6] {
 fn z_torso(p: Vec3) -> f32 {
     smin_all(
         &[
-            ellipsoid(p, Vec3::new(0.0, 0.93, 0.0), Vec3::new(0.50, 0.24, 0.20), Quat::IDENTITY),
-            ellipsoid(p, Vec3::new(0.30, 0.92, 0.0), Vec3::new(0.24, 0.25, 0.19), Quat::IDENTITY),
-            ellipsoid(p, Vec3::new(-0.32, 0.97, 0.0), Vec3::new(0.25, 0.25, 0.20), Quat::IDENTITY),
-            ellipsoid(p, Vec3::new(0.0, 0.87, 0.0), Vec3::new(0.34, 0.22, 0.21), Quat::IDENTITY),
+            ellipsoid(
+                p,
+                Vec3::new(0.0, 0.93, 0.0),
+                Vec3::new(0.50, 0.24, 0.20),
+                Quat::IDENTITY,
+            ),
+            ellipsoid(
+                p,
+                Vec3::new(0.30, 0.92, 0.0),
+                Vec3::new(0.24, 0.25, 0.19),
+                Quat::IDENTITY,
+            ),
+            ellipsoid(
+                p,
+                Vec3::new(-0.32, 0.97, 0.0),
+                Vec3::new(0.25, 0.25, 0.20),
+                Quat::IDENTITY,
+            ),
+            ellipsoid(
+                p,
+                Vec3::new(0.0, 0.87, 0.0),
+                Vec3::new(0.34, 0.22, 0.21),
+                Quat::IDENTITY,
+            ),
         ],
         0.10,
     )
@@ -127,7 +165,12 @@ static Z_TUFT_ROT: LazyLock<Quat> = LazyLock::new(|| rot_x_to(Z_TAIL_B - Z_TAIL_
 fn z_neck(p: Vec3) -> f32 {
     smin(
         round_cone(p, Z_NECK_A, Z_NECK_B, 0.15, 0.085),
-        ellipsoid(p, (Z_MANE_A + Z_MANE_B) * 0.5, Vec3::new(0.22, 0.05, 0.022), *Z_MANE_ROT),
+        ellipsoid(
+            p,
+            (Z_MANE_A + Z_MANE_B) * 0.5,
+            Vec3::new(0.22, 0.05, 0.022),
+            *Z_MANE_ROT,
+        ),
         0.05,
     )
 }
@@ -140,7 +183,12 @@ fn z_head(p: Vec3) -> f32 {
     let mut head = smin_all(
         &[
             round_cone(p, Z_HEAD_A, Z_HEAD_B, 0.088, 0.06),
-            ellipsoid(p, Vec3::new(0.79, 1.35, 0.0), Vec3::new(0.10, 0.09, 0.075), Quat::IDENTITY),
+            ellipsoid(
+                p,
+                Vec3::new(0.79, 1.35, 0.0),
+                Vec3::new(0.10, 0.09, 0.075),
+                Quat::IDENTITY,
+            ),
             sphere(p, Z_MUZZLE, 0.068),
         ],
         0.06,
@@ -159,8 +207,12 @@ fn z_head(p: Vec3) -> f32 {
 }
 
 fn z_head_lb(p: Vec3) -> f32 {
-    capsule(p, Vec3::new(0.78, 1.38, 0.0), Z_MUZZLE, 0.11)
-        .min(capsule(p, Vec3::new(0.745, 1.50, 0.0), Vec3::new(0.70, 1.65, 0.0), 0.14))
+    capsule(p, Vec3::new(0.78, 1.38, 0.0), Z_MUZZLE, 0.11).min(capsule(
+        p,
+        Vec3::new(0.745, 1.50, 0.0),
+        Vec3::new(0.70, 1.65, 0.0),
+        0.14,
+    ))
 }
 
 fn z_tail(p: Vec3) -> f32 {
@@ -172,14 +224,26 @@ fn z_tail(p: Vec3) -> f32 {
 }
 
 const LEGS: [(bool, f32); 4] = [(true, -1.0), (true, 1.0), (false, -1.0), (false, 1.0)];
-static Z_LEGS: LazyLock<[Chain; 4]> = LazyLock::new(|| LEGS.map(|(f, s)| Chain::new(&zebra_leg_joints(f, s))));
-static G_LEGS: LazyLock<[Chain; 4]> = LazyLock::new(|| LEGS.map(|(f, s)| Chain::new(&giraffe_leg_joints(f, s))));
-static C_LEGS: LazyLock<[Chain; 4]> = LazyLock::new(|| LEGS.map(|(f, s)| Chain::new(&cerberus_leg_joints(f, s))));
+static Z_LEGS: LazyLock<[Chain; 4]> =
+    LazyLock::new(|| LEGS.map(|(f, s)| Chain::new(&zebra_leg_joints(f, s))));
+static G_LEGS: LazyLock<[Chain; 4]> =
+    LazyLock::new(|| LEGS.map(|(f, s)| Chain::new(&giraffe_leg_joints(f, s))));
+static C_LEGS: LazyLock<[Chain; 4]> =
+    LazyLock::new(|| LEGS.map(|(f, s)| Chain::new(&cerberus_leg_joints(f, s))));
 
 /// Zebra region distances: torso, neck, head, legs (FL, FR, BL, BR), tail.
 pub(crate) fn zebra_parts(p: Vec3) -> [f32; 8] {
     let l: [f32; 4] = std::array::from_fn(|i| Z_LEGS[i].dist(p));
-    [z_torso(p), z_neck(p), z_head(p), l[0], l[1], l[2], l[3], z_tail(p)]
+    [
+        z_torso(p),
+        z_neck(p),
+        z_head(p),
+        l[0],
+        l[1],
+        l[2],
+        l[3],
+        z_tail(p),
+    ]
 }
 
 /// The zebra's signed distance: torso, then neck, head, legs and tail smoothly blended in
@@ -219,11 +283,7 @@ fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
 pub(crate) fn zebra_stripe(p: Vec3) -> f32 {
     let parts = zebra_parts(p);
     let sigma = 0.025;
-    let warp = Vec3::new(
-        noise3(p * 3.0, 1),
-        noise3(p * 3.0, 2),
-        noise3(p * 3.0, 3),
-    ) * 0.035
+    let warp = Vec3::new(noise3(p * 3.0, 1), noise3(p * 3.0, 2), noise3(p * 3.0, 3)) * 0.035
         + Vec3::new(noise3(p * 9.0, 4), noise3(p * 9.0, 5), noise3(p * 9.0, 6)) * 0.008;
     let q = p + warp;
 
@@ -236,7 +296,9 @@ pub(crate) fn zebra_stripe(p: Vec3) -> f32 {
     // Haunch: wide arcs around a centre in front of and below the hip, turning horizontal
     // towards the hind leg.
     let c = Vec3::new(-0.02, 0.52, 0.0);
-    let r = ((q.x - c.x).powi(2) + (q.y - c.y).powi(2)).sqrt();
+    // The |z| term folds the arcs into chevrons along the spine instead of closing them into a
+    // ring on top of the rump.
+    let r = ((q.x - c.x).powi(2) + (q.y - c.y).powi(2)).sqrt() + 0.6 * q.z.abs();
     let arcs = stripe(r / 0.165 + 0.3, 0.165, 0.48);
     let hw = smoothstep(-0.05, -0.28, q.x);
     let mut torso = vert + (arcs - vert) * hw;
@@ -248,10 +310,14 @@ pub(crate) fn zebra_stripe(p: Vec3) -> f32 {
     let nu = (Z_NECK_B - Z_NECK_A).normalize();
     let neck = stripe((q - Z_NECK_A).dot(nu) / 0.07 + 0.15, 0.07, 0.5);
 
-    // Head: thin rings along the head axis (period 0.036), black muzzle, black ear tips.
+    // Head: thin rings along the head axis (period 0.046), black muzzle, black ear tips.
     let hu = (Z_HEAD_B - Z_HEAD_A).normalize();
-    let mut head = stripe((q - Z_HEAD_A).dot(hu) / 0.036, 0.036, 0.45);
-    let muzzle = smoothstep(0.085, 0.06, (p - (Z_MUZZLE + Vec3::new(0.035, -0.015, 0.0))).length());
+    let mut head = stripe((q - Z_HEAD_A).dot(hu) / 0.046, 0.046, 0.45);
+    let muzzle = smoothstep(
+        0.085,
+        0.06,
+        (p - (Z_MUZZLE + Vec3::new(0.035, -0.015, 0.0))).length(),
+    );
     head += muzzle * 0.3;
     head += smoothstep(1.60, 1.63, p.y) * 0.2;
 
@@ -270,7 +336,11 @@ pub(crate) fn zebra_stripe(p: Vec3) -> f32 {
     let leg_pen = 0.3 * smoothstep(0.62, 0.80, p.y);
     let neck_pen = 0.3 * smoothstep(1.02, 0.88, p.y);
     let pen = [0.0, neck_pen, 0.0, leg_pen, leg_pen, leg_pen, leg_pen, 0.0];
-    let dmin = parts.iter().zip(pen).map(|(d, e)| d + e).fold(f32::INFINITY, f32::min);
+    let dmin = parts
+        .iter()
+        .zip(pen)
+        .map(|(d, e)| d + e)
+        .fold(f32::INFINITY, f32::min);
     let (mut num, mut den) = (0.0f32, 0.0f32);
     for ((d, s), e) in parts.iter().zip(region).zip(pen) {
         let w = (-(d + e - dmin) / sigma).exp();
@@ -352,7 +422,12 @@ fn g_head(p: Vec3) -> f32 {
     let mut head = smin_all(
         &[
             round_cone(p, G_HEAD_A, G_HEAD_B, 0.075, 0.045),
-            ellipsoid(p, Vec3::new(0.82, 2.38, 0.0), Vec3::new(0.08, 0.065, 0.06), Quat::IDENTITY),
+            ellipsoid(
+                p,
+                Vec3::new(0.82, 2.38, 0.0),
+                Vec3::new(0.08, 0.065, 0.06),
+                Quat::IDENTITY,
+            ),
             sphere(p, G_HEAD_B + Vec3::new(0.0, -0.005, 0.0), 0.05),
         ],
         0.05,
@@ -386,9 +461,24 @@ pub(crate) fn giraffe_sdf(p: Vec3) -> f32 {
     let tilt = *G_TILT;
     let mut d = smin_all(
         &[
-            ellipsoid(p, Vec3::new(0.0, 1.30, 0.0), Vec3::new(0.46, 0.22, 0.18), tilt),
-            ellipsoid(p, Vec3::new(0.26, 1.38, 0.0), Vec3::new(0.23, 0.24, 0.17), tilt),
-            ellipsoid(p, Vec3::new(-0.28, 1.22, 0.0), Vec3::new(0.20, 0.19, 0.16), tilt),
+            ellipsoid(
+                p,
+                Vec3::new(0.0, 1.30, 0.0),
+                Vec3::new(0.46, 0.22, 0.18),
+                tilt,
+            ),
+            ellipsoid(
+                p,
+                Vec3::new(0.26, 1.38, 0.0),
+                Vec3::new(0.23, 0.24, 0.17),
+                tilt,
+            ),
+            ellipsoid(
+                p,
+                Vec3::new(-0.28, 1.22, 0.0),
+                Vec3::new(0.20, 0.19, 0.16),
+                tilt,
+            ),
         ],
         0.10,
     );
@@ -401,7 +491,12 @@ pub(crate) fn giraffe_sdf(p: Vec3) -> f32 {
             0.06,
         )
     });
-    d = blend_lazy(d, 0.06, capsule(p, Vec3::new(0.76, 2.48, 0.0), G_HEAD_B, 0.2), || g_head(p));
+    d = blend_lazy(
+        d,
+        0.06,
+        capsule(p, Vec3::new(0.76, 2.48, 0.0), G_HEAD_B, 0.2),
+        || g_head(p),
+    );
     for l in G_LEGS.iter() {
         d = l.blend_into(d, 0.07, p);
     }
@@ -489,7 +584,13 @@ fn dog_head(p: Vec3, c: Vec3, dir: Vec3, rot: Quat) -> f32 {
     let mut d = smin_all(
         &[
             ellipsoid(p, c, Vec3::new(0.10, 0.085, 0.08), rot),
-            round_cone(p, c + dir * 0.05 - Vec3::Y * 0.01, c + dir * 0.19 - Vec3::Y * 0.035, 0.058, 0.038),
+            round_cone(
+                p,
+                c + dir * 0.05 - Vec3::Y * 0.01,
+                c + dir * 0.19 - Vec3::Y * 0.035,
+                0.058,
+                0.038,
+            ),
             sphere(p, c + dir * 0.20 - Vec3::Y * 0.03, 0.032),
         ],
         0.05,
@@ -511,9 +612,24 @@ fn dog_head(p: Vec3, c: Vec3, dir: Vec3, rot: Quat) -> f32 {
 pub(crate) fn cerberus_sdf(p: Vec3) -> f32 {
     let mut d = smin_all(
         &[
-            ellipsoid(p, Vec3::new(0.0, 0.63, 0.0), Vec3::new(0.40, 0.16, 0.15), *C_TILT),
-            ellipsoid(p, Vec3::new(0.24, 0.66, 0.0), Vec3::new(0.21, 0.21, 0.19), Quat::IDENTITY),
-            ellipsoid(p, Vec3::new(-0.28, 0.63, 0.0), Vec3::new(0.18, 0.16, 0.15), Quat::IDENTITY),
+            ellipsoid(
+                p,
+                Vec3::new(0.0, 0.63, 0.0),
+                Vec3::new(0.40, 0.16, 0.15),
+                *C_TILT,
+            ),
+            ellipsoid(
+                p,
+                Vec3::new(0.24, 0.66, 0.0),
+                Vec3::new(0.21, 0.21, 0.19),
+                Quat::IDENTITY,
+            ),
+            ellipsoid(
+                p,
+                Vec3::new(-0.28, 0.63, 0.0),
+                Vec3::new(0.18, 0.16, 0.15),
+                Quat::IDENTITY,
+            ),
         ],
         0.09,
     );
@@ -548,7 +664,11 @@ pub(crate) fn cerberus_sdf(p: Vec3) -> f32 {
     let t3 = Vec3::new(-0.58, 1.08, 0.0);
     blend_lazy(d, 0.04, capsule(p, t0, t2, 0.16), || {
         smin(
-            smin(round_cone(p, t0, t1, 0.036, 0.03), round_cone(p, t1, t2, 0.03, 0.024), 0.02),
+            smin(
+                round_cone(p, t0, t1, 0.036, 0.03),
+                round_cone(p, t1, t2, 0.03, 0.024),
+                0.02,
+            ),
             round_cone(p, t2, t3, 0.024, 0.017),
             0.02,
         )
@@ -569,7 +689,11 @@ pub(crate) fn cerberus_landmarks() -> Vec<(Landmark, [f32; 3])> {
         seeds.push((Landmark::Nose, c + dir * 0.30 - Vec3::Y * 0.03));
         seeds.push((Landmark::HeadTop, c + Vec3::Y * 0.15 + dir * 0.01));
         let mid = (base + c) * 0.5;
-        let out = if i == 1 { Vec3::new(0.0, 0.0, -1.0) } else { Vec3::new(0.0, 0.0, i as f32 - 1.0) };
+        let out = if i == 1 {
+            Vec3::new(0.0, 0.0, -1.0)
+        } else {
+            Vec3::new(0.0, 0.0, i as f32 - 1.0)
+        };
         seeds.push((Landmark::Neck, mid + out * 0.25));
     }
     seeds.extend([

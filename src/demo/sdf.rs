@@ -53,7 +53,11 @@ pub fn round_cone(p: Vec3, a: Vec3, b: Vec3, r1: f32, r2: f32) -> f32 {
 /// (Quilez bound `k0 (k0 - 1) / k1`, `k0 = |p / r|`, `k1 = |p / r^2|`).
 #[inline]
 pub fn ellipsoid(p: Vec3, c: Vec3, r: Vec3, q: Quat) -> f32 {
-    let l = if q == Quat::IDENTITY { p - c } else { q.inverse() * (p - c) };
+    let l = if q == Quat::IDENTITY {
+        p - c
+    } else {
+        q.inverse() * (p - c)
+    };
     let k0 = (l / r).length();
     let k1 = (l / (r * r)).length();
     if k1 < 1e-12 {
@@ -134,7 +138,8 @@ pub fn mesh_sdf(f: &(impl Fn(Vec3) -> f32 + Sync + ?Sized), lo: Vec3, hi: Vec3, 
         .into_par_iter()
         .map(|b| {
             let (i, j, k) = (b % bx, (b / bx) % by, b / (bx * by));
-            let c = lo + (Vec3::new(i as f32, j as f32, k as f32) * B as f32 + (B - 1) as f32 * 0.5) * h;
+            let c = lo
+                + (Vec3::new(i as f32, j as f32, k as f32) * B as f32 + (B - 1) as f32 * 0.5) * h;
             f(c)
         })
         .collect();
@@ -144,7 +149,11 @@ pub fn mesh_sdf(f: &(impl Fn(Vec3) -> f32 + Sync + ?Sized), lo: Vec3, hi: Vec3, 
         for j in 0..ny {
             for i in 0..nx {
                 let cv = coarse[i / B + bx * (j / B + by * (k / B))];
-                let v = if cv.abs() > far { cv } else { f(point(i, j, k)) };
+                let v = if cv.abs() > far {
+                    cv
+                } else {
+                    f(point(i, j, k))
+                };
                 s[i + nx * j] = if v == 0.0 { 1e-7 } else { v };
             }
         }
@@ -163,7 +172,8 @@ pub fn mesh_sdf(f: &(impl Fn(Vec3) -> f32 + Sync + ?Sized), lo: Vec3, hi: Vec3, 
 
     // 2. One vertex per sign-changing edge; the 7 edge directions from a point are the nonzero
     //    0/1 offsets (bit 0 = +x, bit 1 = +y, bit 2 = +z), edge id = 7 * point + (bits - 1).
-    let offs: [usize; 8] = std::array::from_fn(|b| (b & 1) + nx * ((b >> 1) & 1) + slice * (b >> 2));
+    let offs: [usize; 8] =
+        std::array::from_fn(|b| (b & 1) + nx * ((b >> 1) & 1) + slice * (b >> 2));
     let per_slice: Vec<Vec<(usize, Vec3)>> = (0..nz - 1)
         .into_par_iter()
         .map(|k| {
@@ -201,7 +211,14 @@ pub fn mesh_sdf(f: &(impl Fn(Vec3) -> f32 + Sync + ?Sized), lo: Vec3, hi: Vec3, 
 
     // 3. Triangles per tetrahedron. The six Kuhn tetrahedra of a cube follow monotone paths
     //    000 -> 111 through one axis per step, so every tet edge is a positive-direction edge.
-    const PERMS: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+    const PERMS: [[usize; 3]; 6] = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ];
     let per_slice_faces: Vec<Vec<[u32; 3]>> = (0..nz - 1)
         .into_par_iter()
         .map(|k| {
@@ -276,8 +293,16 @@ fn tet(
         }
     };
     match n_in {
-        1 => emit_poly(&[ev(ins[0], outs[0]), ev(ins[0], outs[1]), ev(ins[0], outs[2])]),
-        3 => emit_poly(&[ev(outs[0], ins[0]), ev(outs[0], ins[1]), ev(outs[0], ins[2])]),
+        1 => emit_poly(&[
+            ev(ins[0], outs[0]),
+            ev(ins[0], outs[1]),
+            ev(ins[0], outs[2]),
+        ]),
+        3 => emit_poly(&[
+            ev(outs[0], ins[0]),
+            ev(outs[0], ins[1]),
+            ev(outs[0], ins[2]),
+        ]),
         _ => emit_poly(&[
             ev(ins[0], outs[0]),
             ev(ins[0], outs[1]),
@@ -295,7 +320,9 @@ pub fn largest_component(positions: Vec<[f32; 3]>, faces: Vec<[u32; 3]>) -> TriM
     for f in &faces {
         count[labels[f[0] as usize] as usize] += 1;
     }
-    let best = (0..n).max_by_key(|&l| (count[l], std::cmp::Reverse(l))).unwrap_or(0) as u32;
+    let best = (0..n)
+        .max_by_key(|&l| (count[l], std::cmp::Reverse(l)))
+        .unwrap_or(0) as u32;
     let faces: Vec<[u32; 3]> = faces
         .into_iter()
         .filter(|f| labels[f[0] as usize] == best)
@@ -315,7 +342,10 @@ pub fn largest_component(positions: Vec<[f32; 3]>, faces: Vec<[u32; 3]>) -> TriM
             kept.push(positions[v]);
         }
     }
-    let faces = faces.into_iter().map(|f| f.map(|v| remap[v as usize])).collect();
+    let faces = faces
+        .into_iter()
+        .map(|f| f.map(|v| remap[v as usize]))
+        .collect();
     TriMesh::new(kept, faces)
 }
 
@@ -328,7 +358,10 @@ pub fn relax(mesh: &mut TriMesh, f: &(impl Fn(Vec3) -> f32 + Sync + ?Sized), ite
     let mut pos: Vec<Vec3> = mesh.positions.iter().map(|&p| Vec3::from(p)).collect();
     let mut next = pos.clone();
     // Unit normals from the gradient, refreshed at each new position.
-    let mut nrm: Vec<Vec3> = pos.par_iter().map(|&p| gradient(f, p, e).1.normalize_or_zero()).collect();
+    let mut nrm: Vec<Vec3> = pos
+        .par_iter()
+        .map(|&p| gradient(f, p, e).1.normalize_or_zero())
+        .collect();
     let mut next_nrm = nrm.clone();
     for _ in 0..iters {
         next.par_iter_mut()
@@ -360,7 +393,10 @@ pub fn relax(mesh: &mut TriMesh, f: &(impl Fn(Vec3) -> f32 + Sync + ?Sized), ite
         std::mem::swap(&mut pos, &mut next);
         std::mem::swap(&mut nrm, &mut next_nrm);
     }
-    let normals: Vec<[f32; 3]> = nrm.iter().map(|n| n.normalize_or(Vec3::Y).to_array()).collect();
+    let normals: Vec<[f32; 3]> = nrm
+        .iter()
+        .map(|n| n.normalize_or(Vec3::Y).to_array())
+        .collect();
     mesh.positions = pos.iter().map(|p| p.to_array()).collect();
     mesh.normals = Some(normals);
 }

@@ -33,12 +33,24 @@ fn outer_radius(y: f32) -> f32 {
         (1.0, 0.192),
     ];
     let y = y.clamp(0.0, 1.0);
-    let i = CP.iter().rposition(|c| c.0 <= y).unwrap_or(0).min(CP.len() - 2);
+    let i = CP
+        .iter()
+        .rposition(|c| c.0 <= y)
+        .unwrap_or(0)
+        .min(CP.len() - 2);
     let (y0, r0) = CP[i];
     let (y1, r1) = CP[i + 1];
     let slope = |a: usize, b: usize| (CP[b].1 - CP[a].1) / (CP[b].0 - CP[a].0);
-    let m0 = if i == 0 { slope(0, 1) } else { slope(i - 1, i + 1) };
-    let m1 = if i + 2 >= CP.len() { slope(i, i + 1) } else { slope(i, i + 2) };
+    let m0 = if i == 0 {
+        slope(0, 1)
+    } else {
+        slope(i - 1, i + 1)
+    };
+    let m1 = if i + 2 >= CP.len() {
+        slope(i, i + 1)
+    } else {
+        slope(i, i + 2)
+    };
     let h = y1 - y0;
     let t = (y - y0) / h;
     let (t2, t3) = (t * t, t * t * t);
@@ -80,7 +92,11 @@ fn profile() -> Vec<(f32, f32, Part)> {
     let rh = outer_radius(H);
     for i in 1..40 {
         let a = std::f32::consts::PI * i as f32 / 40.0;
-        dense.push((rh - T * 0.5 + T * 0.5 * a.cos(), H + T * 0.5 * a.sin(), Part::Lip));
+        dense.push((
+            rh - T * 0.5 + T * 0.5 * a.cos(),
+            H + T * 0.5 * a.sin(),
+            Part::Lip,
+        ));
     }
     for i in 0..=2000 {
         let y = H - (H - FLOOR - c) * i as f32 / 2000.0;
@@ -111,7 +127,11 @@ fn profile() -> Vec<(f32, f32, Part)> {
         }
         let t = ((s - len[j]) / (len[j + 1] - len[j]).max(1e-12)).clamp(0.0, 1.0);
         let (a, b) = (dense[j], dense[j + 1]);
-        out.push((a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t, if t < 0.5 { a.2 } else { b.2 }));
+        out.push((
+            a.0 + (b.0 - a.0) * t,
+            a.1 + (b.1 - a.1) * t,
+            if t < 0.5 { a.2 } else { b.2 },
+        ));
     }
     out[0].0 = 0.0;
     out[m].0 = 0.0;
@@ -132,10 +152,15 @@ fn painted_color(theta: f32, y: f32) -> [f32; 3] {
     const BLACK: [f32; 3] = [0.09, 0.07, 0.06];
     const CREAM: [f32; 3] = [0.94, 0.86, 0.68];
     let aa = 0.004;
-    let band = |lo: f32, hi: f32| smoothstep(lo - aa, lo + aa, y) * (1.0 - smoothstep(hi - aa, hi + aa, y));
+    let band = |lo: f32, hi: f32| {
+        smoothstep(lo - aa, lo + aa, y) * (1.0 - smoothstep(hi - aa, hi + aa, y))
+    };
     let mut black: f32 = 0.0;
     // Rules.
-    black = black.max(band(0.615, 0.635)).max(band(0.745, 0.755)).max(band(0.815, 0.83));
+    black = black
+        .max(band(0.615, 0.635))
+        .max(band(0.745, 0.755))
+        .max(band(0.815, 0.83));
     // Zigzag between the first two rules.
     let u = theta / TAU * 12.0;
     let tri = 2.0 * (u - u.floor() - 0.5).abs();
@@ -144,7 +169,10 @@ fn painted_color(theta: f32, y: f32) -> [f32; 3] {
     // Black tongues hanging from a rule below the rim.
     let w = theta / TAU * 16.0;
     let tongue = 0.90 - 0.045 * (std::f32::consts::PI * (w - w.floor())).sin();
-    black = black.max(band(tongue, 0.93)).max(band(0.925, 0.94)).max(band(0.975, 2.0));
+    black = black
+        .max(band(tongue, 0.93))
+        .max(band(0.925, 0.94))
+        .max(band(0.975, 2.0));
     let mut c: [f32; 3] = std::array::from_fn(|k| GROUND[k] + (BLACK[k] - GROUND[k]) * black);
     // Cream dots between the second and third rule.
     let v = theta / TAU * 36.0;
@@ -183,7 +211,11 @@ pub(crate) fn vase_with_mask() -> (TriMesh, Vec<bool>) {
             pos.push([r * th.cos(), y, r * th.sin()]);
             mask.push(painted);
             col.push(if painted {
-                if part == Part::Outer { painted_color(th, y) } else { [0.09, 0.07, 0.06] }
+                if part == Part::Outer {
+                    painted_color(th, y)
+                } else {
+                    [0.09, 0.07, 0.06]
+                }
             } else {
                 CLAY
             });
@@ -200,7 +232,12 @@ pub(crate) fn vase_with_mask() -> (TriMesh, Vec<bool>) {
     }
     for i in 0..rings - 1 {
         for s in 0..SEGS {
-            let (a, b, c, d) = (ring(i, s), ring(i, s + 1), ring(i + 1, s), ring(i + 1, s + 1));
+            let (a, b, c, d) = (
+                ring(i, s),
+                ring(i, s + 1),
+                ring(i + 1, s),
+                ring(i + 1, s + 1),
+            );
             faces.push([a, b, d]);
             faces.push([a, d, c]);
         }
