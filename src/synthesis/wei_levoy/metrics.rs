@@ -67,6 +67,7 @@ pub fn neighbourhood_distance(
     let dim = 3 * per;
     let results: Vec<Option<f32>> = picks
         .par_iter()
+        .with_min_len(64)
         .map_init(
             || (Scratch::new(&lev), vec![super::neigh::UNCOVERED; per], vec![0.0f32; dim]),
             |(sc, taps, q), &v| {

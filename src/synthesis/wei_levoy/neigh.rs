@@ -103,9 +103,12 @@ pub(crate) fn build_stencil(
     sc: &mut Scratch,
     out: &mut [Tap],
 ) {
-    let r = (size / 2) as f32;
-    let reach = f.h * (r * std::f32::consts::SQRT_2 + 2.0);
-    let reach2 = reach * reach;
+    // a vertex grows the patch while its flattened position lies within the template square
+    // widened by a margin of 1.5 texels (so covering triangles are found), and near the tangent
+    // plane (which keeps the far side of thin parts out)
+    let box_half = (size / 2) as f32 + 1.5;
+    let zmax = f.h * (size as f32 + 2.0);
+    let inv_h = 1.0 / f.h;
     sc.stamp = sc.stamp.wrapping_add(1);
     if sc.stamp == 0 {
         sc.vstamp.iter_mut().for_each(|x| *x = 0);
@@ -128,7 +131,10 @@ pub(crate) fn build_stencil(
                 sc.faces.push(fi);
             }
         }
-        let inside = Vec3::from(mesh.positions[v]).distance_squared(f.c) <= reach2;
+        let d = Vec3::from(mesh.positions[v]) - f.c;
+        let inside = (d.dot(f.s) * inv_h).abs() <= box_half
+            && (d.dot(f.t) * inv_h).abs() <= box_half
+            && d.dot(f.n).abs() <= zmax;
         if !inside && head > 1 {
             continue;
         }
@@ -143,7 +149,6 @@ pub(crate) fn build_stencil(
     sc.depth.clear();
     sc.depth.resize(size * size, f32::INFINITY);
     let ri = (size / 2) as i32;
-    let inv_h = 1.0 / f.h;
     for &fi in &sc.faces {
         let face = mesh.faces[fi as usize];
         let mut uv = [Vec2::ZERO; 3];
@@ -162,10 +167,13 @@ pub(crate) fn build_stencil(
         let lo = uv[0].min(uv[1]).min(uv[2]);
         let hi = uv[0].max(uv[1]).max(uv[2]);
         // template point (i, j) sits at uv = (i, -j)
-        let i0 = (lo.x.ceil() as i32).max(-ri);
-        let i1 = (hi.x.floor() as i32).min(ri);
-        let j0 = ((-hi.y).ceil() as i32).max(-ri);
-        let j1 = ((-lo.y).floor() as i32).min(ri);
+        let i0 = fast_ceil(lo.x).max(-ri);
+        let i1 = fast_floor(hi.x).min(ri);
+        let j0 = fast_ceil(-hi.y).max(-ri);
+        let j1 = fast_floor(-lo.y).min(ri);
+        if i0 > i1 || j0 > j1 {
+            continue;
+        }
         for j in j0..=j1 {
             for i in i0..=i1 {
                 let p = Vec2::new(i as f32, -j as f32) - uv[0];
@@ -190,6 +198,22 @@ pub(crate) fn build_stencil(
     }
 }
 
+/// `ceil` for values well inside the i32 range (clamped), without a libm call.
+#[inline]
+fn fast_ceil(x: f32) -> i32 {
+    let x = x.clamp(-1e6, 1e6);
+    let t = x as i32;
+    if (t as f32) < x { t + 1 } else { t }
+}
+
+/// `floor` for values well inside the i32 range (clamped), without a libm call.
+#[inline]
+fn fast_floor(x: f32) -> i32 {
+    let x = x.clamp(-1e6, 1e6);
+    let t = x as i32;
+    if (t as f32) > x { t - 1 } else { t }
+}
+
 /// Stencils for every vertex of `level` sampled on `mesh` (the level itself, or the next coarser
 /// level for parent neighbourhoods, seeded at each vertex's parent), in the vertex's own frame.
 pub(crate) fn build_stencils(
@@ -202,11 +226,13 @@ pub(crate) fn build_stencils(
 ) -> Stencils {
     let per = size * size;
     let mut taps = vec![UNCOVERED; level.num_vertices() * per];
-    taps.par_chunks_mut(per)
+    const BLOCK: usize = 512;
+    taps.par_chunks_mut(per * BLOCK)
         .enumerate()
-        .for_each_init(
-            || Scratch::new(mesh),
-            |sc, (v, out)| {
+        .for_each(|(b, block)| {
+            let mut sc = Scratch::new(mesh);
+            for (i, out) in block.chunks_mut(per).enumerate() {
+                let v = b * BLOCK + i;
                 let n = Vec3::from(level.normals[v]);
                 let s = Vec3::from(dirs[v]);
                 let frame = Frame {
@@ -217,9 +243,9 @@ pub(crate) fn build_stencils(
                     h,
                 };
                 let seed = seeds.map_or(v as u32, |m| m[v]);
-                build_stencil(mesh, seed, &frame, size, sc, out);
-            },
-        );
+                build_stencil(mesh, seed, &frame, size, &mut sc, out);
+            }
+        });
     Stencils { per, taps }
 }
 
