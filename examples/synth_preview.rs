@@ -40,16 +40,43 @@ fn load_obj(path: &Path) -> TriMesh {
 fn icosphere(n: usize) -> TriMesh {
     let t = (1.0 + 5f32.sqrt()) / 2.0;
     let mut p: Vec<[f32; 3]> = [
-        [-1., t, 0.], [1., t, 0.], [-1., -t, 0.], [1., -t, 0.], [0., -1., t], [0., 1., t],
-        [0., -1., -t], [0., 1., -t], [t, 0., -1.], [t, 0., 1.], [-t, 0., -1.], [-t, 0., 1.],
+        [-1., t, 0.],
+        [1., t, 0.],
+        [-1., -t, 0.],
+        [1., -t, 0.],
+        [0., -1., t],
+        [0., 1., t],
+        [0., -1., -t],
+        [0., 1., -t],
+        [t, 0., -1.],
+        [t, 0., 1.],
+        [-t, 0., -1.],
+        [-t, 0., 1.],
     ]
     .iter()
     .map(|v| Vec3::from(*v).normalize().to_array())
     .collect();
     let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-        [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9],
-        [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     for _ in 0..n {
         let mut mid = std::collections::HashMap::new();
@@ -77,8 +104,12 @@ fn render(mesh: &TriMesh, colors: &[[f32; 3]], size: u32, yaws: &[f32]) -> image
     let (lo, hi) = mesh.bounds().unwrap();
     let c = (Vec3::from(lo) + Vec3::from(hi)) * 0.5;
     let r = (Vec3::from(hi) - Vec3::from(lo)).length() * 0.5;
-    let mut img = image::RgbImage::from_pixel(size * yaws.len() as u32, size, image::Rgb([40, 40, 48]));
-    let normals = mesh.normals.clone().unwrap_or_else(|| vec![[0.0, 0.0, 1.0]; mesh.num_vertices()]);
+    let mut img =
+        image::RgbImage::from_pixel(size * yaws.len() as u32, size, image::Rgb([40, 40, 48]));
+    let normals = mesh
+        .normals
+        .clone()
+        .unwrap_or_else(|| vec![[0.0, 0.0, 1.0]; mesh.num_vertices()]);
     for (vi, &yaw) in yaws.iter().enumerate() {
         let rot = Mat3::from_rotation_x(-0.35) * Mat3::from_rotation_y(yaw);
         let s = size as f32;
@@ -87,7 +118,11 @@ fn render(mesh: &TriMesh, colors: &[[f32; 3]], size: u32, yaws: &[f32]) -> image
             .iter()
             .map(|p| {
                 let q = rot * ((Vec3::from(*p) - c) / r);
-                Vec3::new((q.x * 0.95 + 1.0) * 0.5 * s, (1.0 - q.y * 0.95) * 0.5 * s, q.z)
+                Vec3::new(
+                    (q.x * 0.95 + 1.0) * 0.5 * s,
+                    (1.0 - q.y * 0.95) * 0.5 * s,
+                    q.z,
+                )
             })
             .collect();
         let light = Vec3::new(0.3, 0.5, 1.0).normalize();
@@ -123,7 +158,9 @@ fn render(mesh: &TriMesh, colors: &[[f32; 3]], size: u32, yaws: &[f32]) -> image
                     let k = (y as u32 * size + x as u32) as usize;
                     if z > zb[k] {
                         zb[k] = z;
-                        let col = shade[f[0] as usize] * w0 + shade[f[1] as usize] * w1 + shade[f[2] as usize] * w2;
+                        let col = shade[f[0] as usize] * w0
+                            + shade[f[1] as usize] * w1
+                            + shade[f[2] as usize] * w2;
                         let px = col.to_array().map(|v| (v.clamp(0.0, 1.0) * 255.0) as u8);
                         img.put_pixel(vi as u32 * size + x as u32, y as u32, image::Rgb(px));
                     }
@@ -164,14 +201,23 @@ fn main() {
     let ex = if args[1] == "stripes" {
         image::RgbImage::from_fn(size, size, |x, y| {
             let s = ((x as f32 + 0.3 * y as f32) * std::f32::consts::TAU / 8.0).sin();
-            if s > 0.0 { image::Rgb([220, 200, 60]) } else { image::Rgb([40, 50, 120]) }
+            if s > 0.0 {
+                image::Rgb([220, 200, 60])
+            } else {
+                image::Rgb([40, 50, 120])
+            }
         })
     } else {
         let img = image::open(&args[1]).expect("exemplar").to_rgb8();
         image::imageops::resize(&img, size, size, image::imageops::FilterType::Triangle)
     };
-    let target = if args[2] == "sphere" { icosphere(3) } else { load_obj(Path::new(&args[2])) };
-    let res = synthesize(&ex, &target, None, &params, &no_events, &CancelToken::new()).expect("synth");
+    let target = if args[2] == "sphere" {
+        icosphere(3)
+    } else {
+        load_obj(Path::new(&args[2]))
+    };
+    let res =
+        synthesize(&ex, &target, None, &params, &no_events, &CancelToken::new()).expect("synth");
     println!(
         "vertices per level {:?}, d = {:.5}, spacing = {:.5}, energy {:?}, timings {:?}",
         res.level_vertices, res.mesh_d, res.spacing, res.level_energy, res.timings

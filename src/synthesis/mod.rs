@@ -4,6 +4,4 @@
 
 pub mod wei_levoy;
 
-pub use wei_levoy::{
-    Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize,
-};
+pub use wei_levoy::{Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize};

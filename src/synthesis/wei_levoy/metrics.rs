@@ -11,7 +11,9 @@ use crate::{Error, Result, TriMesh};
 
 /// The pixels of an image as sRGB colours in [0,1].
 pub fn image_colors(img: &image::RgbImage) -> Vec<[f32; 3]> {
-    img.pixels().map(|p| p.0.map(|c| c as f32 / 255.0)).collect()
+    img.pixels()
+        .map(|p| p.0.map(|c| c as f32 / 255.0))
+        .collect()
 }
 
 /// Normalised 3D colour histogram with `bins` bins per sRGB channel (sums to 1).
@@ -50,7 +52,9 @@ pub fn neighbourhood_distance(
         .as_ref()
         .ok_or_else(|| Error::InvalidInput("mesh has no colours to measure".into()))?;
     if dirs.len() != mesh.num_vertices() || colors.len() != mesh.num_vertices() {
-        return Err(Error::InvalidInput("one direction and colour per vertex expected".into()));
+        return Err(Error::InvalidInput(
+            "one direction and colour per vertex expected".into(),
+        ));
     }
     let normals = vertex_normals(&mesh.positions, &mesh.faces);
     let lev = Level::new(
@@ -69,7 +73,13 @@ pub fn neighbourhood_distance(
         .par_iter()
         .with_min_len(64)
         .map_init(
-            || (Scratch::new(&lev), vec![super::neigh::UNCOVERED; per], vec![0.0f32; dim]),
+            || {
+                (
+                    Scratch::new(&lev),
+                    vec![super::neigh::UNCOVERED; per],
+                    vec![0.0f32; dim],
+                )
+            },
             |(sc, taps, q), &v| {
                 let nrm = Vec3::from(lev.normals[v]);
                 let s = Vec3::from(dirs[v]);
@@ -84,7 +94,10 @@ pub fn neighbourhood_distance(
                 if taps.iter().any(|t| t.idx[0] == u32::MAX) {
                     return None;
                 }
-                let st = Stencils { per, taps: taps.clone() };
+                let st = Stencils {
+                    per,
+                    taps: taps.clone(),
+                };
                 st.gather(0, colors, ex.mean, q);
                 let mut best = f32::INFINITY;
                 for c in 0..ex.num_candidates() as u32 {
@@ -96,7 +109,9 @@ pub fn neighbourhood_distance(
         .collect();
     let ok: Vec<f32> = results.into_iter().flatten().collect();
     if ok.is_empty() {
-        return Err(Error::InvalidInput("no fully covered neighbourhood to measure".into()));
+        return Err(Error::InvalidInput(
+            "no fully covered neighbourhood to measure".into(),
+        ));
     }
     Ok(ok.iter().map(|&x| x as f64).sum::<f64>() / ok.len() as f64)
 }

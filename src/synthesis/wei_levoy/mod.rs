@@ -225,11 +225,15 @@ pub fn synthesize(
         return Err(Error::InvalidMesh("target mesh has no faces".into()));
     }
     if target.positions.iter().flatten().any(|x| !x.is_finite()) {
-        return Err(Error::InvalidMesh("target mesh has non-finite coordinates".into()));
+        return Err(Error::InvalidMesh(
+            "target mesh has non-finite coordinates".into(),
+        ));
     }
     let nv = target.num_vertices();
     if target.faces.iter().flatten().any(|&i| i as usize >= nv) {
-        return Err(Error::InvalidMesh("target face refers to a missing vertex".into()));
+        return Err(Error::InvalidMesh(
+            "target face refers to a missing vertex".into(),
+        ));
     }
     let (ew, eh) = (exemplar.width() as usize, exemplar.height() as usize);
     if !(1..=8).contains(&params.levels) {
@@ -246,14 +250,18 @@ pub fn synthesize(
             m = min_side.max(8)
         )));
     }
-    let (lo, hi) = target.bounds().ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
+    let (lo, hi) = target
+        .bounds()
+        .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
     let diag = Vec3::from(hi).distance(Vec3::from(lo));
     if diag <= 0.0 {
         return Err(Error::InvalidMesh("target mesh has zero extent".into()));
     }
     let scale = params.scale.unwrap_or(diag / 4.0);
     if !(scale.is_finite() && scale > 0.0) {
-        return Err(Error::InvalidInput(format!("scale must be positive, got {scale}")));
+        return Err(Error::InvalidInput(format!(
+            "scale must be positive, got {scale}"
+        )));
     }
     if let Some(m) = mask {
         if m.len() != nv {
@@ -344,7 +352,11 @@ pub fn synthesize(
             Orientation::Random => orient::random_dirs(lev, &mut rng),
             Orientation::Up => orient::up_dirs(lev),
             Orientation::Relax2 | Orientation::Relax4 => {
-                let nsym = if params.orientation == Orientation::Relax2 { 2 } else { 4 };
+                let nsym = if params.orientation == Orientation::Relax2 {
+                    2
+                } else {
+                    4
+                };
                 if k + 1 == nlev {
                     let mut d = orient::random_dirs(lev, &mut rng);
                     orient::relax(lev, &mut d, None, nsym, params.relax_sweeps, &mut rng);
@@ -391,7 +403,14 @@ pub fn synthesize(
         let ex = ExemplarLevel::new(&imgs[k], has_parent.then(|| &imgs[k + 1]), size, psize);
         let cur_st = build_stencils(lev, &dirs[k], lev, None, h, size);
         let par_st: Option<Stencils> = has_parent.then(|| {
-            build_stencils(lev, &dirs[k], &levels[k + 1], Some(&lev.parent), 2.0 * h, psize)
+            build_stencils(
+                lev,
+                &dirs[k],
+                &levels[k + 1],
+                Some(&lev.parent),
+                2.0 * h,
+                psize,
+            )
         });
         neigh_secs += sw.secs();
         let sw = Stopwatch::start();
@@ -417,12 +436,18 @@ pub fn synthesize(
         };
         let pcol: &[[f32; 3]] = if has_parent { &colors[k + 1] } else { &[] };
         let psrc: &[u32] = if has_parent { &srcs[k + 1] } else { &[] };
-        let pex = if has_parent { exemplars[k + 1].as_ref() } else { None };
+        let pex = if has_parent {
+            exemplars[k + 1].as_ref()
+        } else {
+            None
+        };
         let pdefault = pex.map_or(ex.mean, |e| e.mean);
         let mut qc = vec![0.0f32; ex.dim_cur()];
         let mut qp = vec![0.0f32; ex.dim_par()];
         let mut cands: Vec<u32> = Vec::with_capacity(64);
-        let mut order: Vec<u32> = (0..n as u32).filter(|&v| lev.fixed[v as usize].is_none()).collect();
+        let mut order: Vec<u32> = (0..n as u32)
+            .filter(|&v| lev.fixed[v as usize].is_none())
+            .collect();
         for (pass, &(use_cur, use_par)) in run_passes.iter().enumerate() {
             order.shuffle(&mut rng);
             let mut energy = 0.0f64;
@@ -467,7 +492,8 @@ pub fn synthesize(
                     energy += d as f64;
                 }
             }
-            let dim = (if use_cur { ex.dim_cur() } else { 0 }) + (if use_par { ex.dim_par() } else { 0 });
+            let dim =
+                (if use_cur { ex.dim_cur() } else { 0 }) + (if use_par { ex.dim_par() } else { 0 });
             level_energy[k] = energy / (order.len().max(1) * dim.max(1)) as f64;
             done += n as f64;
             let progress = Progress {

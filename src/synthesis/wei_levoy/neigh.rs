@@ -274,21 +274,27 @@ impl ExemplarLevel {
         let cw = img.w - 2 * m;
         let ch = img.h - 2 * m;
         let dc = 3 * size * size;
-        let dp = if parent.is_some() { 3 * psize * psize } else { 0 };
+        let dp = if parent.is_some() {
+            3 * psize * psize
+        } else {
+            0
+        };
         let n = cw * ch;
         let mut cur = vec![0.0f32; n * dc];
         let mut par = vec![0.0f32; n * dp];
-        cur.par_chunks_mut(dc.max(1)).enumerate().for_each(|(c, out)| {
-            let (x, y) = ((c % cw + m) as isize, (c / cw + m) as isize);
-            let ri = r as isize;
-            let mut t = 0;
-            for j in -ri..=ri {
-                for i in -ri..=ri {
-                    out[3 * t..3 * t + 3].copy_from_slice(&img.at(x + i, y + j));
-                    t += 1;
+        cur.par_chunks_mut(dc.max(1))
+            .enumerate()
+            .for_each(|(c, out)| {
+                let (x, y) = ((c % cw + m) as isize, (c / cw + m) as isize);
+                let ri = r as isize;
+                let mut t = 0;
+                for j in -ri..=ri {
+                    for i in -ri..=ri {
+                        out[3 * t..3 * t + 3].copy_from_slice(&img.at(x + i, y + j));
+                        t += 1;
+                    }
                 }
-            }
-        });
+            });
         if let Some(pimg) = parent {
             par.par_chunks_mut(dp).enumerate().for_each(|(c, out)| {
                 let (x, y) = ((c % cw + m) as f32, (c / cw + m) as f32);

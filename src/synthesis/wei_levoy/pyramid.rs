@@ -346,7 +346,8 @@ impl Img {
         );
         let mut o = [0.0; 3];
         for k in 0..3 {
-            o[k] = (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy;
+            o[k] =
+                (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy;
         }
         o
     }
@@ -385,7 +386,8 @@ impl Img {
             for x in 0..w2 {
                 let mut o = [0.0; 3];
                 for (t, k) in K.iter().enumerate() {
-                    let yy = (2 * y as isize - 1 + t as isize).clamp(0, self.h as isize - 1) as usize;
+                    let yy =
+                        (2 * y as isize - 1 + t as isize).clamp(0, self.h as isize - 1) as usize;
                     let p = tmp[yy * w2 + x];
                     for c in 0..3 {
                         o[c] += k * p[c];

@@ -45,7 +45,11 @@ fn sq(a: &[f32], b: &[f32]) -> f32 {
 }
 
 /// Exhaustive search over all candidates of the level; ties go to the lowest index.
-pub(crate) fn exhaustive(ex: &ExemplarLevel, q_cur: Option<&[f32]>, q_par: Option<&[f32]>) -> (u32, f32) {
+pub(crate) fn exhaustive(
+    ex: &ExemplarLevel,
+    q_cur: Option<&[f32]>,
+    q_par: Option<&[f32]>,
+) -> (u32, f32) {
     let n = ex.num_candidates();
     const CHUNK: usize = 256;
     (0..n.div_ceil(CHUNK))
@@ -62,7 +66,13 @@ pub(crate) fn exhaustive(ex: &ExemplarLevel, q_cur: Option<&[f32]>, q_par: Optio
         })
         .reduce(
             || (u32::MAX, f32::INFINITY),
-            |a, b| if b.1 < a.1 || (b.1 == a.1 && b.0 < a.0) { b } else { a },
+            |a, b| {
+                if b.1 < a.1 || (b.1 == a.1 && b.0 < a.0) {
+                    b
+                } else {
+                    a
+                }
+            },
         )
 }
 
