@@ -459,10 +459,8 @@ pub fn synthesize(
                 if use_cur {
                     cur_st.gather(v, &col, ex.mean, &mut qc);
                 }
-                if use_par {
-                    if let Some(ps) = &par_st {
-                        ps.gather(v, pcol, pdefault, &mut qp);
-                    }
+                if let (true, Some(ps)) = (use_par, &par_st) {
+                    ps.gather(v, pcol, pdefault, &mut qp);
                 }
                 let q_cur = use_cur.then_some(&qc[..]);
                 let q_par = use_par.then_some(&qp[..]);

@@ -272,12 +272,12 @@ pub(crate) fn coarsen(fine: &mut Level, ratio: f64, rng: &mut SmallRng) -> Level
     let m = pos.len();
     let mut nacc = vec![Vec3::ZERO; m];
     let mut facc = vec![([0.0f32; 3], 0u32, 0u32); m];
-    for v in 0..n {
-        let p = parent[v] as usize;
-        nacc[p] += Vec3::from(fine.normals[v]);
+    for ((&p, nrm), fx) in parent.iter().zip(&fine.normals).zip(&fine.fixed) {
+        let p = p as usize;
+        nacc[p] += Vec3::from(*nrm);
         let e = &mut facc[p];
         e.2 += 1;
-        if let Some(c) = fine.fixed[v] {
+        if let Some(c) = fx {
             e.0[0] += c[0];
             e.0[1] += c[1];
             e.0[2] += c[2];
