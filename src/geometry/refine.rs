@@ -1,0 +1,347 @@
+//! Working-resolution refinement by longest-edge bisection.
+
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
+use std::hash::{BuildHasherDefault, Hasher};
+
+use glam::Vec3;
+
+use crate::color::{linear_to_srgb, srgb_to_linear};
+use crate::mesh::{SignalKind, TriMesh};
+
+/// A multiplicative hasher for integer keys (the edge map is the hot loop of refinement).
+#[derive(Default)]
+struct IntHasher(u64);
+
+impl Hasher for IntHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0.rotate_left(5) ^ x).wrapping_mul(0x517c_c1b7_2722_0a95);
+    }
+}
+
+type IntMap<V> = HashMap<u64, V, BuildHasherDefault<IntHasher>>;
+
+#[inline]
+fn edge_key(a: u32, b: u32) -> u64 {
+    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+    ((lo as u64) << 32) | hi as u64
+}
+
+/// The faces using one edge: two inline slots, overflow only for non-manifold edges.
+#[derive(Default)]
+struct EdgeFaces {
+    f: [u32; 2],
+    n: u8,
+    extra: Vec<u32>,
+}
+
+impl EdgeFaces {
+    fn push(&mut self, f: u32) {
+        if (self.n as usize) < 2 {
+            self.f[self.n as usize] = f;
+        } else {
+            self.extra.push(f);
+        }
+        self.n = self.n.saturating_add(1);
+    }
+    fn replace(&mut self, old: u32, new: u32) {
+        for s in self.f.iter_mut().take((self.n as usize).min(2)) {
+            if *s == old {
+                *s = new;
+                return;
+            }
+        }
+        for s in &mut self.extra {
+            if *s == old {
+                *s = new;
+                return;
+            }
+        }
+    }
+    fn list(&self) -> impl Iterator<Item = u32> + '_ {
+        self.f[..(self.n as usize).min(2)]
+            .iter()
+            .copied()
+            .chain(self.extra.iter().copied())
+    }
+}
+
+/// A refined mesh and where its vertices came from.
+#[derive(Clone, Debug)]
+pub struct Refined {
+    /// The refined mesh: its first `n` vertices are the input's `n` vertices in order.
+    pub mesh: TriMesh,
+    /// For every refined vertex, the endpoints of the edge it was inserted on (`[i, i]` for an
+    /// input vertex `i`; a later vertex's parents may themselves be inserted vertices).
+    pub parent_map: Vec<[u32; 2]>,
+}
+
+/// Refine `mesh` to about `target_vertices` vertices by longest-edge bisection (Rivara 1984):
+/// repeatedly split the longest edge at its midpoint (a max-priority queue on edge length),
+/// splitting every face on it in two, which keeps the mesh conforming. No-op if the mesh already
+/// has at least `target_vertices` vertices.
+///
+/// The first `n` vertices are the input's, in order (their `file_index` kept; inserted vertices
+/// get `u32::MAX`). New vertices interpolate positions, normals and vertex colours (in linear
+/// light); per-corner UVs are interpolated within each split face, so UV seams stay seams. When
+/// the mesh's signal is a texture, the result also gets per-vertex colours: the texture sampled
+/// bilinearly at each vertex's corner UVs, averaged in linear light (`TriMesh::vertex_signal`),
+/// so the image's detail survives at the working resolution. Faces with out-of-range indices
+/// are dropped; faces with a repeated vertex are kept but never split.
+pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
+    let n0 = mesh.positions.len();
+    let mut positions = mesh.positions.clone();
+    let mut faces = Vec::with_capacity(mesh.faces.len());
+    let has_uv = mesh
+        .uvs
+        .as_ref()
+        .is_some_and(|u| u.len() == 3 * mesh.faces.len());
+    let mut uvs: Vec<[f32; 2]> = Vec::new();
+    for (f, face) in mesh.faces.iter().enumerate() {
+        if face.iter().all(|&v| (v as usize) < n0) {
+            faces.push(*face);
+            if has_uv {
+                uvs.extend_from_slice(&mesh.uvs.as_ref().unwrap()[3 * f..3 * f + 3]);
+            }
+        }
+    }
+    let signal = mesh.signal_kind();
+    let mut colors: Option<Vec<[f32; 3]>> = match signal {
+        SignalKind::VertexColors => mesh
+            .colors
+            .as_ref()
+            .filter(|c| c.len() == n0)
+            .map(|c| c.iter().map(|x| x.map(srgb_to_linear)).collect()),
+        _ => None,
+    };
+    let mut normals = mesh.normals.clone().filter(|n| n.len() == n0);
+    let mut parent_map: Vec<[u32; 2]> = (0..n0 as u32).map(|i| [i, i]).collect();
+
+    if target_vertices > n0 && !faces.is_empty() {
+        let extra = target_vertices - n0;
+        positions.reserve(extra);
+        parent_map.reserve(extra);
+        faces.reserve(2 * extra + 16);
+        let mut edges: IntMap<EdgeFaces> = IntMap::default();
+        edges.reserve(faces.len() * 3 / 2 + 3 * extra);
+        for (fi, f) in faces.iter().enumerate() {
+            if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
+                continue;
+            }
+            for k in 0..3 {
+                edges
+                    .entry(edge_key(f[k], f[(k + 1) % 3]))
+                    .or_default()
+                    .push(fi as u32);
+            }
+        }
+        let len2 = |p: &[[f32; 3]], a: u32, b: u32| -> u64 {
+            let d = Vec3::from(p[a as usize]).distance_squared(Vec3::from(p[b as usize]));
+            (d as f64).to_bits()
+        };
+        let mut heap: BinaryHeap<(u64, Reverse<u64>)> = edges
+            .keys()
+            .map(|&k| (len2(&positions, (k >> 32) as u32, k as u32), Reverse(k)))
+            .collect();
+        let mut flist: Vec<u32> = Vec::with_capacity(4);
+        while positions.len() < target_vertices {
+            let Some((_, Reverse(key))) = heap.pop() else {
+                break;
+            };
+            let Some(ef) = edges.remove(&key) else {
+                continue; // already split
+            };
+            let (a, b) = ((key >> 32) as u32, key as u32);
+            let m = positions.len() as u32;
+            let (pa, pb) = (
+                Vec3::from(positions[a as usize]),
+                Vec3::from(positions[b as usize]),
+            );
+            positions.push(((pa + pb) * 0.5).to_array());
+            parent_map.push([a, b]);
+            if let Some(c) = colors.as_mut() {
+                let (ca, cb) = (c[a as usize], c[b as usize]);
+                c.push([0, 1, 2].map(|k| 0.5 * (ca[k] + cb[k])));
+            }
+            if let Some(nr) = normals.as_mut() {
+                let s = Vec3::from(nr[a as usize]) + Vec3::from(nr[b as usize]);
+                nr.push(s.normalize_or(Vec3::from(nr[a as usize])).to_array());
+            }
+            flist.clear();
+            flist.extend(ef.list());
+            for &fi in &flist {
+                let face = faces[fi as usize];
+                let Some(k) = (0..3).find(|&k| {
+                    let (x, y) = (face[k], face[(k + 1) % 3]);
+                    (x == a && y == b) || (x == b && y == a)
+                }) else {
+                    continue;
+                };
+                let (p0, p1, p2) = (face[k], face[(k + 1) % 3], face[(k + 2) % 3]);
+                let g = faces.len() as u32;
+                faces[fi as usize] = [p0, m, p2];
+                faces.push([m, p1, p2]);
+                if has_uv {
+                    let base = 3 * fi as usize;
+                    let (u0, u1, u2) = (
+                        uvs[base + k],
+                        uvs[base + (k + 1) % 3],
+                        uvs[base + (k + 2) % 3],
+                    );
+                    let um = [0.5 * (u0[0] + u1[0]), 0.5 * (u0[1] + u1[1])];
+                    uvs[base] = u0;
+                    uvs[base + 1] = um;
+                    uvs[base + 2] = u2;
+                    uvs.extend_from_slice(&[um, u1, u2]);
+                }
+                edges.entry(edge_key(p0, m)).or_default().push(fi);
+                edges.entry(edge_key(m, p1)).or_default().push(g);
+                let e = edges.entry(edge_key(m, p2)).or_default();
+                e.push(fi);
+                e.push(g);
+                if let Some(e) = edges.get_mut(&edge_key(p1, p2)) {
+                    e.replace(fi, g);
+                }
+                heap.push((len2(&positions, m, p2), Reverse(edge_key(m, p2))));
+            }
+            heap.push((len2(&positions, a, m), Reverse(edge_key(a, m))));
+            heap.push((len2(&positions, m, b), Reverse(edge_key(m, b))));
+        }
+    }
+
+    let n = positions.len();
+    let mut file_index = mesh.file_index.clone();
+    file_index.resize(n0, u32::MAX);
+    file_index.resize(n, u32::MAX);
+    let mut out = TriMesh {
+        positions,
+        faces,
+        normals,
+        uvs: has_uv.then_some(uvs),
+        colors: colors.map(|c| c.iter().map(|x| x.map(linear_to_srgb)).collect()),
+        texture: mesh.texture.clone(),
+        file_index,
+        file_vertex_count: mesh.file_vertex_count,
+        path: mesh.path.clone(),
+    };
+    if signal == SignalKind::Texture && has_uv {
+        out.colors = out.vertex_signal();
+    }
+    Refined {
+        mesh: out,
+        parent_map,
+    }
+}
+
+/// For every vertex of `refined`, the nearest of its first `n_orig` vertices (the original
+/// ones) by shortest path along edges (multi-source Dijkstra with Euclidean edge lengths);
+/// original vertices map to themselves, unreachable vertices to `u32::MAX`.
+pub fn nearest_original(refined: &TriMesh, n_orig: usize) -> Vec<u32> {
+    let n = refined.num_vertices();
+    let n_orig = n_orig.min(n);
+    let adj = refined.adjacency();
+    let mut dist = vec![f32::INFINITY; n];
+    let mut label = vec![u32::MAX; n];
+    let mut heap = BinaryHeap::with_capacity(n);
+    for v in 0..n_orig {
+        dist[v] = 0.0;
+        label[v] = v as u32;
+        heap.push(Reverse((0u32, v as u32)));
+    }
+    while let Some(Reverse((dk, v))) = heap.pop() {
+        let dv = f32::from_bits(dk);
+        if dv > dist[v as usize] {
+            continue;
+        }
+        let p = Vec3::from(refined.positions[v as usize]);
+        for &w in adj.row(v as usize) {
+            let nd = dv + p.distance(Vec3::from(refined.positions[w as usize]));
+            if nd < dist[w as usize] {
+                dist[w as usize] = nd;
+                label[w as usize] = label[v as usize];
+                heap.push(Reverse((nd.to_bits(), w)));
+            }
+        }
+    }
+    label
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refine_square_conforms_and_interpolates() {
+        let pos = vec![
+            [0.0, 0.0, 0.0],
+            [2.0, 0.0, 0.0],
+            [2.0, 1.0, 0.0],
+            [0.0, 1.0, 0.0],
+        ];
+        let mut m = TriMesh::new(pos, vec![[0, 1, 2], [0, 2, 3]]);
+        m.colors = Some(vec![[0.0; 3], [1.0; 3], [1.0; 3], [0.0; 3]]);
+        m.uvs = Some(vec![
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [1.0, 1.0],
+            [0.5, 0.5],
+            [1.0, 1.0],
+            [0.0, 1.0],
+        ]);
+        let r = refine_to_density(&m, 60);
+        let out = &r.mesh;
+        assert_eq!(out.num_vertices(), 60);
+        assert_eq!(&out.positions[..4], &m.positions[..]);
+        let area: f64 = out.area();
+        assert!((area - 2.0).abs() < 1e-5);
+        // conforming: every interior edge has two faces, boundary edges one
+        let mut cnt: HashMap<u64, u32> = HashMap::new();
+        for f in &out.faces {
+            for k in 0..3 {
+                *cnt.entry(edge_key(f[k], f[(k + 1) % 3])).or_default() += 1;
+            }
+        }
+        assert!(cnt.values().all(|&c| c <= 2));
+        let boundary = crate::mesh::boundary_loops(&out.faces);
+        assert_eq!(boundary.len(), 1);
+        // UVs stay affine in position within the first face's region; the seam corner at
+        // vertex 0 keeps uv (0.5, 0.5) in faces that came from face 1
+        let uvs = out.uvs.as_ref().unwrap();
+        for (f, face) in out.faces.iter().enumerate() {
+            for k in 0..3 {
+                let p = out.positions[face[k] as usize];
+                let uv = uvs[3 * f + k];
+                let from_first = (0..3).all(|j| {
+                    let q = out.positions[face[j] as usize];
+                    q[1] <= q[0] * 0.5 + 1e-6
+                });
+                if from_first {
+                    assert!((uv[0] - p[0] / 2.0).abs() < 1e-5 && (uv[1] - p[1]).abs() < 1e-5);
+                }
+            }
+        }
+        // colours interpolate: the midpoint of edge 0-1 is grey (0.5 in linear light)
+        let c = out.colors.as_ref().unwrap();
+        let (i, _) = r
+            .parent_map
+            .iter()
+            .enumerate()
+            .find(|(_, p)| **p == [0, 1] || **p == [1, 0])
+            .unwrap();
+        assert!((srgb_to_linear(c[i][0]) - 0.5).abs() < 1e-4);
+        let near = nearest_original(out, 4);
+        assert_eq!(&near[..4], &[0, 1, 2, 3]);
+        assert!(near.iter().all(|&v| v < 4));
+        assert_eq!(out.file_index[59], u32::MAX);
+        // already dense enough: unchanged
+        assert_eq!(refine_to_density(&m, 3).mesh.num_vertices(), 4);
+    }
+}
