@@ -11,31 +11,6 @@ use meshmatch::TriMesh;
 use meshmatch::jobs::{CancelToken, no_events};
 use meshmatch::synthesis::{SynthParams, synthesize};
 
-fn load_obj(path: &Path) -> TriMesh {
-    let (models, _) = tobj::load_obj(
-        path,
-        &tobj::LoadOptions {
-            triangulate: true,
-            single_index: false,
-            ..Default::default()
-        },
-    )
-    .expect("load obj");
-    let mut pos = Vec::new();
-    let mut faces = Vec::new();
-    for m in models {
-        let base = pos.len() as u32;
-        pos.extend(m.mesh.positions.chunks(3).map(|c| [c[0], c[1], c[2]]));
-        faces.extend(
-            m.mesh
-                .indices
-                .chunks(3)
-                .map(|c| [c[0] + base, c[1] + base, c[2] + base]),
-        );
-    }
-    TriMesh::new(pos, faces)
-}
-
 /// Icosphere: icosahedron subdivided `n` times, projected to the unit sphere.
 fn icosphere(n: usize) -> TriMesh {
     let t = (1.0 + 5f32.sqrt()) / 2.0;
@@ -214,7 +189,7 @@ fn main() {
     let target = if args[2] == "sphere" {
         icosphere(3)
     } else {
-        load_obj(Path::new(&args[2]))
+        meshmatch::mesh::io::load(Path::new(&args[2])).expect("load mesh")
     };
     let res =
         synthesize(&ex, &target, None, &params, &no_events, &CancelToken::new()).expect("synth");

@@ -6,7 +6,8 @@ use rand::seq::index::sample;
 use rayon::prelude::*;
 
 use super::neigh::{ExemplarLevel, Frame, Scratch, Stencils, build_stencil};
-use super::pyramid::{Img, Level, stage_rng, vertex_normals};
+use super::pyramid::{Img, Level, stage_rng};
+use crate::geometry::vertex_normals;
 use crate::{Error, Result, TriMesh};
 
 /// The pixels of an image as sRGB colours in [0,1].

@@ -29,8 +29,10 @@ pub use metrics::{
 };
 pub use orient::orientation_energy;
 
+use crate::geometry::vertex_normals;
+use crate::hierarchy::{Hierarchy, HierarchyOptions};
 use neigh::{ExemplarLevel, Stencils, build_stencils};
-use pyramid::{Img, Level, coarsen, image_pyramid, refine_edges, stage_rng, vertex_normals};
+use pyramid::{Img, Level, aggregate_fixed, coarsen, image_pyramid, refine_edges, stage_rng};
 
 /// How the local texture orientation (texture "right" `s`) is assigned per vertex.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -327,15 +329,43 @@ pub fn synthesize(
     )?;
     cancel.check()?;
     let normals = vertex_normals(&positions, &faces);
+    // Mesh pyramid: the shared MeshMatch hierarchy (shortest-edge-first midpoint collapses, about
+    // half the vertices per level), every second level, so each level keeps about a quarter.
+    let hier = Hierarchy::build(
+        &positions,
+        &faces,
+        HierarchyOptions {
+            min_vertices: 16,
+            max_levels: Some(2 * (nlev - 1) + 1),
+        },
+    )?;
+    cancel.check()?;
     let mut levels = vec![Level::new(positions, faces, normals, fixed)];
     let mut rng = stage_rng(params.seed, 1);
-    for k in 1..nlev {
+    let mut hl = 0usize; // hierarchy level of levels.last()
+    while levels.len() < nlev {
         let fine = levels.last_mut().expect("non-empty");
-        let ideal = area / (h0 as f64 * (1u64 << k) as f64).powi(2);
-        let ratio = (ideal / fine.num_vertices() as f64).min(0.25);
-        let coarse = coarsen(fine, ratio, &mut rng);
-        levels.push(coarse);
+        if hl + 2 < hier.num_levels() {
+            let (p0, p1) = (&hier.parents[hl], &hier.parents[hl + 1]);
+            let parent: Vec<u32> = p0.iter().map(|&p| p1[p as usize]).collect();
+            let h = &hier.levels[hl + 2];
+            let fixed = aggregate_fixed(&fine.fixed, &parent, h.positions.len());
+            fine.parent = parent;
+            levels.push(Level::new(
+                h.positions.clone(),
+                h.faces.clone(),
+                h.normals.clone(),
+                fixed,
+            ));
+            hl += 2;
+        } else {
+            // the hierarchy stopped early (collapses blocked): grid clustering instead
+            let coarse = coarsen(fine, 0.25, &mut rng);
+            levels.push(coarse);
+            hl = usize::MAX / 2;
+        }
     }
+    drop(hier);
     let mut imgs = image_pyramid(Img::from_rgb(exemplar), nlev);
     let mesh_d = (2.0 * levels[0].mean_face_area()).sqrt() as f32;
     timings.prepare = sw.secs();

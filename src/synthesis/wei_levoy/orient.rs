@@ -126,7 +126,7 @@ pub fn orientation_energy(
     dirs: &[[f32; 3]],
     nsym: u32,
 ) -> f64 {
-    let normals = super::pyramid::vertex_normals(positions, faces);
+    let normals = crate::geometry::vertex_normals(positions, faces);
     let adj = crate::mesh::vertex_adjacency(positions.len(), faces);
     let period = TAU / nsym.max(1) as f32;
     let mut sum = 0.0f64;

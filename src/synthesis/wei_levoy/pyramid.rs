@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use glam::{DVec3, Vec3};
+use glam::Vec3;
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 
 use crate::mesh::{Csr, vertex_adjacency};
@@ -75,33 +75,6 @@ impl Level {
             .sum();
         total / self.faces.len() as f64
     }
-}
-
-/// Area-weighted vertex normals `n_v = normalize(sum_{f∋v} (b-a)x(c-a))`; isolated vertices get +Z.
-/// (Same formula and signature as `geometry::vertex_normals` on branch `geom`, which had not
-/// landed when this module was written.)
-pub(crate) fn vertex_normals(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<[f32; 3]> {
-    let mut acc = vec![DVec3::ZERO; positions.len()];
-    for f in faces {
-        let [a, b, c] = f.map(|i| Vec3::from(positions[i as usize]).as_dvec3());
-        let n = (b - a).cross(c - a);
-        if !n.is_finite() {
-            continue;
-        }
-        for &v in f {
-            acc[v as usize] += n;
-        }
-    }
-    acc.iter()
-        .map(|n| {
-            let l = n.length();
-            if l > 0.0 {
-                (*n / l).as_vec3().to_array()
-            } else {
-                [0.0, 0.0, 1.0]
-            }
-        })
-        .collect()
 }
 
 /// Refine a mesh until no edge is longer than `max_len` by conforming longest-edge bisection:
@@ -230,10 +203,10 @@ fn cluster(
     (pos, out, parent)
 }
 
-/// Build the next coarser level with about `ratio` of the vertices of `fine` by grid clustering,
+/// Fallback when the shared hierarchy stops early: build the next coarser level with about
+/// `ratio` of the vertices of `fine` by grid clustering,
 /// searching the cell size so the vertex count lands near the target. Sets `fine.parent`.
-/// Coarse normals are the normalised mean of the children's normals; a coarse vertex is fixed
-/// (outside the mask) only when all its children are, with their mean colour.
+/// Coarse normals are the normalised mean of the children's normals.
 pub(crate) fn coarsen(fine: &mut Level, ratio: f64, rng: &mut SmallRng) -> Level {
     let n = fine.num_vertices();
     let target = ((n as f64) * ratio).max(4.0);
@@ -271,11 +244,28 @@ pub(crate) fn coarsen(fine: &mut Level, ratio: f64, rng: &mut SmallRng) -> Level
     let (pos, faces, parent) = best;
     let m = pos.len();
     let mut nacc = vec![Vec3::ZERO; m];
-    let mut facc = vec![([0.0f32; 3], 0u32, 0u32); m];
-    for ((&p, nrm), fx) in parent.iter().zip(&fine.normals).zip(&fine.fixed) {
-        let p = p as usize;
-        nacc[p] += Vec3::from(*nrm);
-        let e = &mut facc[p];
+    for (&p, nrm) in parent.iter().zip(&fine.normals) {
+        nacc[p as usize] += Vec3::from(*nrm);
+    }
+    let normals = nacc
+        .iter()
+        .map(|v| v.try_normalize().unwrap_or(Vec3::Z).to_array())
+        .collect();
+    let fixed = aggregate_fixed(&fine.fixed, &parent, m);
+    fine.parent = parent;
+    Level::new(pos, faces, normals, fixed)
+}
+
+/// Fixed colours of a coarse level: a coarse vertex is fixed (outside the mask) only when all its
+/// children are, with their mean colour.
+pub(crate) fn aggregate_fixed(
+    fine: &[Option<[f32; 3]>],
+    parent: &[u32],
+    m: usize,
+) -> Vec<Option<[f32; 3]>> {
+    let mut acc = vec![([0.0f32; 3], 0u32, 0u32); m];
+    for (&p, fx) in parent.iter().zip(fine) {
+        let e = &mut acc[p as usize];
         e.2 += 1;
         if let Some(c) = fx {
             e.0[0] += c[0];
@@ -284,16 +274,9 @@ pub(crate) fn coarsen(fine: &mut Level, ratio: f64, rng: &mut SmallRng) -> Level
             e.1 += 1;
         }
     }
-    let normals = nacc
-        .iter()
-        .map(|v| v.try_normalize().unwrap_or(Vec3::Z).to_array())
-        .collect();
-    let fixed = facc
-        .iter()
+    acc.iter()
         .map(|(c, k, all)| (*k == *all && *k > 0).then(|| c.map(|x| x / *k as f32)))
-        .collect();
-    fine.parent = parent;
-    Level::new(pos, faces, normals, fixed)
+        .collect()
 }
 
 fn bounds(p: &[[f32; 3]]) -> (Vec3, Vec3) {
