@@ -2,7 +2,7 @@
 //!
 //! `cargo run --release --no-default-features --example synth_preview -- EXEMPLAR MESH.obj|sphere
 //!  OUT.png [--size 64] [--scale S] [--orientation random|up|relax2|relax4] [--search fast|exhaustive]
-//!  [--levels 4] [--seed N] [--displace]`
+//!  [--levels 4] [--seed N] [--displace] [--measure]`
 
 use std::path::Path;
 
@@ -154,6 +154,7 @@ fn main() {
     }
     let mut params = SynthParams::default();
     let mut size = 64u32;
+    let mut measure = false;
     let mut i = 4;
     while i < args.len() {
         let v = args.get(i + 1).cloned().unwrap_or_default();
@@ -164,6 +165,11 @@ fn main() {
             "--search" => params.search = v.parse().unwrap(),
             "--levels" => params.levels = v.parse().unwrap(),
             "--seed" => params.seed = v.parse().unwrap(),
+            "--measure" => {
+                measure = true;
+                i += 1;
+                continue;
+            }
             "--displace" => {
                 params.displace = true;
                 i += 1;
@@ -197,6 +203,16 @@ fn main() {
         "vertices per level {:?}, d = {:.5}, spacing = {:.5}, energy {:?}, timings {:?}",
         res.level_vertices, res.mesh_d, res.spacing, res.level_energy, res.timings
     );
+    if measure {
+        use meshmatch::synthesis::wei_levoy::{exemplar_loo_distance, neighbourhood_distance};
+        let d = neighbourhood_distance(&ex, &res.mesh, &res.orientation, res.spacing, 7, 1000, 5)
+            .expect("measure");
+        let loo = exemplar_loo_distance(&ex, 7, 3, 1000, 5);
+        println!(
+            "7x7 neighbourhood distance {d:.5}, exemplar leave-one-out {loo:.5}, ratio {:.2}",
+            d / loo
+        );
+    }
     let colors = res.mesh.colors.clone().unwrap();
     let mut img = render(&res.mesh, &colors, 400, &[0.0, 1.9, 3.6]);
     let big = image::imageops::resize(&ex, 128, 128, image::imageops::FilterType::Nearest);
