@@ -97,6 +97,17 @@ pub(crate) fn fast(
     if best.0 == u32::MAX {
         return best;
     }
+    // local refinement: the 8 pixels around the best candidate
+    let (bx, by) = ex.pixel(best.0);
+    for dy in -1i64..=1 {
+        for dx in -1i64..=1 {
+            let c = ex.cand_at(bx as i64 + dx, by as i64 + dy);
+            let d = dist(ex, c, q_cur, q_par, best.1);
+            if d < best.1 {
+                best = (c, d);
+            }
+        }
+    }
     for _round in 0..2 {
         let mut radius = ex.cw.max(ex.ch) as i64 / 2;
         while radius >= 1 {
