@@ -1,1 +1,7 @@
-//! (module under construction)
+//! Texture synthesis systems that reuse the shared geometry and hierarchy modules.
+//!
+//! - [`wei_levoy`]: image-exemplar texture synthesis over arbitrary surfaces (Wei & Levoy 2001).
+
+pub mod wei_levoy;
+
+pub use wei_levoy::{Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize};

@@ -1,0 +1,653 @@
+//! Texture synthesis over arbitrary surfaces from a 2D exemplar image, after Wei & Levoy 2001,
+//! "Texture synthesis over arbitrary manifold surfaces" (SIGGRAPH 2001).
+//!
+//! Pipeline (paper Table 3): refine the target to a uniform vertex density set by `scale`
+//! (`d = sqrt(2 A)` template spacing matches the exemplar's texel size), build a mesh pyramid with
+//! about a quarter of the vertices per level and a Gaussian image pyramid, assign a texture
+//! orientation per vertex (random, projected up axis, or n-way symmetric relaxation), then
+//! synthesize coarse to fine: each vertex, visited in random order, gets the exemplar pixel whose
+//! multiresolution neighbourhood (`{1x1,1}, {3x3,2}, {5x5,2}, {7x7,2}`) best matches the mesh
+//! neighbourhood, flattened into its tangent frame and resampled on the template grid. Two passes
+//! per level: parent level only, then current + parent level.
+
+mod metrics;
+mod neigh;
+mod orient;
+mod pyramid;
+mod search;
+
+use std::sync::Arc;
+
+use glam::Vec3;
+use rand::{Rng, seq::SliceRandom};
+
+use crate::jobs::{CancelToken, Event, Progress, Stopwatch};
+use crate::{Error, Result, TriMesh};
+
+pub use metrics::{
+    color_histogram, exemplar_loo_distance, histogram_l1, image_colors, neighbourhood_distance,
+};
+pub use orient::orientation_energy;
+
+use crate::geometry::vertex_normals;
+use crate::hierarchy::{Hierarchy, HierarchyOptions};
+use neigh::{ExemplarLevel, Stencils, build_stencils};
+use pyramid::{Img, Level, aggregate_fixed, coarsen, image_pyramid, refine_edges, stage_rng};
+
+/// How the local texture orientation (texture "right" `s`) is assigned per vertex.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Orientation {
+    /// Random direction per vertex (isotropic textures; Wei & Levoy §3.1).
+    #[default]
+    Random,
+    /// Texture up = the +Y axis projected into the tangent plane.
+    Up,
+    /// 2-way symmetric relaxation (stripes).
+    Relax2,
+    /// 4-way symmetric relaxation (grids).
+    Relax4,
+}
+
+impl Orientation {
+    /// The CLI spelling: `random`, `up`, `relax2`, `relax4`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Orientation::Random => "random",
+            Orientation::Up => "up",
+            Orientation::Relax2 => "relax2",
+            Orientation::Relax4 => "relax4",
+        }
+    }
+}
+
+impl std::str::FromStr for Orientation {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "random" => Ok(Orientation::Random),
+            "up" => Ok(Orientation::Up),
+            "relax2" => Ok(Orientation::Relax2),
+            "relax4" => Ok(Orientation::Relax4),
+            _ => Err(Error::InvalidInput(format!(
+                "unknown orientation '{s}' (expected random, up, relax2 or relax4)"
+            ))),
+        }
+    }
+}
+
+/// Best-match search strategy.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Search {
+    /// Every exemplar neighbourhood of the level (the reference; rayon-parallel per query).
+    Exhaustive,
+    /// Coherence candidates from the neighbours' and parent's source pixels plus PatchMatch
+    /// random search.
+    #[default]
+    Fast,
+}
+
+impl Search {
+    /// The CLI spelling: `exhaustive`, `fast`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Search::Exhaustive => "exhaustive",
+            Search::Fast => "fast",
+        }
+    }
+}
+
+impl std::str::FromStr for Search {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s {
+            "exhaustive" => Ok(Search::Exhaustive),
+            "fast" => Ok(Search::Fast),
+            _ => Err(Error::InvalidInput(format!(
+                "unknown search '{s}' (expected exhaustive or fast)"
+            ))),
+        }
+    }
+}
+
+/// Parameters of surface texture synthesis.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct SynthParams {
+    /// Mesh units spanned by one exemplar width; `None` = a quarter of the bounding-box diagonal.
+    pub scale: Option<f32>,
+    /// Texture orientation field.
+    pub orientation: Orientation,
+    /// Pyramid levels (mesh and image), 1..=8.
+    pub levels: usize,
+    /// Search strategy.
+    pub search: Search,
+    /// Random seed (orientation, visiting order, initialisation, random search).
+    pub seed: u64,
+    /// Apply the synthesized grey value as a displacement along the normals.
+    pub displace: bool,
+    /// Displacement for a full black-to-white step, in mesh units; `None` = `scale / 20`.
+    pub displace_amount: Option<f32>,
+    /// Passes per level (the first uses the parent level only), at least 1.
+    pub passes: usize,
+    /// Random candidates per vertex in fast search.
+    pub random_candidates: usize,
+    /// Relaxation sweeps on the coarsest level (finer levels use a quarter).
+    pub relax_sweeps: usize,
+    /// Refuse to refine the target beyond this many vertices.
+    pub max_vertices: usize,
+}
+
+impl Default for SynthParams {
+    fn default() -> Self {
+        SynthParams {
+            scale: None,
+            orientation: Orientation::Random,
+            levels: 4,
+            search: Search::Fast,
+            seed: 0,
+            displace: false,
+            displace_amount: None,
+            passes: 2,
+            random_candidates: 4,
+            relax_sweeps: 60,
+            max_vertices: 2_000_000,
+        }
+    }
+}
+
+/// Wall-clock seconds per stage.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct SynthTimings {
+    /// Refinement and mesh/image pyramids.
+    pub prepare: f64,
+    /// Orientation field.
+    pub orientation: f64,
+    /// Mesh stencils (patch flattening) and exemplar neighbourhoods.
+    pub neighbourhoods: f64,
+    /// Best-match search and colour assignment (all levels and passes).
+    pub search: f64,
+    /// Whole call.
+    pub total: f64,
+}
+
+/// The outcome of [`synthesize`].
+#[derive(Clone, Debug)]
+pub struct SynthResult {
+    /// The uniform-density synthesized mesh (the target refined; its first vertices are the
+    /// target's own) with sRGB vertex colours, displaced when asked.
+    pub mesh: TriMesh,
+    /// Colours on the target's own vertices, in the file's vertex order.
+    pub file_colors: Vec<[f32; 3]>,
+    /// Texture "right" direction per vertex of `mesh`.
+    pub orientation: Vec<[f32; 3]>,
+    /// Source exemplar pixel `[x, y]` per vertex of `mesh` (`u32::MAX` for fixed vertices).
+    pub source: Vec<[u32; 2]>,
+    /// Mesh units per exemplar pixel at the finest level (`scale / exemplar width`).
+    pub spacing: f32,
+    /// The paper's template spacing `d = sqrt(2 * mean triangle area)` of the finest mesh.
+    pub mesh_d: f32,
+    /// Vertex count per pyramid level, finest first.
+    pub level_vertices: Vec<usize>,
+    /// Mean squared neighbourhood distance per element in each level's last pass, finest first.
+    pub level_energy: Vec<f64>,
+    /// Displacement per vertex of `mesh` (mesh units) when `displace` was set.
+    pub displacement: Option<Vec<f32>>,
+    /// Stage timings.
+    pub timings: SynthTimings,
+}
+
+/// Neighbourhood sizes of level `k` (0 = finest) in an `l`-level pyramid: current `NxN` and parent
+/// size (0 = no parent). Wei & Levoy §4: `{1x1,1}, {3x3,2}, {5x5,2}, {7x7,2}` coarse to fine.
+fn sizes(k: usize, l: usize) -> (usize, usize) {
+    if k + 1 == l {
+        return (if l == 1 { 7 } else { 1 }, 0);
+    }
+    let s = [7, 5, 3].get(k).copied().unwrap_or(3);
+    (s, (s / 2) | 1)
+}
+
+/// Synthesize the exemplar's texture over `target` (Wei & Levoy 2001). `mask` (one flag per
+/// target vertex, `true` = synthesize) keeps the target's own colours elsewhere and uses them as
+/// constraints. Emits `Event::Partial` (colours on the finest synthesized mesh) after every pass
+/// and honours `cancel` between small batches of vertices.
+pub fn synthesize(
+    exemplar: &image::RgbImage,
+    target: &TriMesh,
+    mask: Option<&[bool]>,
+    params: &SynthParams,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<SynthResult> {
+    let total = Stopwatch::start();
+    let mut timings = SynthTimings::default();
+    // ---- validate
+    if target.faces.is_empty() || target.positions.is_empty() {
+        return Err(Error::InvalidMesh("target mesh has no faces".into()));
+    }
+    if target.positions.iter().flatten().any(|x| !x.is_finite()) {
+        return Err(Error::InvalidMesh(
+            "target mesh has non-finite coordinates".into(),
+        ));
+    }
+    let nv = target.num_vertices();
+    if target.faces.iter().flatten().any(|&i| i as usize >= nv) {
+        return Err(Error::InvalidMesh(
+            "target face refers to a missing vertex".into(),
+        ));
+    }
+    let (ew, eh) = (exemplar.width() as usize, exemplar.height() as usize);
+    if !(1..=8).contains(&params.levels) {
+        return Err(Error::InvalidInput(format!(
+            "levels must be between 1 and 8, got {}",
+            params.levels
+        )));
+    }
+    let min_side = 4usize << (params.levels - 1);
+    if ew.min(eh) < min_side.max(8) {
+        return Err(Error::InvalidInput(format!(
+            "exemplar {ew}x{eh} is too small for {} levels (needs at least {m}x{m})",
+            params.levels,
+            m = min_side.max(8)
+        )));
+    }
+    let (lo, hi) = target
+        .bounds()
+        .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
+    let diag = Vec3::from(hi).distance(Vec3::from(lo));
+    if diag <= 0.0 {
+        return Err(Error::InvalidMesh("target mesh has zero extent".into()));
+    }
+    let scale = params.scale.unwrap_or(diag / 4.0);
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "scale must be positive, got {scale}"
+        )));
+    }
+    if let Some(m) = mask {
+        if m.len() != nv {
+            return Err(Error::InvalidInput(format!(
+                "mask has {} entries, the target has {nv} vertices",
+                m.len()
+            )));
+        }
+        if !m.iter().any(|&b| b) {
+            return Err(Error::InvalidInput("mask selects no vertex".into()));
+        }
+    }
+    let h0 = scale / ew as f32;
+    let area = target.area();
+    let estimate = area / (h0 as f64 * h0 as f64);
+    if estimate > params.max_vertices as f64 {
+        return Err(Error::InvalidInput(format!(
+            "scale {scale} needs about {estimate:.0} vertices (limit {}); use a larger scale or a \
+             smaller exemplar",
+            params.max_vertices
+        )));
+    }
+    let nlev = params.levels;
+    let passes = params.passes.max(1);
+
+    // ---- prepare: finest level (uniform density), mesh pyramid, image pyramid
+    let sw = Stopwatch::start();
+    sink(Event::Progress(Progress {
+        stage: "refine",
+        levels: nlev,
+        elapsed: total.secs(),
+        ..Default::default()
+    }));
+    let fixed0: Vec<Option<[f32; 3]>> = match mask {
+        None => vec![None; nv],
+        Some(m) => {
+            let signal = target.vertex_signal().ok_or_else(|| {
+                Error::InvalidInput(
+                    "a mask keeps the target's colours outside it, but the target has none".into(),
+                )
+            })?;
+            m.iter()
+                .zip(signal)
+                .map(|(&syn, c)| if syn { None } else { Some(c) })
+                .collect()
+        }
+    };
+    let mut positions = target.positions.clone();
+    let mut faces = target.faces.clone();
+    let mut fixed = fixed0;
+    // Bisection leaves edges in (T/2, T]; T = 1.6 h0 gives mean triangle area close to h0^2 / 2,
+    // i.e. the paper's d = sqrt(2 A) close to the texel spacing h0.
+    refine_edges(
+        &mut positions,
+        &mut faces,
+        &mut fixed,
+        1.6 * h0,
+        params.max_vertices,
+        |a, b| match (a, b) {
+            (Some(x), Some(y)) => Some([0, 1, 2].map(|k| 0.5 * (x[k] + y[k]))),
+            _ => None,
+        },
+    )?;
+    cancel.check()?;
+    let normals = vertex_normals(&positions, &faces);
+    // Mesh pyramid: the shared MeshMatch hierarchy (shortest-edge-first midpoint collapses, about
+    // half the vertices per level), every second level, so each level keeps about a quarter.
+    let hier = Hierarchy::build(
+        &positions,
+        &faces,
+        HierarchyOptions {
+            min_vertices: 16,
+            max_levels: Some(2 * (nlev - 1) + 1),
+        },
+    )?;
+    cancel.check()?;
+    let mut levels = vec![Level::new(positions, faces, normals, fixed)];
+    let mut rng = stage_rng(params.seed, 1);
+    let mut hl = 0usize; // hierarchy level of levels.last()
+    while levels.len() < nlev {
+        let fine = levels.last_mut().expect("non-empty");
+        if hl + 2 < hier.num_levels() {
+            let (p0, p1) = (&hier.parents[hl], &hier.parents[hl + 1]);
+            let parent: Vec<u32> = p0.iter().map(|&p| p1[p as usize]).collect();
+            let h = &hier.levels[hl + 2];
+            let fixed = aggregate_fixed(&fine.fixed, &parent, h.positions.len());
+            fine.parent = parent;
+            levels.push(Level::new(
+                h.positions.clone(),
+                h.faces.clone(),
+                h.normals.clone(),
+                fixed,
+            ));
+            hl += 2;
+        } else {
+            // the hierarchy stopped early (collapses blocked): grid clustering instead
+            let coarse = coarsen(fine, 0.25, &mut rng);
+            levels.push(coarse);
+            hl = usize::MAX / 2;
+        }
+    }
+    drop(hier);
+    let mut imgs = image_pyramid(Img::from_rgb(exemplar), nlev);
+    let mesh_d = (2.0 * levels[0].mean_face_area()).sqrt() as f32;
+    timings.prepare = sw.secs();
+    sink(Event::StageTime("prepare", timings.prepare));
+    cancel.check()?;
+
+    // ---- orientation, coarse to fine
+    let sw = Stopwatch::start();
+    let mut dirs: Vec<Vec<[f32; 3]>> = vec![Vec::new(); nlev];
+    let mut rng = stage_rng(params.seed, 2);
+    for k in (0..nlev).rev() {
+        let lev = &levels[k];
+        dirs[k] = match params.orientation {
+            Orientation::Random => orient::random_dirs(lev, &mut rng),
+            Orientation::Up => orient::up_dirs(lev),
+            Orientation::Relax2 | Orientation::Relax4 => {
+                let nsym = if params.orientation == Orientation::Relax2 {
+                    2
+                } else {
+                    4
+                };
+                if k + 1 == nlev {
+                    let mut d = orient::random_dirs(lev, &mut rng);
+                    orient::relax(lev, &mut d, None, nsym, params.relax_sweeps, &mut rng);
+                    d
+                } else {
+                    let pd = &dirs[k + 1];
+                    let mut d = orient::from_parent(lev, pd);
+                    let sweeps = (params.relax_sweeps / 4).max(2);
+                    orient::relax(lev, &mut d, Some((&lev.parent, pd)), nsym, sweeps, &mut rng);
+                    d
+                }
+            }
+        };
+        cancel.check()?;
+    }
+    timings.orientation = sw.secs();
+    sink(Event::StageTime("orientation", timings.orientation));
+
+    // ancestor of every finest vertex on each level (for partial results on the finest mesh)
+    let mut up: Vec<Vec<u32>> = vec![(0..levels[0].num_vertices() as u32).collect()];
+    for k in 1..nlev {
+        let prev = &up[k - 1];
+        let map = &levels[k - 1].parent;
+        up.push(prev.iter().map(|&v| map[v as usize]).collect());
+    }
+
+    // ---- synthesis, coarse to fine
+    let work: f64 = levels.iter().map(|l| l.num_vertices() as f64).sum::<f64>() * passes as f64;
+    let mut done = 0.0f64;
+    let mut colors: Vec<Vec<[f32; 3]>> = vec![Vec::new(); nlev];
+    let mut srcs: Vec<Vec<u32>> = vec![Vec::new(); nlev];
+    let mut exemplars: Vec<Option<ExemplarLevel>> = vec![None; nlev];
+    let mut level_energy = vec![0.0f64; nlev];
+    let mut rng = stage_rng(params.seed, 3);
+    let mut search_secs = 0.0;
+    let mut neigh_secs = 0.0;
+    for k in (0..nlev).rev() {
+        let (size, psize) = sizes(k, nlev);
+        let sw = Stopwatch::start();
+        let lev = &levels[k];
+        let n = lev.num_vertices();
+        let h = h0 * (1u32 << k) as f32;
+        let has_parent = psize > 0;
+        let ex = ExemplarLevel::new(&imgs[k], has_parent.then(|| &imgs[k + 1]), size, psize);
+        let cur_st = build_stencils(lev, &dirs[k], lev, None, h, size);
+        let par_st: Option<Stencils> = has_parent.then(|| {
+            build_stencils(
+                lev,
+                &dirs[k],
+                &levels[k + 1],
+                Some(&lev.parent),
+                2.0 * h,
+                psize,
+            )
+        });
+        neigh_secs += sw.secs();
+        let sw = Stopwatch::start();
+        // random initialisation from this level's exemplar (equalises histograms, §3.1)
+        let ncand = ex.num_candidates() as u32;
+        let mut src = vec![u32::MAX; n];
+        let mut col = vec![[0.0f32; 3]; n];
+        for v in 0..n {
+            if let Some(c) = lev.fixed[v] {
+                col[v] = c;
+            } else {
+                let c = rng.random_range(0..ncand);
+                src[v] = c;
+                col[v] = ex.color(c);
+            }
+        }
+        let run_passes: Vec<(bool, bool)> = if has_parent {
+            (0..passes).map(|p| (p > 0, true)).collect()
+        } else if size > 1 {
+            (0..passes).map(|_| (true, false)).collect()
+        } else {
+            Vec::new() // coarsest {1x1,1}: the random copy is the result
+        };
+        let pcol: &[[f32; 3]] = if has_parent { &colors[k + 1] } else { &[] };
+        let psrc: &[u32] = if has_parent { &srcs[k + 1] } else { &[] };
+        let pex = if has_parent {
+            exemplars[k + 1].as_ref()
+        } else {
+            None
+        };
+        let pdefault = pex.map_or(ex.mean, |e| e.mean);
+        let mut qc = vec![0.0f32; ex.dim_cur()];
+        let mut qp = vec![0.0f32; ex.dim_par()];
+        let mut cands: Vec<u32> = Vec::with_capacity(64);
+        let mut order: Vec<u32> = (0..n as u32)
+            .filter(|&v| lev.fixed[v as usize].is_none())
+            .collect();
+        for (pass, &(use_cur, use_par)) in run_passes.iter().enumerate() {
+            order.shuffle(&mut rng);
+            let mut energy = 0.0f64;
+            for (i, &v) in order.iter().enumerate() {
+                if i % 256 == 0 {
+                    cancel.check()?;
+                }
+                let v = v as usize;
+                if use_cur {
+                    cur_st.gather(v, &col, ex.mean, &mut qc);
+                }
+                if let (true, Some(ps)) = (use_par, &par_st) {
+                    ps.gather(v, pcol, pdefault, &mut qp);
+                }
+                let q_cur = use_cur.then_some(&qc[..]);
+                let q_par = use_par.then_some(&qp[..]);
+                let (best, d) = match params.search {
+                    Search::Exhaustive => search::exhaustive(&ex, q_cur, q_par),
+                    Search::Fast => {
+                        cands.clear();
+                        collect_candidates(
+                            &mut cands,
+                            v,
+                            lev,
+                            &dirs[k],
+                            &src,
+                            &ex,
+                            h,
+                            has_parent.then(|| (&levels[k + 1], psrc, pex.expect("parent"))),
+                        );
+                        for _ in 0..params.random_candidates {
+                            cands.push(rng.random_range(0..ncand));
+                        }
+                        search::fast(&ex, &mut cands, q_cur, q_par, &mut rng)
+                    }
+                };
+                if best != u32::MAX {
+                    src[v] = best;
+                    col[v] = ex.color(best);
+                    energy += d as f64;
+                }
+            }
+            let dim =
+                (if use_cur { ex.dim_cur() } else { 0 }) + (if use_par { ex.dim_par() } else { 0 });
+            level_energy[k] = energy / (order.len().max(1) * dim.max(1)) as f64;
+            done += n as f64;
+            let progress = Progress {
+                stage: "synth",
+                level: k,
+                levels: nlev,
+                iteration: pass + 1,
+                energy: level_energy[k],
+                elapsed: total.secs(),
+                fraction: (done / work) as f32,
+            };
+            let signal: Arc<[[f32; 3]]> = up[k].iter().map(|&a| col[a as usize]).collect();
+            sink(Event::Partial { progress, signal });
+        }
+        done += n as f64 * (passes - run_passes.len()) as f64;
+        colors[k] = col;
+        srcs[k] = src;
+        exemplars[k] = Some(ex);
+        search_secs += sw.secs();
+        // free what the next (finer) level no longer needs
+        if k + 2 < nlev {
+            colors[k + 2] = Vec::new();
+            srcs[k + 2] = Vec::new();
+            exemplars[k + 2] = None;
+        }
+    }
+    timings.neighbourhoods = neigh_secs;
+    timings.search = search_secs;
+    sink(Event::StageTime("neighbourhoods", neigh_secs));
+    sink(Event::StageTime("search", search_secs));
+    imgs.truncate(1);
+
+    // ---- deliver
+    let level_vertices: Vec<usize> = levels.iter().map(|l| l.num_vertices()).collect();
+    let fine = levels.into_iter().next().expect("finest level");
+    let col = std::mem::take(&mut colors[0]);
+    let ex0 = exemplars[0].take().expect("finest level synthesized");
+    let source: Vec<[u32; 2]> = srcs[0]
+        .iter()
+        .map(|&c| {
+            if c == u32::MAX {
+                [u32::MAX; 2]
+            } else {
+                let (x, y) = ex0.pixel(c);
+                [x as u32, y as u32]
+            }
+        })
+        .collect();
+    let mut positions = fine.positions;
+    let displacement = params.displace.then(|| {
+        let amount = params.displace_amount.unwrap_or(scale / 20.0);
+        let luma = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+        let mean = luma(ex0.mean);
+        let disp: Vec<f32> = col.iter().map(|&c| (luma(c) - mean) * amount).collect();
+        for (p, (n, d)) in positions.iter_mut().zip(fine.normals.iter().zip(&disp)) {
+            for k in 0..3 {
+                p[k] += n[k] * d;
+            }
+        }
+        disp
+    });
+    let mut mesh = TriMesh::new(positions, fine.faces);
+    mesh.normals = Some(vertex_normals(&mesh.positions, &mesh.faces));
+    mesh.colors = Some(col.clone());
+    mesh.path = None;
+    let file_colors = target.to_file_order(&col[..nv], [0.5; 3]);
+    timings.total = total.secs();
+    Ok(SynthResult {
+        mesh,
+        file_colors,
+        orientation: std::mem::take(&mut dirs[0]),
+        source,
+        spacing: h0,
+        mesh_d,
+        level_vertices,
+        level_energy,
+        displacement,
+        timings,
+    })
+}
+
+/// Coherence candidates for vertex `v` (Ashikhmin 2001 on a surface): its current source, each
+/// neighbour q's source shifted by `p - q` expressed in q's texture frame, and the parent's source
+/// (doubled, shifted by `p - parent` in p's frame).
+#[allow(clippy::too_many_arguments)]
+fn collect_candidates(
+    cands: &mut Vec<u32>,
+    v: usize,
+    lev: &Level,
+    dirs: &[[f32; 3]],
+    src: &[u32],
+    ex: &ExemplarLevel,
+    h: f32,
+    parent: Option<(&Level, &[u32], &ExemplarLevel)>,
+) {
+    let pv = Vec3::from(lev.positions[v]);
+    if src[v] != u32::MAX {
+        cands.push(src[v]);
+    }
+    for &q in lev.adj.row(v) {
+        let q = q as usize;
+        if src[q] == u32::MAX {
+            continue;
+        }
+        let nq = Vec3::from(lev.normals[q]);
+        let sq = Vec3::from(dirs[q]);
+        let tq = nq.cross(sq);
+        let d = pv - Vec3::from(lev.positions[q]);
+        let (x, y) = ex.pixel(src[q]);
+        let nx = x as f32 + d.dot(sq) / h;
+        let ny = y as f32 - d.dot(tq) / h;
+        cands.push(ex.cand_at(nx.round() as i64, ny.round() as i64));
+    }
+    if let Some((plev, psrc, pex)) = parent {
+        let a = lev.parent[v] as usize;
+        if psrc[a] != u32::MAX {
+            let nv = Vec3::from(lev.normals[v]);
+            let sv = Vec3::from(dirs[v]);
+            let tv = nv.cross(sv);
+            let d = pv - Vec3::from(plev.positions[a]);
+            let (x, y) = pex.pixel(psrc[a]);
+            let px = x as f32 + d.dot(sv) / (2.0 * h);
+            let py = y as f32 - d.dot(tv) / (2.0 * h);
+            let fx = 2.0 * px + 0.5;
+            let fy = 2.0 * py + 0.5;
+            cands.push(ex.cand_at(fx.round() as i64, fy.round() as i64));
+        }
+    }
+}

@@ -1,0 +1,468 @@
+//! Surface texture synthesis (Wei & Levoy 2001) on real meshes and real exemplars: colour
+//! statistics, neighbourhood similarity to the exemplar, orientation fields, search strategies,
+//! masks, displacement, events and cancellation.
+
+use std::cell::RefCell;
+
+use glam::Vec3;
+use meshmatch::TriMesh;
+use meshmatch::jobs::{CancelToken, Event, no_events};
+use meshmatch::synthesis::wei_levoy::{
+    color_histogram, exemplar_loo_distance, histogram_l1, image_colors, neighbourhood_distance,
+    orientation_energy,
+};
+use meshmatch::synthesis::{Orientation, Search, SynthParams, SynthResult, synthesize};
+use meshmatch::testdata::data_path;
+
+/// Unit icosphere: icosahedron subdivided `n` times.
+fn icosphere(n: usize) -> TriMesh {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let base = [
+        [-1., t, 0.],
+        [1., t, 0.],
+        [-1., -t, 0.],
+        [1., -t, 0.],
+        [0., -1., t],
+        [0., 1., t],
+        [0., -1., -t],
+        [0., 1., -t],
+        [t, 0., -1.],
+        [t, 0., 1.],
+        [-t, 0., -1.],
+        [-t, 0., 1.],
+    ];
+    let mut p: Vec<[f32; 3]> = base
+        .iter()
+        .map(|v| Vec3::from(*v).normalize().to_array())
+        .collect();
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..n {
+        let mut mid = std::collections::HashMap::new();
+        let mut nf = Vec::new();
+        let mut m = |a: u32, b: u32, p: &mut Vec<[f32; 3]>| {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let v = (Vec3::from(p[a as usize]) + Vec3::from(p[b as usize])).normalize();
+                p.push(v.to_array());
+                p.len() as u32 - 1
+            })
+        };
+        for [a, b, c] in f {
+            let ab = m(a, b, &mut p);
+            let bc = m(b, c, &mut p);
+            let ca = m(c, a, &mut p);
+            nf.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = nf;
+    }
+    TriMesh::new(p, f)
+}
+
+/// A real exemplar from the shared data, downsampled to `size x size`.
+fn exemplar(name: &str, size: u32) -> image::RgbImage {
+    let img = image::open(data_path(&format!("textures/{name}")))
+        .expect("texture")
+        .to_rgb8();
+    image::imageops::resize(&img, size, size, image::imageops::FilterType::Triangle)
+}
+
+/// Diagonal two-colour stripes with period 8 px (a 2-way symmetric texture).
+fn stripes(size: u32) -> image::RgbImage {
+    image::RgbImage::from_fn(size, size, |x, y| {
+        let s = ((x as f32 + 0.3 * y as f32) * std::f32::consts::TAU / 8.0).sin();
+        if s > 0.0 {
+            image::Rgb([220, 200, 60])
+        } else {
+            image::Rgb([40, 50, 120])
+        }
+    })
+}
+
+fn run(ex: &image::RgbImage, mesh: &TriMesh, params: &SynthParams) -> SynthResult {
+    synthesize(ex, mesh, None, params, &no_events, &CancelToken::new()).expect("synthesis")
+}
+
+fn nd(ex: &image::RgbImage, r: &SynthResult, size: usize) -> f64 {
+    neighbourhood_distance(ex, &r.mesh, &r.orientation, r.spacing, size, 600, 5).expect("measure")
+}
+
+#[test]
+fn bunny_colour_histogram_matches_exemplar() {
+    let ex = exemplar("1.jpg", 64);
+    let bunny = meshmatch::mesh::io::load(&data_path("bunny/bunny.obj")).expect("bunny");
+    let (lo, hi) = bunny.bounds().unwrap();
+    let diag = Vec3::from(hi).distance(Vec3::from(lo));
+    let params = SynthParams {
+        scale: Some(diag / 2.0),
+        seed: 1,
+        ..Default::default()
+    };
+    let r = run(&ex, &bunny, &params);
+    let out = r.mesh.colors.as_ref().unwrap();
+    println!(
+        "bunny: levels {:?}, timings {:?}",
+        r.level_vertices, r.timings
+    );
+    assert!(r.mesh.num_vertices() > bunny.num_vertices());
+    assert_eq!(r.file_colors.len(), bunny.file_vertex_count);
+    assert_eq!(&r.file_colors[..], &out[..bunny.num_vertices()]);
+    let hx = color_histogram(&image_colors(&ex), 8);
+    let ho = color_histogram(out, 8);
+    let l1 = histogram_l1(&hx, &ho);
+    // baselines: uniformly random colours, and the exemplar's mean colour everywhere
+    let mut s = 12345u64;
+    let mut rnd = || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s % 1000) as f32 / 1000.0
+    };
+    let random: Vec<[f32; 3]> = (0..out.len()).map(|_| [rnd(), rnd(), rnd()]).collect();
+    let exc = image_colors(&ex);
+    let mean = exc
+        .iter()
+        .fold([0.0f32; 3], |a, c| [a[0] + c[0], a[1] + c[1], a[2] + c[2]])
+        .map(|x| x / exc.len() as f32);
+    let l1_random = histogram_l1(&hx, &color_histogram(&random, 8));
+    let l1_mean = histogram_l1(&hx, &color_histogram(&vec![mean; out.len()], 8));
+    println!("histogram L1: output {l1:.3}, random {l1_random:.3}, mean colour {l1_mean:.3}");
+    assert!(l1 < 0.5, "histogram L1 {l1}");
+    assert!(l1 < 0.3 * l1_random && l1 < 0.3 * l1_mean);
+    // neighbourhoods: output vs exemplar compared with the exemplar's leave-one-out baseline
+    let loo = exemplar_loo_distance(&ex, 5, 2, 600, 5);
+    let d = nd(&ex, &r, 5);
+    println!(
+        "5x5 neighbourhood distance: output {d:.5}, exemplar leave-one-out {loo:.5}, ratio {:.2}",
+        d / loo
+    );
+    assert!(d < 1.5 * loo, "output {d} vs leave-one-out {loo}");
+    // and far from what unstructured output gives: the same colours shuffled over the vertices
+    let mut shuffled = r.clone();
+    let cols = shuffled.mesh.colors.as_mut().unwrap();
+    let n = cols.len();
+    for i in 0..n {
+        cols.swap(i, (i * 7919 + 13) % n);
+    }
+    let d_shuffled = nd(&ex, &shuffled, 5);
+    println!("shuffled colours: {d_shuffled:.5}");
+    assert!(d < 0.7 * d_shuffled);
+}
+
+#[test]
+fn sphere_neighbourhoods_match_exemplar_7x7() {
+    let ex = exemplar("1.jpg", 64);
+    let sphere = icosphere(3);
+    let params = SynthParams {
+        scale: Some(2.0),
+        seed: 3,
+        ..Default::default()
+    };
+    let r = run(&ex, &sphere, &params);
+    let loo = exemplar_loo_distance(&ex, 7, 3, 600, 5);
+    let d = nd(&ex, &r, 7);
+    println!(
+        "sphere 7x7: output {d:.5}, leave-one-out {loo:.5}, ratio {:.2}",
+        d / loo
+    );
+    assert!(d < 1.5 * loo, "output {d} vs leave-one-out {loo}");
+    // a high-contrast exemplar: structure, not noise (shuffled colours are far worse)
+    let ex = exemplar("2.jpg", 64);
+    let r = run(&ex, &sphere, &params);
+    let loo = exemplar_loo_distance(&ex, 7, 3, 600, 5);
+    let d = nd(&ex, &r, 7);
+    let mut shuffled = r.clone();
+    let cols = shuffled.mesh.colors.as_mut().unwrap();
+    let n = cols.len();
+    for i in 0..n {
+        cols.swap(i, (i * 7919 + 13) % n);
+    }
+    let d_shuffled = nd(&ex, &shuffled, 7);
+    println!("sphere 2.jpg 7x7: output {d:.5}, leave-one-out {loo:.5}, shuffled {d_shuffled:.5}");
+    assert!(d < 1.5 * loo, "output {d} vs leave-one-out {loo}");
+    assert!(d < 0.5 * d_shuffled, "output {d} vs shuffled {d_shuffled}");
+}
+
+#[test]
+fn relax2_orients_stripes_better_than_random() {
+    let ex = stripes(64);
+    let sphere = icosphere(3);
+    let mut res = Vec::new();
+    for o in [Orientation::Random, Orientation::Relax2] {
+        let params = SynthParams {
+            scale: Some(1.5),
+            orientation: o,
+            seed: 4,
+            ..Default::default()
+        };
+        let r = run(&ex, &sphere, &params);
+        let e = orientation_energy(&r.mesh.positions, &r.mesh.faces, &r.orientation, 2);
+        let d = nd(&ex, &r, 7);
+        println!("{o:?}: orientation energy {e:.4} rad^2, 7x7 neighbourhood distance {d:.5}");
+        res.push((e, d));
+    }
+    let (random, relax) = (res[0], res[1]);
+    assert!(relax.0 < 0.1 * random.0, "energy {relax:?} vs {random:?}");
+    // the stripes survive only with a coherent field
+    assert!(relax.1 < 0.6 * random.1, "distance {relax:?} vs {random:?}");
+}
+
+#[test]
+fn up_orientation_is_tangent_and_follows_y() {
+    let ex = exemplar("1.jpg", 32);
+    let sphere = icosphere(2);
+    let params = SynthParams {
+        scale: Some(2.0),
+        orientation: Orientation::Up,
+        levels: 3,
+        ..Default::default()
+    };
+    let r = run(&ex, &sphere, &params);
+    let normals = r.mesh.normals.as_ref().unwrap();
+    let mut checked = 0;
+    for ((s, n), p) in r.orientation.iter().zip(normals).zip(&r.mesh.positions) {
+        let (s, n) = (Vec3::from(*s), Vec3::from(*n));
+        assert!((s.length() - 1.0).abs() < 1e-3);
+        assert!(s.dot(n).abs() < 0.05);
+        // texture up t = n x s is the projected +Y away from the poles
+        if p[1].abs() < 0.8 {
+            let t = n.cross(s);
+            let y = (Vec3::Y - Vec3::Y.dot(n) * n).normalize();
+            assert!(t.dot(y) > 0.99, "t {t} vs projected Y {y}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 100);
+}
+
+#[test]
+fn fast_search_nearly_matches_exhaustive_and_is_faster() {
+    let ex = exemplar("1.jpg", 48);
+    let sphere = icosphere(3);
+    let mut out = Vec::new();
+    for s in [Search::Exhaustive, Search::Fast] {
+        let params = SynthParams {
+            scale: Some(3.0),
+            search: s,
+            seed: 2,
+            ..Default::default()
+        };
+        let r = run(&ex, &sphere, &params);
+        let d = nd(&ex, &r, 7);
+        println!(
+            "{s:?}: {} vertices, search {:.3} s, total {:.3} s, 7x7 distance {d:.5}",
+            r.mesh.num_vertices(),
+            r.timings.search,
+            r.timings.total
+        );
+        out.push((r.timings.search, d));
+    }
+    let (ex_t, ex_d) = out[0];
+    let (fa_t, fa_d) = out[1];
+    assert!(fa_d < 1.2 * ex_d, "fast {fa_d} vs exhaustive {ex_d}");
+    assert!(fa_t * 3.0 < ex_t, "fast {fa_t} s vs exhaustive {ex_t} s");
+}
+
+#[test]
+fn partial_events_per_pass_and_cancel() {
+    let ex = exemplar("2.jpg", 32);
+    let sphere = icosphere(2);
+    let params = SynthParams {
+        scale: Some(2.0),
+        levels: 3,
+        ..Default::default()
+    };
+    let partials = RefCell::new(Vec::new());
+    let sink = |e: Event| {
+        if let Event::Partial { progress, signal } = e {
+            partials
+                .borrow_mut()
+                .push((progress.level, progress.iteration, signal.len()));
+        }
+    };
+    let r = synthesize(&ex, &sphere, None, &params, &sink, &CancelToken::new()).unwrap();
+    let p = partials.into_inner();
+    // coarsest level is the random copy; two passes on each of the two finer levels
+    assert_eq!(
+        p.iter().map(|x| (x.0, x.1)).collect::<Vec<_>>(),
+        vec![(1, 1), (1, 2), (0, 1), (0, 2)]
+    );
+    assert!(p.iter().all(|x| x.2 == r.mesh.num_vertices()));
+    // determinism under a seed
+    let again = run(&ex, &sphere, &params);
+    assert_eq!(again.mesh.colors, r.mesh.colors);
+    // cancel during the first partial: the call stops with Cancelled
+    let token = CancelToken::new();
+    let t2 = token.clone();
+    let sink = move |e: Event| {
+        if matches!(e, Event::Partial { .. }) {
+            t2.cancel();
+        }
+    };
+    let err = synthesize(&ex, &sphere, None, &params, &sink, &token).unwrap_err();
+    assert!(matches!(err, meshmatch::Error::Cancelled));
+}
+
+#[test]
+fn mask_keeps_colours_outside() {
+    let ex = exemplar("1.jpg", 32);
+    let mut sphere = icosphere(3);
+    let n = sphere.num_vertices();
+    sphere.colors = Some(vec![[1.0, 0.0, 0.0]; n]);
+    // synthesize the upper half only
+    let mask: Vec<bool> = sphere.positions.iter().map(|p| p[1] > 0.0).collect();
+    let params = SynthParams {
+        scale: Some(2.0),
+        levels: 3,
+        ..Default::default()
+    };
+    let r = synthesize(
+        &ex,
+        &sphere,
+        Some(&mask),
+        &params,
+        &no_events,
+        &CancelToken::new(),
+    )
+    .unwrap();
+    let mut inside_red = 0;
+    for (i, c) in r.file_colors.iter().enumerate() {
+        if mask[i] {
+            inside_red += (*c == [1.0, 0.0, 0.0]) as usize;
+        } else {
+            assert_eq!(*c, [1.0, 0.0, 0.0]);
+        }
+    }
+    assert_eq!(inside_red, 0, "synthesized vertices copy exemplar pixels");
+    // wrong mask length and a mask without target colours are refused
+    let bad = vec![true; n - 1];
+    assert!(
+        synthesize(
+            &ex,
+            &sphere,
+            Some(&bad),
+            &params,
+            &no_events,
+            &CancelToken::new()
+        )
+        .is_err()
+    );
+    sphere.colors = None;
+    assert!(
+        synthesize(
+            &ex,
+            &sphere,
+            Some(&mask),
+            &params,
+            &no_events,
+            &CancelToken::new()
+        )
+        .is_err()
+    );
+}
+
+#[test]
+fn displacement_follows_grey_values_along_normals() {
+    let ex = image::imageops::grayscale(&exemplar("2.jpg", 32));
+    let ex = image::DynamicImage::ImageLuma8(ex).to_rgb8();
+    let sphere = icosphere(2);
+    let params = SynthParams {
+        scale: Some(2.0),
+        levels: 3,
+        displace: true,
+        displace_amount: Some(0.1),
+        ..Default::default()
+    };
+    let r = run(&ex, &sphere, &params);
+    let plain = run(
+        &ex,
+        &sphere,
+        &SynthParams {
+            displace: false,
+            ..params.clone()
+        },
+    );
+    assert_eq!(plain.mesh.colors, r.mesh.colors);
+    assert!(plain.displacement.is_none());
+    let disp = r.displacement.as_ref().unwrap();
+    let cols = r.mesh.colors.as_ref().unwrap();
+    let lo_d = disp.iter().cloned().fold(f32::MAX, f32::min);
+    let hi_d = disp.iter().cloned().fold(f32::MIN, f32::max);
+    assert!(hi_d - lo_d > 0.02, "displacement spread {}", hi_d - lo_d);
+    let normals = plain.mesh.normals.as_ref().unwrap();
+    for ((p, q), (n, d)) in r
+        .mesh
+        .positions
+        .iter()
+        .zip(&plain.mesh.positions)
+        .zip(normals.iter().zip(disp))
+    {
+        let step = Vec3::from(*p) - Vec3::from(*q);
+        assert!((step - Vec3::from(*n) * *d).length() < 1e-5);
+        assert!(d.abs() <= 0.1 + 1e-4);
+    }
+    // brighter vertices sit further out
+    let (mut hi, mut lo) = ((0.0, 0), (0.0, 0));
+    for (d, c) in disp.iter().zip(cols) {
+        if c[0] > 0.6 {
+            hi = (hi.0 + d, hi.1 + 1);
+        } else if c[0] < 0.4 {
+            lo = (lo.0 + d, lo.1 + 1);
+        }
+    }
+    assert!(hi.1 > 0 && lo.1 > 0);
+    assert!(hi.0 / hi.1 as f32 > lo.0 / lo.1 as f32);
+}
+
+#[test]
+fn bad_inputs_are_errors() {
+    let ex = exemplar("1.jpg", 64);
+    let empty = TriMesh::new(vec![[0.0; 3]; 3], vec![]);
+    let ok = SynthParams::default();
+    assert!(synthesize(&ex, &empty, None, &ok, &no_events, &CancelToken::new()).is_err());
+    let sphere = icosphere(1);
+    let tiny = image::RgbImage::new(4, 4);
+    assert!(synthesize(&tiny, &sphere, None, &ok, &no_events, &CancelToken::new()).is_err());
+    let p = SynthParams {
+        scale: Some(1e-5),
+        ..Default::default()
+    };
+    assert!(synthesize(&ex, &sphere, None, &p, &no_events, &CancelToken::new()).is_err());
+    let p = SynthParams {
+        levels: 0,
+        ..Default::default()
+    };
+    assert!(synthesize(&ex, &sphere, None, &p, &no_events, &CancelToken::new()).is_err());
+    let mut nan = icosphere(1);
+    nan.positions[0][0] = f32::NAN;
+    assert!(synthesize(&ex, &nan, None, &ok, &no_events, &CancelToken::new()).is_err());
+    // the CLI spellings parse, unknown ones are errors; params round-trip through serde
+    assert_eq!(
+        "relax4".parse::<Orientation>().unwrap(),
+        Orientation::Relax4
+    );
+    assert!("spiral".parse::<Orientation>().is_err());
+    assert_eq!("exhaustive".parse::<Search>().unwrap(), Search::Exhaustive);
+    let json = serde_json::to_string(&SynthParams::default()).unwrap();
+    let back: SynthParams = serde_json::from_str(&json).unwrap();
+    assert_eq!(back.levels, 4);
+}
