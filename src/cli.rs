@@ -42,6 +42,8 @@ pub enum Command {
     },
     /// Transfer a texture from a source mesh to a target mesh (MeshMatch).
     Transfer(TransferArgs),
+    /// Synthesize a texture over a mesh from a 2D exemplar image (Wei and Levoy 2001).
+    Synth(SynthArgs),
     /// Time the transfer's stages at several working resolutions (Spot -> horse from the shared data).
     Bench {
         /// Working resolutions, e.g. `16k,64k,256k,1m`.
@@ -121,6 +123,101 @@ pub struct TransferArgs {
     pub texture_size: u32,
 }
 
+/// Arguments of `meshmatch synth`.
+#[derive(clap::Args, Debug)]
+pub struct SynthArgs {
+    /// Exemplar image (PNG or JPEG): colours, or a grey displacement map with --displace.
+    #[arg(long)]
+    pub exemplar: PathBuf,
+    /// Mesh to texture.
+    #[arg(long)]
+    pub target: PathBuf,
+    /// Output mesh (.ply, .glb, .obj): the uniform-density synthesized mesh with vertex colours.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Mesh units spanned by the exemplar's width (default: a quarter of the bounding-box diagonal).
+    #[arg(long)]
+    pub scale: Option<f32>,
+    /// Texture orientation field: random, up, relax2 (stripes) or relax4 (grids).
+    #[arg(long, default_value = "relax4")]
+    pub orientation: String,
+    /// Pyramid levels.
+    #[arg(long, default_value_t = 4)]
+    pub levels: usize,
+    /// Vertex indices (file numbering, one per line) to synthesize; the rest keep their colours.
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
+    /// Neighbourhood search: exhaustive (reference) or fast (coherence + random search).
+    #[arg(long, default_value = "fast")]
+    pub search: String,
+    /// Random seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Treat the exemplar as a grey displacement map and displace the surface along its normals.
+    #[arg(long)]
+    pub displace: bool,
+}
+
+/// Read a mask file: vertex indices (file numbering), one per line; `#` comments and blank lines
+/// are ignored. Returns per-vertex flags of length `n`.
+pub fn read_mask(path: &Path, n: usize) -> Result<Vec<bool>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut mask = vec![false; n];
+    for (i, line) in text.lines().enumerate() {
+        let t = line.split('#').next().unwrap_or("").trim();
+        if t.is_empty() {
+            continue;
+        }
+        let v: usize = t
+            .parse()
+            .map_err(|_| Error::format(path, format!("line {}: '{t}' is not a vertex index", i + 1)))?;
+        if v >= n {
+            return Err(Error::format(path, format!("line {}: vertex {v} out of range (the mesh has {n})", i + 1)));
+        }
+        mask[v] = true;
+    }
+    Ok(mask)
+}
+
+fn synth(a: &SynthArgs) -> Result<i32> {
+    use crate::synthesis::{Orientation, Search, SynthParams};
+    let orientation: Orientation = a
+        .orientation
+        .parse()
+        .map_err(|_| Error::InvalidInput(format!("--orientation {}: use random, up, relax2 or relax4", a.orientation)))?;
+    let search: Search =
+        a.search.parse().map_err(|_| Error::InvalidInput(format!("--search {}: use exhaustive or fast", a.search)))?;
+    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let exemplar = io::load_texture(&a.exemplar)?.image;
+    let target = load_usable(&a.target)?;
+    let mask = match &a.mask {
+        Some(p) => Some(read_mask(p, target.num_vertices())?),
+        None => None,
+    };
+    let params = SynthParams {
+        scale: a.scale,
+        orientation,
+        levels: a.levels,
+        search,
+        seed: a.seed,
+        displace: a.displace,
+        ..SynthParams::default()
+    };
+    let t = std::time::Instant::now();
+    let r = crate::synthesis::synthesize(&exemplar, &target, mask.as_deref(), &params, &crate::jobs::no_events, &CancelToken::new())?;
+    eprintln!(
+        "synthesized {} vertices in {:.2} s (search {:.2} s)",
+        r.mesh.num_vertices(),
+        t.elapsed().as_secs_f64(),
+        r.timings.search
+    );
+    io::save(&r.mesh, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
+    Ok(0)
+}
+
 /// Run the CLI; returns the process exit code.
 pub fn main() -> i32 {
     std::panic::set_hook(Box::new(|info| {
@@ -161,6 +258,7 @@ fn run(cli: Cli) -> Result<i32> {
         }
         Some(Command::Demo { out }) => demo(&out),
         Some(Command::Transfer(args)) => transfer(&args),
+        Some(Command::Synth(args)) => synth(&args),
         Some(Command::Bench { sizes, json }) => {
             crate::bench::run(&crate::bench::parse_sizes(&sizes)?, json)?;
             Ok(0)
