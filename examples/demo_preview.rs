@@ -132,6 +132,8 @@ fn main() {
         for (i, (_, v)) in views.iter().enumerate() {
             render(mesh, *v, &mut img, i as u32 * w, w, h);
         }
+        let flipped = img.pixels().filter(|p| p.0 == [255, 0, 0]).count();
+        println!("{name}: {flipped} pixels show a back-facing normal");
         let path = dir.join(format!("{name}.png"));
         img.save(&path).expect("write png");
         println!(

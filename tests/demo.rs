@@ -34,6 +34,18 @@ fn assert_clean(name: &str, m: &TriMesh) {
         chi, 2,
         "{name}: Euler characteristic {chi} (expected genus 0)"
     );
+    // Consistent orientation: every directed edge is used by exactly one face.
+    let mut directed: Vec<(u32, u32)> = m
+        .faces
+        .iter()
+        .flat_map(|f| [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])])
+        .collect();
+    directed.sort_unstable();
+    let clashes = directed.windows(2).filter(|w| w[0] == w[1]).count();
+    assert_eq!(
+        clashes, 0,
+        "{name}: {clashes} inconsistently oriented edges"
+    );
     let vol = signed_volume(m);
     assert!(
         vol > 0.0,
@@ -41,6 +53,23 @@ fn assert_clean(name: &str, m: &TriMesh) {
     );
     if let Some(n) = &m.normals {
         assert_eq!(n.len(), m.num_vertices());
+        // No folded triangles: each face's geometric normal agrees with its vertex normals.
+        let folded = m
+            .faces
+            .iter()
+            .filter(|f| {
+                let [a, b, c] = f.map(|v| Vec3::from(m.positions[v as usize]));
+                let face_n = (b - a).cross(c - a);
+                let vn: Vec3 = f.iter().map(|&v| Vec3::from(n[v as usize])).sum();
+                let bad = face_n.dot(vn) <= 0.0;
+                if bad && std::env::var("DEMO_DEBUG").is_ok() {
+                    println!("{name}: folded face at {:?}", (a + b + c) / 3.0);
+                }
+                bad
+            })
+            .count();
+        println!("{name}: {folded} folded faces");
+        assert_eq!(folded, 0, "{name}: folded faces");
     }
 }
 

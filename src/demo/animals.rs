@@ -448,9 +448,9 @@ fn g_head(p: Vec3) -> f32 {
         let ear = round_cone(
             p,
             Vec3::new(0.76, 2.44, 0.05 * s),
-            Vec3::new(0.72, 2.48, 0.15 * s),
-            0.026,
-            0.012,
+            Vec3::new(0.72, 2.48, 0.14 * s),
+            0.028,
+            0.018,
         );
         head = smin(head, smin(oss, ear, 0.01), 0.02);
     }

@@ -245,7 +245,65 @@ pub fn mesh_sdf(f: &(impl Fn(Vec3) -> f32 + Sync + ?Sized), lo: Vec3, hi: Vec3, 
         .collect();
     let faces: Vec<[u32; 3]> = per_slice_faces.concat();
     let positions: Vec<[f32; 3]> = positions.iter().map(|p| p.to_array()).collect();
-    largest_component(positions, faces)
+    let mut mesh = largest_component(positions, faces);
+    orient_consistently(&mut mesh);
+    mesh
+}
+
+/// Make the orientation of a closed manifold mesh consistent by breadth-first propagation
+/// across edges (a neighbour must traverse the shared edge in the opposite direction), then
+/// flip everything if the signed volume is negative. Repairs the rare tetrahedron whose
+/// geometric orientation test was decided by rounding.
+pub fn orient_consistently(mesh: &mut TriMesh) {
+    let nf = mesh.faces.len();
+    let mut edges: Vec<(u32, u32, u32)> = Vec::with_capacity(3 * nf);
+    for (fi, f) in mesh.faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            edges.push((a.min(b), a.max(b), fi as u32));
+        }
+    }
+    edges.par_sort_unstable();
+    // Face neighbours across each edge (manifold: exactly two faces per edge).
+    let mut nbr: Vec<Vec<u32>> = vec![Vec::new(); nf];
+    for w in edges.windows(2) {
+        if w[0].0 == w[1].0 && w[0].1 == w[1].1 {
+            nbr[w[0].2 as usize].push(w[1].2);
+            nbr[w[1].2 as usize].push(w[0].2);
+        }
+    }
+    let has_directed =
+        |f: &[u32; 3], a: u32, b: u32| (0..3).any(|k| f[k] == a && f[(k + 1) % 3] == b);
+    let mut done = vec![false; nf];
+    let mut queue = std::collections::VecDeque::new();
+    for start in 0..nf {
+        if done[start] {
+            continue;
+        }
+        done[start] = true;
+        queue.push_back(start);
+        while let Some(fi) = queue.pop_front() {
+            let f = mesh.faces[fi];
+            for &g in &nbr[fi] {
+                let g = g as usize;
+                if done[g] {
+                    continue;
+                }
+                // Shared edge traversed the same way by both faces means g is flipped.
+                let same = (0..3).any(|k| has_directed(&mesh.faces[g], f[k], f[(k + 1) % 3]));
+                if same {
+                    mesh.faces[g].swap(1, 2);
+                }
+                done[g] = true;
+                queue.push_back(g);
+            }
+        }
+    }
+    if signed_volume(mesh) < 0.0 {
+        for f in &mut mesh.faces {
+            f.swap(1, 2);
+        }
+    }
 }
 
 /// Emit the 0, 1 or 2 triangles of one tetrahedron (corners given as cube-corner bit masks).
@@ -392,6 +450,45 @@ pub fn relax(mesh: &mut TriMesh, f: &(impl Fn(Vec3) -> f32 + Sync + ?Sized), ite
             });
         std::mem::swap(&mut pos, &mut next);
         std::mem::swap(&mut nrm, &mut next_nrm);
+    }
+    // Untangle: Gauss-Seidel umbrella steps on the few triangles that the Jacobi rounds left
+    // folded (face normal against its vertex normals) and on their one-rings.
+    for _ in 0..30 {
+        let mut verts: Vec<u32> = mesh
+            .faces
+            .par_iter()
+            .filter(|f| {
+                let [a, b, c] = f.map(|v| pos[v as usize]);
+                let vn = nrm[f[0] as usize] + nrm[f[1] as usize] + nrm[f[2] as usize];
+                (b - a).cross(c - a).dot(vn) <= 0.0
+            })
+            .flat_map_iter(|f| {
+                f.iter()
+                    .flat_map(|&v| std::iter::once(v).chain(adj.row(v as usize).iter().copied()))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        if verts.is_empty() {
+            break;
+        }
+        verts.sort_unstable();
+        verts.dedup();
+        for &i in &verts {
+            let i = i as usize;
+            let row = adj.row(i);
+            let mut m = Vec3::ZERO;
+            for &j in row {
+                m += pos[j as usize];
+            }
+            m /= row.len().max(1) as f32;
+            let n = nrm[i];
+            let d = m - pos[i];
+            let q = pos[i] + (d - n * n.dot(d));
+            let (v, g) = gradient(f, q, e);
+            let g2 = g.length_squared();
+            pos[i] = if g2 > 1e-12 { q - g * (v / g2) } else { q };
+            nrm[i] = g.normalize_or(n);
+        }
     }
     let normals: Vec<[f32; 3]> = nrm
         .iter()
