@@ -1,1 +1,584 @@
-//! (module under construction)
+//! Per-vertex features for MeshMatch (Chen et al. 2012, §3.2 and §4.1): shape features (Heat
+//! Kernel Signature + normal·up, geodesic affinities to correspondences) and geodesic fans of a
+//! pre-filtered signal (Zelinka & Garland 2004), plus local tangent frames and the frame-to-frame
+//! rotation used to carry patch orientations across edges and levels.
+
+use crate::hierarchy::{Hierarchy, Level};
+use crate::{Error, Result};
+use glam::Vec3;
+use rayon::prelude::*;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+/// Number of fan radii (MeshMatch: R = 3).
+pub const FAN_RADII: usize = 3;
+/// Number of fan angles (MeshMatch: A = 18, 20 degrees apart).
+pub const FAN_ANGLES: usize = 18;
+/// Degrees per fan angle step.
+pub const ANGLE_STEP_DEG: f32 = 360.0 / FAN_ANGLES as f32;
+/// Number of HKS time scales.
+pub const HKS_TIMES: usize = 8;
+/// Automatic shape feature size: 8 HKS scales + normal·up.
+pub const SHAPE_DIM: usize = HKS_TIMES + 1;
+
+/// A tangent frame per vertex: `t1`, `t2` orthonormal and orthogonal to the vertex normal.
+#[derive(Clone, Debug, Default)]
+pub struct Frames {
+    /// First tangent (the polar reference direction, angle 0).
+    pub t1: Vec<[f32; 3]>,
+    /// Second tangent, `n x t1` (angle 90 degrees).
+    pub t2: Vec<[f32; 3]>,
+}
+
+/// Tangent frame of one normal: the reference direction is the global axis least aligned with
+/// the normal, projected into the tangent plane (an arbitrary but smooth choice, as in §3.1).
+#[inline]
+pub fn frame_of(n: Vec3) -> (Vec3, Vec3) {
+    let a = if n.x.abs() < 0.6 {
+        Vec3::X
+    } else if n.y.abs() < 0.6 {
+        Vec3::Y
+    } else {
+        Vec3::Z
+    };
+    let t1 = (a - n * n.dot(a)).normalize_or(Vec3::X);
+    let t2 = n.cross(t1);
+    (t1, t2)
+}
+
+/// Tangent frames of a level (see [`frame_of`]).
+pub fn tangent_frames(normals: &[[f32; 3]]) -> Frames {
+    let (t1, t2) = normals
+        .iter()
+        .map(|n| {
+            let (a, b) = frame_of(Vec3::from(*n));
+            (a.to_array(), b.to_array())
+        })
+        .unzip();
+    Frames { t1, t2 }
+}
+
+/// Angle (radians) that a direction gains when carried from frame x to frame y: a tangent
+/// direction at polar angle θ in x's frame, parallel-transported (minimal rotation taking n_x to
+/// n_y), has polar angle θ + result in y's frame.
+#[inline]
+pub fn transport_angle(nx: Vec3, t1x: Vec3, ny: Vec3, t1y: Vec3, t2y: Vec3) -> f32 {
+    // Minimal rotation n_x -> n_y applied to t1x (Rodrigues), then measured in y's frame.
+    let axis = nx.cross(ny);
+    let s = axis.length();
+    let c = nx.dot(ny);
+    let t = if s > 1e-6 {
+        let k = axis / s;
+        t1x * c + k.cross(t1x) * s + k * k.dot(t1x) * (1.0 - c)
+    } else {
+        t1x
+    };
+    t.dot(t2y).atan2(t.dot(t1y))
+}
+
+/// Transport angles along every directed edge of a level, aligned with `level.adjacency.indices`:
+/// entry for (i -> j) is `transport_angle` from i's frame to j's frame.
+pub fn edge_transport_angles(level: &Level, frames: &Frames) -> Vec<f32> {
+    let adj = &level.adjacency;
+    (0..level.len())
+        .into_par_iter()
+        .flat_map_iter(|i| {
+            let ni = Vec3::from(level.normals[i]);
+            let ti = Vec3::from(frames.t1[i]);
+            adj.row(i).iter().map(move |&j| {
+                let j = j as usize;
+                transport_angle(
+                    ni,
+                    ti,
+                    Vec3::from(level.normals[j]),
+                    Vec3::from(frames.t1[j]),
+                    Vec3::from(frames.t2[j]),
+                )
+            })
+        })
+        .collect()
+}
+
+/// Multi-source graph geodesic distances (Dijkstra along mesh edges) from `sources` on a level.
+/// Edge paths overestimate true geodesics by a few percent; used for correspondence affinities.
+pub fn edge_geodesics(level: &Level, sources: &[u32]) -> Vec<f32> {
+    let n = level.len();
+    let mut dist = vec![f32::INFINITY; n];
+    let mut heap = BinaryHeap::new();
+    for &s in sources {
+        if (s as usize) < n {
+            dist[s as usize] = 0.0;
+            heap.push(Reverse((0u32, s)));
+        }
+    }
+    while let Some(Reverse((dbits, v))) = heap.pop() {
+        let d = f32::from_bits(dbits);
+        if d > dist[v as usize] {
+            continue;
+        }
+        let pv = Vec3::from(level.positions[v as usize]);
+        for &u in level.adjacency.row(v as usize) {
+            let nd = d + (Vec3::from(level.positions[u as usize]) - pv).length();
+            if nd < dist[u as usize] {
+                dist[u as usize] = nd;
+                // Non-negative f32 bit patterns order like the floats.
+                heap.push(Reverse((nd.to_bits(), u)));
+            }
+        }
+    }
+    // Unreachable vertices (other components) get the largest finite distance.
+    let maxd = dist
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite())
+        .fold(0.0f32, f32::max);
+    for d in dist.iter_mut() {
+        if !d.is_finite() {
+            *d = maxd;
+        }
+    }
+    dist
+}
+
+/// Cotan Laplacian (dense, positive semi-definite) and lumped barycentric mass of a small mesh.
+fn dense_cotan(positions: &[Vec3], faces: &[[u32; 3]]) -> (faer::Mat<f64>, Vec<f64>) {
+    let n = positions.len();
+    let mut l = faer::Mat::<f64>::zeros(n, n);
+    let mut mass = vec![0.0f64; n];
+    for f in faces {
+        let p = f.map(|i| positions[i as usize].as_dvec3());
+        let area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
+        if area <= 1e-300 {
+            continue;
+        }
+        for k in 0..3 {
+            mass[f[k] as usize] += area / 3.0;
+            // Angle at corner k is opposite edge (k+1, k+2).
+            let (i, j) = (f[(k + 1) % 3] as usize, f[(k + 2) % 3] as usize);
+            let u = p[(k + 1) % 3] - p[k];
+            let v = p[(k + 2) % 3] - p[k];
+            let cot = u.dot(v) / u.cross(v).length().max(1e-300);
+            let w = 0.5 * cot;
+            l[(i, j)] -= w;
+            l[(j, i)] -= w;
+            l[(i, i)] += w;
+            l[(j, j)] += w;
+        }
+    }
+    for m in mass.iter_mut() {
+        *m = m.max(1e-12);
+    }
+    (l, mass)
+}
+
+/// Heat Kernel Signature (Sun, Ovsjanikov & Guibas 2009) on a small mesh, scaled to unit area:
+/// HKS(v, t) = sum_i exp(-λ_i t) φ_i(v)^2 for the full spectrum of L φ = λ M φ (cotan Laplacian,
+/// lumped mass), at 8 times log-spaced in [4 ln10 / λ_max, 4 ln10 / λ_2], divided by the heat
+/// trace sum_i exp(-λ_i t) and log-scaled. Returns `n * HKS_TIMES` values.
+pub fn hks_dense(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Result<Vec<f32>> {
+    let n = positions.len();
+    if n < 4 {
+        return Err(Error::InvalidMesh("HKS: mesh too small".into()));
+    }
+    let mut area = 0.0f64;
+    for f in faces {
+        let p = f.map(|i| Vec3::from(positions[i as usize]).as_dvec3());
+        area += 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
+    }
+    let s = if area > 0.0 { 1.0 / area.sqrt() } else { 1.0 } as f32;
+    let pts: Vec<Vec3> = positions.iter().map(|p| Vec3::from(*p) * s).collect();
+    let (l, mass) = dense_cotan(&pts, faces);
+    let isq: Vec<f64> = mass.iter().map(|m| 1.0 / m.sqrt()).collect();
+    let a = faer::Mat::<f64>::from_fn(n, n, |i, j| l[(i, j)] * isq[i] * isq[j]);
+    let eig = a
+        .self_adjoint_eigen(faer::Side::Lower)
+        .map_err(|e| Error::InvalidMesh(format!("HKS eigen-decomposition failed: {e:?}")))?;
+    let u = eig.U();
+    let lam: Vec<f64> = (0..n).map(|i| eig.S()[i].max(0.0)).collect();
+    let lam2 = lam
+        .iter()
+        .copied()
+        .find(|&x| x > 1e-8)
+        .unwrap_or(1.0)
+        .max(1e-8);
+    let lmax = lam[n - 1].max(lam2 * 2.0);
+    let (t0, t1) = (4.0 * 10f64.ln() / lmax, 4.0 * 10f64.ln() / lam2);
+    let times: Vec<f64> = (0..HKS_TIMES)
+        .map(|k| t0 * (t1 / t0).powf(k as f64 / (HKS_TIMES - 1) as f64))
+        .collect();
+    let mut out = vec![0.0f32; n * HKS_TIMES];
+    for (k, &t) in times.iter().enumerate() {
+        let w: Vec<f64> = lam.iter().map(|&x| (-x * t).exp()).collect();
+        let trace: f64 = w.iter().sum();
+        for v in 0..n {
+            let mut h = 0.0;
+            for (i, &wi) in w.iter().enumerate() {
+                if wi < 1e-14 {
+                    continue;
+                }
+                let phi = u[(v, i)] * isq[v];
+                h += wi * phi * phi;
+            }
+            out[v * HKS_TIMES + k] = ((h / trace).max(1e-30)).ln() as f32;
+        }
+    }
+    Ok(out)
+}
+
+/// Automatic shape features per level: 8 HKS scales computed on the level closest to
+/// `hks_vertices` and carried down the vertex tree (each vertex takes its parent's value, then two
+/// passes of 1-ring averaging) and up it (mean of children), plus normal·up (up = +Y).
+/// Returns, per level, `len * SHAPE_DIM` raw (unnormalised) values.
+pub fn shape_features(h: &Hierarchy, hks_vertices: usize) -> Result<Vec<Vec<f32>>> {
+    // The finest level with at most `hks_vertices` vertices (or the coarsest).
+    let lc = (0..h.num_levels())
+        .find(|&l| h.levels[l].len() <= hks_vertices)
+        .unwrap_or(h.top());
+    let base = hks_dense(&h.levels[lc].positions, &h.levels[lc].faces)?;
+    let mut hks: Vec<Vec<f32>> = vec![Vec::new(); h.num_levels()];
+    hks[lc] = base;
+    for l in (0..lc).rev() {
+        let lev = &h.levels[l];
+        let coarse = &hks[l + 1];
+        let mut cur: Vec<f32> = (0..lev.len())
+            .flat_map(|v| {
+                let p = h.parent(l, v as u32) as usize;
+                coarse[p * HKS_TIMES..(p + 1) * HKS_TIMES].to_vec()
+            })
+            .collect();
+        for _ in 0..2 {
+            cur = smooth(lev, &cur, HKS_TIMES);
+        }
+        hks[l] = cur;
+    }
+    for l in lc + 1..h.num_levels() {
+        let n = h.levels[l].len();
+        let mut cur = vec![0.0f32; n * HKS_TIMES];
+        for p in 0..n {
+            let ch = h.children(l, p as u32);
+            for &c in ch {
+                for k in 0..HKS_TIMES {
+                    cur[p * HKS_TIMES + k] += hks[l - 1][c as usize * HKS_TIMES + k];
+                }
+            }
+            for k in 0..HKS_TIMES {
+                cur[p * HKS_TIMES + k] /= ch.len().max(1) as f32;
+            }
+        }
+        hks[l] = cur;
+    }
+    Ok((0..h.num_levels())
+        .map(|l| {
+            let lev = &h.levels[l];
+            let mut out = Vec::with_capacity(lev.len() * SHAPE_DIM);
+            for v in 0..lev.len() {
+                out.extend_from_slice(&hks[l][v * HKS_TIMES..(v + 1) * HKS_TIMES]);
+                out.push(lev.normals[v][1]);
+            }
+            out
+        })
+        .collect())
+}
+
+/// One pass of 1-ring averaging: x_v <- (x_v + mean of neighbours) / 2, `dim` values per vertex.
+pub fn smooth(level: &Level, x: &[f32], dim: usize) -> Vec<f32> {
+    let adj = &level.adjacency;
+    let mut out = vec![0.0f32; x.len()];
+    out.par_chunks_mut(dim).enumerate().for_each(|(v, o)| {
+        let row = adj.row(v);
+        let inv = 1.0 / row.len().max(1) as f32;
+        for k in 0..dim {
+            let mut m = 0.0;
+            for &u in row {
+                m += x[u as usize * dim + k];
+            }
+            o[k] = 0.5 * x[v * dim + k]
+                + if row.is_empty() {
+                    0.5 * x[v * dim + k]
+                } else {
+                    0.5 * m * inv
+                };
+        }
+    });
+    out
+}
+
+/// Solve the small dense system `a x = b` (n x n, row-major) by Gaussian elimination with partial
+/// pivoting; `None` if singular.
+fn solve_dense(mut a: Vec<f64>, mut b: Vec<f64>, n: usize) -> Option<Vec<f64>> {
+    for c in 0..n {
+        let p = (c..n).max_by(|&i, &j| a[i * n + c].abs().total_cmp(&a[j * n + c].abs()))?;
+        if a[p * n + c].abs() < 1e-14 {
+            return None;
+        }
+        if p != c {
+            for k in 0..n {
+                a.swap(c * n + k, p * n + k);
+            }
+            b.swap(c, p);
+        }
+        for r in c + 1..n {
+            let f = a[r * n + c] / a[c * n + c];
+            if f != 0.0 {
+                for k in c..n {
+                    a[r * n + k] -= f * a[c * n + k];
+                }
+                b[r] -= f * b[c];
+            }
+        }
+    }
+    let mut x = vec![0.0; n];
+    for r in (0..n).rev() {
+        let mut s = b[r];
+        for k in r + 1..n {
+            s -= a[r * n + k] * x[k];
+        }
+        x[r] = s / a[r * n + r];
+    }
+    Some(x)
+}
+
+/// The affine map of MeshMatch §3.2 taking target geodesic-distance vectors to source ones:
+/// returns `K x (K + 1)` row-major `[M | b]` with `M g_T + b = g_S` at every constrained pair
+/// (rows `target_rows[i]` -> `source_rows[i]`, each a K-vector). Among all exact solutions we
+/// take the one of minimum Frobenius distance to the identity `[I | 0]` (the "minimum-norm"
+/// correction, so that already-agreeing shapes keep M = I); with more equations than unknowns
+/// (one-to-many) it is the ridge-regularised least-squares fit. Closed form per output row r:
+/// m_r = e_r + Aᵀ (A Aᵀ + εI)⁻¹ (y_r − A e_r), A = rows [g_T, 1].
+pub fn min_norm_affine(target_rows: &[Vec<f32>], source_rows: &[Vec<f32>], k: usize) -> Vec<f64> {
+    let p = target_rows.len();
+    let cols = k + 1;
+    let a: Vec<f64> = target_rows
+        .iter()
+        .flat_map(|g| g.iter().map(|&x| x as f64).chain(std::iter::once(1.0)))
+        .collect();
+    let scale = a.iter().map(|x| x * x).sum::<f64>() / p.max(1) as f64;
+    let mut aat = vec![0.0f64; p * p];
+    for i in 0..p {
+        for j in 0..p {
+            aat[i * p + j] = (0..cols).map(|c| a[i * cols + c] * a[j * cols + c]).sum();
+        }
+        aat[i * p + i] += 1e-6 * scale.max(1e-12);
+    }
+    let mut out = vec![0.0f64; k * cols];
+    for r in 0..k {
+        // Residual of the identity row.
+        let resid: Vec<f64> = (0..p)
+            .map(|i| source_rows[i][r] as f64 - a[i * cols + r])
+            .collect();
+        let y = solve_dense(aat.clone(), resid, p).unwrap_or_else(|| vec![0.0; p]);
+        for c in 0..cols {
+            let mut m = if c == r { 1.0 } else { 0.0 };
+            for i in 0..p {
+                m += a[i * cols + c] * y[i];
+            }
+            out[r * cols + c] = m;
+        }
+    }
+    out
+}
+
+/// Geodesic fans (Zelinka & Garland 2004, as used by MeshMatch §3.1) of a signal on one level:
+/// for every vertex, `FAN_RADII x FAN_ANGLES` samples of the signal at polar positions
+/// (r_k = (k+1)/R * radius, θ_a = a * 20°) in the vertex's tangent frame. The surrounding vertices
+/// (graph walk up to radius + 2σ) are unfolded into the tangent plane (direction projected,
+/// length kept = Euclidean distance as the local geodesic) and splatted into the bins with
+/// Gaussian weights exp(-|x - bin|² / 2σ²), σ = 0.6 mean edge lengths (the pre-filter); empty bins
+/// take the value one ring inwards (the centre vertex for the first ring).
+/// Layout: `fans[((v * R + r) * A + a) * C + c]`, `C = channels`.
+pub fn compute_fans(
+    level: &Level,
+    frames: &Frames,
+    signal: &[f32],
+    channels: usize,
+    radius: f32,
+) -> Vec<f32> {
+    let n = level.len();
+    let c = channels;
+    let per = FAN_RADII * FAN_ANGLES * c;
+    let mut fans = vec![0.0f32; n * per];
+    let sigma = 0.6 * level.mean_edge;
+    let reach = radius + 2.0 * sigma;
+    let inv2s2 = 1.0 / (2.0 * sigma * sigma);
+    let bins: Vec<[f32; 2]> = (0..FAN_RADII)
+        .flat_map(|r| {
+            let rad = (r + 1) as f32 / FAN_RADII as f32 * radius;
+            (0..FAN_ANGLES).map(move |a| {
+                let th = (a as f32 * ANGLE_STEP_DEG).to_radians();
+                [rad * th.cos(), rad * th.sin()]
+            })
+        })
+        .collect();
+    const CHUNK: usize = 256;
+    fans.par_chunks_mut(per * CHUNK)
+        .enumerate()
+        .for_each(|(ci, out)| {
+            let mut stamp = vec![u32::MAX; n];
+            let mut queue: Vec<u32> = Vec::with_capacity(256);
+            let mut acc = vec![0.0f32; FAN_RADII * FAN_ANGLES * (c + 1)];
+            for (k, fan) in out.chunks_mut(per).enumerate() {
+                let v = ci * CHUNK + k;
+                let pv = Vec3::from(level.positions[v]);
+                let t1 = Vec3::from(frames.t1[v]);
+                let t2 = Vec3::from(frames.t2[v]);
+                acc.iter_mut().for_each(|x| *x = 0.0);
+                queue.clear();
+                queue.push(v as u32);
+                stamp[v] = v as u32;
+                let mut head = 0;
+                while head < queue.len() {
+                    let u = queue[head] as usize;
+                    head += 1;
+                    let d = Vec3::from(level.positions[u]) - pv;
+                    let len = d.length();
+                    let (x, y) = (d.dot(t1), d.dot(t2));
+                    let pl = (x * x + y * y).sqrt();
+                    let (x, y) = if pl > 1e-12 {
+                        (x * len / pl, y * len / pl)
+                    } else {
+                        (0.0, 0.0)
+                    };
+                    let s = &signal[u * c..(u + 1) * c];
+                    for (b, bc) in bins.iter().enumerate() {
+                        let dx = x - bc[0];
+                        let dy = y - bc[1];
+                        let d2 = dx * dx + dy * dy;
+                        if d2 < 9.0 * sigma * sigma {
+                            let w = (-d2 * inv2s2).exp();
+                            let a = &mut acc[b * (c + 1)..(b + 1) * (c + 1)];
+                            for ch in 0..c {
+                                a[ch] += w * s[ch];
+                            }
+                            a[c] += w;
+                        }
+                    }
+                    for &w in level.adjacency.row(u) {
+                        let w = w as usize;
+                        if stamp[w] != v as u32 {
+                            stamp[w] = v as u32;
+                            if (Vec3::from(level.positions[w]) - pv).length() <= reach {
+                                queue.push(w as u32);
+                            }
+                        }
+                    }
+                }
+                let centre = &signal[v * c..(v + 1) * c];
+                for r in 0..FAN_RADII {
+                    for a in 0..FAN_ANGLES {
+                        let b = r * FAN_ANGLES + a;
+                        let src = &acc[b * (c + 1)..(b + 1) * (c + 1)];
+                        let o = b * c;
+                        if src[c] > 1e-3 {
+                            for ch in 0..c {
+                                fan[o + ch] = src[ch] / src[c];
+                            }
+                        } else if r == 0 {
+                            fan[o..o + c].copy_from_slice(centre);
+                        } else {
+                            let inner = (b - FAN_ANGLES) * c;
+                            for ch in 0..c {
+                                fan[o + ch] = fan[inner + ch];
+                            }
+                        }
+                    }
+                }
+            }
+        });
+    fans
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(n: usize) -> Level {
+        let mut p = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                p.push([i as f32, j as f32, 0.0]);
+            }
+        }
+        let mut f = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = (j * n + i) as u32;
+                f.push([a, a + 1, a + n as u32 + 1]);
+                f.push([a, a + n as u32 + 1, a + n as u32]);
+            }
+        }
+        Level::new(p, f)
+    }
+
+    #[test]
+    fn fans_rotate_by_cyclic_shift() {
+        // A linear ramp along x: fan of the centre vertex; rotating the ramp by 90 degrees shifts the
+        // fan's angle index by 90 / 20 = 4.5 -> compare against a 180-degree rotation (9 steps).
+        let lev = grid(21);
+        let fr = tangent_frames(&lev.normals);
+        let ramp: Vec<f32> = lev.positions.iter().map(|p| p[0]).collect();
+        let neg: Vec<f32> = lev.positions.iter().map(|p| -p[0]).collect();
+        let v = 10 * 21 + 10;
+        let fa = compute_fans(&lev, &fr, &ramp, 1, 2.5);
+        let fb = compute_fans(&lev, &fr, &neg, 1, 2.5);
+        let per = FAN_RADII * FAN_ANGLES;
+        let a = &fa[v * per..(v + 1) * per];
+        let b = &fb[v * per..(v + 1) * per];
+        let mut err = 0.0f32;
+        for r in 0..FAN_RADII {
+            for k in 0..FAN_ANGLES {
+                let x = a[r * FAN_ANGLES + (k + 9) % FAN_ANGLES] - 10.0;
+                let y = b[r * FAN_ANGLES + k] + 10.0;
+                err = err.max((x - y).abs());
+            }
+        }
+        assert!(err < 0.05, "rotated fans differ by {err}");
+        // The ramp is sampled in the right place: outer ring, angle 0 ≈ centre + 2.5 * cos θ.
+        let t1 = fr.t1[v];
+        let expected = 10.0 + 2.5 * t1[0];
+        assert!(
+            (a[2 * FAN_ANGLES] - expected).abs() < 0.3,
+            "{} vs {expected}",
+            a[2 * FAN_ANGLES]
+        );
+    }
+
+    #[test]
+    fn affine_map_is_exact_at_constraints_and_identity_when_equal() {
+        let g: Vec<Vec<f32>> = vec![
+            vec![0.0, 2.0, 3.0],
+            vec![2.0, 0.0, 1.5],
+            vec![3.0, 1.5, 0.0],
+        ];
+        let m = min_norm_affine(&g, &g, 3);
+        for r in 0..3 {
+            for c in 0..4 {
+                let e = if r == c { 1.0 } else { 0.0 };
+                assert!((m[r * 4 + c] - e).abs() < 1e-4);
+            }
+        }
+        let s: Vec<Vec<f32>> = g
+            .iter()
+            .map(|v| v.iter().map(|x| 2.0 * x + 0.5).collect())
+            .collect();
+        let m = min_norm_affine(&g, &s, 3);
+        for (gt, gs) in g.iter().zip(&s) {
+            for r in 0..3 {
+                let y: f64 =
+                    (0..3).map(|c| m[r * 4 + c] * gt[c] as f64).sum::<f64>() + m[r * 4 + 3];
+                assert!((y - gs[r] as f64).abs() < 1e-3, "{y} vs {}", gs[r]);
+            }
+        }
+    }
+
+    #[test]
+    fn transport_angle_is_consistent() {
+        let n = Vec3::Z;
+        let (t1, t2) = frame_of(n);
+        // Same normal, frame rotated by 30 degrees.
+        let th = 30f32.to_radians();
+        let t1y = t1 * th.cos() + t2 * th.sin();
+        let t2y = n.cross(t1y);
+        let a = transport_angle(n, t1, n, t1y, t2y);
+        assert!((a + th).abs() < 1e-5, "{a}");
+    }
+}

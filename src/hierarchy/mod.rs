@@ -1,1 +1,556 @@
-//! (module under construction)
+//! Multiresolution mesh hierarchy for MeshMatch (Chen et al. 2012, "Non-parametric texture
+//! transfer using MeshMatch", §3 and §4.2).
+//!
+//! Level 0 is the input mesh. Each coarser level is made by collapsing edges shortest-first with
+//! the new vertex at the edge midpoint, every vertex taking part in at most one collapse per level
+//! (so a level keeps about half the vertices of the one below, spacing grows by ~sqrt(2)). A
+//! collapse is accepted only when it passes the link condition (Dey et al. 1999: the common
+//! neighbours of the edge's ends are exactly the apexes of its faces) and flips no face normal,
+//! so closed manifold input stays closed and manifold.
+//!
+//! The vertex tree links levels: `parent(l, v)` is the vertex of level `l + 1` that vertex `v` of
+//! level `l` collapsed into, and `children(l + 1, p)` lists the level-`l` vertices under `p`.
+
+use crate::mesh::{Csr, vertex_adjacency};
+use crate::{Error, Result};
+use glam::Vec3;
+use rand::Rng;
+
+/// One level of the hierarchy: a triangle mesh with its adjacency, normals and edge scale.
+#[derive(Clone, Debug, Default)]
+pub struct Level {
+    /// Vertex positions.
+    pub positions: Vec<[f32; 3]>,
+    /// Triangles.
+    pub faces: Vec<[u32; 3]>,
+    /// Sorted CSR vertex adjacency.
+    pub adjacency: Csr,
+    /// Area-weighted unit vertex normals.
+    pub normals: Vec<[f32; 3]>,
+    /// Mean edge length of this level.
+    pub mean_edge: f32,
+}
+
+impl Level {
+    /// A level from positions and faces (adjacency, normals and mean edge length computed).
+    pub fn new(positions: Vec<[f32; 3]>, faces: Vec<[u32; 3]>) -> Level {
+        let adjacency = vertex_adjacency(positions.len(), &faces);
+        let normals = area_weighted_normals(&positions, &faces);
+        let mut sum = 0.0f64;
+        let mut cnt = 0usize;
+        for (i, p) in positions.iter().enumerate() {
+            for &j in adjacency.row(i) {
+                if (j as usize) > i {
+                    sum += (Vec3::from(*p) - Vec3::from(positions[j as usize])).length() as f64;
+                    cnt += 1;
+                }
+            }
+        }
+        let mean_edge = if cnt > 0 {
+            (sum / cnt as f64) as f32
+        } else {
+            1.0
+        };
+        Level {
+            positions,
+            faces,
+            adjacency,
+            normals,
+            mean_edge,
+        }
+    }
+
+    /// Number of vertices.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// True for a level without vertices.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+}
+
+/// Area-weighted vertex normals: n_v = normalize(sum over incident faces of (b - a) x (c - a)).
+pub fn area_weighted_normals(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<[f32; 3]> {
+    let mut acc = vec![Vec3::ZERO; positions.len()];
+    for f in faces {
+        let [a, b, c] = f.map(|i| Vec3::from(positions[i as usize]));
+        let n = (b - a).cross(c - a);
+        for &i in f {
+            acc[i as usize] += n;
+        }
+    }
+    acc.iter()
+        .map(|n| {
+            let l = n.length();
+            if l > 0.0 && l.is_finite() {
+                (*n / l).to_array()
+            } else {
+                [0.0, 0.0, 1.0]
+            }
+        })
+        .collect()
+}
+
+/// The multiresolution hierarchy: levels finest (0) to coarsest, with the vertex tree.
+#[derive(Clone, Debug, Default)]
+pub struct Hierarchy {
+    /// Levels, `levels[0]` = the input mesh.
+    pub levels: Vec<Level>,
+    /// `parents[l][v]`: vertex of level `l + 1` that vertex `v` of level `l` belongs to.
+    pub parents: Vec<Vec<u32>>,
+    /// `children[l]`: CSR over vertices of level `l + 1`, listing their level-`l` children.
+    pub children: Vec<Csr>,
+}
+
+/// Options for [`Hierarchy::build`].
+#[derive(Clone, Copy, Debug)]
+pub struct HierarchyOptions {
+    /// Stop when a level has at most this many vertices (default 128).
+    pub min_vertices: usize,
+    /// Stop at this many levels in all (including level 0); `None` = until `min_vertices`.
+    pub max_levels: Option<usize>,
+}
+
+impl Default for HierarchyOptions {
+    fn default() -> Self {
+        HierarchyOptions {
+            min_vertices: 128,
+            max_levels: None,
+        }
+    }
+}
+
+impl Hierarchy {
+    /// Build the hierarchy of a triangle mesh by shortest-edge-first midpoint collapses (MeshMatch
+    /// §3: about half the vertices per level, stop near `min_vertices`).
+    pub fn build(
+        positions: &[[f32; 3]],
+        faces: &[[u32; 3]],
+        opts: HierarchyOptions,
+    ) -> Result<Hierarchy> {
+        if positions.is_empty() || faces.is_empty() {
+            return Err(Error::InvalidMesh(
+                "hierarchy: the mesh has no vertices or no faces".into(),
+            ));
+        }
+        let n = positions.len() as u32;
+        if faces.iter().any(|f| f.iter().any(|&i| i >= n)) {
+            return Err(Error::InvalidMesh(
+                "hierarchy: a face references a missing vertex".into(),
+            ));
+        }
+        let mut h = Hierarchy {
+            levels: vec![Level::new(positions.to_vec(), faces.to_vec())],
+            ..Default::default()
+        };
+        let max_levels = opts.max_levels.unwrap_or(usize::MAX).max(1);
+        let min_v = opts.min_vertices.max(4);
+        while h.levels.len() < max_levels {
+            let cur = h.levels.last().expect("one level");
+            if cur.len() <= min_v {
+                break;
+            }
+            let target = (cur.len() / 2).max(min_v);
+            let (next, parent) = collapse_level(cur, target);
+            // A level that barely shrank (collapses blocked everywhere) ends the hierarchy.
+            if next.len() as f64 > 0.9 * cur.len() as f64 || next.faces.is_empty() {
+                break;
+            }
+            let mut pairs: Vec<(u32, u32)> = parent
+                .iter()
+                .enumerate()
+                .map(|(v, &p)| (p, v as u32))
+                .collect();
+            let children = Csr::from_pairs(next.len(), &mut pairs);
+            h.levels.push(next);
+            h.parents.push(parent);
+            h.children.push(children);
+        }
+        Ok(h)
+    }
+
+    /// Number of levels.
+    pub fn num_levels(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Index of the coarsest level.
+    pub fn top(&self) -> usize {
+        self.levels.len() - 1
+    }
+
+    /// Project vertex `v` of level `l` onto level `l + 1` (its parent in the vertex tree).
+    #[inline]
+    pub fn parent(&self, l: usize, v: u32) -> u32 {
+        self.parents[l][v as usize]
+    }
+
+    /// Children (in level `l - 1`) of vertex `v` of level `l >= 1`.
+    #[inline]
+    pub fn children(&self, l: usize, v: u32) -> &[u32] {
+        self.children[l - 1].row(v as usize)
+    }
+
+    /// The ancestor of vertex `v` of level `l` at level `to >= l`.
+    #[inline]
+    pub fn ancestor(&self, l: usize, v: u32, to: usize) -> u32 {
+        let mut v = v;
+        for k in l..to.min(self.top()) {
+            v = self.parents[k][v as usize];
+        }
+        v
+    }
+
+    /// Map from every vertex of level `l` to its ancestor at level `to >= l`.
+    pub fn ancestor_map(&self, l: usize, to: usize) -> Vec<u32> {
+        let mut map: Vec<u32> = (0..self.levels[l].len() as u32).collect();
+        for k in l..to.min(self.top()) {
+            for m in map.iter_mut() {
+                *m = self.parents[k][*m as usize];
+            }
+        }
+        map
+    }
+
+    /// Random hop (MeshMatch §4.2): from vertex `v` of level `l`, go up `j` levels through the
+    /// parents, then back down to level `l` choosing a random child at every step. The result
+    /// lies at a distance of roughly sqrt(2)^j edge lengths from `v`.
+    pub fn random_hop<R: Rng>(&self, l: usize, v: u32, j: usize, rng: &mut R) -> u32 {
+        let up = (l + j).min(self.top());
+        let mut u = self.ancestor(l, v, up);
+        for k in (l + 1..=up).rev() {
+            let ch = self.children(k, u);
+            u = ch[rng.random_range(0..ch.len())];
+        }
+        u
+    }
+
+    /// Expand per-vertex values at level `l` to level 0 (each vertex takes its ancestor's value).
+    pub fn expand_to_finest<T: Copy>(&self, l: usize, values: &[T]) -> Vec<T> {
+        self.ancestor_map(0, l)
+            .iter()
+            .map(|&a| values[a as usize])
+            .collect()
+    }
+}
+
+/// One level of collapses: a greedy shortest-first matching of edges, each accepted collapse
+/// merging its two (so far untouched) ends into their midpoint. Returns the coarse level and the
+/// parent of every fine vertex.
+fn collapse_level(fine: &Level, target: usize) -> (Level, Vec<u32>) {
+    let n = fine.len();
+    let pos = &fine.positions;
+    let faces = &fine.faces;
+    // Vertex -> incident faces (CSR).
+    let mut vf_off = vec![0u32; n + 1];
+    for f in faces {
+        for &i in f {
+            vf_off[i as usize + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        vf_off[i + 1] += vf_off[i];
+    }
+    let mut fill = vf_off.clone();
+    let mut vf = vec![0u32; vf_off[n] as usize];
+    for (fi, f) in faces.iter().enumerate() {
+        for &i in f {
+            vf[fill[i as usize] as usize] = fi as u32;
+            fill[i as usize] += 1;
+        }
+    }
+    // Candidate edges sorted by length (lengths of untouched vertices never change in a level).
+    let adj = &fine.adjacency;
+    let mut edges: Vec<(f32, u32, u32)> = Vec::with_capacity(adj.indices.len() / 2);
+    for a in 0..n {
+        for &b in adj.row(a) {
+            if (b as usize) > a {
+                let l = (Vec3::from(pos[a]) - Vec3::from(pos[b as usize])).length_squared();
+                edges.push((l, a as u32, b));
+            }
+        }
+    }
+    edges.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+
+    let mut rep: Vec<u32> = (0..n as u32).collect();
+    let mut touched = vec![false; n];
+    let mut cur: Vec<Vec3> = pos.iter().map(|p| Vec3::from(*p)).collect();
+    let mut remaining = n;
+    let mut na: Vec<u32> = Vec::with_capacity(32);
+    let mut nb: Vec<u32> = Vec::with_capacity(32);
+    let r = |rep: &[u32], i: u32| rep[i as usize];
+    for &(_, a, b) in &edges {
+        if remaining <= target {
+            break;
+        }
+        if touched[a as usize] || touched[b as usize] {
+            continue;
+        }
+        let fa = &vf[vf_off[a as usize] as usize..vf_off[a as usize + 1] as usize];
+        let fb = &vf[vf_off[b as usize] as usize..vf_off[b as usize + 1] as usize];
+        // Current neighbour sets (through representatives) and the live faces on edge (a, b).
+        na.clear();
+        nb.clear();
+        let mut shared_faces = 0usize;
+        let mut live = |f: &[u32; 3]| {
+            let q = f.map(|i| r(&rep, i));
+            q[0] != q[1] && q[1] != q[2] && q[0] != q[2]
+        };
+        for &fi in fa {
+            let f = &faces[fi as usize];
+            if !live(f) {
+                continue;
+            }
+            let q = f.map(|i| r(&rep, i));
+            if q.contains(&b) {
+                shared_faces += 1;
+            }
+            for &x in &q {
+                if x != a {
+                    na.push(x);
+                }
+            }
+        }
+        for &fi in fb {
+            let f = &faces[fi as usize];
+            if !live(f) {
+                continue;
+            }
+            let q = f.map(|i| r(&rep, i));
+            for &x in &q {
+                if x != b {
+                    nb.push(x);
+                }
+            }
+        }
+        na.sort_unstable();
+        na.dedup();
+        nb.sort_unstable();
+        nb.dedup();
+        let common = na
+            .iter()
+            .filter(|x| **x != b && nb.binary_search(x).is_ok())
+            .count();
+        if shared_faces == 0 || common != shared_faces {
+            continue;
+        }
+        // Keep a vertex valence of at least 3 around the merged vertex.
+        if na.len() + nb.len() < common + 2 + 3 + 2 {
+            continue;
+        }
+        // Reject collapses that flip (or nearly flip) a surviving face.
+        let mid = 0.5 * (cur[a as usize] + cur[b as usize]);
+        let mut ok = true;
+        for &fi in fa.iter().chain(fb.iter()) {
+            let f = &faces[fi as usize];
+            let q = f.map(|i| r(&rep, i));
+            if q[0] == q[1] || q[1] == q[2] || q[0] == q[2] {
+                continue;
+            }
+            if q.contains(&a) && q.contains(&b) {
+                continue;
+            }
+            // Compare with the face's normal at the start of the level, so that several
+            // collapses around one face cannot add up to a flip.
+            let p = f.map(|i| Vec3::from(pos[i as usize]));
+            let n0 = (p[1] - p[0]).cross(p[2] - p[0]);
+            let moved = q.map(|i| {
+                if i == a || i == b {
+                    mid
+                } else {
+                    cur[i as usize]
+                }
+            });
+            let n1 = (moved[1] - moved[0]).cross(moved[2] - moved[0]);
+            let l0 = n0.length();
+            let l1 = n1.length();
+            if l1 <= 1e-12 * (1.0 + l0) || n0.dot(n1) < 0.5 * l0 * l1 {
+                ok = false;
+                break;
+            }
+        }
+        if !ok {
+            continue;
+        }
+        touched[a as usize] = true;
+        touched[b as usize] = true;
+        rep[b as usize] = a;
+        cur[a as usize] = mid;
+        remaining -= 1;
+    }
+    // Compact the surviving representatives.
+    let mut new_index = vec![u32::MAX; n];
+    let mut positions = Vec::with_capacity(remaining);
+    for v in 0..n {
+        if rep[v] == v as u32 {
+            new_index[v] = positions.len() as u32;
+            positions.push(cur[v].to_array());
+        }
+    }
+    let parent: Vec<u32> = (0..n).map(|v| new_index[rep[v] as usize]).collect();
+    let mut new_faces: Vec<[u32; 3]> = Vec::with_capacity(faces.len());
+    for f in faces {
+        let q = f.map(|i| parent[i as usize]);
+        if q[0] != q[1] && q[1] != q[2] && q[0] != q[2] {
+            new_faces.push(q);
+        }
+    }
+    (Level::new(positions, new_faces), parent)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand::rngs::SmallRng;
+    use std::collections::HashMap;
+
+    /// A UV sphere-like closed mesh: an icosahedron subdivided `k` times, projected to the sphere.
+    fn icosphere(k: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+        let t = (1.0 + 5f32.sqrt()) / 2.0;
+        let mut p: Vec<[f32; 3]> = vec![
+            [-1.0, t, 0.0],
+            [1.0, t, 0.0],
+            [-1.0, -t, 0.0],
+            [1.0, -t, 0.0],
+            [0.0, -1.0, t],
+            [0.0, 1.0, t],
+            [0.0, -1.0, -t],
+            [0.0, 1.0, -t],
+            [t, 0.0, -1.0],
+            [t, 0.0, 1.0],
+            [-t, 0.0, -1.0],
+            [-t, 0.0, 1.0],
+        ];
+        let mut f: Vec<[u32; 3]> = vec![
+            [0, 11, 5],
+            [0, 5, 1],
+            [0, 1, 7],
+            [0, 7, 10],
+            [0, 10, 11],
+            [1, 5, 9],
+            [5, 11, 4],
+            [11, 10, 2],
+            [10, 7, 6],
+            [7, 1, 8],
+            [3, 9, 4],
+            [3, 4, 2],
+            [3, 2, 6],
+            [3, 6, 8],
+            [3, 8, 9],
+            [4, 9, 5],
+            [2, 4, 11],
+            [6, 2, 10],
+            [8, 6, 7],
+            [9, 8, 1],
+        ];
+        for _ in 0..k {
+            let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+            let mut nf = Vec::new();
+            for tri in &f {
+                let mut m = [0u32; 3];
+                for e in 0..3 {
+                    let (a, b) = (tri[e], tri[(e + 1) % 3]);
+                    let key = (a.min(b), a.max(b));
+                    m[e] = *mid.entry(key).or_insert_with(|| {
+                        let pa = Vec3::from(p[a as usize]);
+                        let pb = Vec3::from(p[b as usize]);
+                        p.push((0.5 * (pa + pb)).to_array());
+                        (p.len() - 1) as u32
+                    });
+                }
+                nf.push([tri[0], m[0], m[2]]);
+                nf.push([tri[1], m[1], m[0]]);
+                nf.push([tri[2], m[2], m[1]]);
+                nf.push([m[0], m[1], m[2]]);
+            }
+            f = nf;
+        }
+        for q in p.iter_mut() {
+            *q = Vec3::from(*q).normalize().to_array();
+        }
+        (p, f)
+    }
+
+    fn check_closed_manifold(l: &Level) {
+        let mut edges: HashMap<(u32, u32), usize> = HashMap::new();
+        for f in &l.faces {
+            for k in 0..3 {
+                *edges.entry((f[k], f[(k + 1) % 3])).or_default() += 1;
+            }
+        }
+        for (&(a, b), &c) in &edges {
+            assert_eq!(c, 1, "directed edge ({a},{b}) used {c} times");
+            assert!(edges.contains_key(&(b, a)), "edge ({a},{b}) has no twin");
+        }
+        // Euler characteristic of a sphere.
+        let e = edges.len() / 2;
+        assert_eq!(l.len() as i64 - e as i64 + l.faces.len() as i64, 2);
+    }
+
+    #[test]
+    fn sphere_hierarchy_halves_and_stays_manifold() {
+        let (p, f) = icosphere(6); // 40962 vertices
+        let t = std::time::Instant::now();
+        let h = Hierarchy::build(&p, &f, HierarchyOptions::default()).unwrap();
+        let secs = t.elapsed().as_secs_f64();
+        let sizes: Vec<usize> = h.levels.iter().map(|l| l.len()).collect();
+        println!("levels {sizes:?} in {secs:.3}s");
+        assert!(secs < 2.0);
+        assert!(*sizes.last().unwrap() <= 200, "{sizes:?}");
+        for w in sizes.windows(2) {
+            let ratio = w[1] as f64 / w[0] as f64;
+            assert!((0.45..0.75).contains(&ratio), "{sizes:?}");
+        }
+        for (li, l) in h.levels.iter().enumerate() {
+            check_closed_manifold(l);
+            let mut worst = 1.0f32;
+            // Normals of a sphere point outwards: no flipped faces.
+            for face in &l.faces {
+                let [a, b, c] = face.map(|i| Vec3::from(l.positions[i as usize]));
+                let n = (b - a).cross(c - a);
+                worst = worst.min(n.normalize().dot((a + b + c).normalize()));
+            }
+            println!("level {li}: worst normal/radial cosine {worst:.3}");
+            assert!(worst > 0.0, "level {li} has an inward face");
+        }
+        // Spacing grows by about sqrt(2) per level.
+        for w in h.levels.windows(2) {
+            let r = w[1].mean_edge / w[0].mean_edge;
+            assert!((1.2..1.7).contains(&r), "edge ratio {r}");
+        }
+        // Tree consistency: children lists invert parents.
+        for l in 0..h.top() {
+            for v in 0..h.levels[l].len() as u32 {
+                let p = h.parent(l, v);
+                assert!(h.children(l + 1, p).contains(&v));
+            }
+        }
+    }
+
+    #[test]
+    fn random_hops_grow_with_j() {
+        let (p, f) = icosphere(5);
+        let h = Hierarchy::build(&p, &f, HierarchyOptions::default()).unwrap();
+        let mut rng = SmallRng::seed_from_u64(1);
+        let l0 = &h.levels[0];
+        let mut prev = 0.0;
+        for j in 1..=6 {
+            let mut sum = 0.0;
+            for s in 0..2000u32 {
+                let v = s * 5;
+                let u = h.random_hop(0, v, j, &mut rng);
+                sum += (Vec3::from(l0.positions[v as usize])
+                    - Vec3::from(l0.positions[u as usize]))
+                .length();
+            }
+            let mean = sum / 2000.0 / l0.mean_edge;
+            println!("j={j}: mean hop {mean:.2} edges");
+            assert!(mean > prev, "hop distance should grow with j");
+            prev = mean;
+        }
+        assert!(prev > 3.0);
+    }
+}

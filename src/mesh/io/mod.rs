@@ -1,7 +1,24 @@
 //! Mesh and image input/output: OBJ (+MTL), PLY, glTF/GLB; atomic writes.
+//!
+//! Loaders never weld or reorder vertices: vertex `i` of a loaded mesh is the file's vertex `i`
+//! (for glTF: POSITION entries, primitives concatenated in file order). Polygons are triangulated
+//! as fans; texture coordinates are stored per corner (`uvs[3 * f + k]`, V up). Loaders check
+//! every count against the file size before allocating and return `Error::Format` naming the
+//! file and the problem; they never panic on bad input. They do not call `repair`.
 
+mod base64;
+mod glb;
+mod obj;
+mod ply;
+
+use crate::mesh::Texture;
 use crate::{Error, Result, TriMesh};
 use std::path::Path;
+use std::sync::Arc;
+
+pub use glb::{GlbOptions, load_gltf_bytes, save_glb, save_gltf};
+pub use obj::{ObjOptions, load_obj_bytes, save_obj};
+pub use ply::{PlyOptions, load_ply_bytes, save_ply};
 
 /// Write `bytes` to `path` atomically: a temporary file beside it, then a rename.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
@@ -21,8 +38,295 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
-/// Load a mesh by file extension (.obj, .ply, .gltf, .glb).
+/// The mesh formats this module reads and writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MeshFormat {
+    /// Wavefront OBJ (+ MTL + texture image).
+    Obj,
+    /// Stanford PLY (ascii or binary).
+    Ply,
+    /// glTF 2.0 JSON with external or data-URI buffers.
+    Gltf,
+    /// Binary glTF 2.0.
+    Glb,
+}
+
+impl MeshFormat {
+    /// The format named by a path's extension (case-insensitive), if any.
+    pub fn from_path(path: &Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "obj" => Some(MeshFormat::Obj),
+            "ply" => Some(MeshFormat::Ply),
+            "gltf" => Some(MeshFormat::Gltf),
+            "glb" => Some(MeshFormat::Glb),
+            _ => None,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            MeshFormat::Obj => "an OBJ file",
+            MeshFormat::Ply => "a PLY file",
+            MeshFormat::Gltf => "a glTF file",
+            MeshFormat::Glb => "a GLB file",
+        }
+    }
+}
+
+/// What a byte buffer looks like, judged from its first bytes (magic numbers, NUL bytes).
+fn sniff(bytes: &[u8]) -> Option<&'static str> {
+    const MAGICS: &[(&[u8], &str)] = &[
+        (b"\x89PNG", "a PNG image"),
+        (b"\xFF\xD8\xFF", "a JPEG image"),
+        (b"GIF8", "a GIF image"),
+        (b"%PDF", "a PDF document"),
+        (b"PK\x03\x04", "a ZIP archive"),
+        (b"\x1F\x8B", "gzip-compressed data"),
+        (b"\x7FELF", "an executable"),
+        (b"RIFF", "a RIFF (WebP/WAV/AVI) file"),
+        (b"II*\0", "a TIFF image"),
+        (b"MM\0*", "a TIFF image"),
+        (b"BM", "a BMP image"),
+        (b"glTF", "a binary glTF (GLB) file"),
+        (b"ply", "a PLY file"),
+        (b"solid ", "an STL file"),
+    ];
+    for (magic, what) in MAGICS {
+        if bytes.starts_with(magic) {
+            // "BM" and "solid " are plausible text starts; only trust them for binary-looking data.
+            if (*what == "a BMP image" || *what == "an STL file") && !looks_binary(bytes) {
+                continue;
+            }
+            return Some(what);
+        }
+    }
+    let head = &bytes[..bytes.len().min(4096)];
+    let first = head.iter().find(|b| !b.is_ascii_whitespace());
+    if first == Some(&b'{') {
+        return Some("a JSON (glTF) file");
+    }
+    if looks_binary(bytes) {
+        return Some("binary data");
+    }
+    None
+}
+
+/// True when the first 4 KiB hold a NUL byte or many control characters.
+fn looks_binary(bytes: &[u8]) -> bool {
+    let head = &bytes[..bytes.len().min(4096)];
+    let ctrl = head
+        .iter()
+        .filter(|&&b| b < 0x20 && !matches!(b, b'\n' | b'\r' | b'\t' | 0x0C))
+        .count();
+    head.contains(&0) || ctrl * 20 > head.len().max(1)
+}
+
+/// Refuse content that is clearly not `fmt` (e.g. a PNG renamed to .obj) with a one-line error.
+fn check_content(bytes: &[u8], fmt: MeshFormat, path: &Path) -> Result<()> {
+    if bytes.is_empty() {
+        return Err(Error::format(path, "empty file"));
+    }
+    let kind = sniff(bytes);
+    let ok = match fmt {
+        MeshFormat::Obj => kind.is_none(),
+        MeshFormat::Ply => bytes.starts_with(b"ply"),
+        MeshFormat::Gltf | MeshFormat::Glb => matches!(
+            kind,
+            Some("a binary glTF (GLB) file") | Some("a JSON (glTF) file")
+        ),
+    };
+    if ok {
+        return Ok(());
+    }
+    let looks = kind.unwrap_or("text of another kind");
+    Err(Error::format(
+        path,
+        format!("not {} (looks like {looks})", fmt.name()),
+    ))
+}
+
+/// Load a mesh by file extension (.obj, .ply, .gltf, .glb, case-insensitive), checking that the
+/// content matches the extension. Sets `path`, the identity `file_index` and `file_vertex_count`.
 pub fn load(path: &Path) -> Result<TriMesh> {
-    let _ = path;
-    Err(Error::UnsupportedFormat { path: path.into() })
+    let fmt = MeshFormat::from_path(path).ok_or_else(|| Error::UnsupportedFormat {
+        path: path.into(),
+    })?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    load_format_bytes(&bytes, fmt, path)
+}
+
+/// Load a mesh from bytes, choosing the format by `path`'s extension; `path` names the file in
+/// messages and is the base for relative references (MTL files, textures, glTF buffers).
+pub fn load_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
+    let fmt = MeshFormat::from_path(path).ok_or_else(|| Error::UnsupportedFormat {
+        path: path.into(),
+    })?;
+    load_format_bytes(bytes, fmt, path)
+}
+
+fn load_format_bytes(bytes: &[u8], fmt: MeshFormat, path: &Path) -> Result<TriMesh> {
+    match fmt {
+        MeshFormat::Obj => load_obj_bytes(bytes, path),
+        MeshFormat::Ply => load_ply_bytes(bytes, path),
+        MeshFormat::Gltf | MeshFormat::Glb => load_gltf_bytes(bytes, path),
+    }
+}
+
+/// Fill the bookkeeping fields of a freshly parsed mesh and check the per-corner UV length.
+fn finish(mut mesh: TriMesh, path: &Path) -> Result<TriMesh> {
+    let n = mesh.positions.len();
+    if n > u32::MAX as usize {
+        return Err(Error::format(path, "more than 2^32 vertices"));
+    }
+    if let Some(f) = mesh.faces.iter().flatten().find(|&&v| v as usize >= n) {
+        // Parsers check indices; this is a last line of defence against a parser bug.
+        return Err(Error::format(
+            path,
+            format!("face references vertex {f} but the file has {n} vertices"),
+        ));
+    }
+    if let Some(uv) = &mesh.uvs
+        && uv.len() != 3 * mesh.faces.len()
+    {
+        return Err(Error::format(path, "texture coordinate count mismatch"));
+    }
+    for (what, len) in [
+        ("normal", mesh.normals.as_ref().map(Vec::len)),
+        ("colour", mesh.colors.as_ref().map(Vec::len)),
+    ] {
+        if let Some(l) = len
+            && l != n
+        {
+            return Err(Error::format(path, format!("{what} count mismatch")));
+        }
+    }
+    mesh.file_index = (0..n as u32).collect();
+    mesh.file_vertex_count = n;
+    mesh.path = Some(path.to_path_buf());
+    Ok(mesh)
+}
+
+/// Load an image file (PNG or JPEG) as an sRGB RGB8 texture.
+pub fn load_texture(path: &Path) -> Result<Texture> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let mut tex = decode_texture(&bytes, path)?;
+    tex.path = Some(path.to_path_buf());
+    Ok(tex)
+}
+
+/// Decode PNG/JPEG bytes into an RGB8 texture; `path` names the image in messages.
+fn decode_texture(bytes: &[u8], path: &Path) -> Result<Texture> {
+    let img = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?
+        .decode()
+        .map_err(|e| Error::format(path, format!("cannot decode image: {e}")))?;
+    Ok(Texture {
+        image: img.to_rgb8(),
+        path: None,
+    })
+}
+
+/// Load a texture referenced by a mesh file; failures become a warning on stderr and `None`.
+fn load_texture_or_warn(tex_path: &Path, mesh_path: &Path) -> Option<Arc<Texture>> {
+    match load_texture(tex_path) {
+        Ok(t) => Some(Arc::new(t)),
+        Err(e) => {
+            eprintln!(
+                "warning: {}: texture not loaded ({e}); continuing without texture",
+                mesh_path.display()
+            );
+            None
+        }
+    }
+}
+
+/// Encode a texture as PNG bytes.
+fn encode_png(tex: &Texture, path: &Path) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    tex.image
+        .write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
+        .map_err(|e| Error::format(path, format!("cannot encode PNG: {e}")))?;
+    Ok(out)
+}
+
+/// The texture file name written beside an exported mesh: `<stem>_texture.png`.
+fn texture_name_for(path: &Path) -> String {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "mesh".into());
+    format!("{stem}_texture.png")
+}
+
+/// Write `mesh`'s texture as PNG beside `path`, returning the file name used, if it has one.
+fn write_texture_beside(mesh: &TriMesh, path: &Path) -> Result<Option<String>> {
+    let Some(tex) = &mesh.texture else {
+        return Ok(None);
+    };
+    let name = texture_name_for(path);
+    let tex_path = path.with_file_name(&name);
+    write_atomic(&tex_path, &encode_png(tex, &tex_path)?)?;
+    Ok(Some(name))
+}
+
+/// Save a mesh by file extension (.ply binary, .obj + .mtl + .png, .glb, .gltf) with default
+/// options; the exported file keeps the mesh's vertex order.
+pub fn save(mesh: &TriMesh, path: &Path) -> Result<()> {
+    match MeshFormat::from_path(path) {
+        Some(MeshFormat::Ply) => save_ply(mesh, path, &PlyOptions::default()),
+        Some(MeshFormat::Obj) => save_obj(mesh, path, &ObjOptions::default()),
+        Some(MeshFormat::Glb) => save_glb(mesh, path, &GlbOptions::default()),
+        Some(MeshFormat::Gltf) => save_gltf(mesh, path, &GlbOptions::default()),
+        None => Err(Error::UnsupportedFormat { path: path.into() }),
+    }
+}
+
+/// Check a mesh is consistent enough to export (indices in range, attribute lengths).
+fn check_exportable(mesh: &TriMesh, path: &Path) -> Result<()> {
+    let n = mesh.num_vertices();
+    let bad = |msg: &str| Err(Error::InvalidInput(format!("{}: {msg}", path.display())));
+    if mesh.faces.iter().flatten().any(|&v| v as usize >= n) {
+        return bad("face index out of range");
+    }
+    if mesh.uvs.as_ref().is_some_and(|u| u.len() != 3 * mesh.faces.len()) {
+        return bad("uvs must have 3 entries per face");
+    }
+    if mesh.normals.as_ref().is_some_and(|v| v.len() != n) {
+        return bad("normals must have one entry per vertex");
+    }
+    if mesh.colors.as_ref().is_some_and(|v| v.len() != n) {
+        return bad("colors must have one entry per vertex");
+    }
+    Ok(())
+}
+
+/// Per-vertex UVs when every corner of each vertex carries the same UV (exact bit equality);
+/// vertices used by no face get (0, 0).
+fn per_vertex_uvs(mesh: &TriMesh) -> Option<Vec<[f32; 2]>> {
+    let uvs = mesh.uvs.as_ref()?;
+    let mut out: Vec<Option<[f32; 2]>> = vec![None; mesh.num_vertices()];
+    for (f, face) in mesh.faces.iter().enumerate() {
+        for k in 0..3 {
+            let uv = uvs[3 * f + k];
+            let slot = &mut out[face[k] as usize];
+            match slot {
+                None => *slot = Some(uv),
+                Some(prev) => {
+                    if prev.map(f32::to_bits) != uv.map(f32::to_bits) {
+                        return None;
+                    }
+                }
+            }
+        }
+    }
+    Some(out.into_iter().map(|u| u.unwrap_or([0.0; 2])).collect())
+}
+
+/// Triangulate a polygon as a fan around its first corner, appending `(a, b, c)` corner triples.
+fn fan(n: usize, mut emit: impl FnMut(usize, usize, usize)) {
+    for i in 1..n.saturating_sub(1) {
+        emit(0, i, i + 1);
+    }
 }

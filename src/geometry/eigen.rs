@@ -1,0 +1,541 @@
+//! Smallest eigenpairs of the cotan Laplacian (`L x = λ M x`) and the heat kernel signature.
+
+use faer::linalg::matmul::matmul;
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::solvers::Llt;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+use super::laplacian::{check_faces, cotan_triplets, mass_matrix_voronoi};
+use crate::{Error, Result};
+
+/// Reduced systems up to this size are solved densely.
+const DENSE_MAX: usize = 400;
+/// Relative residual `|L x - λ M x| / (λ |M x|)` every returned Ritz pair must reach.
+const RESIDUAL_TOL: f64 = 1e-6;
+
+/// `y = A x` for a CSC matrix.
+pub(crate) fn spmv(a: &SparseColMat<usize, f64>, x: &[f64], y: &mut [f64]) {
+    y.fill(0.0);
+    let sym = a.symbolic();
+    let (cp, ri, val) = (sym.col_ptr(), sym.row_idx(), a.val());
+    for j in 0..x.len() {
+        let xj = x[j];
+        if xj == 0.0 {
+            continue;
+        }
+        for p in cp[j]..cp[j + 1] {
+            y[ri[p]] += val[p] * xj;
+        }
+    }
+}
+
+fn par() -> Par {
+    faer::get_global_parallelism()
+}
+
+/// Smallest `k` eigenpairs of the generalized problem `L φ = λ M φ` with `L` the cotan stiffness
+/// ([`super::cotan_laplacian`]) and `M` the mixed-Voronoi mass ([`super::mass_matrix_voronoi`]).
+///
+/// Returns `(evals, evecs)`: eigenvalues ascending and the eigenvectors as a flat column-major
+/// `n × k` matrix (`evecs[i * n + v]` is `φ_i(v)`), M-orthonormal (`φ_iᵀ M φ_j = δ_ij`), each
+/// with its largest-magnitude entry positive. Vertices in no non-degenerate face get 0.
+///
+/// The null space is known exactly (one M-normalised indicator per connected component, λ = 0),
+/// so disconnected meshes are handled; the rest is found by block Krylov (block Lanczos with full
+/// re-orthogonalisation, Golub & Underwood 1977) on the shift-invert operator
+/// `(L + σM)⁻¹ M` in the M-inner product, with a sparse Cholesky factorisation of `L + σM`
+/// (σ = 10⁻⁶ tr L / tr M) and a Rayleigh–Ritz step; tiny systems use a dense solve of
+/// `M^{-1/2} L M^{-1/2}`.
+pub fn laplacian_eigen(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    k: usize,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let n = positions.len();
+    check_faces(n, faces)?;
+    if k == 0 {
+        return Ok((Vec::new(), Vec::new()));
+    }
+    let mass_full = mass_matrix_voronoi(positions, faces);
+    // active vertices: those with positive mass (in a non-degenerate face)
+    let mut slot = vec![usize::MAX; n];
+    let mut active = Vec::new();
+    for (v, &m) in mass_full.iter().enumerate() {
+        if m > 0.0 && m.is_finite() {
+            slot[v] = active.len();
+            active.push(v);
+        }
+    }
+    let nr = active.len();
+    if k > nr {
+        return Err(Error::InvalidInput(format!(
+            "asked for {k} Laplacian eigenpairs of a mesh with {nr} usable vertices"
+        )));
+    }
+    if active
+        .iter()
+        .any(|&v| positions[v].iter().any(|x| !x.is_finite()))
+    {
+        return Err(Error::InvalidMesh("non-finite vertex position".into()));
+    }
+    let rpos: Vec<[f32; 3]> = active.iter().map(|&v| positions[v]).collect();
+    let rfaces: Vec<[u32; 3]> = faces
+        .iter()
+        .filter(|f| f.iter().all(|&v| slot[v as usize] != usize::MAX))
+        .map(|f| f.map(|v| slot[v as usize] as u32))
+        .filter(|f| {
+            let [a, b, c] = f.map(|i| super::basic::d3(rpos[i as usize]));
+            (b - a).cross(c - a).length() > 0.0
+        })
+        .collect();
+    let mass: Vec<f64> = active.iter().map(|&v| mass_full[v]).collect();
+    let (label, ncomp) = crate::mesh::connected_components(nr, &rfaces);
+    let ncomp = ncomp.max(label.iter().map(|&l| l as usize + 1).max().unwrap_or(0));
+
+    let (vals, vecs) = if nr <= DENSE_MAX {
+        dense_eigen(&rpos, &rfaces, &mass, k)?
+    } else {
+        krylov_eigen(&rpos, &rfaces, &mass, &label, ncomp, k)?
+    };
+
+    // scatter to the full vertex set, fix signs
+    let mut evecs = vec![0.0; n * k];
+    for i in 0..k {
+        let col = &vecs[i * nr..(i + 1) * nr];
+        let big = col
+            .iter()
+            .copied()
+            .fold(0.0f64, |b, x| if x.abs() > b.abs() { x } else { b });
+        let s = if big < 0.0 { -1.0 } else { 1.0 };
+        for (r, &v) in active.iter().enumerate() {
+            evecs[i * n + v] = s * col[r];
+        }
+    }
+    Ok((vals, evecs))
+}
+
+/// Dense path: eigen-decomposition of `M^{-1/2} L M^{-1/2}`, `φ = M^{-1/2} u`.
+fn dense_eigen(
+    pos: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    mass: &[f64],
+    k: usize,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let nr = pos.len();
+    let mut trip = Vec::new();
+    cotan_triplets(pos, faces, 1.0, &mut trip);
+    let mut s = Mat::<f64>::zeros(nr, nr);
+    for t in &trip {
+        s[(t.row, t.col)] += t.val / (mass[t.row] * mass[t.col]).sqrt();
+    }
+    let evd = s
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| Error::InvalidMesh(format!("eigen-decomposition failed: {e:?}")))?;
+    let vals = evd.S().column_vector();
+    let u = evd.U();
+    let mut evals = Vec::with_capacity(k);
+    let mut evecs = Vec::with_capacity(k * nr);
+    for i in 0..k {
+        evals.push(vals[i].max(0.0));
+        for r in 0..nr {
+            evecs.push(u[(r, i)] / mass[r].sqrt());
+        }
+    }
+    Ok((evals, evecs))
+}
+
+/// Project out the null space (component indicators) in the M-inner product, column by column.
+fn project_null(y: &mut [f64], nr: usize, mass: &[f64], label: &[u32], comp_mass: &[f64]) {
+    let mut acc = vec![0.0; comp_mass.len()];
+    for col in y.chunks_mut(nr) {
+        acc.fill(0.0);
+        for r in 0..nr {
+            acc[label[r] as usize] += mass[r] * col[r];
+        }
+        for (a, m) in acc.iter_mut().zip(comp_mass) {
+            *a /= m;
+        }
+        for r in 0..nr {
+            col[r] -= acc[label[r] as usize];
+        }
+    }
+}
+
+/// M-orthonormalise the columns of `w` (nr × b) against the first `used` columns of `v` and among
+/// themselves (two passes of classical Gram–Schmidt against `v`, then modified Gram–Schmidt
+/// within the block); columns that vanish are replaced by fresh random directions.
+#[allow(clippy::too_many_arguments)]
+fn orthonormalize_block(
+    v: &[f64],
+    used: usize,
+    w: &mut [f64],
+    nr: usize,
+    mass: &[f64],
+    label: &[u32],
+    comp_mass: &[f64],
+    rng: &mut SmallRng,
+) {
+    let b = w.len() / nr;
+    let mut mw = vec![0.0; nr * b];
+    let mut c = vec![0.0; used * b];
+    for _attempt in 0..3 {
+        for _pass in 0..2 {
+            if used == 0 {
+                break;
+            }
+            for j in 0..b {
+                for r in 0..nr {
+                    mw[j * nr + r] = mass[r] * w[j * nr + r];
+                }
+            }
+            let vr = MatRef::from_column_major_slice(&v[..nr * used], nr, used);
+            let mwr = MatRef::from_column_major_slice(&mw, nr, b);
+            matmul(
+                MatMut::from_column_major_slice_mut(&mut c, used, b),
+                Accum::Replace,
+                vr.transpose(),
+                mwr,
+                1.0,
+                par(),
+            );
+            matmul(
+                MatMut::from_column_major_slice_mut(w, nr, b),
+                Accum::Add,
+                vr,
+                MatRef::from_column_major_slice(&c, used, b),
+                -1.0,
+                par(),
+            );
+        }
+        let mut redo = false;
+        for j in 0..b {
+            for _pass in 0..2 {
+                for i in 0..j {
+                    let (prev, cur) = w.split_at_mut(j * nr);
+                    let qi = &prev[i * nr..(i + 1) * nr];
+                    let cj = &mut cur[..nr];
+                    let d: f64 = (0..nr).map(|r| mass[r] * qi[r] * cj[r]).sum();
+                    for r in 0..nr {
+                        cj[r] -= d * qi[r];
+                    }
+                }
+            }
+            let cj = &mut w[j * nr..(j + 1) * nr];
+            let norm = (0..nr).map(|r| mass[r] * cj[r] * cj[r]).sum::<f64>().sqrt();
+            if norm > 1e-10 && norm.is_finite() {
+                cj.iter_mut().for_each(|x| *x /= norm);
+            } else {
+                cj.iter_mut().for_each(|x| *x = rng.random_range(-1.0..1.0));
+                project_null(cj, nr, mass, label, comp_mass);
+                redo = true;
+            }
+        }
+        if !redo {
+            return;
+        }
+    }
+}
+
+/// Sparse path: null space from components, the rest by block Krylov on `(L + σM)⁻¹ M`.
+fn krylov_eigen(
+    pos: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    mass: &[f64],
+    label: &[u32],
+    ncomp: usize,
+    k: usize,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let nr = pos.len();
+    let mut comp_mass = vec![0.0; ncomp];
+    for r in 0..nr {
+        comp_mass[label[r] as usize] += mass[r];
+    }
+    // null space: component indicators, ordered by label (= by first vertex)
+    let nnull = ncomp.min(k);
+    let mut evals = vec![0.0; nnull];
+    let mut evecs = vec![0.0; nnull * nr];
+    for r in 0..nr {
+        let c = label[r] as usize;
+        if c < nnull {
+            evecs[c * nr + r] = 1.0 / comp_mass[c].sqrt();
+        }
+    }
+    let nev = k - nnull;
+    let avail = nr.saturating_sub(ncomp);
+    if nev == 0 {
+        return Ok((evals, evecs));
+    }
+    if nev > avail {
+        return Err(Error::InvalidInput(format!(
+            "asked for {k} eigenpairs but the mesh has only {} non-null ones",
+            avail
+        )));
+    }
+
+    let mut trip: Vec<Triplet<usize, usize, f64>> = Vec::with_capacity(faces.len() * 12 + nr);
+    cotan_triplets(pos, faces, 1.0, &mut trip);
+    let lmat = SparseColMat::try_new_from_triplets(nr, nr, &trip)
+        .map_err(|e| Error::InvalidMesh(format!("Laplacian assembly failed: {e:?}")))?;
+    let trace_l: f64 = trip.iter().filter(|t| t.row == t.col).map(|t| t.val).sum();
+    let trace_m: f64 = mass.iter().sum();
+    let sigma = 1e-6 * trace_l / trace_m;
+    for (r, &m) in mass.iter().enumerate() {
+        trip.push(Triplet::new(r, r, sigma * m));
+    }
+    let kmat = SparseColMat::try_new_from_triplets(nr, nr, &trip)
+        .map_err(|e| Error::InvalidMesh(format!("Laplacian assembly failed: {e:?}")))?;
+    let llt: Llt<usize, f64> = kmat
+        .sp_cholesky(Side::Lower)
+        .map_err(|e| Error::InvalidMesh(format!("sparse Cholesky of L + σM failed: {e:?}")))?;
+
+    let b = (nev / 3).clamp(4, 12).min(avail);
+    let mut dim = (4 * nev).max(nev + 60).div_ceil(b) * b;
+    dim = dim.min(avail / b * b).max(b);
+    let mut rng = SmallRng::seed_from_u64(0x6d65_7368);
+    let mut lx = vec![0.0; nr];
+    loop {
+        let blocks = dim / b;
+        let m = blocks * b;
+        let mut v = vec![0.0; nr * m];
+        let mut av = vec![0.0; nr * m];
+        {
+            let first = &mut v[..nr * b];
+            first
+                .iter_mut()
+                .for_each(|x| *x = rng.random_range(-1.0..1.0));
+            project_null(first, nr, mass, label, &comp_mass);
+            let mut w = first.to_vec();
+            orthonormalize_block(&[], 0, &mut w, nr, mass, label, &comp_mass, &mut rng);
+            v[..nr * b].copy_from_slice(&w);
+        }
+        let mut w = vec![0.0; nr * b];
+        for j in 0..blocks {
+            // W = (L + σM)⁻¹ M V_j, kept M-orthogonal to the null space
+            for c in 0..b {
+                for r in 0..nr {
+                    w[c * nr + r] = mass[r] * v[(j * b + c) * nr + r];
+                }
+            }
+            llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut w, nr, b));
+            project_null(&mut w, nr, mass, label, &comp_mass);
+            av[j * b * nr..(j + 1) * b * nr].copy_from_slice(&w);
+            if j + 1 < blocks {
+                let used = (j + 1) * b;
+                orthonormalize_block(&v, used, &mut w, nr, mass, label, &comp_mass, &mut rng);
+                v[used * nr..(used + b) * nr].copy_from_slice(&w);
+            }
+        }
+        // Rayleigh–Ritz: H = Vᵀ M A V
+        let mut mav = av;
+        for col in mav.chunks_mut(nr) {
+            for r in 0..nr {
+                col[r] *= mass[r];
+            }
+        }
+        let mut h = Mat::<f64>::zeros(m, m);
+        matmul(
+            h.as_mut(),
+            Accum::Replace,
+            MatRef::from_column_major_slice(&v, nr, m).transpose(),
+            MatRef::from_column_major_slice(&mav, nr, m),
+            1.0,
+            par(),
+        );
+        let hs = Mat::<f64>::from_fn(m, m, |i, j| 0.5 * (h[(i, j)] + h[(j, i)]));
+        let evd = hs
+            .self_adjoint_eigen(Side::Lower)
+            .map_err(|e| Error::InvalidMesh(format!("Ritz eigen-decomposition failed: {e:?}")))?;
+        let theta = evd.S().column_vector();
+        let y = evd.U();
+        // largest θ ↔ smallest λ
+        let mut ysel = Mat::<f64>::zeros(m, nev);
+        let mut lam = Vec::with_capacity(nev);
+        for i in 0..nev {
+            let col = m - 1 - i;
+            lam.push(1.0 / theta[col] - sigma);
+            for r in 0..m {
+                ysel[(r, i)] = y[(r, col)];
+            }
+        }
+        let mut x = vec![0.0; nr * nev];
+        matmul(
+            MatMut::from_column_major_slice_mut(&mut x, nr, nev),
+            Accum::Replace,
+            MatRef::from_column_major_slice(&v, nr, m),
+            ysel.as_ref(),
+            1.0,
+            par(),
+        );
+        let mut worst = 0.0f64;
+        for i in 0..nev {
+            let xi = &x[i * nr..(i + 1) * nr];
+            spmv(&lmat, xi, &mut lx);
+            let (mut rn, mut mn) = (0.0, 0.0);
+            for r in 0..nr {
+                let mx = mass[r] * xi[r];
+                rn += (lx[r] - lam[i] * mx).powi(2);
+                mn += mx * mx;
+            }
+            let rel = rn.sqrt() / (lam[i].abs() * mn.sqrt()).max(f64::MIN_POSITIVE);
+            worst = worst.max(rel);
+        }
+        if worst <= RESIDUAL_TOL || m >= avail / b * b {
+            evals.extend_from_slice(&lam);
+            evecs.extend_from_slice(&x);
+            // sort ascending (Ritz values come sorted, null space first; keep it robust)
+            let mut order: Vec<usize> = (0..k).collect();
+            order.sort_by(|&a, &b| evals[a].total_cmp(&evals[b]));
+            let sv = order.iter().map(|&i| evals[i]).collect();
+            let mut se = Vec::with_capacity(k * nr);
+            for &i in &order {
+                se.extend_from_slice(&evecs[i * nr..(i + 1) * nr]);
+            }
+            return Ok((sv, se));
+        }
+        dim = (2 * m).min(avail / b * b);
+    }
+}
+
+/// Heat kernel signature (Sun, Ovsjanikov & Guibas 2009):
+/// `HKS(v, t) = Σ_i exp(-λ_i t) φ_i(v)²` over the given eigenpairs (M-orthonormal `φ`, as from
+/// [`laplacian_eigen`]; sign-independent).
+///
+/// `evecs` is the flat column-major `n × k` matrix of [`laplacian_eigen`]. Returns a flat
+/// vertex-major `n × times.len()` array: `hks[v * times.len() + j]` = `HKS(v, times[j])`.
+pub fn hks(evals: &[f64], evecs: &[f64], times: &[f64]) -> Vec<f32> {
+    let k = evals.len();
+    let nt = times.len();
+    if k == 0 || nt == 0 {
+        return Vec::new();
+    }
+    let n = evecs.len() / k;
+    let decay: Vec<f64> = times
+        .iter()
+        .flat_map(|&t| evals.iter().map(move |&l| (-l * t).exp()))
+        .collect();
+    let mut out = vec![0.0f32; n * nt];
+    out.par_chunks_mut(nt).enumerate().for_each(|(v, row)| {
+        for (j, o) in row.iter_mut().enumerate() {
+            let d = &decay[j * k..(j + 1) * k];
+            let s: f64 = (0..k).map(|i| d[i] * evecs[i * n + v].powi(2)).sum();
+            *o = s as f32;
+        }
+    });
+    out
+}
+
+/// HKS time samples (Sun et al. 2009): `count` times geometrically spaced from
+/// `4 ln 10 / λ_max` to `4 ln 10 / λ_1`, with `λ_1` the smallest eigenvalue above
+/// `10⁻⁹ λ_max` (the first non-zero one; robust to several components).
+pub fn hks_times(evals: &[f64], count: usize) -> Vec<f64> {
+    let lmax = evals.iter().copied().fold(0.0f64, f64::max);
+    if count == 0 || lmax <= 0.0 {
+        return Vec::new();
+    }
+    let l1 = evals
+        .iter()
+        .copied()
+        .filter(|&l| l > 1e-9 * lmax)
+        .fold(f64::INFINITY, f64::min);
+    let (t0, t1) = (4.0 * 10f64.ln() / lmax, 4.0 * 10f64.ln() / l1);
+    if count == 1 {
+        return vec![t0];
+    }
+    (0..count)
+        .map(|i| t0 * (t1 / t0).powf(i as f64 / (count - 1) as f64))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A UV sphere (closed), `rings × segs` grid plus two poles.
+    pub(crate) fn sphere(rings: usize, segs: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+        let mut p = vec![[0.0, 0.0, 1.0]];
+        for i in 1..rings {
+            let th = std::f32::consts::PI * i as f32 / rings as f32;
+            for j in 0..segs {
+                let ph = 2.0 * std::f32::consts::PI * j as f32 / segs as f32;
+                p.push([th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()]);
+            }
+        }
+        p.push([0.0, 0.0, -1.0]);
+        let s = segs as u32;
+        let idx = |i: usize, j: u32| 1 + (i as u32 - 1) * s + (j % s);
+        let mut f = Vec::new();
+        for j in 0..s {
+            f.push([0, idx(1, j), idx(1, j + 1)]);
+        }
+        for i in 1..rings - 1 {
+            for j in 0..s {
+                f.push([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)]);
+                f.push([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]);
+            }
+        }
+        let last = p.len() as u32 - 1;
+        for j in 0..s {
+            f.push([last, idx(rings - 1, j + 1), idx(rings - 1, j)]);
+        }
+        (p, f)
+    }
+
+    #[test]
+    fn sphere_spectrum_and_disconnected_nullspace() {
+        // unit sphere: λ = l(l+1) with multiplicity 2l+1: 0, 2 (x3), 6 (x5), 12 (x7)
+        let (p, f) = sphere(40, 60);
+        let (vals, vecs) = laplacian_eigen(&p, &f, 16).unwrap();
+        let n = p.len();
+        assert!(vals[0].abs() < 1e-8);
+        for i in 1..4 {
+            assert!((vals[i] - 2.0).abs() < 0.03, "{vals:?}");
+        }
+        for i in 4..9 {
+            assert!((vals[i] - 6.0).abs() < 0.1, "{vals:?}");
+        }
+        for i in 9..16 {
+            assert!((vals[i] - 12.0).abs() < 0.3, "{vals:?}");
+        }
+        // M-orthonormal
+        let m = mass_matrix_voronoi(&p, &f);
+        for a in [0, 3, 8, 15] {
+            for b in [0, 3, 8, 15] {
+                let d: f64 = (0..n)
+                    .map(|v| m[v] * vecs[a * n + v] * vecs[b * n + v])
+                    .sum();
+                assert!(
+                    (d - if a == b { 1.0 } else { 0.0 }).abs() < 1e-8,
+                    "{a} {b} {d}"
+                );
+            }
+        }
+        // two spheres: two zero eigenvalues, then the sphere spectrum twice
+        let mut p2 = p.clone();
+        p2.extend(p.iter().map(|q| [q[0] + 5.0, q[1], q[2]]));
+        let mut f2 = f.clone();
+        f2.extend(f.iter().map(|t| t.map(|v| v + n as u32)));
+        let (vals2, _) = laplacian_eigen(&p2, &f2, 8).unwrap();
+        assert!(vals2[0].abs() < 1e-12 && vals2[1].abs() < 1e-12);
+        for v in &vals2[2..8] {
+            assert!((v - 2.0).abs() < 0.03, "{vals2:?}");
+        }
+        // dense path agrees on a small sphere
+        let (ps, fs) = sphere(10, 12);
+        let (vd, _) = laplacian_eigen(&ps, &fs, 4).unwrap();
+        assert!(vd[0].abs() < 1e-9 && (vd[1] - 2.0).abs() < 0.2, "{vd:?}");
+        let t = hks_times(&vals, 5);
+        assert_eq!(t.len(), 5);
+        assert!((t[4] - 4.0 * 10f64.ln() / vals[1]).abs() < 1e-9);
+        let h = hks(&vals, &vecs, &t);
+        assert_eq!(h.len(), n * 5);
+        // on a sphere the HKS is (nearly) constant at the largest time
+        let (lo, hi) = (0..n).fold((f32::MAX, 0.0f32), |(lo, hi), v| {
+            (lo.min(h[v * 5 + 4]), hi.max(h[v * 5 + 4]))
+        });
+        assert!(hi / lo < 1.1, "{lo} {hi}");
+    }
+}

@@ -1,0 +1,741 @@
+//! glTF 2.0 / GLB reader (document model from the `gltf` crate, buffers and accessors read here
+//! with bounds checks) and a hand-written GLB / glTF writer.
+
+use super::{base64, check_content, check_exportable, finish, write_atomic};
+use crate::mesh::Texture;
+use crate::{Error, Result, TriMesh};
+use gltf::accessor::{DataType, Dimensions};
+use gltf::mesh::{Mode, Semantic};
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Options for `save_glb` / `save_gltf`.
+#[derive(Clone, Debug)]
+pub struct GlbOptions {
+    /// Write COLOR_0 (linear float RGB) when the mesh has vertex colours.
+    pub vertex_colors: bool,
+    /// Write TEXCOORD_0 and a material with an embedded PNG `baseColorTexture` when the mesh has
+    /// UVs (and a texture).
+    pub texture: bool,
+}
+
+impl Default for GlbOptions {
+    fn default() -> Self {
+        GlbOptions {
+            vertex_colors: true,
+            texture: true,
+        }
+    }
+}
+
+/// Most nested nodes followed (guards against cyclic or absurdly deep node graphs).
+const MAX_NODE_DEPTH: usize = 64;
+
+/// Decode a `%XX`-escaped relative URI.
+fn percent_decode(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i] == b'%'
+            && i + 2 < b.len()
+            && b[i + 1].is_ascii_hexdigit()
+            && b[i + 2].is_ascii_hexdigit()
+        {
+            let hex = |c: u8| (c as char).to_digit(16).unwrap_or(0) as u8;
+            out.push(hex(b[i + 1]) * 16 + hex(b[i + 2]));
+            i += 3;
+        } else {
+            out.push(b[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// Bytes of a URI: a base64 data URI, or a file relative to the glTF file's directory.
+fn read_uri(uri: &str, path: &Path) -> Result<Vec<u8>> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (meta, data) = rest
+            .split_once(',')
+            .ok_or_else(|| Error::format(path, "malformed data URI"))?;
+        if !meta.ends_with(";base64") {
+            return Err(Error::format(path, "data URI is not base64"));
+        }
+        return base64::decode(data).ok_or_else(|| Error::format(path, "bad base64 in data URI"));
+    }
+    if uri.contains("://") {
+        return Err(Error::format(
+            path,
+            format!("external URI '{}' is not supported", clip(uri)),
+        ));
+    }
+    let file = path
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join(percent_decode(uri));
+    std::fs::read(&file).map_err(|e| {
+        Error::format(
+            path,
+            format!("cannot read buffer/image '{}': {e}", clip(uri)),
+        )
+    })
+}
+
+fn clip(s: &str) -> String {
+    s.chars().take(60).collect()
+}
+
+/// Typed read of a whole accessor as `count * multiplicity` f64 values (exact for u32),
+/// normalized integers mapped to [0,1] / [-1,1] when `normalized` is set; sparse substitution
+/// applied. Every byte range is checked against its view and buffer.
+fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Result<Vec<f64>> {
+    let dims = acc.dimensions();
+    if matches!(dims, Dimensions::Mat2 | Dimensions::Mat3 | Dimensions::Mat4) {
+        return Err(Error::format(
+            path,
+            format!("accessor {}: matrix accessors are not vertex data", acc.index()),
+        ));
+    }
+    let m = dims.multiplicity();
+    let dt = acc.data_type();
+    let csize = dt.size();
+    let count = acc.count();
+    let bad = |msg: String| Error::format(path, format!("accessor {}: {msg}", acc.index()));
+    let normalized = acc.normalized();
+    let read_comp = |b: &[u8], dt: DataType| -> f64 {
+        let v = match dt {
+            DataType::I8 => b[0] as i8 as f64,
+            DataType::U8 => b[0] as f64,
+            DataType::I16 => i16::from_le_bytes([b[0], b[1]]) as f64,
+            DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as f64,
+            DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
+            DataType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
+        };
+        if !normalized {
+            return v;
+        }
+        match dt {
+            DataType::I8 => (v / 127.0).max(-1.0),
+            DataType::U8 => v / 255.0,
+            DataType::I16 => (v / 32767.0).max(-1.0),
+            DataType::U16 => v / 65535.0,
+            DataType::U32 => v / u32::MAX as f64,
+            DataType::F32 => v,
+        }
+    };
+    // Slice of a buffer view, checked.
+    let view_bytes = |view: &gltf::buffer::View| -> Result<&[u8]> {
+        let buf = buffers
+            .get(view.buffer().index())
+            .ok_or_else(|| bad("missing buffer".into()))?;
+        let end = view
+            .offset()
+            .checked_add(view.length())
+            .filter(|&e| e <= buf.len())
+            .ok_or_else(|| {
+                bad(format!(
+                    "buffer view {} runs past the end of its buffer ({} bytes)",
+                    view.index(),
+                    buf.len()
+                ))
+            })?;
+        Ok(&buf[view.offset()..end])
+    };
+    let elem = m * csize;
+    let mut out: Vec<f64>;
+    if let Some(view) = acc.view() {
+        let bytes = view_bytes(&view)?;
+        let stride = view.stride().unwrap_or(elem);
+        if stride < elem {
+            return Err(bad(format!("byte stride {stride} smaller than element size {elem}")));
+        }
+        if count > 0 {
+            let need = stride
+                .checked_mul(count - 1)
+                .and_then(|x| x.checked_add(elem))
+                .and_then(|x| x.checked_add(acc.offset()));
+            if need.is_none_or(|n| n > bytes.len()) {
+                return Err(bad(format!(
+                    "{count} elements do not fit in buffer view {} ({} bytes)",
+                    view.index(),
+                    bytes.len()
+                )));
+            }
+        }
+        out = Vec::with_capacity(count * m);
+        for i in 0..count {
+            let base = acc.offset() + i * stride;
+            for c in 0..m {
+                let o = base + c * csize;
+                out.push(read_comp(&bytes[o..o + csize], dt));
+            }
+        }
+    } else {
+        if acc.sparse().is_none() || count > super::super::validate::MAX_VERTICES {
+            return Err(bad("no buffer view".into()));
+        }
+        out = vec![0.0; count * m];
+    }
+    if let Some(sp) = acc.sparse() {
+        let n = sp.count();
+        let iv = sp.indices();
+        let ibytes = view_bytes(&iv.view())?;
+        let isize = match iv.index_type() {
+            gltf::accessor::sparse::IndexType::U8 => 1,
+            gltf::accessor::sparse::IndexType::U16 => 2,
+            gltf::accessor::sparse::IndexType::U32 => 4,
+        };
+        let vv = sp.values();
+        let vbytes = view_bytes(&vv.view())?;
+        let ifits = n
+            .checked_mul(isize)
+            .and_then(|x| x.checked_add(iv.offset()))
+            .is_some_and(|e| e <= ibytes.len());
+        let vfits = n
+            .checked_mul(elem)
+            .and_then(|x| x.checked_add(vv.offset()))
+            .is_some_and(|e| e <= vbytes.len());
+        if !ifits || !vfits {
+            return Err(bad("sparse data runs past its buffer view".into()));
+        }
+        for s in 0..n {
+            let io = iv.offset() + s * isize;
+            let b = &ibytes[io..io + isize];
+            let target = match isize {
+                1 => b[0] as usize,
+                2 => u16::from_le_bytes([b[0], b[1]]) as usize,
+                _ => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize,
+            };
+            if target >= count {
+                return Err(bad(format!("sparse index {target} out of range")));
+            }
+            for c in 0..m {
+                let o = vv.offset() + s * elem + c * csize;
+                out[target * m + c] = read_comp(&vbytes[o..o + csize], dt);
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Decode the image of a texture (buffer view or URI); errors describe what failed.
+fn read_image(img: &gltf::image::Image, buffers: &[Vec<u8>], path: &Path) -> Result<Texture> {
+    let bytes: Vec<u8> = match img.source() {
+        gltf::image::Source::View { view, .. } => {
+            let buf = buffers
+                .get(view.buffer().index())
+                .ok_or_else(|| Error::format(path, "image buffer missing"))?;
+            let end = view
+                .offset()
+                .checked_add(view.length())
+                .filter(|&e| e <= buf.len())
+                .ok_or_else(|| Error::format(path, "image buffer view out of range"))?;
+            buf[view.offset()..end].to_vec()
+        }
+        gltf::image::Source::Uri { uri, .. } => read_uri(uri, path)?,
+    };
+    super::decode_texture(&bytes, path)
+}
+
+/// Accumulated output of all primitives.
+#[derive(Default)]
+struct Acc {
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    has_normals: Vec<bool>,
+    colors: Vec<[f32; 3]>,
+    any_colors: bool,
+    faces: Vec<[u32; 3]>,
+    uvs: Vec<[f32; 2]>,
+    any_uvs: bool,
+    texture: Option<Arc<Texture>>,
+    texture_source: Option<usize>,
+    texture_failed: bool,
+}
+
+/// Parse glTF JSON or GLB bytes; `path` names the file in messages and is the base for external
+/// buffers and images. Every primitive of every node of the default scene (else of all root
+/// nodes) is read with its world transform; points and lines are skipped, strips and fans
+/// converted to triangles.
+pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
+    check_content(bytes, super::MeshFormat::Glb, path)?;
+    let gltf = gltf::Gltf::from_slice(bytes)
+        .map_err(|e| Error::format(path, format!("invalid glTF: {e}")))?;
+    let doc = &gltf.document;
+    let mut buffers: Vec<Vec<u8>> = Vec::new();
+    for b in doc.buffers() {
+        let data = match b.source() {
+            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
+                Error::format(path, format!("buffer {} refers to a missing BIN chunk", b.index()))
+            })?,
+            gltf::buffer::Source::Uri(uri) => read_uri(uri, path)?,
+        };
+        if data.len() < b.length() {
+            return Err(Error::format(
+                path,
+                format!(
+                    "buffer {} has {} bytes but the file declares {}",
+                    b.index(),
+                    data.len(),
+                    b.length()
+                ),
+            ));
+        }
+        buffers.push(data);
+    }
+    let mut acc = Acc::default();
+    // (node, world matrix) roots.
+    let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| {
+        (doc.scenes().len() == 1).then(|| doc.scenes().next()).flatten()
+    }) {
+        Some(scene) => scene.nodes().collect(),
+        None => {
+            let mut is_child = vec![false; doc.nodes().len()];
+            for n in doc.nodes() {
+                for c in n.children() {
+                    is_child[c.index()] = true;
+                }
+            }
+            doc.nodes().filter(|n| !is_child[n.index()]).collect()
+        }
+    };
+    if roots.is_empty() && doc.nodes().len() == 0 {
+        // No scene graph at all: take the meshes as they are.
+        for mesh in doc.meshes() {
+            read_mesh(&mesh, glam::Mat4::IDENTITY, &buffers, path, &mut acc)?;
+        }
+    }
+    let mut visited = vec![false; doc.nodes().len()];
+    let mut stack: Vec<(gltf::Node, glam::Mat4, usize)> = roots
+        .into_iter()
+        .rev()
+        .map(|n| (n, glam::Mat4::IDENTITY, 0))
+        .collect();
+    while let Some((node, parent, depth)) = stack.pop() {
+        if depth > MAX_NODE_DEPTH || std::mem::replace(&mut visited[node.index()], true) {
+            return Err(Error::format(
+                path,
+                "node hierarchy is not a tree (a node has several parents, a cycle, or is too deep)",
+            ));
+        }
+        let world = parent * glam::Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(mesh) = node.mesh() {
+            read_mesh(&mesh, world, &buffers, path, &mut acc)?;
+        }
+        let children: Vec<gltf::Node> = node.children().collect();
+        for c in children.into_iter().rev() {
+            stack.push((c, world, depth + 1));
+        }
+    }
+    let n = acc.positions.len();
+    let mut mesh = TriMesh {
+        positions: acc.positions,
+        faces: acc.faces,
+        ..Default::default()
+    };
+    if n > 0 && acc.has_normals.iter().all(|&h| h) {
+        mesh.normals = Some(acc.normals);
+    }
+    if acc.any_colors {
+        mesh.colors = Some(acc.colors);
+    }
+    if acc.any_uvs {
+        mesh.uvs = Some(acc.uvs);
+    }
+    mesh.texture = acc.texture;
+    finish(mesh, path)
+}
+
+fn read_mesh(
+    mesh: &gltf::Mesh,
+    world: glam::Mat4,
+    buffers: &[Vec<u8>],
+    path: &Path,
+    acc: &mut Acc,
+) -> Result<()> {
+    let normal_m = glam::Mat3::from_mat4(world).inverse().transpose();
+    let flip = glam::Mat3::from_mat4(world).determinant() < 0.0;
+    for prim in mesh.primitives() {
+        let mode = prim.mode();
+        if matches!(
+            mode,
+            Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip
+        ) {
+            continue;
+        }
+        let Some(pacc) = prim.get(&Semantic::Positions) else {
+            eprintln!(
+                "warning: {}: mesh {} has a primitive without POSITION; skipped",
+                path.display(),
+                mesh.index()
+            );
+            continue;
+        };
+        let p = read_accessor(&pacc, buffers, path)?;
+        if pacc.dimensions() != Dimensions::Vec3 {
+            return Err(Error::format(path, "POSITION is not VEC3"));
+        }
+        let nv = pacc.count();
+        let base = acc.positions.len();
+        if base + nv > u32::MAX as usize {
+            return Err(Error::format(path, "too many vertices"));
+        }
+        acc.positions.extend(p.chunks_exact(3).map(|c| {
+            world
+                .transform_point3(glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+                .to_array()
+        }));
+        match prim.get(&Semantic::Normals) {
+            Some(a) if a.dimensions() == Dimensions::Vec3 && a.count() == nv => {
+                let v = read_accessor(&a, buffers, path)?;
+                acc.normals.extend(v.chunks_exact(3).map(|c| {
+                    (normal_m * glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
+                        .normalize_or_zero()
+                        .to_array()
+                }));
+                acc.has_normals.push(true);
+            }
+            _ => {
+                acc.normals.extend(std::iter::repeat_n([0.0; 3], nv));
+                acc.has_normals.push(false);
+            }
+        }
+        match prim.get(&Semantic::Colors(0)) {
+            Some(a)
+                if matches!(a.dimensions(), Dimensions::Vec3 | Dimensions::Vec4)
+                    && a.count() == nv =>
+            {
+                let m = a.dimensions().multiplicity();
+                let v = read_accessor(&a, buffers, path)?;
+                if !acc.any_colors {
+                    acc.colors = vec![[1.0; 3]; base];
+                    acc.any_colors = true;
+                }
+                acc.colors.extend(v.chunks_exact(m).map(|c| {
+                    [c[0], c[1], c[2]].map(|x| crate::color::linear_to_srgb(x as f32))
+                }));
+            }
+            _ => {
+                if acc.any_colors {
+                    acc.colors.extend(std::iter::repeat_n([1.0; 3], nv));
+                }
+            }
+        }
+        let uv = match prim.get(&Semantic::TexCoords(0)) {
+            Some(a) if a.dimensions() == Dimensions::Vec2 && a.count() == nv => {
+                Some(read_accessor(&a, buffers, path)?)
+            }
+            _ => None,
+        };
+        // Corner list (indices into this primitive's vertices).
+        let idx: Vec<u32> = match prim.indices() {
+            Some(ia) => {
+                if ia.dimensions() != Dimensions::Scalar {
+                    return Err(Error::format(path, "indices accessor is not SCALAR"));
+                }
+                read_accessor(&ia, buffers, path)?
+                    .into_iter()
+                    .map(|x| x as u32)
+                    .collect()
+            }
+            None => (0..nv as u32).collect(),
+        };
+        if let Some(&bad) = idx.iter().find(|&&i| i as usize >= nv) {
+            return Err(Error::format(
+                path,
+                format!(
+                    "mesh {}: index {bad} out of range ({nv} vertices in the primitive)",
+                    mesh.index()
+                ),
+            ));
+        }
+        let mut tris: Vec<[u32; 3]> = Vec::new();
+        match mode {
+            Mode::Triangles => {
+                tris.extend(idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+            }
+            Mode::TriangleStrip => {
+                for i in 0..idx.len().saturating_sub(2) {
+                    let t = if i % 2 == 0 {
+                        [idx[i], idx[i + 1], idx[i + 2]]
+                    } else {
+                        [idx[i + 1], idx[i], idx[i + 2]]
+                    };
+                    if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
+                        tris.push(t);
+                    }
+                }
+            }
+            Mode::TriangleFan => {
+                for i in 1..idx.len().saturating_sub(1) {
+                    let t = [idx[0], idx[i], idx[i + 1]];
+                    if t[0] != t[1] && t[1] != t[2] && t[0] != t[2] {
+                        tris.push(t);
+                    }
+                }
+            }
+            _ => {}
+        }
+        if uv.is_some() && !acc.any_uvs {
+            acc.uvs = vec![[0.0; 2]; 3 * acc.faces.len()];
+            acc.any_uvs = true;
+        }
+        for t in &mut tris {
+            if flip {
+                t.swap(1, 2);
+            }
+            if acc.any_uvs {
+                for &v in t.iter() {
+                    acc.uvs.push(match &uv {
+                        Some(u) => {
+                            let (s, tt) = (u[2 * v as usize], u[2 * v as usize + 1]);
+                            [s as f32, 1.0 - tt as f32]
+                        }
+                        None => [0.0; 2],
+                    });
+                }
+            }
+            acc.faces.push(t.map(|v| v + base as u32));
+        }
+        // Base colour texture of the material (the first one found is used).
+        if let Some(info) = prim.material().pbr_metallic_roughness().base_color_texture() {
+            let src = info.texture().source();
+            match acc.texture_source {
+                None if !acc.texture_failed => match read_image(&src, buffers, path) {
+                    Ok(t) => {
+                        acc.texture = Some(Arc::new(t));
+                        acc.texture_source = Some(src.index());
+                    }
+                    Err(e) => {
+                        acc.texture_failed = true;
+                        eprintln!("warning: texture not loaded ({e}); continuing without texture");
+                    }
+                },
+                Some(i) if i != src.index() => {
+                    eprintln!(
+                        "warning: {}: several base colour textures; only image {i} is used",
+                        path.display()
+                    );
+                }
+                _ => {}
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Everything needed to write one glTF primitive: split vertices, attributes, embedded PNG.
+struct GlbData {
+    json: serde_json::Value,
+    bin: Vec<u8>,
+}
+
+/// Append `data` to `bin` at a 4-byte aligned offset, returning (offset, length).
+fn push_aligned(bin: &mut Vec<u8>, data: &[u8]) -> (usize, usize) {
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let off = bin.len();
+    bin.extend_from_slice(data);
+    (off, data.len())
+}
+
+fn f32_bytes(v: impl Iterator<Item = f32>) -> Vec<u8> {
+    v.flat_map(f32::to_le_bytes).collect()
+}
+
+/// Build the glTF JSON and binary buffer for `mesh`. Vertices whose corners carry different UVs
+/// are split: output vertices 0..N are the mesh's vertices in order, seam copies follow.
+fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
+    use serde_json::json;
+    let n = mesh.num_vertices();
+    let uvs = mesh.uvs.as_ref().filter(|_| opts.texture);
+    // source vertex of every output vertex, output UV, and output faces.
+    let mut src: Vec<u32> = (0..n as u32).collect();
+    let mut out_faces = mesh.faces.clone();
+    let mut out_uv: Vec<[f32; 2]> = Vec::new();
+    if let Some(uvs) = uvs {
+        out_uv = vec![[0.0; 2]; n];
+        let mut assigned = vec![false; n];
+        let mut seam: HashMap<(u32, [u32; 2]), u32> = HashMap::new();
+        for (f, face) in mesh.faces.iter().enumerate() {
+            for k in 0..3 {
+                let v = face[k] as usize;
+                let uv = uvs[3 * f + k];
+                if !assigned[v] {
+                    assigned[v] = true;
+                    out_uv[v] = uv;
+                } else if out_uv[v].map(f32::to_bits) != uv.map(f32::to_bits) {
+                    let key = (v as u32, uv.map(f32::to_bits));
+                    let id = *seam.entry(key).or_insert_with(|| {
+                        src.push(v as u32);
+                        out_uv.push(uv);
+                        (src.len() - 1) as u32
+                    });
+                    out_faces[f][k] = id;
+                }
+            }
+        }
+    }
+    let m = src.len();
+    let mut bin = Vec::new();
+    let mut views = Vec::new();
+    let mut accessors = Vec::new();
+    let mut attributes = serde_json::Map::new();
+    let mut add = |bin: &mut Vec<u8>,
+                   data: Vec<u8>,
+                   target: Option<u32>,
+                   acc: serde_json::Value|
+     -> usize {
+        let (off, len) = push_aligned(bin, &data);
+        let mut view = json!({"buffer": 0, "byteOffset": off, "byteLength": len});
+        if let Some(t) = target {
+            view["target"] = json!(t);
+        }
+        views.push(view);
+        let mut acc = acc;
+        acc["bufferView"] = json!(views.len() - 1);
+        accessors.push(acc);
+        accessors.len() - 1
+    };
+    let pos: Vec<[f32; 3]> = src.iter().map(|&s| mesh.positions[s as usize]).collect();
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in &pos {
+        for k in 0..3 {
+            if p[k].is_finite() {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+    }
+    if lo[0] > hi[0] {
+        lo = [0.0; 3];
+        hi = [0.0; 3];
+    }
+    let a = add(
+        &mut bin,
+        f32_bytes(pos.iter().flatten().copied()),
+        Some(34962),
+        json!({"componentType": 5126, "count": m, "type": "VEC3", "min": lo, "max": hi}),
+    );
+    attributes.insert("POSITION".into(), json!(a));
+    if let Some(nr) = &mesh.normals {
+        let a = add(
+            &mut bin,
+            f32_bytes(src.iter().flat_map(|&s| nr[s as usize])),
+            Some(34962),
+            json!({"componentType": 5126, "count": m, "type": "VEC3"}),
+        );
+        attributes.insert("NORMAL".into(), json!(a));
+    }
+    if let Some(c) = mesh.colors.as_ref().filter(|_| opts.vertex_colors) {
+        let a = add(
+            &mut bin,
+            f32_bytes(
+                src.iter()
+                    .flat_map(|&s| c[s as usize].map(|x| crate::color::srgb_to_linear(x.clamp(0.0, 1.0)))),
+            ),
+            Some(34962),
+            json!({"componentType": 5126, "count": m, "type": "VEC3"}),
+        );
+        attributes.insert("COLOR_0".into(), json!(a));
+    }
+    if uvs.is_some() {
+        let a = add(
+            &mut bin,
+            f32_bytes(out_uv.iter().flat_map(|uv| [uv[0], 1.0 - uv[1]])),
+            Some(34962),
+            json!({"componentType": 5126, "count": m, "type": "VEC2"}),
+        );
+        attributes.insert("TEXCOORD_0".into(), json!(a));
+    }
+    let ia = add(
+        &mut bin,
+        out_faces
+            .iter()
+            .flatten()
+            .flat_map(|v| v.to_le_bytes())
+            .collect(),
+        Some(34963),
+        json!({"componentType": 5125, "count": 3 * out_faces.len(), "type": "SCALAR"}),
+    );
+    let mut material = json!({
+        "name": "material0",
+        "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+        "doubleSided": false
+    });
+    let mut images = Vec::new();
+    if let (Some(tex), true) = (&mesh.texture, uvs.is_some()) {
+        let png = super::encode_png(tex, path)?;
+        let (off, len) = push_aligned(&mut bin, &png);
+        views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": len}));
+        images.push(json!({"bufferView": views.len() - 1, "mimeType": "image/png"}));
+        material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
+    }
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let mut root = json!({
+        "asset": {"version": "2.0", "generator": "meshmatch"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": attributes, "indices": ia, "material": 0, "mode": 4}]}],
+        "materials": [material],
+        "buffers": [{"byteLength": bin.len()}],
+        "bufferViews": views,
+        "accessors": accessors,
+    });
+    if !images.is_empty() {
+        root["images"] = json!(images);
+        root["samplers"] = json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]);
+        root["textures"] = json!([{"sampler": 0, "source": 0}]);
+    }
+    Ok(GlbData { json: root, bin })
+}
+
+/// Write a binary glTF (GLB): POSITION, NORMAL, COLOR_0 (linear), TEXCOORD_0 (V down) and an
+/// embedded PNG `baseColorTexture`, as enabled by `opts` and present on the mesh. Output vertices
+/// 0..N are the mesh's vertices in order; vertices with several corner UVs get copies after them.
+pub fn save_glb(mesh: &TriMesh, path: &Path, opts: &GlbOptions) -> Result<()> {
+    check_exportable(mesh, path)?;
+    let d = build(mesh, opts, path)?;
+    let mut js = serde_json::to_vec(&d.json).map_err(|e| Error::format(path, e.to_string()))?;
+    while js.len() % 4 != 0 {
+        js.push(b' ');
+    }
+    let total = 12 + 8 + js.len() + 8 + d.bin.len();
+    if total > u32::MAX as usize {
+        return Err(Error::InvalidInput(format!(
+            "{}: mesh too large for GLB (over 4 GiB)",
+            path.display()
+        )));
+    }
+    let mut out = Vec::with_capacity(total);
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
+    out.extend((js.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&js);
+    out.extend((d.bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(&d.bin);
+    write_atomic(path, &out)
+}
+
+/// Write a self-contained glTF JSON file (the buffer embedded as a base64 data URI); same content
+/// and vertex order as `save_glb`.
+pub fn save_gltf(mesh: &TriMesh, path: &Path, opts: &GlbOptions) -> Result<()> {
+    check_exportable(mesh, path)?;
+    let mut d = build(mesh, opts, path)?;
+    d.json["buffers"][0]["uri"] = serde_json::json!(format!(
+        "data:application/octet-stream;base64,{}",
+        base64::encode(&d.bin)
+    ));
+    let js = serde_json::to_vec_pretty(&d.json).map_err(|e| Error::format(path, e.to_string()))?;
+    write_atomic(path, &js)
+}

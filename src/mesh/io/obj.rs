@@ -1,0 +1,434 @@
+//! Wavefront OBJ reader/writer (hand-written) with MTL `map_Kd` textures.
+
+use super::{check_content, check_exportable, fan, finish, write_atomic};
+use crate::{Error, Result, TriMesh};
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Options for `save_obj`.
+#[derive(Clone, Debug)]
+pub struct ObjOptions {
+    /// Write `vn` lines (and `f a/t/n` references) when the mesh has normals.
+    pub normals: bool,
+    /// Write `r g b` after `v x y z` when the mesh has vertex colours.
+    pub vertex_colors: bool,
+}
+
+impl Default for ObjOptions {
+    fn default() -> Self {
+        ObjOptions {
+            normals: true,
+            vertex_colors: true,
+        }
+    }
+}
+
+const NONE: u32 = u32::MAX;
+
+/// The largest forward (positive) reference seen for one kind of index, with its line.
+#[derive(Default)]
+struct MaxRef {
+    index: u64,
+    line: usize,
+}
+
+impl MaxRef {
+    fn note(&mut self, index: u64, line: usize) {
+        if index > self.index {
+            self.index = index;
+            self.line = line;
+        }
+    }
+    fn check(&self, count: usize, what: &str, path: &Path) -> Result<()> {
+        if self.index > count as u64 {
+            return Err(Error::format(
+                path,
+                format!(
+                    "line {}: {what} index {} out of range (the file has {count} {what} entries)",
+                    self.line, self.index
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Resolve an OBJ index token (1-based, or negative = relative to the entries so far) to 0-based.
+fn resolve(
+    tok: &str,
+    count: usize,
+    line: usize,
+    what: &str,
+    max: &mut MaxRef,
+    path: &Path,
+) -> Result<u32> {
+    let v: i64 = tok.parse().map_err(|_| {
+        Error::format(
+            path,
+            format!("line {line}: bad {what} index '{}'", clip(tok)),
+        )
+    })?;
+    if v > 0 {
+        if v > u32::MAX as i64 {
+            return Err(Error::format(
+                path,
+                format!("line {line}: {what} index {v} out of range"),
+            ));
+        }
+        max.note(v as u64, line);
+        Ok((v - 1) as u32)
+    } else if v < 0 {
+        let r = count as i64 + v;
+        if r < 0 {
+            return Err(Error::format(
+                path,
+                format!(
+                    "line {line}: relative {what} index {v} out of range (only {count} so far)"
+                ),
+            ));
+        }
+        Ok(r as u32)
+    } else {
+        Err(Error::format(
+            path,
+            format!("line {line}: {what} index 0 (OBJ indices start at 1)"),
+        ))
+    }
+}
+
+/// A token shortened for messages.
+fn clip(s: &str) -> String {
+    s.chars().take(40).collect()
+}
+
+fn parse_f32(tok: Option<&str>, line: usize, what: &str, path: &Path) -> Result<f32> {
+    let tok = tok.ok_or_else(|| Error::format(path, format!("line {line}: {what} is missing")))?;
+    tok.parse::<f32>().map_err(|_| {
+        Error::format(
+            path,
+            format!("line {line}: {what} is not a number: '{}'", clip(tok)),
+        )
+    })
+}
+
+/// Parse OBJ bytes; `path` names the file in messages and locates MTL files and textures.
+pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
+    check_content(bytes, super::MeshFormat::Obj, path)?;
+    let mut pos: Vec<[f32; 3]> = Vec::new();
+    let mut cols: Vec<[f32; 3]> = Vec::new();
+    let mut tex: Vec<[f32; 2]> = Vec::new();
+    let mut nrm: Vec<[f32; 3]> = Vec::new();
+    let mut faces: Vec<[u32; 3]> = Vec::new();
+    let mut corner_vt: Vec<u32> = Vec::new();
+    let mut corner_vn: Vec<u32> = Vec::new();
+    let (mut max_v, mut max_vt, mut max_vn) = (MaxRef::default(), MaxRef::default(), MaxRef::default());
+    let mut mtllibs: Vec<String> = Vec::new();
+    let mut used_materials: Vec<String> = Vec::new();
+    let mut current_mtl: Option<String> = None;
+    let mut short_faces = 0usize;
+    let mut poly: Vec<[u32; 3]> = Vec::new();
+
+    for (li, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line_no = li + 1;
+        let text = String::from_utf8_lossy(raw);
+        let text = text.split('#').next().unwrap_or("");
+        let mut toks = text.split_ascii_whitespace();
+        let Some(key) = toks.next() else { continue };
+        match key {
+            "v" => {
+                let x = parse_f32(toks.next(), line_no, "x coordinate", path)?;
+                let y = parse_f32(toks.next(), line_no, "y coordinate", path)?;
+                let z = parse_f32(toks.next(), line_no, "z coordinate", path)?;
+                let rest: Vec<&str> = toks.collect();
+                // v x y z [w] or v x y z r g b [a]
+                if rest.len() >= 3 {
+                    let mut c = [0.0f32; 3];
+                    for k in 0..3 {
+                        c[k] = parse_f32(Some(rest[k]), line_no, "vertex colour", path)?;
+                    }
+                    if cols.len() == pos.len() {
+                        cols.push(c);
+                    }
+                } else if let Some(w) = rest.first() {
+                    parse_f32(Some(w), line_no, "w coordinate", path)?;
+                }
+                pos.push([x, y, z]);
+            }
+            "vt" => {
+                let u = parse_f32(toks.next(), line_no, "u coordinate", path)?;
+                let v = match toks.next() {
+                    Some(t) => parse_f32(Some(t), line_no, "v coordinate", path)?,
+                    None => 0.0,
+                };
+                tex.push([u, v]);
+            }
+            "vn" => {
+                let x = parse_f32(toks.next(), line_no, "normal x", path)?;
+                let y = parse_f32(toks.next(), line_no, "normal y", path)?;
+                let z = parse_f32(toks.next(), line_no, "normal z", path)?;
+                nrm.push([x, y, z]);
+            }
+            "f" | "fo" => {
+                poly.clear();
+                for tok in toks {
+                    let mut parts = tok.split('/');
+                    let v = parts.next().unwrap_or("");
+                    let vi = resolve(v, pos.len(), line_no, "vertex", &mut max_v, path)?;
+                    let vt = match parts.next() {
+                        Some(t) if !t.is_empty() => {
+                            resolve(t, tex.len(), line_no, "texture coordinate", &mut max_vt, path)?
+                        }
+                        _ => NONE,
+                    };
+                    let vn = match parts.next() {
+                        Some(t) if !t.is_empty() => {
+                            resolve(t, nrm.len(), line_no, "normal", &mut max_vn, path)?
+                        }
+                        _ => NONE,
+                    };
+                    if parts.next().is_some() {
+                        return Err(Error::format(
+                            path,
+                            format!("line {line_no}: bad face corner '{}'", clip(tok)),
+                        ));
+                    }
+                    poly.push([vi, vt, vn]);
+                }
+                if poly.len() < 3 {
+                    short_faces += 1;
+                    continue;
+                }
+                if let Some(m) = &current_mtl
+                    && used_materials.last() != Some(m)
+                    && !used_materials.contains(m)
+                {
+                    used_materials.push(m.clone());
+                }
+                fan(poly.len(), |a, b, c| {
+                    faces.push([poly[a][0], poly[b][0], poly[c][0]]);
+                    for k in [a, b, c] {
+                        corner_vt.push(poly[k][1]);
+                        corner_vn.push(poly[k][2]);
+                    }
+                });
+            }
+            "mtllib" => {
+                let rest = text.trim_start()[6..].trim();
+                if !rest.is_empty() {
+                    mtllibs.push(rest.to_string());
+                }
+            }
+            "usemtl" => {
+                let rest = text.trim_start()[6..].trim();
+                current_mtl = (!rest.is_empty()).then(|| rest.to_string());
+            }
+            _ => {} // o, g, s, l, p, curves: not part of a triangle mesh
+        }
+    }
+    max_v.check(pos.len(), "vertex", path)?;
+    max_vt.check(tex.len(), "texture coordinate", path)?;
+    max_vn.check(nrm.len(), "normal", path)?;
+    if short_faces > 0 {
+        eprintln!(
+            "warning: {}: skipped {short_faces} faces with fewer than 3 vertices",
+            path.display()
+        );
+    }
+
+    let mut mesh = TriMesh {
+        positions: pos,
+        faces,
+        ..Default::default()
+    };
+    let n = mesh.positions.len();
+    if cols.len() == n && n > 0 {
+        // Some writers use 0..255 colours; scale those to 0..1.
+        let max = cols.iter().flatten().fold(0.0f32, |m, &c| if c.is_finite() { m.max(c) } else { m });
+        if max > 1.0 {
+            cols.iter_mut().flatten().for_each(|c| *c /= 255.0);
+        }
+        mesh.colors = Some(cols);
+    }
+    if corner_vt.iter().any(|&t| t != NONE) {
+        mesh.uvs = Some(
+            corner_vt
+                .iter()
+                .map(|&t| if t == NONE { [0.0; 2] } else { tex[t as usize] })
+                .collect(),
+        );
+    }
+    if !corner_vn.is_empty() && corner_vn.iter().all(|&t| t != NONE) {
+        // OBJ normals are per corner; average the unit corner normals of each vertex.
+        let mut acc = vec![[0.0f32; 3]; n];
+        let mut seen = vec![false; n];
+        for (c, &t) in corner_vn.iter().enumerate() {
+            let v = mesh.faces[c / 3][c % 3] as usize;
+            let nv = glam::Vec3::from(nrm[t as usize]).normalize_or_zero();
+            acc[v] = (glam::Vec3::from(acc[v]) + nv).into();
+            seen[v] = true;
+        }
+        if seen.iter().all(|&s| s) {
+            mesh.normals = Some(
+                acc.into_iter()
+                    .map(|a| glam::Vec3::from(a).normalize_or_zero().into())
+                    .collect(),
+            );
+        }
+    }
+    if !used_materials.is_empty() || !mtllibs.is_empty() {
+        mesh.texture = find_texture(&mtllibs, &used_materials, path);
+    }
+    finish(mesh, path)
+}
+
+/// Resolve a file name written in an MTL/OBJ file relative to `dir`, trying the whole string,
+/// then with backslashes as separators, then its trailing tokens (after `map_Kd` options).
+fn resolve_file(dir: &Path, name: &str) -> Option<PathBuf> {
+    let try_one = |n: &str| {
+        let p = dir.join(n);
+        p.is_file().then_some(p)
+    };
+    if let Some(p) = try_one(name).or_else(|| try_one(&name.replace('\\', "/"))) {
+        return Some(p);
+    }
+    let toks: Vec<&str> = name.split_ascii_whitespace().collect();
+    (0..toks.len()).rev().find_map(|i| try_one(&toks[i..].join(" ")))
+}
+
+/// The texture of the first used material (in face order) whose MTL entry has `map_Kd`.
+fn find_texture(
+    mtllibs: &[String],
+    used: &[String],
+    path: &Path,
+) -> Option<std::sync::Arc<crate::mesh::Texture>> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    // material name -> (map_Kd value, MTL directory)
+    let mut maps: HashMap<String, (String, PathBuf)> = HashMap::new();
+    for lib in mtllibs {
+        let candidates: Vec<String> = if resolve_file(dir, lib).is_some() {
+            vec![lib.clone()]
+        } else {
+            lib.split_ascii_whitespace().map(str::to_string).collect()
+        };
+        for name in candidates {
+            let Some(mtl_path) = resolve_file(dir, &name) else {
+                eprintln!(
+                    "warning: {}: material library '{name}' not found; continuing without it",
+                    path.display()
+                );
+                continue;
+            };
+            let Ok(text) = std::fs::read(&mtl_path) else {
+                eprintln!("warning: {}: cannot read", mtl_path.display());
+                continue;
+            };
+            let text = String::from_utf8_lossy(&text);
+            let mtl_dir = mtl_path.parent().unwrap_or(Path::new(".")).to_path_buf();
+            let mut cur: Option<String> = None;
+            for line in text.lines() {
+                let t = line.trim();
+                let (key, rest) = t.split_once(char::is_whitespace).unwrap_or((t, ""));
+                match key {
+                    "newmtl" => cur = Some(rest.trim().to_string()),
+                    "map_Kd" | "map_kd" => {
+                        if let Some(m) = &cur {
+                            maps.entry(m.clone())
+                                .or_insert((rest.trim().to_string(), mtl_dir.clone()));
+                        }
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    // Materials in face order; with no usemtl at all, a single map_Kd still applies.
+    let order: Vec<&String> = if used.is_empty() {
+        maps.keys().collect()
+    } else {
+        used.iter().collect()
+    };
+    let textured: Vec<&(String, PathBuf)> = order.iter().filter_map(|m| maps.get(*m)).collect();
+    let (name, mtl_dir) = textured.first()?;
+    if textured.iter().any(|t| t.0 != *name) {
+        eprintln!(
+            "warning: {}: several textured materials; only '{name}' is used",
+            path.display()
+        );
+    }
+    match resolve_file(mtl_dir, name) {
+        Some(p) => super::load_texture_or_warn(&p, path),
+        None => {
+            eprintln!(
+                "warning: {}: texture '{name}' not found; continuing without texture",
+                path.display()
+            );
+            None
+        }
+    }
+}
+
+/// Write an OBJ (+ `<stem>.mtl` + `<stem>_texture.png` when the mesh has a texture) keeping the
+/// vertex order; texture coordinates are deduplicated per distinct corner UV.
+pub fn save_obj(mesh: &TriMesh, path: &Path, opts: &ObjOptions) -> Result<()> {
+    check_exportable(mesh, path)?;
+    let mut s = String::with_capacity(64 * (mesh.num_vertices() + mesh.num_faces()));
+    s.push_str("# written by meshmatch\n");
+    let tex_name = super::write_texture_beside(mesh, path)?;
+    if let Some(tex_name) = &tex_name {
+        let stem = path
+            .file_stem()
+            .map(|x| x.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "mesh".into());
+        let mtl_name = format!("{stem}.mtl");
+        let mtl = format!(
+            "# written by meshmatch\nnewmtl material0\nKa 0 0 0\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd {tex_name}\n"
+        );
+        write_atomic(&path.with_file_name(&mtl_name), mtl.as_bytes())?;
+        let _ = writeln!(s, "mtllib {mtl_name}\nusemtl material0");
+    }
+    let colors = mesh.colors.as_ref().filter(|_| opts.vertex_colors);
+    for (i, p) in mesh.positions.iter().enumerate() {
+        let _ = write!(s, "v {} {} {}", p[0], p[1], p[2]);
+        if let Some(c) = colors {
+            let c = c[i];
+            let _ = write!(s, " {} {} {}", c[0], c[1], c[2]);
+        }
+        s.push('\n');
+    }
+    let mut corner_t: Vec<u32> = Vec::new();
+    if let Some(uvs) = &mesh.uvs {
+        let mut ids: HashMap<[u32; 2], u32> = HashMap::new();
+        corner_t.reserve(uvs.len());
+        for uv in uvs {
+            let key = uv.map(f32::to_bits);
+            let next = ids.len() as u32;
+            let id = *ids.entry(key).or_insert_with(|| {
+                let _ = writeln!(s, "vt {} {}", uv[0], uv[1]);
+                next
+            });
+            corner_t.push(id + 1);
+        }
+    }
+    let normals = mesh.normals.as_ref().filter(|_| opts.normals);
+    if let Some(nr) = normals {
+        for n in nr {
+            let _ = writeln!(s, "vn {} {} {}", n[0], n[1], n[2]);
+        }
+    }
+    for (f, face) in mesh.faces.iter().enumerate() {
+        s.push('f');
+        for k in 0..3 {
+            let v = face[k] + 1;
+            match (corner_t.is_empty(), normals.is_some()) {
+                (true, false) => write!(s, " {v}"),
+                (false, false) => write!(s, " {v}/{}", corner_t[3 * f + k]),
+                (true, true) => write!(s, " {v}//{v}"),
+                (false, true) => write!(s, " {v}/{}/{v}", corner_t[3 * f + k]),
+            }
+            .ok();
+        }
+        s.push('\n');
+    }
+    write_atomic(path, s.as_bytes())
+}
