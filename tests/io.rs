@@ -51,7 +51,12 @@ fn every_shared_mesh_loads_with_documented_counts() {
         assert_eq!(m.num_vertices(), nv, "{rel}");
         assert_eq!(m.file_vertex_count, nv, "{rel}");
         assert_eq!(m.file_index.len(), nv);
-        assert!(m.file_index.iter().enumerate().all(|(i, &f)| f as usize == i));
+        assert!(
+            m.file_index
+                .iter()
+                .enumerate()
+                .all(|(i, &f)| f as usize == i)
+        );
         assert_eq!(m.path.as_deref(), Some(data_path(rel).as_path()));
         m.check_usable().unwrap();
         // Euler: a closed surface of genus g has F = 2V - 4 + 4g; with boundaries, F is a bit
@@ -66,7 +71,11 @@ fn every_shared_mesh_loads_with_documented_counts() {
     let uvs = spot.uvs.as_ref().unwrap();
     let distinct: std::collections::HashSet<[u32; 2]> =
         uvs.iter().map(|u| u.map(f32::to_bits)).collect();
-    assert_eq!(distinct.len(), 3225, "Spot's documented texture coordinate count");
+    assert_eq!(
+        distinct.len(),
+        3225,
+        "Spot's documented texture coordinate count"
+    );
     let tex = spot.texture.as_ref().unwrap();
     assert_eq!((tex.image.width(), tex.image.height()), (1024, 1024));
     let horse = load("horse/horse.ply");
@@ -124,8 +133,15 @@ fn tristrip_cow_equals_face_cow() {
             same += 1;
         }
     }
-    println!("orientation agrees on {same} of {} triangles", strips.num_faces());
-    assert_eq!(same, strips.num_faces(), "every strip triangle keeps cow.ply's winding");
+    println!(
+        "orientation agrees on {same} of {} triangles",
+        strips.num_faces()
+    );
+    assert_eq!(
+        same,
+        strips.num_faces(),
+        "every strip triangle keeps cow.ply's winding"
+    );
 }
 
 /// Compare a reloaded mesh with the original. `split` allows GLB seam copies (vertices >= N
@@ -137,7 +153,11 @@ fn assert_round_trip(orig: &TriMesh, back: &TriMesh, what: &str, split: bool) {
     } else {
         assert_eq!(back.num_vertices(), n, "{what}");
     }
-    assert_eq!(&back.positions[..n], &orig.positions[..], "{what}: positions");
+    assert_eq!(
+        &back.positions[..n],
+        &orig.positions[..],
+        "{what}: positions"
+    );
     assert_eq!(back.num_faces(), orig.num_faces(), "{what}");
     let mut copies = 0;
     for (fo, fb) in orig.faces.iter().zip(&back.faces) {
@@ -229,7 +249,12 @@ fn round_trip_all(orig: &TriMesh, label: &str) {
         if ext != "glb" && ext != "gltf" {
             let p2 = dir.join(format!("{label}_2.{ext}"));
             io::save(&back, &p2).unwrap();
-            assert_round_trip(&back, &io::load(&p2).unwrap(), &format!("{label}.{ext} x2"), false);
+            assert_round_trip(
+                &back,
+                &io::load(&p2).unwrap(),
+                &format!("{label}.{ext} x2"),
+                false,
+            );
         }
     }
     // No temporary files are left behind by the atomic writes.
@@ -312,7 +337,10 @@ fn expect_err(path: &Path, needle: &str) -> String {
     };
     println!("{msg}");
     let name = path.file_name().unwrap().to_string_lossy();
-    assert!(msg.contains(&*name), "message does not name the file: {msg}");
+    assert!(
+        msg.contains(&*name),
+        "message does not name the file: {msg}"
+    );
     assert!(msg.contains(needle), "expected '{needle}' in: {msg}");
     assert!(!msg.contains('\n'), "one line: {msg}");
     msg
@@ -436,25 +464,54 @@ fn obj_features_polygons_negative_indices_colours_groups() {
     assert_eq!(m.num_vertices(), 5);
     assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3], [1, 4, 2], [1, 4, 2]]);
     let uv = m.uvs.as_ref().unwrap();
-    assert_eq!(&uv[..6], &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
+    assert_eq!(
+        &uv[..6],
+        &[
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [1.0, 1.0],
+            [0.0, 0.0],
+            [1.0, 1.0],
+            [0.0, 1.0]
+        ]
+    );
     assert_eq!(&uv[6..9], &[[1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
     assert_eq!(&uv[9..], &[[0.0, 0.0]; 3], "corners without vt get (0, 0)");
     assert_eq!(m.colors.as_ref().unwrap()[4], [0.5, 0.5, 0.5]);
-    assert!(m.normals.is_none(), "vertex 4 has no vn, so no per-vertex normals");
+    assert!(
+        m.normals.is_none(),
+        "vertex 4 has no vn, so no per-vertex normals"
+    );
     // Missing MTL/texture: a warning, the mesh still loads.
     let p = dir.join("nomtl.obj");
-    std::fs::write(&p, "mtllib gone.mtl\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n").unwrap();
+    std::fs::write(
+        &p,
+        "mtllib gone.mtl\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n",
+    )
+    .unwrap();
     let m = io::load(&p).unwrap();
     assert!(m.texture.is_none() && m.uvs.is_some());
     let p = dir.join("notex.obj");
-    std::fs::write(dir.join("notex.mtl"), "newmtl x\nmap_Kd -s 1 1 1 absent.png\n").unwrap();
-    std::fs::write(&p, "mtllib notex.mtl\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(
+        dir.join("notex.mtl"),
+        "newmtl x\nmap_Kd -s 1 1 1 absent.png\n",
+    )
+    .unwrap();
+    std::fs::write(
+        &p,
+        "mtllib notex.mtl\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
     assert!(io::load(&p).unwrap().texture.is_none());
     // map_Kd with options, upper-case extension.
     std::fs::copy(data_path("textures/4.png"), dir.join("t.png")).unwrap();
     std::fs::write(dir.join("opt.mtl"), "newmtl x\nmap_Kd -s 1 1 1 t.png\n").unwrap();
     let p = dir.join("OPT.OBJ");
-    std::fs::write(&p, "mtllib opt.mtl\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(
+        &p,
+        "mtllib opt.mtl\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
     assert!(io::load(&p).unwrap().texture.is_some());
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -468,10 +525,19 @@ fn ply_ascii_big_endian_lists_strips_and_unknown_elements() {
     let m = io::load(&p).unwrap();
     assert_eq!(m.faces, vec![[0, 1, 2], [0, 2, 3]]);
     assert_eq!(m.colors.as_ref().unwrap()[1], [0.0, 1.0, 0.0]);
-    assert_eq!(m.uvs.as_ref().unwrap()[5], [0.0, 1.0], "per-face texcoord wins");
+    assert_eq!(
+        m.uvs.as_ref().unwrap()[5],
+        [0.0, 1.0],
+        "per-face texcoord wins"
+    );
     // Big-endian binary with double coordinates, ushort list counts, short indices and a strip.
     let mut b = b"ply\r\nformat binary_big_endian 1.0\r\nelement vertex 4\r\nproperty double x\r\nproperty double y\r\nproperty double z\r\nelement tristrips 1\r\nproperty list ushort short vertex_indices\r\nend_header\r\n".to_vec();
-    for v in [[0.0f64, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]] {
+    for v in [
+        [0.0f64, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0],
+    ] {
         for c in v {
             b.extend(c.to_be_bytes());
         }
@@ -484,7 +550,11 @@ fn ply_ascii_big_endian_lists_strips_and_unknown_elements() {
     let p = dir.join("be.ply");
     std::fs::write(&p, &b).unwrap();
     let m = io::load(&p).unwrap();
-    assert_eq!(m.faces, vec![[0, 1, 2], [2, 1, 3]], "odd strip triangles flip winding");
+    assert_eq!(
+        m.faces,
+        vec![[0, 1, 2], [2, 1, 3]],
+        "odd strip triangles flip winding"
+    );
     assert_eq!(m.positions[3], [1.0, 1.0, 0.0]);
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -494,12 +564,22 @@ fn gltf_node_transforms_strips_and_colours() {
     use serde_json::json;
     // One triangle strip quad, placed twice: node 0 translated, node 1 (child) mirrored in x.
     let mut bin = Vec::new();
-    for p in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]] {
+    for p in [
+        [0.0f32, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0],
+    ] {
         for c in p {
             bin.extend(c.to_le_bytes());
         }
     }
-    for c in [[255u8, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [188, 188, 188, 255]] {
+    for c in [
+        [255u8, 0, 0, 255],
+        [0, 255, 0, 255],
+        [0, 0, 255, 255],
+        [188, 188, 188, 255],
+    ] {
         bin.extend(c);
     }
     for i in [0u16, 1, 2, 3] {
@@ -533,9 +613,17 @@ fn gltf_node_transforms_strips_and_colours() {
     let p = dir.join("t.gltf");
     std::fs::write(&p, serde_json::to_vec(&doc).unwrap()).unwrap();
     let m = io::load(&p).unwrap();
-    assert_eq!(m.num_vertices(), 8, "points primitive skipped, two instances");
+    assert_eq!(
+        m.num_vertices(),
+        8,
+        "points primitive skipped, two instances"
+    );
     assert_eq!(m.positions[1], [11.0, 0.0, 0.0]);
-    assert_eq!(m.positions[5], [9.0, 0.0, 0.0], "child inherits the parent transform");
+    assert_eq!(
+        m.positions[5],
+        [9.0, 0.0, 0.0],
+        "child inherits the parent transform"
+    );
     assert_eq!(m.faces[..2], [[0, 1, 2], [2, 1, 3]]);
     // The mirrored instance flips winding back so its faces stay counter-clockwise.
     assert_eq!(m.faces[2..], [[4, 6, 5], [6, 7, 5]]);

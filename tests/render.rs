@@ -11,7 +11,11 @@ fn sphere(rings: u32, segments: u32) -> TriMesh {
         let theta = std::f32::consts::PI * r as f32 / rings as f32;
         for s in 0..segments {
             let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
-            positions.push([theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()]);
+            positions.push([
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            ]);
         }
     }
     positions.push([0.0, -1.0, 0.0]);
@@ -34,7 +38,13 @@ fn sphere(rings: u32, segments: u32) -> TriMesh {
 fn half_red_half_blue(mesh: &TriMesh) -> Vec<[f32; 3]> {
     mesh.positions
         .iter()
-        .map(|p| if p[0] > 0.0 { [1.0, 0.0, 0.0] } else { [0.0, 0.0, 1.0] })
+        .map(|p| {
+            if p[0] > 0.0 {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.0, 0.0, 1.0]
+            }
+        })
         .collect()
 }
 
@@ -63,8 +73,16 @@ fn half_red_half_blue_sphere_renders_both_colours_on_background() {
     let img = image::open(&out).expect("png").to_rgba8();
     assert_eq!(img.dimensions(), (160, 120));
     // Seen from +Z with +Y up, +X is on the right: red right of centre, blue left of it.
-    assert!(is_red(img.get_pixel(100, 60)), "{:?}", img.get_pixel(100, 60));
-    assert!(is_blue(img.get_pixel(60, 60)), "{:?}", img.get_pixel(60, 60));
+    assert!(
+        is_red(img.get_pixel(100, 60)),
+        "{:?}",
+        img.get_pixel(100, 60)
+    );
+    assert!(
+        is_blue(img.get_pixel(60, 60)),
+        "{:?}",
+        img.get_pixel(60, 60)
+    );
     let red = img.pixels().filter(|p| is_red(p)).count();
     let blue = img.pixels().filter(|p| is_blue(p)).count();
     assert!(red > 1500 && blue > 1500, "red {red} blue {blue}");
@@ -140,9 +158,6 @@ fn bad_inputs_are_errors_not_panics() {
     assert!(render_image(&mesh, Some(&[[1.0, 0.0, 0.0]]), &opts).is_err());
     let empty = TriMesh::new(vec![], vec![]);
     assert!(render_image(&empty, None, &opts).is_err());
-    let zero = RenderOptions {
-        width: 0,
-        ..opts
-    };
+    let zero = RenderOptions { width: 0, ..opts };
     assert!(render_image(&mesh, None, &zero).is_err());
 }

@@ -159,7 +159,12 @@ impl<P: Clone + Send + 'static> Worker<P> {
     }
 
     fn cancel_running(&self) {
-        if let Some(tok) = self.running.lock().unwrap_or_else(|e| e.into_inner()).as_ref() {
+        if let Some(tok) = self
+            .running
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()
+        {
             tok.cancel();
         }
     }

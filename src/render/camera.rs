@@ -86,8 +86,7 @@ impl Camera {
     /// Eye position and orbit target for a mesh frame.
     pub fn eye_target(&self, frame: &Frame) -> (Vec3, Vec3) {
         let (right, up) = self.basis();
-        let target =
-            frame.center + (right * self.pan[0] + up * self.pan[1]) * frame.radius;
+        let target = frame.center + (right * self.pan[0] + up * self.pan[1]) * frame.radius;
         let dist = frame.radius / (FOV_Y_DEG.to_radians() * 0.5).sin() * self.zoom.max(1e-3);
         (target + self.direction() * dist, target)
     }

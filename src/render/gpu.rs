@@ -262,7 +262,11 @@ pub fn display_colors(mesh: &TriMesh, colors: Option<&[[f32; 3]]>) -> Vec<[f32; 
     out.resize(n, DEFAULT_VERTEX_COLOR);
     for c in &mut out {
         for x in c.iter_mut() {
-            *x = if x.is_finite() { x.clamp(0.0, 1.0) } else { 0.0 };
+            *x = if x.is_finite() {
+                x.clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
         }
     }
     out

@@ -77,7 +77,9 @@ impl Headless {
             }
         }
         let adapter = adapter.ok_or_else(|| {
-            Error::InvalidInput(format!("no GPU adapter for offscreen rendering: {last_err}"))
+            Error::InvalidInput(format!(
+                "no GPU adapter for offscreen rendering: {last_err}"
+            ))
         })?;
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("meshmatch headless"),
@@ -162,7 +164,9 @@ pub fn render_image(
     opts: &RenderOptions,
 ) -> Result<image::RgbaImage> {
     if mesh.positions.is_empty() || mesh.faces.is_empty() {
-        return Err(Error::InvalidMesh("nothing to render: mesh has no faces".into()));
+        return Err(Error::InvalidMesh(
+            "nothing to render: mesh has no faces".into(),
+        ));
     }
     Headless::shared()?.render(mesh, colors, opts)
 }
@@ -176,7 +180,10 @@ pub fn render_to_png(
 ) -> Result<()> {
     let img = render_image(mesh, colors, opts)?;
     let mut bytes = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
-        .map_err(|e| Error::format(out, format!("PNG encoding failed: {e}")))?;
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::format(out, format!("PNG encoding failed: {e}")))?;
     crate::mesh::io::write_atomic(out, &bytes)
 }

@@ -95,7 +95,10 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Resu
     if matches!(dims, Dimensions::Mat2 | Dimensions::Mat3 | Dimensions::Mat4) {
         return Err(Error::format(
             path,
-            format!("accessor {}: matrix accessors are not vertex data", acc.index()),
+            format!(
+                "accessor {}: matrix accessors are not vertex data",
+                acc.index()
+            ),
         ));
     }
     let m = dims.multiplicity();
@@ -149,7 +152,9 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Resu
         let bytes = view_bytes(&view)?;
         let stride = view.stride().unwrap_or(elem);
         if stride < elem {
-            return Err(bad(format!("byte stride {stride} smaller than element size {elem}")));
+            return Err(bad(format!(
+                "byte stride {stride} smaller than element size {elem}"
+            )));
         }
         if count > 0 {
             let need = stride
@@ -268,7 +273,10 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     for b in doc.buffers() {
         let data = match b.source() {
             gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
-                Error::format(path, format!("buffer {} refers to a missing BIN chunk", b.index()))
+                Error::format(
+                    path,
+                    format!("buffer {} refers to a missing BIN chunk", b.index()),
+                )
             })?,
             gltf::buffer::Source::Uri(uri) => read_uri(uri, path)?,
         };
@@ -288,7 +296,9 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     let mut acc = Acc::default();
     // (node, world matrix) roots.
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| {
-        (doc.scenes().len() == 1).then(|| doc.scenes().next()).flatten()
+        (doc.scenes().len() == 1)
+            .then(|| doc.scenes().next())
+            .flatten()
     }) {
         Some(scene) => scene.nodes().collect(),
         None => {
@@ -413,9 +423,11 @@ fn read_mesh(
                     acc.colors = vec![[1.0; 3]; base];
                     acc.any_colors = true;
                 }
-                acc.colors.extend(v.chunks_exact(m).map(|c| {
-                    [c[0], c[1], c[2]].map(|x| crate::color::linear_to_srgb(x as f32))
-                }));
+                acc.colors.extend(
+                    v.chunks_exact(m).map(|c| {
+                        [c[0], c[1], c[2]].map(|x| crate::color::linear_to_srgb(x as f32))
+                    }),
+                );
             }
             _ => {
                 if acc.any_colors {
@@ -500,7 +512,11 @@ fn read_mesh(
             acc.faces.push(t.map(|v| v + base as u32));
         }
         // Base colour texture of the material (the first one found is used).
-        if let Some(info) = prim.material().pbr_metallic_roughness().base_color_texture() {
+        if let Some(info) = prim
+            .material()
+            .pbr_metallic_roughness()
+            .base_color_texture()
+        {
             let src = info.texture().source();
             match acc.texture_source {
                 None if !acc.texture_failed => match read_image(&src, buffers, path) {
@@ -584,22 +600,19 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
     let mut views = Vec::new();
     let mut accessors = Vec::new();
     let mut attributes = serde_json::Map::new();
-    let mut add = |bin: &mut Vec<u8>,
-                   data: Vec<u8>,
-                   target: Option<u32>,
-                   acc: serde_json::Value|
-     -> usize {
-        let (off, len) = push_aligned(bin, &data);
-        let mut view = json!({"buffer": 0, "byteOffset": off, "byteLength": len});
-        if let Some(t) = target {
-            view["target"] = json!(t);
-        }
-        views.push(view);
-        let mut acc = acc;
-        acc["bufferView"] = json!(views.len() - 1);
-        accessors.push(acc);
-        accessors.len() - 1
-    };
+    let mut add =
+        |bin: &mut Vec<u8>, data: Vec<u8>, target: Option<u32>, acc: serde_json::Value| -> usize {
+            let (off, len) = push_aligned(bin, &data);
+            let mut view = json!({"buffer": 0, "byteOffset": off, "byteLength": len});
+            if let Some(t) = target {
+                view["target"] = json!(t);
+            }
+            views.push(view);
+            let mut acc = acc;
+            acc["bufferView"] = json!(views.len() - 1);
+            accessors.push(acc);
+            accessors.len() - 1
+        };
     let pos: Vec<[f32; 3]> = src.iter().map(|&s| mesh.positions[s as usize]).collect();
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
@@ -634,10 +647,9 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
     if let Some(c) = mesh.colors.as_ref().filter(|_| opts.vertex_colors) {
         let a = add(
             &mut bin,
-            f32_bytes(
-                src.iter()
-                    .flat_map(|&s| c[s as usize].map(|x| crate::color::srgb_to_linear(x.clamp(0.0, 1.0)))),
-            ),
+            f32_bytes(src.iter().flat_map(|&s| {
+                c[s as usize].map(|x| crate::color::srgb_to_linear(x.clamp(0.0, 1.0)))
+            })),
             Some(34962),
             json!({"componentType": 5126, "count": m, "type": "VEC3"}),
         );
@@ -691,7 +703,8 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
     });
     if !images.is_empty() {
         root["images"] = json!(images);
-        root["samplers"] = json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]);
+        root["samplers"] =
+            json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]);
         root["textures"] = json!([{"sampler": 0, "source": 0}]);
     }
     Ok(GlbData { json: root, bin })

@@ -149,9 +149,8 @@ fn check_content(bytes: &[u8], fmt: MeshFormat, path: &Path) -> Result<()> {
 /// Load a mesh by file extension (.obj, .ply, .gltf, .glb, case-insensitive), checking that the
 /// content matches the extension. Sets `path`, the identity `file_index` and `file_vertex_count`.
 pub fn load(path: &Path) -> Result<TriMesh> {
-    let fmt = MeshFormat::from_path(path).ok_or_else(|| Error::UnsupportedFormat {
-        path: path.into(),
-    })?;
+    let fmt = MeshFormat::from_path(path)
+        .ok_or_else(|| Error::UnsupportedFormat { path: path.into() })?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     load_format_bytes(&bytes, fmt, path)
 }
@@ -159,9 +158,8 @@ pub fn load(path: &Path) -> Result<TriMesh> {
 /// Load a mesh from bytes, choosing the format by `path`'s extension; `path` names the file in
 /// messages and is the base for relative references (MTL files, textures, glTF buffers).
 pub fn load_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
-    let fmt = MeshFormat::from_path(path).ok_or_else(|| Error::UnsupportedFormat {
-        path: path.into(),
-    })?;
+    let fmt = MeshFormat::from_path(path)
+        .ok_or_else(|| Error::UnsupportedFormat { path: path.into() })?;
     load_format_bytes(bytes, fmt, path)
 }
 
@@ -290,7 +288,11 @@ fn check_exportable(mesh: &TriMesh, path: &Path) -> Result<()> {
     if mesh.faces.iter().flatten().any(|&v| v as usize >= n) {
         return bad("face index out of range");
     }
-    if mesh.uvs.as_ref().is_some_and(|u| u.len() != 3 * mesh.faces.len()) {
+    if mesh
+        .uvs
+        .as_ref()
+        .is_some_and(|u| u.len() != 3 * mesh.faces.len())
+    {
         return bad("uvs must have 3 entries per face");
     }
     if mesh.normals.as_ref().is_some_and(|v| v.len() != n) {

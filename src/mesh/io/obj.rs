@@ -122,7 +122,8 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     let mut faces: Vec<[u32; 3]> = Vec::new();
     let mut corner_vt: Vec<u32> = Vec::new();
     let mut corner_vn: Vec<u32> = Vec::new();
-    let (mut max_v, mut max_vt, mut max_vn) = (MaxRef::default(), MaxRef::default(), MaxRef::default());
+    let (mut max_v, mut max_vt, mut max_vn) =
+        (MaxRef::default(), MaxRef::default(), MaxRef::default());
     let mut mtllibs: Vec<String> = Vec::new();
     let mut used_materials: Vec<String> = Vec::new();
     let mut current_mtl: Option<String> = None;
@@ -176,9 +177,14 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
                     let v = parts.next().unwrap_or("");
                     let vi = resolve(v, pos.len(), line_no, "vertex", &mut max_v, path)?;
                     let vt = match parts.next() {
-                        Some(t) if !t.is_empty() => {
-                            resolve(t, tex.len(), line_no, "texture coordinate", &mut max_vt, path)?
-                        }
+                        Some(t) if !t.is_empty() => resolve(
+                            t,
+                            tex.len(),
+                            line_no,
+                            "texture coordinate",
+                            &mut max_vt,
+                            path,
+                        )?,
                         _ => NONE,
                     };
                     let vn = match parts.next() {
@@ -244,7 +250,10 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     let n = mesh.positions.len();
     if cols.len() == n && n > 0 {
         // Some writers use 0..255 colours; scale those to 0..1.
-        let max = cols.iter().flatten().fold(0.0f32, |m, &c| if c.is_finite() { m.max(c) } else { m });
+        let max = cols
+            .iter()
+            .flatten()
+            .fold(0.0f32, |m, &c| if c.is_finite() { m.max(c) } else { m });
         if max > 1.0 {
             cols.iter_mut().flatten().for_each(|c| *c /= 255.0);
         }
@@ -293,7 +302,9 @@ fn resolve_file(dir: &Path, name: &str) -> Option<PathBuf> {
         return Some(p);
     }
     let toks: Vec<&str> = name.split_ascii_whitespace().collect();
-    (0..toks.len()).rev().find_map(|i| try_one(&toks[i..].join(" ")))
+    (0..toks.len())
+        .rev()
+        .find_map(|i| try_one(&toks[i..].join(" ")))
 }
 
 /// The texture of the first used material (in face order) whose MTL entry has `map_Kd`.

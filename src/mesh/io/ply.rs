@@ -239,7 +239,9 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<Header> {
             }
             "property" => {
                 let el = elements.last_mut().ok_or_else(|| {
-                    bad(format!("header line {line_no}: property before any element"))
+                    bad(format!(
+                        "header line {line_no}: property before any element"
+                    ))
                 })?;
                 let t = toks.next().unwrap_or("");
                 let kind = if t == "list" {
@@ -644,9 +646,14 @@ pub fn save_ply(mesh: &TriMesh, path: &Path, opts: &PlyOptions) -> Result<()> {
     let normals = mesh.normals.as_ref().filter(|_| opts.normals);
     let colors = mesh.colors.as_ref().filter(|_| opts.vertex_colors);
     let vuv = super::per_vertex_uvs(mesh);
-    let face_uv = if vuv.is_none() { mesh.uvs.as_ref() } else { None };
+    let face_uv = if vuv.is_none() {
+        mesh.uvs.as_ref()
+    } else {
+        None
+    };
     let tex_name = super::write_texture_beside(mesh, path)?;
-    let mut h = String::from("ply\nformat binary_little_endian 1.0\ncomment written by meshmatch\n");
+    let mut h =
+        String::from("ply\nformat binary_little_endian 1.0\ncomment written by meshmatch\n");
     if let Some(t) = &tex_name {
         h.push_str(&format!("comment TextureFile {t}\n"));
     }
