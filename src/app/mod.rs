@@ -202,30 +202,30 @@ where
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
                 let mut result: Result<()> = Ok(());
-                if ui.button("Open source mesh…").clicked()
+                if ui.button("Open source mesh...").clicked()
                     && let Some(p) = self.open_dialog("Open source mesh")
                 {
                     result = self.state.open_mesh(Side::Source, &p);
                     self.views.frame_all();
                 }
-                if ui.button("Open target mesh…").clicked()
+                if ui.button("Open target mesh...").clicked()
                     && let Some(p) = self.open_dialog("Open target mesh")
                 {
                     result = self.state.open_mesh(Side::Target, &p);
                     self.views.frame_all();
                 }
-                if ui.button("Open source texture…").clicked()
+                if ui.button("Open source texture...").clicked()
                     && let Some(p) = self.open_dialog("Open texture")
                 {
                     result = self.state.open_texture(&p);
                 }
-                if ui.button("Open correspondences…").clicked()
+                if ui.button("Open correspondences...").clicked()
                     && let Some(p) = self.open_dialog("Open correspondences")
                 {
                     result = crate::jobs::CorrespondenceFile::load(&p)
                         .and_then(|f| self.state.set_correspondences(f.correspondences));
                 }
-                if ui.button("Save correspondences…").clicked()
+                if ui.button("Save correspondences...").clicked()
                     && let Some(p) = rfd::FileDialog::new()
                         .add_filter("json", &["json"])
                         .save_file()
@@ -236,7 +236,7 @@ where
                     .save(&p);
                 }
                 ui.separator();
-                if ui.button("Export result…").clicked()
+                if ui.button("Export result...").clicked()
                     && let Some(p) = rfd::FileDialog::new()
                         .add_filter("mesh", &["ply", "glb", "obj"])
                         .save_file()
@@ -244,7 +244,7 @@ where
                     result = self.state.export_result(&p);
                 }
                 for side in [Side::Source, Side::Target] {
-                    if ui.button(format!("Export painted {side:?}…")).clicked()
+                    if ui.button(format!("Export painted {side:?}...")).clicked()
                         && let Some(p) = rfd::FileDialog::new()
                             .add_filter("mesh", &["ply", "glb", "obj"])
                             .save_file()
@@ -256,13 +256,13 @@ where
                     }
                 }
                 ui.separator();
-                if ui.button("Open session…").clicked()
+                if ui.button("Open session...").clicked()
                     && let Some(p) = self.open_dialog("Open session")
                 {
                     result = self.state.open_session(&p);
                     self.views.frame_all();
                 }
-                if ui.button("Save session…").clicked()
+                if ui.button("Save session...").clicked()
                     && let Some(p) = rfd::FileDialog::new()
                         .add_filter("session", &["json"])
                         .save_file()
@@ -387,9 +387,9 @@ where
                     }
                     let targets: Vec<String> =
                         c.target_vertices.iter().map(|t| t.to_string()).collect();
-                    ui.label(format!("{} → {}", c.source_vertex, targets.join(", ")));
+                    ui.label(format!("{} -> {}", c.source_vertex, targets.join(", ")));
                     if ui
-                        .small_button("✖")
+                        .small_button("x")
                         .on_hover_text("Delete this pair")
                         .clicked()
                     {
@@ -448,7 +448,7 @@ where
             } else if !j.outcome.is_empty() {
                 ui.label(format!("transfer {}", j.outcome));
             } else if self.state.restart_pending() {
-                ui.label("transfer starting…");
+                ui.label("transfer starting...");
             }
             ui.separator();
             ui.label(&self.state.message);
@@ -467,20 +467,20 @@ where
             .show(ctx, |ui| {
                 ui.label(
                     "Mouse (either view)\n\
-                     • Orbit: left-drag, or Alt + left-drag\n\
-                     • Pan: middle-drag, or Shift + left-drag\n\
-                     • Zoom: mouse wheel\n\
-                     • Cameras are locked by default (View > Lock cameras): both views move \
+                     - Orbit: left-drag, or Alt + left-drag\n\
+                     - Pan: middle-drag, or Shift + left-drag\n\
+                     - Zoom: mouse wheel\n\
+                     - Cameras are locked by default (View > Lock cameras): both views move \
                        together relative to each mesh's bounds.\n\n\
                      Correspondences\n\
-                     • Click a source point, then a target point: adds a numbered pair.\n\
-                     • Shift-click on the target: adds another target point to the selected pair.\n\
-                     • Click a marker to select it; drag it to move it; Delete removes it.\n\n\
+                     - Click a source point, then a target point: adds a numbered pair.\n\
+                     - Shift-click on the target: adds another target point to the selected pair.\n\
+                     - Click a marker to select it; drag it to move it; Delete removes it.\n\n\
                      Painting (Tool: Paint)\n\
-                     • Left-drag paints with the brush, Alt + left-drag orbits.\n\n\
+                     - Left-drag paints with the brush, Alt + left-drag orbits.\n\n\
                      Keys\n\
-                     • F frame all • H help • Ctrl+Z undo • Ctrl+Shift+Z redo • Delete remove\n\
-                     • Drop a mesh file on a view to open it there.",
+                     - F frame all - H help - Ctrl+Z undo - Ctrl+Shift+Z redo - Delete remove\n\
+                     - Drop a mesh file on a view to open it there.",
                 );
             });
         self.show_help = open;

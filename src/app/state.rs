@@ -396,6 +396,7 @@ impl<P: AppParams> AppState<P> {
                 mesh_id,
                 working,
                 working_to_file,
+                file_to_working,
             } => {
                 let Some(slot) = self.slot_mut(side) else {
                     return;
@@ -403,14 +404,23 @@ impl<P: AppParams> AppState<P> {
                 if slot.id != mesh_id {
                     return;
                 }
-                let mut f2w = vec![u32::MAX; slot.file.positions.len()];
-                for (w, &f) in working_to_file.iter().enumerate() {
-                    if let Some(e) = f2w.get_mut(f as usize)
-                        && *e == u32::MAX
-                    {
-                        *e = w as u32;
+                let nw = working.positions.len() as u32;
+                let f2w: Vec<u32> = if file_to_working.len() == slot.file.positions.len() {
+                    file_to_working
+                        .iter()
+                        .map(|&w| if w < nw { w } else { u32::MAX })
+                        .collect()
+                } else {
+                    let mut f2w = vec![u32::MAX; slot.file.positions.len()];
+                    for (w, &f) in working_to_file.iter().enumerate() {
+                        if let Some(e) = f2w.get_mut(f as usize)
+                            && *e == u32::MAX
+                        {
+                            *e = w as u32;
+                        }
                     }
-                }
+                    f2w
+                };
                 slot.base_colors = match side {
                     Side::Source => crate::render::display_colors(&working, None),
                     Side::Target => {

@@ -44,6 +44,8 @@ pub struct Views {
     painting: bool,
     /// Milliseconds spent encoding+submitting the last redraw of each view.
     pub last_draw_ms: [f32; 2],
+    /// Screen rectangles of the two views in the last frame (points).
+    pub rects: [Rect; 2],
 }
 
 impl Default for Views {
@@ -58,6 +60,7 @@ impl Default for Views {
             dragging_marker: None,
             painting: false,
             last_draw_ms: [0.0; 2],
+            rects: [Rect::NOTHING; 2],
         }
     }
 }
@@ -195,6 +198,7 @@ impl Views {
                 Vec2::new(half, full.height()),
             ),
         ];
+        self.rects = rects;
         let mut dropped = None;
         for (i, rect) in rects.into_iter().enumerate() {
             let side = if i == 0 { Side::Source } else { Side::Target };
@@ -290,7 +294,7 @@ impl Views {
     }
 
     /// Screen position of a file vertex's marker.
-    fn marker_pos(
+    pub fn marker_pos(
         &self,
         state: &AppState<impl AppParams>,
         side: Side,
@@ -376,7 +380,12 @@ impl Views {
                 }
             } else if !mods.alt
                 && !mods.shift
-                && let Some(sel) = self.marker_under(state, side, rect, pos)
+                && let Some(sel) = self.marker_under(
+                    state,
+                    side,
+                    rect,
+                    ui.input(|i| i.pointer.press_origin()).unwrap_or(pos),
+                )
             {
                 state.select(Some(sel));
                 self.dragging_marker = Some(sel);

@@ -49,8 +49,8 @@ pub trait Engine: Send + 'static {
         sink: &dyn Fn(Event),
         cancel: &CancelToken,
     ) -> Result<Self::Prepared>;
-    /// The working mesh of a prepared mesh and its working-to-file vertex map.
-    fn working(&self, prepared: &Self::Prepared) -> (Arc<TriMesh>, Arc<[u32]>);
+    /// The working mesh of a prepared mesh, its working-to-file and file-to-working vertex maps.
+    fn working(&self, prepared: &Self::Prepared) -> (Arc<TriMesh>, Arc<[u32]>, Arc<[u32]>);
     /// Transfer from `source` to `target` under correspondences in file vertex indices.
     fn solve(
         &self,
@@ -97,6 +97,8 @@ pub enum WorkerEvent {
         working: Arc<TriMesh>,
         /// File vertex index of each working vertex.
         working_to_file: Arc<[u32]>,
+        /// Working vertex index of each file vertex.
+        file_to_working: Arc<[u32]>,
     },
     /// A progress or partial-result event of job `job`.
     Job {
@@ -311,12 +313,13 @@ fn run_job<E: Engine>(
         if !cache.contains_key(&k) {
             cancel.check()?;
             let prepared = engine.prepare(&entry.mesh, params, &sink, cancel)?;
-            let (working, working_to_file) = engine.working(&prepared);
+            let (working, working_to_file, file_to_working) = engine.working(&prepared);
             let _ = etx.send(WorkerEvent::Prepared {
                 side,
                 mesh_id: entry.id,
                 working,
                 working_to_file,
+                file_to_working,
             });
             notify();
             cache.insert(k, prepared);

@@ -1,0 +1,137 @@
+//! The MeshMatch engine behind the app's worker, and the parameter editors.
+
+use std::sync::Arc;
+
+use eframe::egui;
+
+use super::state::AppParams;
+use crate::jobs::worker::{Engine, Solved};
+use crate::jobs::{CancelToken, Correspondence, Event};
+use crate::meshmatch::{self, PreparedMesh, TransferParams};
+use crate::{Result, TriMesh};
+
+/// [`crate::meshmatch`] as a worker engine: `prepare` once per mesh and preparation parameters,
+/// `solve` per correspondence edit.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MeshMatchEngine;
+
+impl Engine for MeshMatchEngine {
+    type Params = TransferParams;
+    type Prepared = PreparedMesh;
+
+    fn prepare_key(&self, p: &TransferParams) -> String {
+        // Everything `prepare` reads: working density, hierarchy depth and fan radius.
+        format!("{}|{:?}|{}", p.vertices, p.levels, p.fan_radius)
+    }
+
+    fn prepare(
+        &self,
+        mesh: &TriMesh,
+        params: &TransferParams,
+        sink: &dyn Fn(Event),
+        cancel: &CancelToken,
+    ) -> Result<PreparedMesh> {
+        meshmatch::prepare(mesh, params, sink, cancel)
+    }
+
+    fn working(&self, p: &PreparedMesh) -> (Arc<TriMesh>, Arc<[u32]>, Arc<[u32]>) {
+        (
+            Arc::new(p.working_mesh().clone()),
+            p.working_to_file().into(),
+            p.file_to_working().into(),
+        )
+    }
+
+    fn solve(
+        &self,
+        source: &PreparedMesh,
+        target: &PreparedMesh,
+        corr: &[Correspondence],
+        params: &TransferParams,
+        sink: &dyn Fn(Event),
+        cancel: &CancelToken,
+    ) -> Result<Solved> {
+        let r = meshmatch::solve(source, target, corr, params, sink, cancel)?;
+        Ok(Solved {
+            working_signal: r.working_signal,
+            file_signal: r.file_signal,
+        })
+    }
+}
+
+impl AppParams for TransferParams {
+    fn ui(&mut self, ui: &mut egui::Ui) -> bool {
+        let mut changed = false;
+        egui::Grid::new("params").num_columns(2).show(ui, |ui| {
+            ui.label("Working vertices");
+            changed |= ui
+                .add(
+                    egui::DragValue::new(&mut self.vertices)
+                        .range(500..=400_000)
+                        .speed(500.0),
+                )
+                .on_hover_text(
+                    "Meshes with fewer vertices are refined up to this count before matching \
+                     (paper: 64K). Changing it re-prepares both meshes.",
+                )
+                .changed();
+            ui.end_row();
+            ui.label("Levels");
+            let mut auto = self.levels.is_none();
+            ui.horizontal(|ui| {
+                if ui
+                    .checkbox(&mut auto, "auto")
+                    .on_hover_text("Hierarchy levels down to about 128 vertices")
+                    .changed()
+                {
+                    self.levels = if auto { None } else { Some(6) };
+                    changed = true;
+                }
+                if let Some(l) = self.levels.as_mut() {
+                    changed |= ui
+                        .add(egui::DragValue::new(l).range(1..=16))
+                        .on_hover_text("Number of coarse-to-fine hierarchy levels")
+                        .changed();
+                }
+            });
+            ui.end_row();
+            ui.label("Iterations");
+            changed |= ui
+                .add(egui::DragValue::new(&mut self.iterations).range(1..=50))
+                .on_hover_text("EM iterations per level (paper: 5)")
+                .changed();
+            ui.end_row();
+            ui.label("Shape weight");
+            changed |= ui
+                .add(egui::Slider::new(&mut self.shape_weight, 0.0..=10.0).logarithmic(true))
+                .on_hover_text(
+                    "Weight of the shape features relative to the colour fans \
+                     (1 = equal after normalisation; higher follows geometry more)",
+                )
+                .changed();
+            ui.end_row();
+            ui.label("Fan radius");
+            changed |= ui
+                .add(egui::Slider::new(&mut self.fan_radius, 0.5..=8.0))
+                .on_hover_text("Colour fan radius in mean edge lengths of each level")
+                .changed();
+            ui.end_row();
+            ui.label("Seed");
+            changed |= ui
+                .add(egui::DragValue::new(&mut self.seed))
+                .on_hover_text("Random seed; results are deterministic for a given seed")
+                .changed();
+            ui.end_row();
+            ui.label("Sharpen");
+            changed |= ui
+                .checkbox(&mut self.sharpen, "")
+                .on_hover_text(
+                    "Final nearest-neighbour copy at the finest level instead of the \
+                     filtered vote (crisper edges)",
+                )
+                .changed();
+            ui.end_row();
+        });
+        changed
+    }
+}
