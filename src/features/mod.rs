@@ -140,42 +140,12 @@ pub fn edge_geodesics(level: &Level, sources: &[u32]) -> Vec<f32> {
     dist
 }
 
-/// Cotan Laplacian (dense, positive semi-definite) and lumped barycentric mass of a small mesh.
-fn dense_cotan(positions: &[Vec3], faces: &[[u32; 3]]) -> (faer::Mat<f64>, Vec<f64>) {
-    let n = positions.len();
-    let mut l = faer::Mat::<f64>::zeros(n, n);
-    let mut mass = vec![0.0f64; n];
-    for f in faces {
-        let p = f.map(|i| positions[i as usize].as_dvec3());
-        let area = 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
-        if area <= 1e-300 {
-            continue;
-        }
-        for k in 0..3 {
-            mass[f[k] as usize] += area / 3.0;
-            // Angle at corner k is opposite edge (k+1, k+2).
-            let (i, j) = (f[(k + 1) % 3] as usize, f[(k + 2) % 3] as usize);
-            let u = p[(k + 1) % 3] - p[k];
-            let v = p[(k + 2) % 3] - p[k];
-            let cot = u.dot(v) / u.cross(v).length().max(1e-300);
-            let w = 0.5 * cot;
-            l[(i, j)] -= w;
-            l[(j, i)] -= w;
-            l[(i, i)] += w;
-            l[(j, j)] += w;
-        }
-    }
-    for m in mass.iter_mut() {
-        *m = m.max(1e-12);
-    }
-    (l, mass)
-}
-
-/// Heat Kernel Signature (Sun, Ovsjanikov & Guibas 2009) on a small mesh, scaled to unit area:
-/// HKS(v, t) = sum_i exp(-λ_i t) φ_i(v)^2 for the full spectrum of L φ = λ M φ (cotan Laplacian,
-/// lumped mass), at 8 times log-spaced in [4 ln10 / λ_max, 4 ln10 / λ_2], divided by the heat
-/// trace sum_i exp(-λ_i t) and log-scaled. Returns `n * HKS_TIMES` values.
-pub fn hks_dense(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Result<Vec<f32>> {
+/// Heat Kernel Signature (Sun, Ovsjanikov & Guibas 2009) of a small mesh scaled to unit area:
+/// HKS(v, t) = sum_i exp(-λ_i t) φ_i(v)^2 over the smallest eigenpairs of L φ = λ M φ
+/// (`geometry::laplacian_eigen`), at 8 times log-spaced in [4 ln10 / λ_max, 4 ln10 / λ_1]
+/// (`geometry::hks_times`), divided by the heat trace sum_i exp(-λ_i t) and log-scaled.
+/// Returns `n * HKS_TIMES` values.
+pub fn hks_scaled(positions: &[[f32; 3]], faces: &[[u32; 3]], k: usize) -> Result<Vec<f32>> {
     let n = positions.len();
     if n < 4 {
         return Err(Error::InvalidMesh("HKS: mesh too small".into()));
@@ -186,43 +156,33 @@ pub fn hks_dense(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Result<Vec<f32>>
         area += 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length();
     }
     let s = if area > 0.0 { 1.0 / area.sqrt() } else { 1.0 } as f32;
-    let pts: Vec<Vec3> = positions.iter().map(|p| Vec3::from(*p) * s).collect();
-    let (l, mass) = dense_cotan(&pts, faces);
-    let isq: Vec<f64> = mass.iter().map(|m| 1.0 / m.sqrt()).collect();
-    let a = faer::Mat::<f64>::from_fn(n, n, |i, j| l[(i, j)] * isq[i] * isq[j]);
-    let eig = a
-        .self_adjoint_eigen(faer::Side::Lower)
-        .map_err(|e| Error::InvalidMesh(format!("HKS eigen-decomposition failed: {e:?}")))?;
-    let u = eig.U();
-    let lam: Vec<f64> = (0..n).map(|i| eig.S()[i].max(0.0)).collect();
-    let lam2 = lam
-        .iter()
-        .copied()
-        .find(|&x| x > 1e-8)
-        .unwrap_or(1.0)
-        .max(1e-8);
-    let lmax = lam[n - 1].max(lam2 * 2.0);
-    let (t0, t1) = (4.0 * 10f64.ln() / lmax, 4.0 * 10f64.ln() / lam2);
-    let times: Vec<f64> = (0..HKS_TIMES)
-        .map(|k| t0 * (t1 / t0).powf(k as f64 / (HKS_TIMES - 1) as f64))
-        .collect();
-    let mut out = vec![0.0f32; n * HKS_TIMES];
-    for (k, &t) in times.iter().enumerate() {
-        let w: Vec<f64> = lam.iter().map(|&x| (-x * t).exp()).collect();
-        let trace: f64 = w.iter().sum();
-        for v in 0..n {
-            let mut h = 0.0;
-            for (i, &wi) in w.iter().enumerate() {
-                if wi < 1e-14 {
-                    continue;
-                }
-                let phi = u[(v, i)] * isq[v];
-                h += wi * phi * phi;
-            }
-            out[v * HKS_TIMES + k] = ((h / trace).max(1e-30)).ln() as f32;
-        }
+    let pts: Vec<[f32; 3]> = positions.iter().map(|p| p.map(|x| x * s)).collect();
+    let k = k.min(n - 1).max(2);
+    let (evals, evecs) = crate::geometry::laplacian_eigen(&pts, faces, k)?;
+    let times = crate::geometry::hks_times(&evals, HKS_TIMES);
+    if times.len() != HKS_TIMES {
+        return Err(Error::InvalidMesh("HKS: degenerate spectrum".into()));
     }
-    Ok(out)
+    let raw = crate::geometry::hks(&evals, &evecs, &times);
+    let traces: Vec<f64> = times
+        .iter()
+        .map(|&t| {
+            evals
+                .iter()
+                .map(|&l| (-l * t).exp())
+                .sum::<f64>()
+                .max(1e-30)
+        })
+        .collect();
+    Ok(raw
+        .chunks(HKS_TIMES)
+        .flat_map(|row| {
+            row.iter()
+                .zip(&traces)
+                .map(|(&h, &tr)| ((h as f64 / tr).max(1e-30)).ln() as f32)
+                .collect::<Vec<_>>()
+        })
+        .collect())
 }
 
 /// Automatic shape features per level: 8 HKS scales computed on the level closest to
@@ -234,7 +194,7 @@ pub fn shape_features(h: &Hierarchy, hks_vertices: usize) -> Result<Vec<Vec<f32>
     let lc = (0..h.num_levels())
         .find(|&l| h.levels[l].len() <= hks_vertices)
         .unwrap_or(h.top());
-    let base = hks_dense(&h.levels[lc].positions, &h.levels[lc].faces)?;
+    let base = hks_scaled(&h.levels[lc].positions, &h.levels[lc].faces, 120)?;
     let mut hks: Vec<Vec<f32>> = vec![Vec::new(); h.num_levels()];
     hks[lc] = base;
     for l in (0..lc).rev() {
@@ -378,14 +338,182 @@ pub fn min_norm_affine(target_rows: &[Vec<f32>], source_rows: &[Vec<f32>], k: us
     out
 }
 
-/// Geodesic fans (Zelinka & Garland 2004, as used by MeshMatch §3.1) of a signal on one level:
-/// for every vertex, `FAN_RADII x FAN_ANGLES` samples of the signal at polar positions
-/// (r_k = (k+1)/R * radius, θ_a = a * 20°) in the vertex's tangent frame. The surrounding vertices
-/// (graph walk up to radius + 2σ) are unfolded into the tangent plane (direction projected,
-/// length kept = Euclidean distance as the local geodesic) and splatted into the bins with
-/// Gaussian weights exp(-|x - bin|² / 2σ²), σ = 0.6 mean edge lengths (the pre-filter); empty bins
-/// take the value one ring inwards (the centre vertex for the first ring).
-/// Layout: `fans[((v * R + r) * A + a) * C + c]`, `C = channels`.
+/// Entries kept per fan bin by [`FanSampler`].
+pub const FAN_TAPS: usize = 3;
+
+/// A precomputed fan sampling table of one level: for every vertex and fan bin, the `FAN_TAPS`
+/// vertices with the largest Gaussian splat weights and their normalised weights. Building it
+/// costs one geodesic-neighbourhood walk per vertex; applying it to a signal is a cheap gather,
+/// so target fans can be recomputed after every M-step.
+#[derive(Clone, Debug, Default)]
+pub struct FanSampler {
+    /// `idx[(v * R * A + bin) * FAN_TAPS + k]`.
+    pub idx: Vec<u32>,
+    /// Matching weights (sum 1 per bin).
+    pub w: Vec<f32>,
+}
+
+impl FanSampler {
+    /// Geodesic fans (Zelinka & Garland 2004, as used by MeshMatch §3.1) of one level: every
+    /// vertex's bins at polar positions (r_k = (k+1)/R * radius, θ_a = a * 20°) in its tangent
+    /// frame. The surrounding vertices (graph walk up to radius + 2.5σ) are unfolded into the
+    /// tangent plane (direction projected, length kept = Euclidean distance as the local geodesic)
+    /// and weighted by exp(-|x - bin|² / 2σ²), σ = 0.6 mean edge lengths; the `FAN_TAPS` largest
+    /// weights are kept and normalised. Empty bins take the entries one ring inwards (the centre
+    /// vertex for the first ring).
+    pub fn new(level: &Level, frames: &Frames, radius: f32) -> FanSampler {
+        let n = level.len();
+        let nb = FAN_RADII * FAN_ANGLES;
+        let per = nb * FAN_TAPS;
+        let mut idx = vec![0u32; n * per];
+        let mut wts = vec![0.0f32; n * per];
+        let sigma = 0.6 * level.mean_edge;
+        // Gaussian cut-off at 2.5σ (weight 0.044).
+        let cut = 2.5 * sigma;
+        let reach = radius + cut;
+        let step = ANGLE_STEP_DEG.to_radians();
+        let inv2s2 = 1.0 / (2.0 * sigma * sigma);
+        let bins: Vec<[f32; 2]> = (0..FAN_RADII)
+            .flat_map(|r| {
+                let rad = (r + 1) as f32 / FAN_RADII as f32 * radius;
+                (0..FAN_ANGLES).map(move |a| {
+                    let th = (a as f32 * ANGLE_STEP_DEG).to_radians();
+                    [rad * th.cos(), rad * th.sin()]
+                })
+            })
+            .collect();
+        const CHUNK: usize = 256;
+        idx.par_chunks_mut(per * CHUNK)
+            .zip(wts.par_chunks_mut(per * CHUNK))
+            .enumerate()
+            .for_each(|(ci, (oi, ow))| {
+                let mut stamp = vec![u32::MAX; n];
+                let mut queue: Vec<u32> = Vec::with_capacity(256);
+                // Top taps per bin: (weight, vertex).
+                let mut top = vec![(0.0f32, 0u32); nb * FAN_TAPS];
+                for (k, (fi, fw)) in oi.chunks_mut(per).zip(ow.chunks_mut(per)).enumerate() {
+                    let v = ci * CHUNK + k;
+                    let pv = Vec3::from(level.positions[v]);
+                    let t1 = Vec3::from(frames.t1[v]);
+                    let t2 = Vec3::from(frames.t2[v]);
+                    top.iter_mut().for_each(|x| *x = (0.0, v as u32));
+                    queue.clear();
+                    queue.push(v as u32);
+                    stamp[v] = v as u32;
+                    let mut head = 0;
+                    while head < queue.len() {
+                        let u = queue[head] as usize;
+                        head += 1;
+                        let d = Vec3::from(level.positions[u]) - pv;
+                        let len = d.length();
+                        let (x, y) = (d.dot(t1), d.dot(t2));
+                        let pl = (x * x + y * y).sqrt();
+                        let (x, y) = if pl > 1e-12 {
+                            (x * len / pl, y * len / pl)
+                        } else {
+                            (0.0, 0.0)
+                        };
+                        let rho = len;
+                        let theta = y.atan2(x);
+                        for r in 0..FAN_RADII {
+                            let rk = (r + 1) as f32 / FAN_RADII as f32 * radius;
+                            if (rho - rk).abs() >= cut {
+                                continue;
+                            }
+                            let (a0, na) = if rho < 1e-6 || rk <= cut {
+                                (0i64, FAN_ANGLES as i64)
+                            } else {
+                                let half = (cut / rk).min(1.0).asin() / step + 1.0;
+                                let centre = theta / step;
+                                let lo = (centre - half).ceil() as i64;
+                                let hi = (centre + half).floor() as i64;
+                                (lo, (hi - lo + 1).clamp(0, FAN_ANGLES as i64))
+                            };
+                            for ai in a0..a0 + na {
+                                let a = ai.rem_euclid(FAN_ANGLES as i64) as usize;
+                                let b = r * FAN_ANGLES + a;
+                                let bc = bins[b];
+                                let dx = x - bc[0];
+                                let dy = y - bc[1];
+                                let d2 = dx * dx + dy * dy;
+                                if d2 < cut * cut {
+                                    let w = (-d2 * inv2s2).exp();
+                                    let t = &mut top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
+                                    // Insert into the sorted (descending) top list.
+                                    if w > t[FAN_TAPS - 1].0 {
+                                        let mut j = FAN_TAPS - 1;
+                                        while j > 0 && t[j - 1].0 < w {
+                                            t[j] = t[j - 1];
+                                            j -= 1;
+                                        }
+                                        t[j] = (w, u as u32);
+                                    }
+                                }
+                            }
+                        }
+                        for &w in level.adjacency.row(u) {
+                            let w = w as usize;
+                            if stamp[w] != v as u32 {
+                                stamp[w] = v as u32;
+                                if (Vec3::from(level.positions[w]) - pv).length() <= reach {
+                                    queue.push(w as u32);
+                                }
+                            }
+                        }
+                    }
+                    for b in 0..nb {
+                        let t = &top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
+                        let sum: f32 = t.iter().map(|x| x.0).sum();
+                        let o = b * FAN_TAPS;
+                        if sum > 1e-3 {
+                            for j in 0..FAN_TAPS {
+                                fi[o + j] = t[j].1;
+                                fw[o + j] = t[j].0 / sum;
+                            }
+                        } else if b < FAN_ANGLES {
+                            for j in 0..FAN_TAPS {
+                                fi[o + j] = v as u32;
+                                fw[o + j] = if j == 0 { 1.0 } else { 0.0 };
+                            }
+                        } else {
+                            let inner = (b - FAN_ANGLES) * FAN_TAPS;
+                            for j in 0..FAN_TAPS {
+                                fi[o + j] = fi[inner + j];
+                                fw[o + j] = fw[inner + j];
+                            }
+                        }
+                    }
+                }
+            });
+        FanSampler { idx, w: wts }
+    }
+
+    /// Fans of a signal with `channels` values per vertex, pre-filtered by one pass of 1-ring
+    /// averaging before the gather. Layout: `fans[((v * R + r) * A + a) * C + c]`.
+    pub fn fans(&self, level: &Level, signal: &[f32], channels: usize) -> Vec<f32> {
+        let c = channels;
+        let sig = smooth(level, signal, c);
+        let nb = FAN_RADII * FAN_ANGLES;
+        let mut out = vec![0.0f32; level.len() * nb * c];
+        out.par_chunks_mut(nb * c).enumerate().for_each(|(v, fan)| {
+            for b in 0..nb {
+                let o = (v * nb + b) * FAN_TAPS;
+                let dst = &mut fan[b * c..(b + 1) * c];
+                dst.iter_mut().for_each(|x| *x = 0.0);
+                for j in 0..FAN_TAPS {
+                    let u = self.idx[o + j] as usize;
+                    let w = self.w[o + j];
+                    for ch in 0..c {
+                        dst[ch] += w * sig[u * c + ch];
+                    }
+                }
+            }
+        });
+        out
+    }
+}
+
+/// Geodesic fans of a signal on one level ([`FanSampler::new`] then [`FanSampler::fans`]).
 pub fn compute_fans(
     level: &Level,
     frames: &Frames,
@@ -393,98 +521,7 @@ pub fn compute_fans(
     channels: usize,
     radius: f32,
 ) -> Vec<f32> {
-    let n = level.len();
-    let c = channels;
-    let per = FAN_RADII * FAN_ANGLES * c;
-    let mut fans = vec![0.0f32; n * per];
-    let sigma = 0.6 * level.mean_edge;
-    let reach = radius + 2.0 * sigma;
-    let inv2s2 = 1.0 / (2.0 * sigma * sigma);
-    let bins: Vec<[f32; 2]> = (0..FAN_RADII)
-        .flat_map(|r| {
-            let rad = (r + 1) as f32 / FAN_RADII as f32 * radius;
-            (0..FAN_ANGLES).map(move |a| {
-                let th = (a as f32 * ANGLE_STEP_DEG).to_radians();
-                [rad * th.cos(), rad * th.sin()]
-            })
-        })
-        .collect();
-    const CHUNK: usize = 256;
-    fans.par_chunks_mut(per * CHUNK)
-        .enumerate()
-        .for_each(|(ci, out)| {
-            let mut stamp = vec![u32::MAX; n];
-            let mut queue: Vec<u32> = Vec::with_capacity(256);
-            let mut acc = vec![0.0f32; FAN_RADII * FAN_ANGLES * (c + 1)];
-            for (k, fan) in out.chunks_mut(per).enumerate() {
-                let v = ci * CHUNK + k;
-                let pv = Vec3::from(level.positions[v]);
-                let t1 = Vec3::from(frames.t1[v]);
-                let t2 = Vec3::from(frames.t2[v]);
-                acc.iter_mut().for_each(|x| *x = 0.0);
-                queue.clear();
-                queue.push(v as u32);
-                stamp[v] = v as u32;
-                let mut head = 0;
-                while head < queue.len() {
-                    let u = queue[head] as usize;
-                    head += 1;
-                    let d = Vec3::from(level.positions[u]) - pv;
-                    let len = d.length();
-                    let (x, y) = (d.dot(t1), d.dot(t2));
-                    let pl = (x * x + y * y).sqrt();
-                    let (x, y) = if pl > 1e-12 {
-                        (x * len / pl, y * len / pl)
-                    } else {
-                        (0.0, 0.0)
-                    };
-                    let s = &signal[u * c..(u + 1) * c];
-                    for (b, bc) in bins.iter().enumerate() {
-                        let dx = x - bc[0];
-                        let dy = y - bc[1];
-                        let d2 = dx * dx + dy * dy;
-                        if d2 < 9.0 * sigma * sigma {
-                            let w = (-d2 * inv2s2).exp();
-                            let a = &mut acc[b * (c + 1)..(b + 1) * (c + 1)];
-                            for ch in 0..c {
-                                a[ch] += w * s[ch];
-                            }
-                            a[c] += w;
-                        }
-                    }
-                    for &w in level.adjacency.row(u) {
-                        let w = w as usize;
-                        if stamp[w] != v as u32 {
-                            stamp[w] = v as u32;
-                            if (Vec3::from(level.positions[w]) - pv).length() <= reach {
-                                queue.push(w as u32);
-                            }
-                        }
-                    }
-                }
-                let centre = &signal[v * c..(v + 1) * c];
-                for r in 0..FAN_RADII {
-                    for a in 0..FAN_ANGLES {
-                        let b = r * FAN_ANGLES + a;
-                        let src = &acc[b * (c + 1)..(b + 1) * (c + 1)];
-                        let o = b * c;
-                        if src[c] > 1e-3 {
-                            for ch in 0..c {
-                                fan[o + ch] = src[ch] / src[c];
-                            }
-                        } else if r == 0 {
-                            fan[o..o + c].copy_from_slice(centre);
-                        } else {
-                            let inner = (b - FAN_ANGLES) * c;
-                            for ch in 0..c {
-                                fan[o + ch] = fan[inner + ch];
-                            }
-                        }
-                    }
-                }
-            }
-        });
-    fans
+    FanSampler::new(level, frames, radius).fans(level, signal, channels)
 }
 
 #[cfg(test)]

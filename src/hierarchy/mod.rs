@@ -294,7 +294,7 @@ fn collapse_level(fine: &Level, target: usize) -> (Level, Vec<u32>) {
         na.clear();
         nb.clear();
         let mut shared_faces = 0usize;
-        let mut live = |f: &[u32; 3]| {
+        let live = |f: &[u32; 3]| {
             let q = f.map(|i| r(&rep, i));
             q[0] != q[1] && q[1] != q[2] && q[0] != q[2]
         };

@@ -1,0 +1,449 @@
+//! The MeshMatch E- and M-steps on one level pair (Chen et al. 2012, §4): patch distance with
+//! rotation search, propagation in breadth-first order, random search through hierarchy hops,
+//! Gaussian voting and coarse-to-fine upsampling of the nearest-neighbour field.
+
+use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, FAN_RADII, Frames, transport_angle};
+use crate::hierarchy::{Hierarchy, Level};
+use crate::jobs::CancelToken;
+use crate::{Error, Result};
+use glam::Vec3;
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+
+/// Colour channels of the synthesised signal.
+pub(crate) const C: usize = 3;
+/// Floats per colour fan.
+pub(crate) const PER: usize = FAN_RADII * FAN_ANGLES * C;
+const STEP: f32 = ANGLE_STEP_DEG * std::f32::consts::PI / 180.0;
+
+/// One side (source or target) of a level pair.
+pub(crate) struct Side<'a> {
+    pub level: &'a Level,
+    pub frames: &'a Frames,
+    /// Transport angle along every directed edge (aligned with the CSR adjacency).
+    pub eang: &'a [f32],
+    /// Weighted shape features (`dsh` per vertex), already scaled so that plain squared L2 applies.
+    pub shape: &'a [f32],
+    /// Colour fans (`PER` per vertex), unweighted.
+    pub fans: &'a [f32],
+}
+
+/// Everything the E-step needs on one level.
+pub(crate) struct Ctx<'a> {
+    pub s: Side<'a>,
+    pub t: Side<'a>,
+    pub dsh: usize,
+    /// Weight of the colour fan part (1 / (pooled variance * 162)), 0 before the target has colour.
+    pub wc: f32,
+    /// Source hierarchy (for random hops) and the level index.
+    pub hs: &'a Hierarchy,
+    pub l: usize,
+}
+
+impl Ctx<'_> {
+    /// Patch distance D(vS, vT) for rotation k (squared L2 of the weighted feature vectors, colour
+    /// fan rotated by a cyclic shift of k angle steps), stopping early once it reaches `best`.
+    #[inline]
+    pub fn dist(&self, t: usize, s: usize, k: usize, best: f32) -> f32 {
+        let dsh = self.dsh;
+        let a = &self.t.shape[t * dsh..(t + 1) * dsh];
+        let b = &self.s.shape[s * dsh..(s + 1) * dsh];
+        let mut d = 0.0f32;
+        for i in 0..dsh {
+            let x = a[i] - b[i];
+            d += x * x;
+        }
+        if d >= best || self.wc == 0.0 {
+            return d;
+        }
+        let tf = &self.t.fans[t * PER..(t + 1) * PER];
+        let sf = &self.s.fans[s * PER..(s + 1) * PER];
+        let ring = FAN_ANGLES * C;
+        let sh = (k % FAN_ANGLES) * C;
+        let n1 = ring - sh;
+        for r in 0..FAN_RADII {
+            let tb = &tf[r * ring..(r + 1) * ring];
+            let sb = &sf[r * ring..(r + 1) * ring];
+            let mut acc = 0.0f32;
+            for i in 0..n1 {
+                let x = tb[i] - sb[sh + i];
+                acc += x * x;
+            }
+            for i in 0..sh {
+                let x = tb[n1 + i] - sb[i];
+                acc += x * x;
+            }
+            d += self.wc * acc;
+            if d >= best {
+                return d;
+            }
+        }
+        d
+    }
+
+    /// Best rotation of source vertex `s` for target `t`: (distance, rotation index).
+    #[inline]
+    pub fn best_rotation(&self, t: usize, s: usize, best: f32) -> (f32, u8) {
+        let mut bd = best;
+        let mut bk = u8::MAX;
+        if self.wc == 0.0 {
+            let d = self.dist(t, s, 0, f32::INFINITY);
+            return if d < best { (d, 0) } else { (best, u8::MAX) };
+        }
+        for k in 0..FAN_ANGLES {
+            let d = self.dist(t, s, k, bd);
+            if d < bd {
+                bd = d;
+                bk = k as u8;
+            }
+        }
+        (bd, bk)
+    }
+}
+
+/// Rotation index of an angle in radians.
+#[inline]
+fn rot_index(angle: f32) -> u8 {
+    ((angle / STEP).round() as i64).rem_euclid(FAN_ANGLES as i64) as u8
+}
+
+/// Distances of the current NNF for every target vertex (the energy terms).
+pub(crate) fn all_distances(ctx: &Ctx, nnf: &[(u32, u8)]) -> Vec<f32> {
+    nnf.par_iter()
+        .enumerate()
+        .map(|(t, &(s, k))| ctx.dist(t, s as usize, k as usize, f32::INFINITY))
+        .collect()
+}
+
+/// Exhaustive search (every source vertex, every rotation): used on the coarsest level, where it
+/// is cheap and replaces the random initialisation with the exact nearest neighbours.
+pub(crate) fn exhaustive(
+    ctx: &Ctx,
+    nnf: &mut [(u32, u8)],
+    dist: &mut [f32],
+    locked: &[Option<u32>],
+    cancel: &CancelToken,
+) -> Result<()> {
+    let ns = ctx.s.level.len();
+    nnf.par_iter_mut()
+        .zip(dist.par_iter_mut())
+        .enumerate()
+        .try_for_each(|(t, (m, d))| {
+            if cancel.is_cancelled() {
+                return Err(Error::Cancelled);
+            }
+            let (lo, hi) = match locked[t] {
+                Some(s) => (s as usize, s as usize + 1),
+                None => (0, ns),
+            };
+            let mut bd = f32::INFINITY;
+            let mut best = (lo as u32, 0u8);
+            for s in lo..hi {
+                let (dd, k) = ctx.best_rotation(t, s, bd);
+                if k != u8::MAX && dd < bd {
+                    bd = dd;
+                    best = (s as u32, k);
+                }
+            }
+            *m = best;
+            *d = ctx.dist(t, best.0 as usize, best.1 as usize, f32::INFINITY);
+            Ok(())
+        })
+}
+
+/// Breadth-first visiting order over all components, starting at `start` (MeshMatch §4.2: the
+/// next iteration starts where this order ended).
+pub(crate) fn bfs_order(level: &Level, start: usize) -> Vec<u32> {
+    let n = level.len();
+    let mut seen = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    let mut roots = std::iter::once(start.min(n.saturating_sub(1))).chain(0..n);
+    while order.len() < n {
+        let Some(r) = roots.next() else { break };
+        if seen[r] {
+            continue;
+        }
+        seen[r] = true;
+        let mut head = order.len();
+        order.push(r as u32);
+        while head < order.len() {
+            let v = order[head] as usize;
+            head += 1;
+            for &u in level.adjacency.row(v) {
+                if !seen[u as usize] {
+                    seen[u as usize] = true;
+                    order.push(u);
+                }
+            }
+        }
+    }
+    order
+}
+
+/// Propagation (MeshMatch §4.2): in `order`, each target vertex tries every source vertex
+/// adjacent to (or equal to) the match of each of its neighbours, with the rotation carried
+/// through the frames: target frame -> neighbour frame (edge transport) -> neighbour's matched
+/// source frame (its rotation) -> candidate frame (source edge transport); the best is kept and
+/// its rotation refined by ±1 step.
+pub(crate) fn propagate(
+    ctx: &Ctx,
+    nnf: &mut [(u32, u8)],
+    dist: &mut [f32],
+    order: &[u32],
+    locked: &[Option<u32>],
+    cancel: &CancelToken,
+) -> Result<()> {
+    let adj_t = &ctx.t.level.adjacency;
+    let adj_s = &ctx.s.level.adjacency;
+    for (i, &vt) in order.iter().enumerate() {
+        if i % 2048 == 0 {
+            cancel.check()?;
+        }
+        let vt = vt as usize;
+        let (mut bs, mut bk) = nnf[vt];
+        let mut bd = dist[vt];
+        let start = (bs, bk);
+        if let Some(s) = locked[vt] {
+            let (d, k) = ctx.best_rotation(vt, s as usize, f32::INFINITY);
+            nnf[vt] = (s, k);
+            dist[vt] = d;
+            continue;
+        }
+        let off_t = adj_t.offsets[vt] as usize;
+        for (ni, &vn) in adj_t.row(vt).iter().enumerate() {
+            let (sn, kn) = nnf[vn as usize];
+            let base = ctx.t.eang[off_t + ni] + kn as f32 * STEP;
+            let try_c = |c: u32, ang: f32, bs: &mut u32, bk: &mut u8, bd: &mut f32| {
+                let k = rot_index(ang);
+                if c == *bs && k == *bk {
+                    return;
+                }
+                let d = ctx.dist(vt, c as usize, k as usize, *bd);
+                if d < *bd {
+                    *bd = d;
+                    *bs = c;
+                    *bk = k;
+                }
+            };
+            try_c(sn, base, &mut bs, &mut bk, &mut bd);
+            let off_s = adj_s.offsets[sn as usize] as usize;
+            for (ci, &c) in adj_s.row(sn as usize).iter().enumerate() {
+                try_c(c, base + ctx.s.eang[off_s + ci], &mut bs, &mut bk, &mut bd);
+            }
+        }
+        if (bs, bk) != start && ctx.wc > 0.0 {
+            for dk in [1, FAN_ANGLES - 1] {
+                let k = (bk as usize + dk) % FAN_ANGLES;
+                let d = ctx.dist(vt, bs as usize, k, bd);
+                if d < bd {
+                    bd = d;
+                    bk = k as u8;
+                }
+            }
+        }
+        nnf[vt] = (bs, bk);
+        dist[vt] = bd;
+    }
+    Ok(())
+}
+
+/// Random search (MeshMatch §4.2): candidates at growing distance from the current match by
+/// hopping j = 1, 2, ... levels up the source hierarchy and back down through random children,
+/// plus one uniformly random source vertex; each candidate with its best of 18 rotations.
+/// Deterministic: one RNG per (seed, level, iteration, vertex).
+pub(crate) fn random_search(
+    ctx: &Ctx,
+    nnf: &mut [(u32, u8)],
+    dist: &mut [f32],
+    locked: &[Option<u32>],
+    seed: u64,
+    cancel: &CancelToken,
+) -> Result<()> {
+    let hs = ctx.hs;
+    let l = ctx.l;
+    let hops = hs.top().saturating_sub(l);
+    let ns = ctx.s.level.len() as u32;
+    nnf.par_chunks_mut(1024)
+        .zip(dist.par_chunks_mut(1024))
+        .enumerate()
+        .try_for_each(|(ci, (m, d))| {
+            if cancel.is_cancelled() {
+                return Err(Error::Cancelled);
+            }
+            for (k, (mm, dd)) in m.iter_mut().zip(d.iter_mut()).enumerate() {
+                let t = ci * 1024 + k;
+                if locked[t].is_some() {
+                    continue;
+                }
+                let mut rng = SmallRng::seed_from_u64(
+                    seed ^ (t as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ ((l as u64) << 56),
+                );
+                for j in 1..=hops + 1 {
+                    let c = if j <= hops {
+                        hs.random_hop(l, mm.0, j, &mut rng)
+                    } else {
+                        rng.random_range(0..ns)
+                    };
+                    if c == mm.0 {
+                        continue;
+                    }
+                    let (bd, bk) = ctx.best_rotation(t, c as usize, *dd);
+                    if bk != u8::MAX && bd < *dd {
+                        *dd = bd;
+                        *mm = (c, bk);
+                    }
+                }
+            }
+            Ok(())
+        })
+}
+
+/// Tangent-plane polar offset of `q` seen from vertex `v` of `level`: (radius, angle).
+#[inline]
+fn polar(level: &Level, frames: &Frames, v: usize, q: Vec3) -> (f32, f32) {
+    let d = q - Vec3::from(level.positions[v]);
+    let x = d.dot(Vec3::from(frames.t1[v]));
+    let y = d.dot(Vec3::from(frames.t2[v]));
+    (d.length(), y.atan2(x))
+}
+
+/// Walk on the source level from `s` towards the point at polar offset (rho, phi) in `s`'s frame:
+/// greedy steps to the neighbour closest to that point (at most 4 steps).
+#[inline]
+fn walk(level: &Level, frames: &Frames, s: usize, rho: f32, phi: f32) -> usize {
+    let ps = Vec3::from(level.positions[s]);
+    let goal =
+        ps + rho * (phi.cos() * Vec3::from(frames.t1[s]) + phi.sin() * Vec3::from(frames.t2[s]));
+    let mut best = s;
+    let mut bd = (ps - goal).length_squared();
+    for _ in 0..4 {
+        let cur = best;
+        for &u in level.adjacency.row(cur) {
+            let d = (Vec3::from(level.positions[u as usize]) - goal).length_squared();
+            if d < bd {
+                bd = d;
+                best = u as usize;
+            }
+        }
+        if best == cur {
+            break;
+        }
+    }
+    best
+}
+
+/// M-step, Gaussian voting (MeshMatch §4.3): the signal at target vertex vT is the average over
+/// vp ∈ {vT} ∪ 1-ring(vT), weighted by exp(-|vT - vp|² / 2σ²) with σ = the level's mean edge
+/// length, of the source signal found at vT's offset from vp (in vp's frame, rotated by vp's
+/// match rotation, scaled by the source/target edge-length ratio) walked from vp's source match.
+pub(crate) fn vote(
+    s: &Side,
+    t: &Side,
+    src_signal: &[[f32; 3]],
+    nnf: &[(u32, u8)],
+    ratio: f32,
+) -> Vec<[f32; 3]> {
+    let lt = t.level;
+    let sigma = lt.mean_edge.max(1e-12);
+    let inv2s2 = 1.0 / (2.0 * sigma * sigma);
+    (0..lt.len())
+        .into_par_iter()
+        .map(|vt| {
+            let (s0, _) = nnf[vt];
+            let mut acc = Vec3::from(src_signal[s0 as usize]);
+            let mut wsum = 1.0f32;
+            let pt = Vec3::from(lt.positions[vt]);
+            for &vp in lt.adjacency.row(vt) {
+                let vp = vp as usize;
+                let (rho, phi) = polar(lt, t.frames, vp, pt);
+                let w = (-rho * rho * inv2s2).exp();
+                let (sp, kp) = nnf[vp];
+                let u = walk(
+                    s.level,
+                    s.frames,
+                    sp as usize,
+                    rho * ratio,
+                    phi + kp as f32 * STEP,
+                );
+                acc += w * Vec3::from(src_signal[u]);
+                wsum += w;
+            }
+            (acc / wsum).to_array()
+        })
+        .collect()
+}
+
+/// Upsample the NNF from level l+1 to level l (MeshMatch §4.4): each finer target vertex takes
+/// its parent's match, carries its offset from the parent (in the parent's frame, rotated, scaled)
+/// over to the matched coarse source vertex, picks the closest child of that source vertex and
+/// walks to the finer source vertex closest to the carried point; the rotation is carried through
+/// the coarse and fine frames.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn upsample(
+    hs: &Hierarchy,
+    ht: &Hierarchy,
+    fs: &[Frames],
+    ft: &[Frames],
+    l: usize,
+    coarse: &[(u32, u8)],
+    ratio: f32,
+) -> Vec<(u32, u8)> {
+    let (ltf, ltc) = (&ht.levels[l], &ht.levels[l + 1]);
+    let (lsf, lsc) = (&hs.levels[l], &hs.levels[l + 1]);
+    (0..ltf.len())
+        .into_par_iter()
+        .map(|vf| {
+            let pc = ht.parent(l, vf as u32) as usize;
+            let (sc, k) = coarse[pc];
+            let sc = sc as usize;
+            let (rho, phi) = polar(ltc, &ft[l + 1], pc, Vec3::from(ltf.positions[vf]));
+            let ang = phi + k as f32 * STEP;
+            let ps = Vec3::from(lsc.positions[sc]);
+            let goal = ps
+                + rho
+                    * ratio
+                    * (ang.cos() * Vec3::from(fs[l + 1].t1[sc])
+                        + ang.sin() * Vec3::from(fs[l + 1].t2[sc]));
+            let mut best = usize::MAX;
+            let mut bd = f32::INFINITY;
+            for &c in hs.children(l + 1, sc as u32) {
+                let d = (Vec3::from(lsf.positions[c as usize]) - goal).length_squared();
+                if d < bd {
+                    bd = d;
+                    best = c as usize;
+                }
+            }
+            for _ in 0..4 {
+                let cur = best;
+                for &u in lsf.adjacency.row(cur) {
+                    let d = (Vec3::from(lsf.positions[u as usize]) - goal).length_squared();
+                    if d < bd {
+                        bd = d;
+                        best = u as usize;
+                    }
+                }
+                if cur == best {
+                    break;
+                }
+            }
+            // Target fine frame -> target coarse frame -> (rotation k) -> source coarse frame ->
+            // source fine frame.
+            let a1 = transport_angle(
+                Vec3::from(ltf.normals[vf]),
+                Vec3::from(ft[l].t1[vf]),
+                Vec3::from(ltc.normals[pc]),
+                Vec3::from(ft[l + 1].t1[pc]),
+                Vec3::from(ft[l + 1].t2[pc]),
+            );
+            let a2 = transport_angle(
+                Vec3::from(lsc.normals[sc]),
+                Vec3::from(fs[l + 1].t1[sc]),
+                Vec3::from(lsf.normals[best]),
+                Vec3::from(fs[l].t1[best]),
+                Vec3::from(fs[l].t2[best]),
+            );
+            (best as u32, rot_index(a1 + k as f32 * STEP + a2))
+        })
+        .collect()
+}

@@ -1,0 +1,222 @@
+//! MeshMatch transfer on real data: Spot onto re-tessellated (and deformed) copies of itself,
+//! where the true colour and the true source point of every target vertex are known.
+
+use glam::{Mat3, Vec3};
+use meshmatch::TriMesh;
+use meshmatch::color::delta_e76;
+use meshmatch::jobs::{CancelToken, Correspondence, Event};
+use meshmatch::meshmatch::{TransferParams, prepare, solve};
+use std::time::Instant;
+
+fn data(rel: &str) -> std::path::PathBuf {
+    if let Some(d) = std::env::var_os("MESHMATCH_DATA") {
+        return std::path::PathBuf::from(d).join(rel);
+    }
+    let beside = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    if beside.is_dir() {
+        return beside.join(rel);
+    }
+    std::path::PathBuf::from("/work/shared/data").join(rel)
+}
+
+fn spot() -> TriMesh {
+    meshmatch::mesh::io::load(&data("spot/spot.obj")).expect("load spot")
+}
+
+fn params(vertices: usize) -> TransferParams {
+    TransferParams {
+        vertices,
+        ..Default::default()
+    }
+}
+
+/// A different tessellation of Spot (refined to `n` vertices, each vertex jittered by a quarter
+/// edge within its tangent plane) and the true colour of every vertex (the texture at its UV).
+fn retessellated(n: usize) -> (TriMesh, Vec<[f32; 3]>) {
+    let cancel = CancelToken::new();
+    let p = prepare(&spot(), &params(n), &|_| {}, &cancel).unwrap();
+    let w = p.working_mesh();
+    let truth = w.colors.clone().expect("spot has a texture");
+    let lev = &p.hierarchy().levels[0];
+    let e = lev.mean_edge;
+    let mut positions = w.positions.clone();
+    for (i, q) in positions.iter_mut().enumerate() {
+        // Deterministic pseudo-random tangent jitter.
+        let h = (i as u32).wrapping_mul(2_654_435_761);
+        let a = (h % 3600) as f32 / 3600.0 * std::f32::consts::TAU;
+        let nrm = Vec3::from(lev.normals[i]);
+        let t1 = nrm.any_orthonormal_vector();
+        let t2 = nrm.cross(t1);
+        let d = 0.25 * e * (a.cos() * t1 + a.sin() * t2);
+        *q = (Vec3::from(*q) + d).to_array();
+    }
+    (TriMesh::new(positions, w.faces.clone()), truth)
+}
+
+fn stats(mut de: Vec<f32>) -> (f32, f32) {
+    let mean = de.iter().sum::<f32>() / de.len() as f32;
+    de.sort_by(|a, b| a.total_cmp(b));
+    (de[de.len() / 2], mean)
+}
+
+#[test]
+fn spot_onto_retessellated_spot() {
+    let cancel = CancelToken::new();
+    let t0 = Instant::now();
+    let (target, truth) = retessellated(11_000);
+    let prm = params(20_000);
+    let ps = prepare(&spot(), &prm, &|_| {}, &cancel).unwrap();
+    let pt = prepare(&target, &prm, &|_| {}, &cancel).unwrap();
+    let t_prep = t0.elapsed().as_secs_f64();
+    let energies = std::sync::Mutex::new(Vec::new());
+    let sink = |e: Event| {
+        if let Event::Progress(p) = e {
+            energies
+                .lock()
+                .unwrap()
+                .push((p.level, p.iteration, p.energy));
+        }
+    };
+    let r = solve(&ps, &pt, &[], &prm, &sink, &cancel).unwrap();
+    let de: Vec<f32> = r
+        .file_signal
+        .iter()
+        .zip(&truth)
+        .map(|(a, b)| delta_e76(*a, *b))
+        .collect();
+    let (median, mean) = stats(de);
+    println!(
+        "spot->spot retessellated: median dE {median:.2}, mean dE {mean:.2}, energy {:.4}, prepare {t_prep:.2}s, total {:.2}s",
+        r.energy,
+        t0.elapsed().as_secs_f64()
+    );
+    println!("energies {:?}", energies.lock().unwrap());
+    println!("timings {:?}", r.timings);
+    println!(
+        "prepare source {:?}\nprepare target {:?}",
+        ps.timings(),
+        pt.timings()
+    );
+    assert_eq!(r.file_signal.len(), target.file_vertex_count);
+    assert!(median < 5.0, "median dE {median}");
+}
+
+/// The deformation of the second test: a non-rigid stretch x *= 1 + 0.3 y, then a rotation,
+/// scale and translation.
+fn deform(p: Vec3, rot: Mat3) -> Vec3 {
+    let q = Vec3::new(p.x * (1.0 + 0.3 * p.y), p.y, p.z);
+    rot * q * 1.7 + Vec3::new(3.0, -1.0, 0.5)
+}
+
+fn undeform(p: Vec3, rot: Mat3) -> Vec3 {
+    let q = rot.transpose() * ((p - Vec3::new(3.0, -1.0, 0.5)) / 1.7);
+    Vec3::new(q.x / (1.0 + 0.3 * q.y), q.y, q.z)
+}
+
+#[test]
+fn spot_onto_stretched_moved_spot_with_correspondences() {
+    let cancel = CancelToken::new();
+    let t0 = Instant::now();
+    let src = spot();
+    let (mut target, truth) = retessellated(11_000);
+    let rot = Mat3::from_axis_angle(Vec3::new(0.3, 1.0, 0.2).normalize(), 1.1);
+    for p in target.positions.iter_mut() {
+        *p = deform(Vec3::from(*p), rot).to_array();
+    }
+    // Six source vertices spread over the body (farthest-point sampling); the target's first
+    // vertices are Spot's own vertices (refinement keeps them), so counterparts share indices.
+    let mut picks = vec![0usize];
+    let mut dmin: Vec<f32> = src
+        .positions
+        .iter()
+        .map(|p| (Vec3::from(*p) - Vec3::from(src.positions[0])).length())
+        .collect();
+    while picks.len() < 6 {
+        let far = (0..dmin.len())
+            .max_by(|&a, &b| dmin[a].total_cmp(&dmin[b]))
+            .unwrap();
+        picks.push(far);
+        for (i, d) in dmin.iter_mut().enumerate() {
+            *d = d.min((Vec3::from(src.positions[i]) - Vec3::from(src.positions[far])).length());
+        }
+    }
+    let corr: Vec<Correspondence> = picks
+        .iter()
+        .map(|&i| Correspondence {
+            source_vertex: i as u32,
+            target_vertices: vec![i as u32],
+        })
+        .collect();
+    let prm = params(20_000);
+    let ps = prepare(&src, &prm, &|_| {}, &cancel).unwrap();
+    let pt = prepare(&target, &prm, &|_| {}, &cancel).unwrap();
+    let r = solve(&ps, &pt, &corr, &prm, &|_| {}, &cancel).unwrap();
+    let tol = 0.1 * (src.area() as f32).sqrt();
+    let sw = ps.working_mesh();
+    let tw = pt.working_mesh();
+    let good = r
+        .nnf
+        .iter()
+        .enumerate()
+        .filter(|&(v, &(s, _))| {
+            let truep = undeform(Vec3::from(tw.positions[v]), rot);
+            (Vec3::from(sw.positions[s as usize]) - truep).length() < tol
+        })
+        .count();
+    let frac = good as f32 / r.nnf.len() as f32;
+    let de: Vec<f32> = r
+        .file_signal
+        .iter()
+        .zip(&truth)
+        .map(|(a, b)| delta_e76(*a, *b))
+        .collect();
+    let (median, mean) = stats(de);
+    println!(
+        "spot->stretched spot, 6 corr: {:.1}% within 0.1 sqrt(A), median dE {median:.2}, mean dE {mean:.2}, {:.2}s",
+        100.0 * frac,
+        t0.elapsed().as_secs_f64()
+    );
+    assert!(frac >= 0.85, "only {:.1}% mapped correctly", 100.0 * frac);
+    assert!(mean <= 8.0, "mean dE {mean}");
+}
+
+#[test]
+fn file_outputs_follow_the_target_file() {
+    let cancel = CancelToken::new();
+    let src = spot();
+    let cow = meshmatch::mesh::io::load(&data("cow/cow.ply")).unwrap();
+    let prm = TransferParams {
+        vertices: 6_000,
+        iterations: 2,
+        ..Default::default()
+    };
+    let ps = prepare(&src, &prm, &|_| {}, &cancel).unwrap();
+    let pt = prepare(&cow, &prm, &|_| {}, &cancel).unwrap();
+    let corr = [Correspondence {
+        source_vertex: 10,
+        target_vertices: vec![20, 30],
+    }];
+    let r = solve(&ps, &pt, &corr, &prm, &|_| {}, &cancel).unwrap();
+    assert_eq!(r.file_signal.len(), cow.file_vertex_count);
+    assert_eq!(r.file_nnf.len(), cow.file_vertex_count);
+    assert!(
+        r.file_nnf
+            .iter()
+            .all(|&(s, rot)| (s as usize) < src.file_vertex_count && (0.0..360.0).contains(&rot))
+    );
+    assert_eq!(r.working_signal.len(), pt.working_mesh().num_vertices());
+    // Out-of-range correspondence indices are reported, naming the index.
+    let bad = [Correspondence {
+        source_vertex: 999_999,
+        target_vertices: vec![1],
+    }];
+    let err = solve(&ps, &pt, &bad, &prm, &|_| {}, &cancel).unwrap_err();
+    assert!(err.to_string().contains("999999"), "{err}");
+    // A cancelled token stops the solve.
+    let c2 = CancelToken::new();
+    c2.cancel();
+    assert!(matches!(
+        solve(&ps, &pt, &[], &prm, &|_| {}, &c2),
+        Err(meshmatch::Error::Cancelled)
+    ));
+}
