@@ -1,1 +1,0 @@
-//! Procedural demo scene.
