@@ -4,6 +4,7 @@ use std::sync::Arc;
 
 use eframe::egui;
 
+use super::DemoScene;
 use super::state::AppParams;
 use crate::jobs::worker::{Engine, Solved};
 use crate::jobs::{CancelToken, Correspondence, Event};
@@ -134,4 +135,90 @@ impl AppParams for TransferParams {
         });
         changed
     }
+}
+
+fn zebra_cached() -> &'static TriMesh {
+    static ZEBRA: std::sync::OnceLock<TriMesh> = std::sync::OnceLock::new();
+    ZEBRA.get_or_init(crate::demo::zebra)
+}
+
+fn animal_scene(
+    target: TriMesh,
+    target_marks: Vec<(crate::demo::Landmark, [f32; 3])>,
+) -> DemoScene {
+    let source = zebra_cached().clone();
+    let corr = crate::demo::default_correspondences(
+        &source,
+        &crate::demo::landmarks_zebra(),
+        &target,
+        &target_marks,
+    );
+    DemoScene {
+        source,
+        target,
+        correspondences: corr.correspondences,
+    }
+}
+
+/// Demo scene: procedural zebra -> giraffe with landmark correspondences.
+pub fn zebra_to_giraffe() -> Result<DemoScene> {
+    Ok(animal_scene(
+        crate::demo::giraffe(),
+        crate::demo::landmarks_giraffe(),
+    ))
+}
+
+/// Demo scene: zebra -> three-headed cerberus (one-to-many head correspondences).
+pub fn zebra_to_cerberus() -> Result<DemoScene> {
+    Ok(animal_scene(
+        crate::demo::cerberus(),
+        crate::demo::landmarks_cerberus(),
+    ))
+}
+
+/// Demo scene: the partly painted vase as exemplar for its own unpainted copy (completion).
+pub fn vase() -> Result<DemoScene> {
+    let (source, painted) = crate::demo::vase_with_mask();
+    let mut target = source.clone();
+    target.colors = None;
+    target.texture = None;
+    // Anchor the copy to itself at its extreme points (same vertex numbering on both sides).
+    let mut anchors: Vec<u32> = Vec::new();
+    for axis in 0..3 {
+        for sign in [1.0f32, -1.0] {
+            if let Some((i, _)) = source
+                .positions
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| painted.get(*i).copied().unwrap_or(true))
+                .max_by(|a, b| (sign * a.1[axis]).total_cmp(&(sign * b.1[axis])))
+                && !anchors.contains(&(i as u32))
+            {
+                anchors.push(i as u32);
+            }
+        }
+    }
+    Ok(DemoScene {
+        source,
+        target,
+        correspondences: anchors
+            .into_iter()
+            .map(|v| Correspondence {
+                source_vertex: v,
+                target_vertices: vec![v],
+            })
+            .collect(),
+    })
+}
+
+/// The Scene menu: name and builder of each demo scene (the first is the startup scene).
+pub fn demo_scenes() -> Vec<(String, fn() -> Result<DemoScene>)> {
+    vec![
+        (
+            "Zebra -> giraffe".into(),
+            zebra_to_giraffe as fn() -> Result<DemoScene>,
+        ),
+        ("Zebra -> cerberus".into(), zebra_to_cerberus),
+        ("Vase (completion)".into(), vase),
+    ]
 }

@@ -4,6 +4,7 @@
 //! All state lives in [`state::AppState`] (testable without a window); [`MeshMatchApp`] draws it
 //! with egui and forwards requests to the [`crate::jobs::worker::Worker`].
 
+pub mod engine;
 pub mod state;
 pub mod view;
 
@@ -42,6 +43,14 @@ impl FrameStats {
             self.times.pop_front();
         }
     }
+    /// Number of frames recorded (at most 240).
+    pub fn len(&self) -> usize {
+        self.times.len()
+    }
+    /// No frame recorded yet.
+    pub fn is_empty(&self) -> bool {
+        self.times.is_empty()
+    }
     /// Mean and maximum over the recent frames.
     pub fn summary(&self) -> (f32, f32) {
         let n = self.times.len().max(1) as f32;
@@ -65,6 +74,8 @@ where
     /// UI frame times (CPU time spent in `ui`).
     pub frame_stats: FrameStats,
     demo_scenes: Vec<(String, fn() -> Result<DemoScene>)>,
+    frame_log_every: Option<std::time::Duration>,
+    frame_log_at: Instant,
 }
 
 /// A demo scene: two meshes and their correspondences.
@@ -95,6 +106,10 @@ where
             show_help: false,
             frame_stats: FrameStats::default(),
             demo_scenes: Vec::new(),
+            // MESHMATCH_FRAME_LOG=1 prints UI frame-time statistics to stderr every 2 s.
+            frame_log_every: std::env::var_os("MESHMATCH_FRAME_LOG")
+                .map(|_| std::time::Duration::from_secs(2)),
+            frame_log_at: Instant::now(),
         }
     }
 
@@ -435,15 +450,18 @@ where
             let p = &j.progress;
             if j.running {
                 ui.spinner();
-                ui.label(format!(
-                    "{}  level {}/{}  iteration {}  energy {:.4}  {:.1} s",
-                    p.stage,
-                    p.levels.saturating_sub(p.level),
-                    p.levels,
-                    p.iteration,
-                    p.energy,
-                    p.elapsed
-                ));
+                let mut text = p.stage.to_string();
+                if p.levels > 0 {
+                    text += &format!(
+                        "  level {} of {} (0 = finest)  iteration {}",
+                        p.level, p.levels, p.iteration
+                    );
+                }
+                if p.energy > 0.0 {
+                    text += &format!("  energy {:.4}", p.energy);
+                }
+                text += &format!("  {:.1} s", p.elapsed);
+                ui.label(text);
                 ui.add(egui::ProgressBar::new(p.fraction).desired_width(120.0));
             } else if !j.outcome.is_empty() {
                 ui.label(format!("transfer {}", j.outcome));
@@ -571,6 +589,20 @@ where
         }
         self.frame_stats
             .push(clock.elapsed().as_secs_f32() * 1000.0);
+        if let Some(every) = self.frame_log_every
+            && self.frame_log_at.elapsed() >= every
+        {
+            let (mean, max) = self.frame_stats.summary();
+            eprintln!(
+                "frame-stats: mean {mean:.2} ms max {max:.2} ms over {} frames; running {} stage {} partials {} view draw ms {:?}",
+                self.frame_stats.len(),
+                self.state.job.running,
+                self.state.job.progress.stage,
+                self.state.job.partials,
+                self.views.last_draw_ms
+            );
+            self.frame_log_at = Instant::now();
+        }
     }
 }
 
@@ -612,4 +644,10 @@ where
         }),
     )
     .map_err(|e| Error::InvalidInput(format!("cannot open the window: {e}")))
+}
+
+/// Run the desktop app (blocks until the window closes). With no paths in `startup` it opens the
+/// demo scene (procedural zebra -> giraffe) with the transfer already running.
+pub fn run(startup: Startup) -> Result<()> {
+    run_with(engine::MeshMatchEngine, startup, engine::demo_scenes())
 }

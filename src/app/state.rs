@@ -37,6 +37,8 @@ pub struct MeshSlot {
     pub file_to_working: Option<Vec<u32>>,
     /// Base colours of the displayed mesh (before paint).
     pub base_colors: Vec<[f32; 3]>,
+    /// Vertex normals of the displayed mesh (for marker visibility).
+    pub normals: Vec<[f32; 3]>,
     /// Paint layer on the displayed mesh: RGB + coverage per vertex.
     pub paint: Option<Vec<[f32; 4]>>,
     /// Geometry changed since the renderer last uploaded it.
@@ -48,7 +50,9 @@ pub struct MeshSlot {
 impl MeshSlot {
     fn new(mesh: Arc<TriMesh>, id: u64) -> Self {
         let base_colors = crate::render::display_colors(&mesh, None);
+        let normals = crate::render::gpu::vertex_normals(&mesh.positions, &mesh.faces);
         MeshSlot {
+            normals,
             file: mesh,
             id,
             working: None,
@@ -428,6 +432,8 @@ impl<P: AppParams> AppState<P> {
                     }
                 };
                 slot.paint = None;
+                slot.normals =
+                    crate::render::gpu::vertex_normals(&working.positions, &working.faces);
                 slot.working = Some(working);
                 slot.working_to_file = Some(working_to_file);
                 slot.file_to_working = Some(f2w);

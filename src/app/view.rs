@@ -301,12 +301,32 @@ impl Views {
         rect: Rect,
         file_vertex: u32,
     ) -> Option<Pos2> {
+        self.marker_pos_facing(state, side, rect, file_vertex)
+            .map(|(p, _)| p)
+    }
+
+    /// Screen position of a file vertex's marker and whether its surface faces the camera.
+    fn marker_pos_facing(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+        rect: Rect,
+        file_vertex: u32,
+    ) -> Option<(Pos2, bool)> {
         let slot = state.slot(side)?;
-        let p = slot.file_vertex_position(file_vertex)?;
+        let p = glam::Vec3::from(slot.file_vertex_position(file_vertex)?);
         let frame = self.frame_of(state, side)?;
         let size = GVec2::new(rect.width(), rect.height());
-        let s = self.cameras[side_index(side)].project(&frame, glam::Vec3::from(p), size)?;
-        Some(Pos2::new(rect.min.x + s.x, rect.min.y + s.y))
+        let cam = &self.cameras[side_index(side)];
+        let s = cam.project(&frame, p, size)?;
+        let facing = slot
+            .to_displayed(file_vertex)
+            .and_then(|d| slot.normals.get(d as usize))
+            .is_none_or(|n| {
+                let (eye, _) = cam.eye_target(&frame);
+                glam::Vec3::from(*n).dot(eye - p) >= 0.0
+            });
+        Some((Pos2::new(rect.min.x + s.x, rect.min.y + s.y), facing))
     }
 
     /// All markers of a side with their screen positions.
@@ -315,7 +335,7 @@ impl Views {
         state: &AppState<impl AppParams>,
         side: Side,
         rect: Rect,
-    ) -> Vec<(Selection, Pos2)> {
+    ) -> Vec<(Selection, Pos2, bool)> {
         let mut out = Vec::new();
         for (pair, c) in state.corr.iter().enumerate() {
             let verts: Vec<u32> = match side {
@@ -323,8 +343,8 @@ impl Views {
                 Side::Target => c.target_vertices.clone(),
             };
             for (k, v) in verts.into_iter().enumerate() {
-                if let Some(p) = self.marker_pos(state, side, rect, v) {
-                    out.push((Selection { pair, side, k }, p));
+                if let Some((p, facing)) = self.marker_pos_facing(state, side, rect, v) {
+                    out.push((Selection { pair, side, k }, p, facing));
                 }
             }
         }
@@ -340,9 +360,14 @@ impl Views {
     ) -> Option<Selection> {
         self.markers(state, side, rect)
             .into_iter()
-            .filter(|(_, p)| p.distance(pos) <= MARKER_RADIUS + 2.0)
-            .min_by(|a, b| a.1.distance(pos).total_cmp(&b.1.distance(pos)))
-            .map(|(s, _)| s)
+            .filter(|(_, p, _)| p.distance(pos) <= MARKER_RADIUS + 2.0)
+            .min_by(|a, b| {
+                // Prefer markers on the visible side, then the nearest.
+                (!a.2, a.1.distance(pos))
+                    .partial_cmp(&(!b.2, b.1.distance(pos)))
+                    .unwrap_or(std::cmp::Ordering::Equal)
+            })
+            .map(|(s, _, _)| s)
     }
 
     fn handle_input<P: AppParams>(
@@ -439,20 +464,24 @@ impl Views {
         side: Side,
         state: &AppState<P>,
     ) {
-        for (sel, p) in self.markers(state, side, rect) {
+        let mut markers = self.markers(state, side, rect);
+        // Hidden-side markers first (drawn faded), visible ones on top.
+        markers.sort_by_key(|m| m.2);
+        for (sel, p, facing) in markers {
             let [r, g, b] = marker_color(sel.pair);
+            let alpha = if facing { 255 } else { 90 };
             let selected =
                 state.selected == Some(sel) || (state.selected.is_some_and(|s| s.pair == sel.pair));
             painter.circle(
                 p,
                 MARKER_RADIUS,
-                Color32::from_rgb(r, g, b),
+                Color32::from_rgba_unmultiplied(r, g, b, alpha),
                 Stroke::new(
                     if selected { 3.0 } else { 1.5 },
                     if selected {
                         Color32::WHITE
                     } else {
-                        Color32::BLACK
+                        Color32::from_black_alpha(alpha)
                     },
                 ),
             );
@@ -461,7 +490,7 @@ impl Views {
                 egui::Align2::CENTER_CENTER,
                 format!("{}", sel.pair + 1),
                 egui::FontId::proportional(11.0),
-                Color32::BLACK,
+                Color32::from_black_alpha(alpha),
             );
         }
         if side == Side::Source
