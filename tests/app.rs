@@ -515,3 +515,16 @@ fn painting_colours_vertices_near_the_brush_and_undo_removes_the_stroke() {
     app.state.undo();
     assert!(app.state.slot(Side::Source).unwrap().paint.is_none());
 }
+
+#[test]
+fn help_overlay_toggles_with_h_and_the_question_button() {
+    let mut h = harness(app_with_spheres());
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("Orbit: left-drag").is_none());
+    h.get_by_label("?").click();
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("Orbit: left-drag").is_some());
+    h.key_press(egui::Key::H);
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("Orbit: left-drag").is_none());
+}

@@ -212,7 +212,7 @@ pub fn vase() -> Result<DemoScene> {
 }
 
 /// The Scene menu: name and builder of each demo scene (the first is the startup scene).
-pub fn demo_scenes() -> Vec<(String, fn() -> Result<DemoScene>)> {
+pub fn demo_scenes() -> Vec<super::SceneEntry> {
     vec![
         (
             "Zebra -> giraffe".into(),

@@ -73,10 +73,13 @@ where
     show_help: bool,
     /// UI frame times (CPU time spent in `ui`).
     pub frame_stats: FrameStats,
-    demo_scenes: Vec<(String, fn() -> Result<DemoScene>)>,
+    demo_scenes: Vec<SceneEntry>,
     frame_log_every: Option<std::time::Duration>,
     frame_log_at: Instant,
 }
+
+/// A Scene-menu entry: its name and the function that builds it.
+pub type SceneEntry = (String, fn() -> Result<DemoScene>);
 
 /// A demo scene: two meshes and their correspondences.
 pub struct DemoScene {
@@ -114,7 +117,7 @@ where
     }
 
     /// Register demo scenes for the Scene menu.
-    pub fn with_demo_scenes(mut self, scenes: Vec<(String, fn() -> Result<DemoScene>)>) -> Self {
+    pub fn with_demo_scenes(mut self, scenes: Vec<SceneEntry>) -> Self {
         self.demo_scenes = scenes;
         self
     }
@@ -617,11 +620,7 @@ where
 }
 
 /// Run the app with a given engine (blocks until the window closes).
-pub fn run_with<E: Engine>(
-    engine: E,
-    startup: Startup,
-    demo_scenes: Vec<(String, fn() -> Result<DemoScene>)>,
-) -> Result<()>
+pub fn run_with<E: Engine>(engine: E, startup: Startup, demo_scenes: Vec<SceneEntry>) -> Result<()>
 where
     E::Params: AppParams,
 {

@@ -310,7 +310,7 @@ fn run_job<E: Engine>(
             Error::InvalidInput(format!("no {side:?} mesh loaded").to_lowercase())
         })?;
         let k = (entry.id, key.clone());
-        if !cache.contains_key(&k) {
+        if let std::collections::hash_map::Entry::Vacant(slot) = cache.entry(k) {
             cancel.check()?;
             let prepared = engine.prepare(&entry.mesh, params, &sink, cancel)?;
             let (working, working_to_file, file_to_working) = engine.working(&prepared);
@@ -322,7 +322,7 @@ fn run_job<E: Engine>(
                 file_to_working,
             });
             notify();
-            cache.insert(k, prepared);
+            slot.insert(prepared);
         }
     }
     let s = &cache[&(meshes[&Side::Source].id, key.clone())];
