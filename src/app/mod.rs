@@ -1,1 +1,652 @@
-//! (module under construction)
+//! The desktop app: source and target viewports with locked cameras, correspondence editing,
+//! painting, progressive transfer preview from a worker thread, files, sessions, undo/redo.
+//!
+//! All state lives in [`state::AppState`] (testable without a window); [`MeshMatchApp`] draws it
+//! with egui and forwards requests to the [`crate::jobs::worker::Worker`].
+
+pub mod engine;
+pub mod state;
+pub mod view;
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use eframe::egui::{self, Color32};
+
+use crate::jobs::worker::{Command, Engine, Side, Worker};
+use crate::{Error, Result};
+pub use state::{AppParams, AppState, Brush, Request, Selection};
+pub use view::{Tool, Views};
+
+/// What `main` passes to the app.
+#[derive(Clone, Debug, Default)]
+pub struct Startup {
+    /// Source mesh file; `None` (with no target) = the default demo scene.
+    pub source: Option<PathBuf>,
+    /// Target mesh file.
+    pub target: Option<PathBuf>,
+    /// Correspondences JSON to load with the meshes.
+    pub correspondences: Option<PathBuf>,
+}
+
+/// Rolling UI frame-time statistics (milliseconds).
+#[derive(Clone, Debug, Default)]
+pub struct FrameStats {
+    times: std::collections::VecDeque<f32>,
+}
+
+impl FrameStats {
+    /// Record the CPU time of one frame.
+    pub fn push(&mut self, ms: f32) {
+        self.times.push_back(ms);
+        if self.times.len() > 240 {
+            self.times.pop_front();
+        }
+    }
+    /// Number of frames recorded (at most 240).
+    pub fn len(&self) -> usize {
+        self.times.len()
+    }
+    /// No frame recorded yet.
+    pub fn is_empty(&self) -> bool {
+        self.times.is_empty()
+    }
+    /// Mean and maximum over the recent frames.
+    pub fn summary(&self) -> (f32, f32) {
+        let n = self.times.len().max(1) as f32;
+        let mean = self.times.iter().sum::<f32>() / n;
+        let max = self.times.iter().copied().fold(0.0, f32::max);
+        (mean, max)
+    }
+}
+
+/// The eframe application.
+pub struct MeshMatchApp<E: Engine>
+where
+    E::Params: AppParams,
+{
+    /// Window-independent state.
+    pub state: AppState<E::Params>,
+    /// The viewports.
+    pub views: Views,
+    worker: Worker<E::Params>,
+    show_help: bool,
+    /// UI frame times (CPU time spent in `ui`).
+    pub frame_stats: FrameStats,
+    demo_scenes: Vec<SceneEntry>,
+    frame_log_every: Option<std::time::Duration>,
+    frame_log_at: Instant,
+}
+
+/// A Scene-menu entry: its name and the function that builds it.
+pub type SceneEntry = (String, fn() -> Result<DemoScene>);
+
+/// A demo scene: two meshes and their correspondences.
+pub struct DemoScene {
+    /// Exemplar mesh.
+    pub source: crate::TriMesh,
+    /// Mesh to texture.
+    pub target: crate::TriMesh,
+    /// Correspondences in file indices.
+    pub correspondences: Vec<crate::jobs::Correspondence>,
+}
+
+impl<E: Engine> MeshMatchApp<E>
+where
+    E::Params: AppParams,
+{
+    /// Create the app with `engine` on a worker thread; `repaint` wakes the UI on worker events.
+    pub fn new(engine: E, repaint: Option<egui::Context>) -> Self {
+        let worker = Worker::spawn(engine, move || {
+            if let Some(ctx) = &repaint {
+                ctx.request_repaint();
+            }
+        });
+        MeshMatchApp {
+            state: AppState::new(),
+            views: Views::default(),
+            worker,
+            show_help: false,
+            frame_stats: FrameStats::default(),
+            demo_scenes: Vec::new(),
+            // MESHMATCH_FRAME_LOG=1 prints UI frame-time statistics to stderr every 2 s.
+            frame_log_every: std::env::var_os("MESHMATCH_FRAME_LOG")
+                .map(|_| std::time::Duration::from_secs(2)),
+            frame_log_at: Instant::now(),
+        }
+    }
+
+    /// Register demo scenes for the Scene menu.
+    pub fn with_demo_scenes(mut self, scenes: Vec<SceneEntry>) -> Self {
+        self.demo_scenes = scenes;
+        self
+    }
+
+    /// Load a demo scene by its index in the Scene menu.
+    pub fn load_demo(&mut self, index: usize) -> Result<()> {
+        let (_, f) = self
+            .demo_scenes
+            .get(index)
+            .ok_or_else(|| Error::InvalidInput("no such demo scene".into()))?;
+        let scene = f()?;
+        self.load_scene(scene)
+    }
+
+    /// Show a scene (two meshes + correspondences) and start the transfer.
+    pub fn load_scene(&mut self, scene: DemoScene) -> Result<()> {
+        self.state.set_mesh(Side::Source, scene.source, false);
+        self.state.set_mesh(Side::Target, scene.target, false);
+        self.state.set_correspondences(scene.correspondences)?;
+        self.views.frame_all();
+        Ok(())
+    }
+
+    /// Apply startup options: open files, or the first demo scene.
+    pub fn startup(&mut self, s: &Startup) {
+        match (&s.source, &s.target) {
+            (None, None) => {
+                if !self.demo_scenes.is_empty()
+                    && let Err(e) = self.load_demo(0)
+                {
+                    self.state.report(e);
+                }
+            }
+            (src, tgt) => {
+                for (side, p) in [(Side::Source, src), (Side::Target, tgt)] {
+                    if let Some(p) = p
+                        && let Err(e) = self.state.open_mesh(side, p)
+                    {
+                        self.state.report(e);
+                    }
+                }
+                if let Some(c) = &s.correspondences {
+                    let r = crate::jobs::CorrespondenceFile::load(c)
+                        .and_then(|f| self.state.set_correspondences(f.correspondences));
+                    if let Err(e) = r {
+                        self.state.report(e);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Forward the state's requests to the worker and apply the worker's events (never blocks).
+    pub fn pump(&mut self, now: Instant) {
+        self.state.tick(now);
+        for req in self.state.take_requests() {
+            match req {
+                Request::SetMesh(side, id, mesh) => self.worker.send(match side {
+                    Side::Source => Command::SetSource(id, mesh),
+                    Side::Target => Command::SetTarget(id, mesh),
+                }),
+                Request::Start(corr, params) => {
+                    let job = self.worker.start(corr, params);
+                    self.state.job_started(job);
+                }
+                Request::Cancel => self.worker.cancel(),
+            }
+        }
+        for ev in self.worker.poll() {
+            self.state.apply_event(ev);
+        }
+    }
+
+    /// Wait (up to `timeout`) for worker events and apply them; for tests and scripts.
+    pub fn wait_events(&mut self, timeout: std::time::Duration) -> bool {
+        match self.worker.recv_timeout(timeout) {
+            Some(ev) => {
+                self.state.apply_event(ev);
+                for ev in self.worker.poll() {
+                    self.state.apply_event(ev);
+                }
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn open_dialog(&mut self, what: &str) -> Option<PathBuf> {
+        let dlg = rfd::FileDialog::new().set_title(what);
+        let dlg = match what {
+            "Open texture" => dlg.add_filter("images", &["png", "jpg", "jpeg"]),
+            "Open session" => dlg.add_filter("session", &["json"]),
+            "Open correspondences" => dlg.add_filter("correspondences", &["json"]),
+            _ => dlg.add_filter("meshes", &["obj", "ply", "gltf", "glb"]),
+        };
+        dlg.pick_file()
+    }
+
+    fn menu_bar(&mut self, ui: &mut egui::Ui) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                let mut result: Result<()> = Ok(());
+                if ui.button("Open source mesh...").clicked()
+                    && let Some(p) = self.open_dialog("Open source mesh")
+                {
+                    result = self.state.open_mesh(Side::Source, &p);
+                    self.views.frame_all();
+                }
+                if ui.button("Open target mesh...").clicked()
+                    && let Some(p) = self.open_dialog("Open target mesh")
+                {
+                    result = self.state.open_mesh(Side::Target, &p);
+                    self.views.frame_all();
+                }
+                if ui.button("Open source texture...").clicked()
+                    && let Some(p) = self.open_dialog("Open texture")
+                {
+                    result = self.state.open_texture(&p);
+                }
+                if ui.button("Open correspondences...").clicked()
+                    && let Some(p) = self.open_dialog("Open correspondences")
+                {
+                    result = crate::jobs::CorrespondenceFile::load(&p)
+                        .and_then(|f| self.state.set_correspondences(f.correspondences));
+                }
+                if ui.button("Save correspondences...").clicked()
+                    && let Some(p) = rfd::FileDialog::new()
+                        .add_filter("json", &["json"])
+                        .save_file()
+                {
+                    result = crate::jobs::CorrespondenceFile {
+                        correspondences: self.state.corr.clone(),
+                    }
+                    .save(&p);
+                }
+                ui.separator();
+                if ui.button("Export result...").clicked()
+                    && let Some(p) = rfd::FileDialog::new()
+                        .add_filter("mesh", &["ply", "glb", "obj"])
+                        .save_file()
+                {
+                    result = self.state.export_result(&p);
+                }
+                for side in [Side::Source, Side::Target] {
+                    if ui.button(format!("Export painted {side:?}...")).clicked()
+                        && let Some(p) = rfd::FileDialog::new()
+                            .add_filter("mesh", &["ply", "glb", "obj"])
+                            .save_file()
+                    {
+                        result = match self.state.painted_mesh(side) {
+                            Some(m) => crate::mesh::io::save(&m, &p),
+                            None => Err(Error::InvalidInput("no mesh".into())),
+                        };
+                    }
+                }
+                ui.separator();
+                if ui.button("Open session...").clicked()
+                    && let Some(p) = self.open_dialog("Open session")
+                {
+                    result = self.state.open_session(&p);
+                    self.views.frame_all();
+                }
+                if ui.button("Save session...").clicked()
+                    && let Some(p) = rfd::FileDialog::new()
+                        .add_filter("session", &["json"])
+                        .save_file()
+                {
+                    result = self.state.save_session(&p);
+                }
+                ui.separator();
+                ui.menu_button("Recent", |ui| {
+                    if self.state.recent.is_empty() {
+                        ui.label("(none)");
+                    }
+                    for p in self.state.recent.clone() {
+                        let name = p.display().to_string();
+                        let is_session = p.extension().is_some_and(|e| e == "json");
+                        if is_session {
+                            if ui.button(format!("Session {name}")).clicked() {
+                                result = self.state.open_session(&p);
+                            }
+                        } else {
+                            ui.horizontal(|ui| {
+                                ui.label(&name);
+                                if ui.small_button("as source").clicked() {
+                                    result = self.state.open_mesh(Side::Source, &p);
+                                }
+                                if ui.small_button("as target").clicked() {
+                                    result = self.state.open_mesh(Side::Target, &p);
+                                }
+                            });
+                        }
+                    }
+                });
+                if let Err(e) = result {
+                    self.state.report(e);
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                if ui.button("Undo  (Ctrl+Z)").clicked() {
+                    self.state.undo();
+                }
+                if ui.button("Redo  (Ctrl+Shift+Z)").clicked() {
+                    self.state.redo();
+                }
+                if ui.button("Delete selected  (Del)").clicked() {
+                    self.state.delete_selected();
+                }
+            });
+            ui.menu_button("Scene", |ui| {
+                let mut pick = None;
+                for (i, (name, _)) in self.demo_scenes.iter().enumerate() {
+                    if ui.button(name).clicked() {
+                        pick = Some(i);
+                    }
+                }
+                if self.demo_scenes.is_empty() {
+                    ui.label("(no demo scenes)");
+                }
+                if let Some(i) = pick
+                    && let Err(e) = self.load_demo(i)
+                {
+                    self.state.report(e);
+                }
+            });
+            ui.menu_button("View", |ui| {
+                if ui
+                    .checkbox(&mut self.views.wireframe, "Wireframe")
+                    .changed()
+                {
+                    self.views.invalidate();
+                }
+                ui.checkbox(&mut self.views.lock_cameras, "Lock cameras");
+                if ui.button("Frame all  (F)").clicked() {
+                    self.views.frame_all();
+                }
+                ui.checkbox(&mut self.show_help, "Help  (H)");
+            });
+            if ui
+                .button("?")
+                .on_hover_text("Mouse and keyboard help")
+                .clicked()
+            {
+                self.show_help = !self.show_help;
+            }
+        });
+    }
+
+    fn side_panel(&mut self, ui: &mut egui::Ui) {
+        egui::ScrollArea::vertical().show(ui, |ui| {
+            ui.heading("Tool");
+            ui.horizontal(|ui| {
+                ui.selectable_value(&mut self.views.tool, Tool::Correspond, "Correspondences")
+                    .on_hover_text("Click source then target to add a pair");
+                ui.selectable_value(&mut self.views.tool, Tool::Paint, "Paint")
+                    .on_hover_text("Drag to paint vertex colours; Alt+drag orbits");
+            });
+            if self.views.tool == Tool::Paint {
+                let b = &mut self.state.brush;
+                ui.add(egui::Slider::new(&mut b.radius, 0.005..=0.5).text("radius"))
+                    .on_hover_text("Brush radius as a fraction of the mesh size");
+                ui.add(egui::Slider::new(&mut b.hardness, 0.0..=1.0).text("hardness"))
+                    .on_hover_text("1 = hard edge, 0 = soft falloff");
+                ui.horizontal(|ui| {
+                    ui.color_edit_button_rgb(&mut b.color);
+                    ui.checkbox(&mut b.eraser, "eraser");
+                });
+            }
+            ui.separator();
+            ui.heading("Correspondences");
+            if let Some(v) = self.state.pending_source {
+                ui.colored_label(Color32::YELLOW, format!("source {v} waiting for a target"));
+            }
+            let mut delete = None;
+            let mut select = None;
+            egui::Grid::new("pairs").striped(true).show(ui, |ui| {
+                for (i, c) in self.state.corr.iter().enumerate() {
+                    let [r, g, b] = state::marker_color(i);
+                    let sel = self.state.selected.is_some_and(|s| s.pair == i);
+                    let label = egui::RichText::new(format!("{:>2}", i + 1))
+                        .color(Color32::from_rgb(r, g, b))
+                        .strong();
+                    if ui.selectable_label(sel, label).clicked() {
+                        select = Some(i);
+                    }
+                    let targets: Vec<String> =
+                        c.target_vertices.iter().map(|t| t.to_string()).collect();
+                    ui.label(format!("{} -> {}", c.source_vertex, targets.join(", ")));
+                    if ui
+                        .small_button("x")
+                        .on_hover_text("Delete this pair")
+                        .clicked()
+                    {
+                        delete = Some(i);
+                    }
+                    ui.end_row();
+                }
+            });
+            if let Some(i) = select {
+                self.state.select(Some(Selection {
+                    pair: i,
+                    side: Side::Source,
+                    k: 0,
+                }));
+            }
+            if let Some(i) = delete {
+                self.state.delete_pair(i);
+            }
+            ui.separator();
+            ui.heading("Parameters");
+            let mut p = self.state.params.clone();
+            if p.ui(ui) {
+                self.state.set_params(p, Instant::now());
+            }
+            ui.separator();
+            ui.horizontal(|ui| {
+                if ui.button("Restart transfer").clicked() {
+                    self.state.schedule_restart(Instant::now());
+                }
+                if ui
+                    .add_enabled(self.state.job.running, egui::Button::new("Cancel"))
+                    .clicked()
+                {
+                    self.state.cancel_job();
+                }
+            });
+        });
+    }
+
+    fn status_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            let j = &self.state.job;
+            let p = &j.progress;
+            if j.running {
+                ui.spinner();
+                let mut text = p.stage.to_string();
+                if p.levels > 0 {
+                    text += &format!(
+                        "  level {} of {} (0 = finest)  iteration {}",
+                        p.level, p.levels, p.iteration
+                    );
+                }
+                if p.energy > 0.0 {
+                    text += &format!("  energy {:.4}", p.energy);
+                }
+                text += &format!("  {:.1} s", p.elapsed);
+                ui.label(text);
+                ui.add(egui::ProgressBar::new(p.fraction).desired_width(120.0));
+            } else if !j.outcome.is_empty() {
+                ui.label(format!("transfer {}", j.outcome));
+            } else if self.state.restart_pending() {
+                ui.label("transfer starting...");
+            }
+            ui.separator();
+            ui.label(&self.state.message);
+            ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+                let (mean, max) = self.frame_stats.summary();
+                ui.label(format!("UI {mean:.1} ms (max {max:.1})"));
+            });
+        });
+    }
+
+    fn help_window(&mut self, ctx: &egui::Context) {
+        let mut open = self.show_help;
+        egui::Window::new("Help")
+            .open(&mut open)
+            .collapsible(false)
+            .show(ctx, |ui| {
+                ui.label(
+                    "Mouse (either view)\n\
+                     - Orbit: left-drag, or Alt + left-drag\n\
+                     - Pan: middle-drag, or Shift + left-drag\n\
+                     - Zoom: mouse wheel\n\
+                     - Cameras are locked by default (View > Lock cameras): both views move \
+                       together relative to each mesh's bounds.\n\n\
+                     Correspondences\n\
+                     - Click a source point, then a target point: adds a numbered pair.\n\
+                     - Shift-click on the target: adds another target point to the selected pair.\n\
+                     - Click a marker to select it; drag it to move it; Delete removes it.\n\n\
+                     Painting (Tool: Paint)\n\
+                     - Left-drag paints with the brush, Alt + left-drag orbits.\n\n\
+                     Keys\n\
+                     - F frame all - H help - Ctrl+Z undo - Ctrl+Shift+Z redo - Delete remove\n\
+                     - Drop a mesh file on a view to open it there.",
+                );
+            });
+        self.show_help = open;
+    }
+
+    fn errors_window(&mut self, ctx: &egui::Context) {
+        if self.state.errors.is_empty() {
+            return;
+        }
+        let mut dismiss = false;
+        egui::Window::new("Error")
+            .collapsible(false)
+            .show(ctx, |ui| {
+                for e in &self.state.errors {
+                    ui.colored_label(Color32::from_rgb(255, 120, 120), e);
+                }
+                if ui.button("Dismiss").clicked() {
+                    dismiss = true;
+                }
+            });
+        if dismiss {
+            self.state.errors.clear();
+        }
+    }
+
+    fn shortcuts(&mut self, ctx: &egui::Context) {
+        let typing = ctx.egui_wants_keyboard_input();
+        if typing {
+            return;
+        }
+        let (undo, redo, del, frame, help) = ctx.input(|i| {
+            let cmd = i.modifiers.command;
+            (
+                cmd && !i.modifiers.shift && i.key_pressed(egui::Key::Z),
+                cmd && (i.modifiers.shift && i.key_pressed(egui::Key::Z)
+                    || i.key_pressed(egui::Key::Y)),
+                i.key_pressed(egui::Key::Delete) || i.key_pressed(egui::Key::Backspace),
+                i.key_pressed(egui::Key::F),
+                i.key_pressed(egui::Key::H),
+            )
+        });
+        if undo {
+            self.state.undo();
+        }
+        if redo {
+            self.state.redo();
+        }
+        if del {
+            self.state.delete_selected();
+        }
+        if frame {
+            self.views.frame_all();
+        }
+        if help {
+            self.show_help = !self.show_help;
+        }
+    }
+
+    /// Draw one frame of the whole UI into `ui`.
+    pub fn frame_ui(&mut self, ui: &mut egui::Ui, rs: Option<&eframe::egui_wgpu::RenderState>) {
+        let clock = Instant::now();
+        let ctx = ui.ctx().clone();
+        self.pump(Instant::now());
+        self.shortcuts(&ctx);
+        egui::Panel::top("menu").show(ui, |ui| self.menu_bar(ui));
+        egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
+        egui::Panel::right("side")
+            .default_size(300.0)
+            .show(ui, |ui| self.side_panel(ui));
+        let dropped = egui::CentralPanel::no_frame()
+            .show(ui, |ui| self.views.show(ui, rs, &mut self.state))
+            .inner;
+        if let Some((side, path)) = dropped {
+            if let Err(e) = self.state.open_mesh(side, &path) {
+                self.state.report(e);
+            }
+            self.views.frame_all();
+        }
+        self.help_window(&ctx);
+        self.errors_window(&ctx);
+        // Edits made this frame: send them now rather than next frame.
+        self.pump(Instant::now());
+        if self.state.restart_pending() {
+            ctx.request_repaint_after(state::DEBOUNCE / 3);
+        }
+        if self.state.job.running {
+            ctx.request_repaint_after(std::time::Duration::from_millis(100));
+        }
+        self.frame_stats
+            .push(clock.elapsed().as_secs_f32() * 1000.0);
+        if let Some(every) = self.frame_log_every
+            && self.frame_log_at.elapsed() >= every
+        {
+            let (mean, max) = self.frame_stats.summary();
+            eprintln!(
+                "frame-stats: mean {mean:.2} ms max {max:.2} ms over {} frames; running {} stage {} partials {} view draw ms {:?}",
+                self.frame_stats.len(),
+                self.state.job.running,
+                self.state.job.progress.stage,
+                self.state.job.partials,
+                self.views.last_draw_ms
+            );
+            self.frame_log_at = Instant::now();
+        }
+    }
+}
+
+impl<E: Engine> eframe::App for MeshMatchApp<E>
+where
+    E::Params: AppParams,
+{
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        let rs = frame.wgpu_render_state().cloned();
+        self.frame_ui(ui, rs.as_ref());
+    }
+}
+
+/// Run the app with a given engine (blocks until the window closes).
+pub fn run_with<E: Engine>(engine: E, startup: Startup, demo_scenes: Vec<SceneEntry>) -> Result<()>
+where
+    E::Params: AppParams,
+{
+    let options = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_inner_size([1400.0, 820.0])
+            .with_title("MeshMatch")
+            .with_drag_and_drop(true),
+        renderer: eframe::Renderer::Wgpu,
+        ..Default::default()
+    };
+    eframe::run_native(
+        "MeshMatch",
+        options,
+        Box::new(move |cc| {
+            let mut app =
+                MeshMatchApp::new(engine, Some(cc.egui_ctx.clone())).with_demo_scenes(demo_scenes);
+            app.startup(&startup);
+            Ok(Box::new(app))
+        }),
+    )
+    .map_err(|e| Error::InvalidInput(format!("cannot open the window: {e}")))
+}
+
+/// Run the desktop app (blocks until the window closes). With no paths in `startup` it opens the
+/// demo scene (procedural zebra -> giraffe) with the transfer already running.
+pub fn run(startup: Startup) -> Result<()> {
+    run_with(engine::MeshMatchEngine, startup, engine::demo_scenes())
+}

@@ -4,6 +4,8 @@
 //! progress bar; the app runs the job on a worker thread (`spawn`) and streams events over a
 //! crossbeam channel.
 
+pub mod worker;
+
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;

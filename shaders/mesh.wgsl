@@ -1,0 +1,86 @@
+// Mesh shader: per-vertex sRGB colour, headlight Lambert shading, optional wireframe pass.
+//
+// Colours arrive in sRGB [0,1]; shading happens in linear light and the result is encoded back
+// to sRGB because the render target is Rgba8Unorm (the format egui samples without conversion).
+
+struct Uniforms {
+    view_proj: mat4x4<f32>,
+    // xyz: camera position (world), w: wireframe depth pull (clip-space z offset factor)
+    eye: vec4<f32>,
+    // rgb: wireframe colour, a: ambient term
+    wire: vec4<f32>,
+};
+
+@group(0) @binding(0) var<uniform> u: Uniforms;
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec3<f32>,
+};
+
+fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
+    let lo = c / 12.92;
+    let hi = pow((c + 0.055) / 1.055, vec3<f32>(2.4));
+    return select(hi, lo, c <= vec3<f32>(0.04045));
+}
+
+fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
+    let cc = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
+    let lo = cc * 12.92;
+    let hi = 1.055 * pow(cc, vec3<f32>(1.0 / 2.4)) - 0.055;
+    return select(hi, lo, cc <= vec3<f32>(0.0031308));
+}
+
+@vertex
+fn vs_main(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec3<f32>,
+) -> VsOut {
+    var out: VsOut;
+    out.clip = u.view_proj * vec4<f32>(position, 1.0);
+    out.world = position;
+    out.normal = normal;
+    out.color = color;
+    return out;
+}
+
+@fragment
+fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    // Headlight: the light sits at the eye, so the Lambert term is |n . v| (two-sided).
+    let v = normalize(u.eye.xyz - in.world);
+    var n = in.normal;
+    let len = length(n);
+    var lambert = 1.0;
+    if (len > 1e-12) {
+        n = n / len;
+        lambert = abs(dot(n, v));
+    }
+    let ambient = u.wire.a;
+    let lin = srgb_to_linear(in.color) * (ambient + (1.0 - ambient) * lambert);
+    return vec4<f32>(linear_to_srgb(lin), 1.0);
+}
+
+@vertex
+fn vs_wire(
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec3<f32>,
+) -> VsOut {
+    var out: VsOut;
+    var clip = u.view_proj * vec4<f32>(position, 1.0);
+    // Pull lines slightly towards the camera so they win the depth test against their faces.
+    clip.z = clip.z - u.eye.w * clip.w;
+    out.clip = clip;
+    out.world = position;
+    out.normal = normal;
+    out.color = color;
+    return out;
+}
+
+@fragment
+fn fs_wire(in: VsOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(u.wire.rgb, 1.0);
+}

@@ -1,0 +1,869 @@
+//! The app's state, independent of any window: meshes, correspondences, undo history, paint
+//! layers, parameters and job status. The UI calls these methods; tests call them directly.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crate::jobs::worker::{Side, Solved, WorkerEvent};
+use crate::jobs::{Correspondence, CorrespondenceFile, Event, Progress};
+use crate::{Error, Result, TriMesh};
+
+/// Delay between the last edit and the restart of the transfer.
+pub const DEBOUNCE: Duration = Duration::from_millis(150);
+/// Most undo steps kept.
+pub const UNDO_LIMIT: usize = 100;
+
+/// Parameters the app can edit, save and send to the worker.
+pub trait AppParams:
+    Clone + Default + PartialEq + serde::Serialize + serde::de::DeserializeOwned + Send + 'static
+{
+    /// Draw the parameter editors (each with a tooltip); true when a value changed.
+    fn ui(&mut self, ui: &mut eframe::egui::Ui) -> bool;
+}
+
+/// One loaded mesh and what is displayed for it.
+#[derive(Clone)]
+pub struct MeshSlot {
+    /// The mesh as loaded (file vertex numbering).
+    pub file: Arc<TriMesh>,
+    /// Identity of this load (changes whenever the mesh is replaced).
+    pub id: u64,
+    /// The working-resolution mesh once the worker prepared it.
+    pub working: Option<Arc<TriMesh>>,
+    /// File vertex of each working vertex.
+    pub working_to_file: Option<Arc<[u32]>>,
+    /// A working vertex for each file vertex (the first one that maps to it), `u32::MAX` if none.
+    pub file_to_working: Option<Vec<u32>>,
+    /// Base colours of the displayed mesh (before paint).
+    pub base_colors: Vec<[f32; 3]>,
+    /// Vertex normals of the displayed mesh (for marker visibility).
+    pub normals: Vec<[f32; 3]>,
+    /// Paint layer on the displayed mesh: RGB + coverage per vertex.
+    pub paint: Option<Vec<[f32; 4]>>,
+    /// Geometry changed since the renderer last uploaded it.
+    pub geometry_dirty: bool,
+    /// Colours changed since the renderer last uploaded them.
+    pub colors_dirty: bool,
+}
+
+impl MeshSlot {
+    fn new(mesh: Arc<TriMesh>, id: u64) -> Self {
+        let base_colors = crate::render::display_colors(&mesh, None);
+        let normals = crate::render::gpu::vertex_normals(&mesh.positions, &mesh.faces);
+        MeshSlot {
+            normals,
+            file: mesh,
+            id,
+            working: None,
+            working_to_file: None,
+            file_to_working: None,
+            base_colors,
+            paint: None,
+            geometry_dirty: true,
+            colors_dirty: true,
+        }
+    }
+
+    /// The mesh shown in the view: the working mesh when prepared, else the file mesh.
+    pub fn displayed(&self) -> &TriMesh {
+        self.working.as_deref().unwrap_or(&self.file)
+    }
+
+    /// File vertex of a displayed vertex.
+    pub fn to_file(&self, v: u32) -> u32 {
+        match &self.working_to_file {
+            Some(map) => map.get(v as usize).copied().unwrap_or(v),
+            None => v,
+        }
+    }
+
+    /// Displayed vertex of a file vertex, if it is shown.
+    pub fn to_displayed(&self, f: u32) -> Option<u32> {
+        match &self.file_to_working {
+            Some(map) => map.get(f as usize).copied().filter(|&w| w != u32::MAX),
+            None => ((f as usize) < self.file.positions.len()).then_some(f),
+        }
+    }
+
+    /// Position of a file vertex on the displayed mesh.
+    pub fn file_vertex_position(&self, f: u32) -> Option<[f32; 3]> {
+        let d = self.to_displayed(f)?;
+        self.displayed().positions.get(d as usize).copied()
+    }
+
+    /// Colours to draw: base colours with the paint layer composited.
+    pub fn display_colors(&self) -> Vec<[f32; 3]> {
+        match &self.paint {
+            None => self.base_colors.clone(),
+            Some(p) => self
+                .base_colors
+                .iter()
+                .zip(p)
+                .map(|(b, p)| {
+                    let a = p[3];
+                    [0, 1, 2].map(|k| b[k] * (1.0 - a) + p[k] * a)
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The selected marker: pair index, side and (for the target) which of its vertices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Selection {
+    /// Index into the correspondence list.
+    pub pair: usize,
+    /// Which view's marker.
+    pub side: Side,
+    /// Index into `target_vertices` (0 for the source marker).
+    pub k: usize,
+}
+
+/// What the UI should ask the worker to do.
+#[derive(Clone, Debug)]
+pub enum Request<P> {
+    /// Replace a mesh.
+    SetMesh(Side, u64, Arc<TriMesh>),
+    /// Start a transfer.
+    Start(Vec<Correspondence>, P),
+    /// Stop the running job.
+    Cancel,
+}
+
+/// The state of the transfer job as the status bar shows it.
+#[derive(Clone, Debug, Default)]
+pub struct JobStatus {
+    /// Job number currently expected (0 = none yet).
+    pub job: u64,
+    /// A job is running.
+    pub running: bool,
+    /// Latest progress.
+    pub progress: Progress,
+    /// Number of partial results received for the current job.
+    pub partials: usize,
+    /// Wall time of the last finished job.
+    pub finished_secs: Option<f64>,
+    /// Last outcome in words ("done", "cancelled", an error).
+    pub outcome: String,
+}
+
+#[derive(Clone)]
+struct Snapshot {
+    corr: Vec<Correspondence>,
+    pending_source: Option<u32>,
+    paint: [Option<Vec<[f32; 4]>>; 2],
+}
+
+/// Brush settings for painting vertex colours.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Brush {
+    /// Radius as a fraction of the mesh's bounding radius.
+    pub radius: f32,
+    /// sRGB colour.
+    pub color: [f32; 3],
+    /// 1 = hard edge, 0 = fully soft falloff.
+    pub hardness: f32,
+    /// Remove paint instead of adding it.
+    pub eraser: bool,
+}
+
+impl Default for Brush {
+    fn default() -> Self {
+        Brush {
+            radius: 0.08,
+            color: [0.9, 0.1, 0.1],
+            hardness: 0.5,
+            eraser: false,
+        }
+    }
+}
+
+/// The session file: meshes, correspondences (file indices), parameters and paint sidecars.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Session<P> {
+    /// Source mesh path.
+    pub source: Option<PathBuf>,
+    /// Target mesh path.
+    pub target: Option<PathBuf>,
+    /// Correspondences in file vertex indices.
+    pub correspondences: CorrespondenceFile,
+    /// Transfer parameters.
+    pub params: P,
+    /// Painted source colours (PLY sidecar), if any.
+    pub source_paint: Option<PathBuf>,
+    /// Painted target colours (PLY sidecar), if any.
+    pub target_paint: Option<PathBuf>,
+}
+
+/// Everything the app knows, without any window.
+pub struct AppState<P: AppParams> {
+    /// Source and target meshes (index 0 = source, 1 = target).
+    pub meshes: [Option<MeshSlot>; 2],
+    /// Correspondences in file vertex indices.
+    pub corr: Vec<Correspondence>,
+    /// A source vertex clicked but not yet paired (file index).
+    pub pending_source: Option<u32>,
+    /// Selected marker.
+    pub selected: Option<Selection>,
+    /// Transfer parameters.
+    pub params: P,
+    /// Job status.
+    pub job: JobStatus,
+    /// The latest result (per target file vertex), for export.
+    pub result: Option<Arc<Solved>>,
+    /// Messages to show the user (dismissable).
+    pub errors: Vec<String>,
+    /// One-line status message.
+    pub message: String,
+    /// Brush settings.
+    pub brush: Brush,
+    /// Recently opened files, newest first.
+    pub recent: Vec<PathBuf>,
+    undo: Vec<Snapshot>,
+    redo: Vec<Snapshot>,
+    restart_at: Option<Instant>,
+    requests: Vec<Request<P>>,
+    next_id: u64,
+}
+
+/// Index of a side in `meshes`.
+pub fn side_index(side: Side) -> usize {
+    match side {
+        Side::Source => 0,
+        Side::Target => 1,
+    }
+}
+
+impl<P: AppParams> Default for AppState<P> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<P: AppParams> AppState<P> {
+    /// Empty state with default parameters.
+    pub fn new() -> Self {
+        AppState {
+            meshes: [None, None],
+            corr: Vec::new(),
+            pending_source: None,
+            selected: None,
+            params: P::default(),
+            job: JobStatus::default(),
+            result: None,
+            errors: Vec::new(),
+            message: String::new(),
+            brush: Brush::default(),
+            recent: Vec::new(),
+            undo: Vec::new(),
+            redo: Vec::new(),
+            restart_at: None,
+            requests: Vec::new(),
+            next_id: 1,
+        }
+    }
+
+    /// The slot of one side.
+    pub fn slot(&self, side: Side) -> Option<&MeshSlot> {
+        self.meshes[side_index(side)].as_ref()
+    }
+
+    fn slot_mut(&mut self, side: Side) -> Option<&mut MeshSlot> {
+        self.meshes[side_index(side)].as_mut()
+    }
+
+    /// Report an error to the user (shown in a dismissable window).
+    pub fn report(&mut self, e: impl std::fmt::Display) {
+        self.errors.push(e.to_string());
+    }
+
+    /// Replace one mesh; correspondences are kept only if both meshes stay (`keep_corr`).
+    pub fn set_mesh(&mut self, side: Side, mesh: TriMesh, keep_corr: bool) {
+        let id = self.next_id;
+        self.next_id += 1;
+        let mesh = Arc::new(mesh);
+        self.meshes[side_index(side)] = Some(MeshSlot::new(mesh.clone(), id));
+        if !keep_corr {
+            self.corr.clear();
+            self.pending_source = None;
+            self.selected = None;
+            self.undo.clear();
+            self.redo.clear();
+        }
+        if side == Side::Target {
+            self.result = None;
+        }
+        self.requests.push(Request::SetMesh(side, id, mesh));
+        self.schedule_restart_now();
+    }
+
+    /// Load a mesh file into one side; errors become messages.
+    pub fn open_mesh(&mut self, side: Side, path: &Path) -> Result<()> {
+        let mesh = crate::mesh::io::load(path)?;
+        mesh_usable(&mesh)?;
+        self.set_mesh(side, mesh, false);
+        self.push_recent(path);
+        Ok(())
+    }
+
+    /// Apply a texture image to the source mesh (it must have UVs).
+    pub fn open_texture(&mut self, path: &Path) -> Result<()> {
+        let tex = crate::mesh::io::load_texture(path)?;
+        let slot = self
+            .slot(Side::Source)
+            .ok_or_else(|| Error::InvalidInput("open a source mesh before its texture".into()))?;
+        let mut mesh = (*slot.file).clone();
+        if mesh.uvs.is_none() {
+            return Err(Error::InvalidInput(
+                "the source mesh has no UV coordinates to map a texture".into(),
+            ));
+        }
+        mesh.texture = Some(Arc::new(tex));
+        mesh.colors = None;
+        self.set_mesh(Side::Source, mesh, true);
+        self.push_recent(path);
+        Ok(())
+    }
+
+    fn push_recent(&mut self, path: &Path) {
+        self.recent.retain(|p| p != path);
+        self.recent.insert(0, path.to_path_buf());
+        self.recent.truncate(10);
+    }
+
+    /// Take the requests for the worker accumulated since the last call.
+    pub fn take_requests(&mut self) -> Vec<Request<P>> {
+        std::mem::take(&mut self.requests)
+    }
+
+    /// Restart the transfer after the debounce delay (called after every edit).
+    pub fn schedule_restart(&mut self, now: Instant) {
+        self.restart_at = Some(now + DEBOUNCE);
+    }
+
+    fn schedule_restart_now(&mut self) {
+        self.schedule_restart(Instant::now());
+    }
+
+    /// Is a restart waiting for its debounce delay?
+    pub fn restart_pending(&self) -> bool {
+        self.restart_at.is_some()
+    }
+
+    /// Advance time: once the debounce delay passed, queue a transfer start. Returns true when a
+    /// start was queued.
+    pub fn tick(&mut self, now: Instant) -> bool {
+        match self.restart_at {
+            Some(t) if now >= t => {
+                self.restart_at = None;
+                if self.meshes.iter().all(Option::is_some) {
+                    self.requests
+                        .push(Request::Start(self.corr.clone(), self.params.clone()));
+                    true
+                } else {
+                    false
+                }
+            }
+            _ => false,
+        }
+    }
+
+    /// The worker accepted a start as job `job`.
+    pub fn job_started(&mut self, job: u64) {
+        self.job.job = job;
+        self.job.running = true;
+        self.job.partials = 0;
+        self.job.outcome = "running".into();
+        self.job.progress = Progress::default();
+    }
+
+    /// Ask the running job to stop.
+    pub fn cancel_job(&mut self) {
+        self.restart_at = None;
+        self.requests.push(Request::Cancel);
+    }
+
+    /// Set parameters; a change restarts the transfer.
+    pub fn set_params(&mut self, params: P, now: Instant) {
+        if params != self.params {
+            self.params = params;
+            self.schedule_restart(now);
+        }
+    }
+
+    /// Apply an event from the worker.
+    pub fn apply_event(&mut self, ev: WorkerEvent) {
+        match ev {
+            WorkerEvent::Prepared {
+                side,
+                mesh_id,
+                working,
+                working_to_file,
+                file_to_working,
+            } => {
+                let Some(slot) = self.slot_mut(side) else {
+                    return;
+                };
+                if slot.id != mesh_id {
+                    return;
+                }
+                let nw = working.positions.len() as u32;
+                let f2w: Vec<u32> = if file_to_working.len() == slot.file.positions.len() {
+                    file_to_working
+                        .iter()
+                        .map(|&w| if w < nw { w } else { u32::MAX })
+                        .collect()
+                } else {
+                    let mut f2w = vec![u32::MAX; slot.file.positions.len()];
+                    for (w, &f) in working_to_file.iter().enumerate() {
+                        if let Some(e) = f2w.get_mut(f as usize)
+                            && *e == u32::MAX
+                        {
+                            *e = w as u32;
+                        }
+                    }
+                    f2w
+                };
+                slot.base_colors = match side {
+                    Side::Source => crate::render::display_colors(&working, None),
+                    Side::Target => {
+                        vec![crate::render::gpu::DEFAULT_VERTEX_COLOR; working.positions.len()]
+                    }
+                };
+                slot.paint = None;
+                slot.normals =
+                    crate::render::gpu::vertex_normals(&working.positions, &working.faces);
+                slot.working = Some(working);
+                slot.working_to_file = Some(working_to_file);
+                slot.file_to_working = Some(f2w);
+                slot.geometry_dirty = true;
+                slot.colors_dirty = true;
+            }
+            WorkerEvent::Job { job, event } => {
+                if job != self.job.job {
+                    return;
+                }
+                match event {
+                    Event::Progress(p) => self.job.progress = p,
+                    Event::Partial { progress, signal } => {
+                        self.job.progress = progress;
+                        self.job.partials += 1;
+                        self.set_target_colors(&signal);
+                    }
+                    Event::StageTime(..) => {}
+                }
+            }
+            WorkerEvent::Done {
+                job,
+                result,
+                elapsed,
+            } => {
+                if job != self.job.job {
+                    return;
+                }
+                self.job.running = false;
+                self.job.finished_secs = Some(elapsed);
+                self.job.outcome = format!("done in {elapsed:.2} s");
+                self.set_target_colors(&result.working_signal);
+                self.result = Some(result);
+            }
+            WorkerEvent::Cancelled { job } => {
+                if job == self.job.job {
+                    self.job.running = false;
+                    self.job.outcome = "cancelled".into();
+                }
+            }
+            WorkerEvent::Failed { job, message } => {
+                if job == self.job.job {
+                    self.job.running = false;
+                    self.job.outcome = format!("failed: {message}");
+                    self.report(format!("Transfer failed: {message}"));
+                }
+            }
+        }
+    }
+
+    fn set_target_colors(&mut self, signal: &[[f32; 3]]) {
+        if let Some(slot) = self.slot_mut(Side::Target)
+            && signal.len() == slot.displayed().positions.len()
+        {
+            slot.base_colors = signal.to_vec();
+            slot.colors_dirty = true;
+        }
+    }
+
+    // ----- correspondences -----
+
+    fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            corr: self.corr.clone(),
+            pending_source: self.pending_source,
+            paint: [0, 1].map(|i| self.meshes[i].as_ref().and_then(|s| s.paint.clone())),
+        }
+    }
+
+    /// Record the current state for undo (call before an edit).
+    pub fn push_undo(&mut self) {
+        self.undo.push(self.snapshot());
+        if self.undo.len() > UNDO_LIMIT {
+            self.undo.remove(0);
+        }
+        self.redo.clear();
+    }
+
+    fn restore(&mut self, s: Snapshot) {
+        let corr_changed = s.corr != self.corr;
+        self.corr = s.corr;
+        self.pending_source = s.pending_source;
+        for (i, p) in s.paint.into_iter().enumerate() {
+            if let Some(slot) = self.meshes[i].as_mut()
+                && slot.paint != p
+            {
+                slot.paint = p;
+                slot.colors_dirty = true;
+            }
+        }
+        if let Some(sel) = self.selected
+            && !self.marker_exists(sel)
+        {
+            self.selected = None;
+        }
+        if corr_changed {
+            self.schedule_restart_now();
+        }
+    }
+
+    /// Undo the last edit (correspondence or paint stroke); false if there is none.
+    pub fn undo(&mut self) -> bool {
+        let Some(s) = self.undo.pop() else {
+            return false;
+        };
+        let cur = self.snapshot();
+        self.redo.push(cur);
+        self.restore(s);
+        true
+    }
+
+    /// Redo the last undone edit; false if there is none.
+    pub fn redo(&mut self) -> bool {
+        let Some(s) = self.redo.pop() else {
+            return false;
+        };
+        let cur = self.snapshot();
+        self.undo.push(cur);
+        self.restore(s);
+        true
+    }
+
+    /// Number of undo and redo steps available.
+    pub fn history_len(&self) -> (usize, usize) {
+        (self.undo.len(), self.redo.len())
+    }
+
+    fn marker_exists(&self, s: Selection) -> bool {
+        self.corr.get(s.pair).is_some_and(|c| match s.side {
+            Side::Source => s.k == 0,
+            Side::Target => s.k < c.target_vertices.len(),
+        })
+    }
+
+    /// Handle a click on a displayed vertex of one view: source click starts a pair, target click
+    /// completes it; with `add` (Shift) a target click adds another target vertex to the selected
+    /// pair (one-to-many).
+    pub fn click_vertex(&mut self, side: Side, displayed_vertex: u32, add: bool) {
+        let Some(slot) = self.slot(side) else { return };
+        let f = slot.to_file(displayed_vertex);
+        match side {
+            Side::Source => {
+                self.push_undo();
+                self.pending_source = Some(f);
+                self.selected = None;
+                self.message = format!("source vertex {f}: now click the target");
+            }
+            Side::Target => {
+                if let Some(s) = self.pending_source {
+                    self.push_undo();
+                    self.corr.push(Correspondence {
+                        source_vertex: s,
+                        target_vertices: vec![f],
+                    });
+                    self.pending_source = None;
+                    self.selected = Some(Selection {
+                        pair: self.corr.len() - 1,
+                        side: Side::Target,
+                        k: 0,
+                    });
+                    self.message = format!("pair {} added", self.corr.len());
+                    self.schedule_restart_now();
+                } else if add && let Some(sel) = self.selected {
+                    if self.corr[sel.pair].target_vertices.contains(&f) {
+                        return;
+                    }
+                    self.push_undo();
+                    self.corr[sel.pair].target_vertices.push(f);
+                    self.selected = Some(Selection {
+                        pair: sel.pair,
+                        side: Side::Target,
+                        k: self.corr[sel.pair].target_vertices.len() - 1,
+                    });
+                    self.message = format!("target point added to pair {}", sel.pair + 1);
+                    self.schedule_restart_now();
+                } else {
+                    self.message = "click a source point first (Shift-click adds targets to the selected pair)".into();
+                }
+            }
+        }
+    }
+
+    /// Select a marker.
+    pub fn select(&mut self, sel: Option<Selection>) {
+        self.selected = sel.filter(|s| self.marker_exists(*s));
+    }
+
+    /// Delete the selected marker: a source marker removes its pair; a target marker removes that
+    /// target vertex (and the pair when it was the last). Returns true if something was removed.
+    pub fn delete_selected(&mut self) -> bool {
+        let Some(sel) = self.selected else {
+            if self.pending_source.is_some() {
+                self.push_undo();
+                self.pending_source = None;
+                return true;
+            }
+            return false;
+        };
+        if !self.marker_exists(sel) {
+            return false;
+        }
+        self.push_undo();
+        let c = &mut self.corr[sel.pair];
+        if sel.side == Side::Source || c.target_vertices.len() <= 1 {
+            self.corr.remove(sel.pair);
+        } else {
+            c.target_vertices.remove(sel.k);
+        }
+        self.selected = None;
+        self.schedule_restart_now();
+        true
+    }
+
+    /// Delete a whole pair by index.
+    pub fn delete_pair(&mut self, pair: usize) {
+        if pair < self.corr.len() {
+            self.push_undo();
+            self.corr.remove(pair);
+            self.selected = None;
+            self.schedule_restart_now();
+        }
+    }
+
+    /// Move a marker to another displayed vertex. `record` pushes an undo step (true at the start
+    /// of a drag, false while it continues).
+    pub fn move_marker(&mut self, sel: Selection, displayed_vertex: u32, record: bool) {
+        if !self.marker_exists(sel) {
+            return;
+        }
+        let Some(slot) = self.slot(sel.side) else {
+            return;
+        };
+        let f = slot.to_file(displayed_vertex);
+        let cur = match sel.side {
+            Side::Source => self.corr[sel.pair].source_vertex,
+            Side::Target => self.corr[sel.pair].target_vertices[sel.k],
+        };
+        if cur == f {
+            return;
+        }
+        if record {
+            self.push_undo();
+        }
+        match sel.side {
+            Side::Source => self.corr[sel.pair].source_vertex = f,
+            Side::Target => self.corr[sel.pair].target_vertices[sel.k] = f,
+        }
+        self.schedule_restart_now();
+    }
+
+    /// Replace all correspondences (e.g. from a file), as one undoable edit.
+    pub fn set_correspondences(&mut self, corr: Vec<Correspondence>) -> Result<()> {
+        for (side, verts) in [
+            (
+                Side::Source,
+                corr.iter().map(|c| c.source_vertex).collect::<Vec<_>>(),
+            ),
+            (
+                Side::Target,
+                corr.iter()
+                    .flat_map(|c| c.target_vertices.iter().copied())
+                    .collect(),
+            ),
+        ] {
+            if let Some(slot) = self.slot(side) {
+                let n = slot.file.positions.len() as u32;
+                if let Some(bad) = verts.iter().find(|&&v| v >= n) {
+                    return Err(Error::InvalidInput(format!(
+                        "correspondence vertex {bad} out of range for the {side:?} mesh ({n} vertices)"
+                    )));
+                }
+            }
+        }
+        self.push_undo();
+        self.corr = corr;
+        self.selected = None;
+        self.pending_source = None;
+        self.schedule_restart_now();
+        Ok(())
+    }
+
+    // ----- painting -----
+
+    /// Paint (or erase) around a point on one side's displayed mesh with the current brush.
+    /// `record` pushes an undo step (true at the start of a stroke). Returns painted vertex count.
+    pub fn paint_at(&mut self, side: Side, center: [f32; 3], record: bool) -> usize {
+        let brush = self.brush;
+        if record && self.slot(side).is_some() {
+            self.push_undo();
+        }
+        let Some(slot) = self.slot_mut(side) else {
+            return 0;
+        };
+        let mesh = slot.displayed();
+        let frame = crate::render::Frame::of_points(&mesh.positions);
+        let r = (brush.radius * frame.radius).max(1e-9);
+        let c = glam::Vec3::from(center);
+        let n = mesh.positions.len();
+        let positions = mesh.positions.clone();
+        let paint = slot.paint.get_or_insert_with(|| vec![[0.0; 4]; n]);
+        let mut count = 0;
+        for (p, dst) in positions.iter().zip(paint.iter_mut()) {
+            let d = glam::Vec3::from(*p).distance(c) / r;
+            if d >= 1.0 {
+                continue;
+            }
+            // Hardness h: full strength inside radius h, smooth falloff to 0 at the rim.
+            let h = brush.hardness.clamp(0.0, 0.999);
+            let t = ((d - h) / (1.0 - h)).clamp(0.0, 1.0);
+            let w = 1.0 - t * t * (3.0 - 2.0 * t);
+            if brush.eraser {
+                dst[3] *= 1.0 - w;
+            } else {
+                let a = dst[3] + w * (1.0 - dst[3]);
+                for k in 0..3 {
+                    dst[k] = if a > 0.0 {
+                        (dst[k] * dst[3] * (1.0 - w) + brush.color[k] * w) / a
+                    } else {
+                        brush.color[k]
+                    };
+                }
+                dst[3] = a;
+            }
+            count += 1;
+        }
+        slot.colors_dirty = true;
+        count
+    }
+
+    /// The displayed mesh of one side with its displayed colours (paint included), for export.
+    pub fn painted_mesh(&self, side: Side) -> Option<TriMesh> {
+        let slot = self.slot(side)?;
+        let mut m = slot.displayed().clone();
+        m.colors = Some(slot.display_colors());
+        m.texture = None;
+        m.uvs = None;
+        Some(m)
+    }
+
+    // ----- export and sessions -----
+
+    /// Write the transfer result on the target file mesh (format by extension).
+    pub fn export_result(&self, path: &Path) -> Result<()> {
+        let slot = self
+            .slot(Side::Target)
+            .ok_or_else(|| Error::InvalidInput("no target mesh".into()))?;
+        let res = self
+            .result
+            .as_ref()
+            .ok_or_else(|| Error::InvalidInput("no finished transfer to export yet".into()))?;
+        let mut m = (*slot.file).clone();
+        if res.file_signal.len() != m.positions.len() {
+            return Err(Error::InvalidInput(
+                "result does not match the target mesh".into(),
+            ));
+        }
+        m.colors = Some(res.file_signal.clone());
+        m.texture = None;
+        crate::mesh::io::save(&m, path)
+    }
+
+    /// Save the session as JSON at `path` (paint layers as PLY sidecars beside it).
+    pub fn save_session(&self, path: &Path) -> Result<()> {
+        let sidecar = |side: Side, suffix: &str| -> Result<Option<PathBuf>> {
+            match self.slot(side) {
+                Some(s) if s.paint.is_some() => {
+                    let p = path.with_extension(format!("{suffix}.ply"));
+                    let m = self.painted_mesh(side).expect("slot exists");
+                    crate::mesh::io::save(&m, &p)?;
+                    Ok(Some(p))
+                }
+                _ => Ok(None),
+            }
+        };
+        let session = Session {
+            source: self.slot(Side::Source).and_then(|s| s.file.path.clone()),
+            target: self.slot(Side::Target).and_then(|s| s.file.path.clone()),
+            correspondences: CorrespondenceFile {
+                correspondences: self.corr.clone(),
+            },
+            params: self.params.clone(),
+            source_paint: sidecar(Side::Source, "source_paint")?,
+            target_paint: sidecar(Side::Target, "target_paint")?,
+        };
+        let text = serde_json::to_string_pretty(&session)
+            .map_err(|e| Error::InvalidInput(format!("cannot serialise session: {e}")))?;
+        crate::mesh::io::write_atomic(path, text.as_bytes())
+    }
+
+    /// Open a session JSON: loads both meshes, correspondences and parameters.
+    pub fn open_session(&mut self, path: &Path) -> Result<()> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let s: Session<P> = serde_json::from_str(&text)
+            .map_err(|e| Error::format(path, format!("invalid session JSON: {e}")))?;
+        let (Some(src), Some(tgt)) = (&s.source, &s.target) else {
+            return Err(Error::format(
+                path,
+                "session does not name both mesh files (demo scenes cannot be saved as paths)",
+            ));
+        };
+        let src_mesh = crate::mesh::io::load(src)?;
+        let tgt_mesh = crate::mesh::io::load(tgt)?;
+        mesh_usable(&src_mesh)?;
+        mesh_usable(&tgt_mesh)?;
+        self.set_mesh(Side::Source, src_mesh, false);
+        self.set_mesh(Side::Target, tgt_mesh, false);
+        self.params = s.params;
+        self.set_correspondences(s.correspondences.correspondences)?;
+        self.undo.clear();
+        self.push_recent(path);
+        Ok(())
+    }
+}
+
+/// Reject meshes that cannot be displayed or transferred.
+pub fn mesh_usable(mesh: &TriMesh) -> Result<()> {
+    if mesh.positions.is_empty() || mesh.faces.is_empty() {
+        return Err(Error::InvalidMesh("the mesh has no faces".into()));
+    }
+    Ok(())
+}
+
+/// Distinct marker colour for correspondence `i` (golden-angle hues).
+pub fn marker_color(i: usize) -> [u8; 3] {
+    let h = (i as f32 * 0.618_034).fract();
+    let s = 0.75f32;
+    let v = 0.95f32;
+    let k = |n: f32| {
+        let k = (n + h * 6.0) % 6.0;
+        v - v * s * k.min(4.0 - k).clamp(0.0, 1.0)
+    };
+    [k(5.0), k(3.0), k(1.0)].map(|x| (x * 255.0).round() as u8)
+}

@@ -1,0 +1,559 @@
+//! The two 3D viewports: GPU resources, camera input, picking, markers and the paint cursor.
+
+use eframe::egui::{self, Color32, Pos2, Rect, Sense, Stroke, Vec2};
+use eframe::egui_wgpu;
+use eframe::wgpu;
+use glam::Vec2 as GVec2;
+
+use super::state::{AppParams, AppState, Selection, marker_color, side_index};
+use crate::jobs::worker::Side;
+use crate::render::{Camera, DrawStyle, GpuMesh, MeshRenderer, RenderTarget, pick};
+
+/// What a left-drag does in a viewport.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tool {
+    /// Clicks add/select correspondences; drags orbit (or move a grabbed marker).
+    Correspond,
+    /// Drags paint with the brush; Alt+drag orbits.
+    Paint,
+}
+
+/// Per-view GPU resources.
+#[derive(Default)]
+struct ViewGpu {
+    mesh: Option<GpuMesh>,
+    target: Option<RenderTarget>,
+    texture: Option<egui::TextureId>,
+    /// Something changed since the last draw.
+    dirty: bool,
+}
+
+/// The viewports' state: cameras, GPU resources and interaction.
+pub struct Views {
+    renderer: Option<MeshRenderer>,
+    gpu: [ViewGpu; 2],
+    /// Camera of each view (relative to each mesh's bounds).
+    pub cameras: [Camera; 2],
+    /// Move both views together.
+    pub lock_cameras: bool,
+    /// Draw triangle edges.
+    pub wireframe: bool,
+    /// Current tool.
+    pub tool: Tool,
+    dragging_marker: Option<Selection>,
+    painting: bool,
+    /// Milliseconds spent encoding+submitting the last redraw of each view.
+    pub last_draw_ms: [f32; 2],
+    /// Screen rectangles of the two views in the last frame (points).
+    pub rects: [Rect; 2],
+}
+
+impl Default for Views {
+    fn default() -> Self {
+        Views {
+            renderer: None,
+            gpu: Default::default(),
+            cameras: [Camera::default(); 2],
+            lock_cameras: true,
+            wireframe: false,
+            tool: Tool::Correspond,
+            dragging_marker: None,
+            painting: false,
+            last_draw_ms: [0.0; 2],
+            rects: [Rect::NOTHING; 2],
+        }
+    }
+}
+
+const MARKER_RADIUS: f32 = 9.0;
+
+impl Views {
+    /// Mark both views for redraw.
+    pub fn invalidate(&mut self) {
+        for g in &mut self.gpu {
+            g.dirty = true;
+        }
+    }
+
+    /// Reset both cameras to frame their meshes.
+    pub fn frame_all(&mut self) {
+        for c in &mut self.cameras {
+            c.frame_all();
+        }
+        self.invalidate();
+    }
+
+    fn camera_changed(&mut self, from: usize) {
+        if self.lock_cameras {
+            self.cameras[1 - from] = self.cameras[from];
+        }
+        self.invalidate();
+    }
+
+    /// Upload changed meshes/colours (colour changes write only the colour buffer).
+    fn sync_gpu<P: AppParams>(&mut self, rs: &egui_wgpu::RenderState, state: &mut AppState<P>) {
+        if self.renderer.is_none() {
+            self.renderer = Some(MeshRenderer::new(&rs.device, Some(&rs.adapter), 4));
+        }
+        let renderer = self.renderer.as_ref().expect("created above");
+        for i in 0..2 {
+            let g = &mut self.gpu[i];
+            match state.meshes[i].as_mut() {
+                None => {
+                    if g.mesh.take().is_some() {
+                        g.dirty = true;
+                    }
+                }
+                Some(slot) => {
+                    if slot.geometry_dirty || g.mesh.is_none() {
+                        let cols = slot.display_colors();
+                        g.mesh = Some(GpuMesh::new(&rs.device, renderer, slot.displayed(), &cols));
+                        slot.geometry_dirty = false;
+                        slot.colors_dirty = false;
+                        g.dirty = true;
+                    } else if slot.colors_dirty {
+                        if let Some(m) = &g.mesh {
+                            m.update_colors(&rs.queue, &slot.display_colors());
+                        }
+                        slot.colors_dirty = false;
+                        g.dirty = true;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Draw one view into its texture if needed; returns the egui texture to show.
+    fn draw_view(
+        &mut self,
+        rs: &egui_wgpu::RenderState,
+        i: usize,
+        size_px: [u32; 2],
+    ) -> Option<egui::TextureId> {
+        let renderer = self.renderer.as_ref()?;
+        let g = &mut self.gpu[i];
+        let resized = g
+            .target
+            .as_ref()
+            .is_none_or(|t| t.width != size_px[0] || t.height != size_px[1]);
+        if resized {
+            let t = RenderTarget::new(&rs.device, renderer, size_px[0], size_px[1]);
+            let mut egui_r = rs.renderer.write();
+            match g.texture {
+                Some(id) => egui_r.update_egui_texture_from_wgpu_texture(
+                    &rs.device,
+                    &t.view,
+                    wgpu::FilterMode::Linear,
+                    id,
+                ),
+                None => {
+                    g.texture = Some(egui_r.register_native_texture(
+                        &rs.device,
+                        &t.view,
+                        wgpu::FilterMode::Linear,
+                    ))
+                }
+            }
+            g.target = Some(t);
+            g.dirty = true;
+        }
+        if g.dirty {
+            let clock = std::time::Instant::now();
+            let style = DrawStyle {
+                wireframe: self.wireframe,
+                ..DrawStyle::default()
+            };
+            let mut enc = rs.device.create_command_encoder(&Default::default());
+            renderer.draw(
+                &rs.queue,
+                &mut enc,
+                g.target.as_ref().expect("created above"),
+                g.mesh.as_ref(),
+                &self.cameras[i],
+                &style,
+            );
+            rs.queue.submit([enc.finish()]);
+            g.dirty = false;
+            self.last_draw_ms[i] = clock.elapsed().as_secs_f32() * 1000.0;
+        }
+        g.texture
+    }
+
+    /// Show both viewports side by side in `ui`.
+    pub fn show<P: AppParams>(
+        &mut self,
+        ui: &mut egui::Ui,
+        rs: Option<&egui_wgpu::RenderState>,
+        state: &mut AppState<P>,
+    ) -> Option<(Side, std::path::PathBuf)> {
+        if let Some(rs) = rs {
+            self.sync_gpu(rs, state);
+        }
+        let full = ui.available_rect_before_wrap();
+        let half = (full.width() - 4.0) * 0.5;
+        let rects = [
+            Rect::from_min_size(full.min, Vec2::new(half, full.height())),
+            Rect::from_min_size(
+                Pos2::new(full.min.x + half + 4.0, full.min.y),
+                Vec2::new(half, full.height()),
+            ),
+        ];
+        self.rects = rects;
+        let mut dropped = None;
+        for (i, rect) in rects.into_iter().enumerate() {
+            let side = if i == 0 { Side::Source } else { Side::Target };
+            let resp = ui.interact(
+                rect,
+                ui.scope_id().with(("view", i)),
+                Sense::click_and_drag(),
+            );
+            let ppp = ui.ctx().pixels_per_point();
+            let size_px = [
+                (rect.width() * ppp).round().max(1.0) as u32,
+                (rect.height() * ppp).round().max(1.0) as u32,
+            ];
+            let tex = rs.and_then(|rs| self.draw_view(rs, i, size_px));
+            let painter = ui.painter_at(rect);
+            match tex {
+                Some(id) => {
+                    painter.image(
+                        id,
+                        rect,
+                        Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+                        Color32::WHITE,
+                    );
+                }
+                None => {
+                    painter.rect_filled(rect, 0.0, Color32::from_gray(40));
+                }
+            }
+            let title = match (side, state.slot(side)) {
+                (Side::Source, Some(s)) => format!("Source: {}", mesh_name(&s.file)),
+                (Side::Target, Some(s)) => format!("Target: {}", mesh_name(&s.file)),
+                (_, None) => format!("{side:?}: drop a mesh file here or use File > Open"),
+            };
+            painter.text(
+                rect.min + Vec2::new(8.0, 6.0),
+                egui::Align2::LEFT_TOP,
+                title,
+                egui::FontId::proportional(14.0),
+                Color32::from_gray(230),
+            );
+            self.handle_input(ui, &resp, rect, side, state);
+            self.draw_markers(&painter, rect, side, state);
+            if self.tool == Tool::Paint
+                && let Some(p) = resp.hover_pos()
+            {
+                self.draw_brush_cursor(&painter, rect, p, side, state);
+            }
+            // Drag-and-drop of files onto this view.
+            if let Some(pos) = ui.ctx().input(|inp| inp.pointer.hover_pos())
+                && rect.contains(pos)
+            {
+                let files = ui.ctx().input(|inp| inp.raw.dropped_files.clone());
+                if let Some(path) = files.into_iter().next().map(|f| f.path().to_path_buf()) {
+                    dropped = Some((side, path));
+                }
+            }
+        }
+        ui.allocate_rect(full, Sense::hover());
+        dropped
+    }
+
+    fn frame_of(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+    ) -> Option<crate::render::Frame> {
+        self.gpu[side_index(side)]
+            .mesh
+            .as_ref()
+            .map(|m| m.frame)
+            .or_else(|| {
+                state
+                    .slot(side)
+                    .map(|s| crate::render::Frame::of_points(&s.displayed().positions))
+            })
+    }
+
+    /// Pick the displayed mesh of `side` under screen position `pos`.
+    pub fn pick_at(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+        rect: Rect,
+        pos: Pos2,
+    ) -> Option<crate::render::Hit> {
+        let slot = state.slot(side)?;
+        let frame = self.frame_of(state, side)?;
+        let local = GVec2::new(pos.x - rect.min.x, pos.y - rect.min.y);
+        let size = GVec2::new(rect.width(), rect.height());
+        let (o, d) = self.cameras[side_index(side)].ray(&frame, local, size);
+        let m = slot.displayed();
+        pick(&m.positions, &m.faces, o, d)
+    }
+
+    /// Screen position of a file vertex's marker.
+    pub fn marker_pos(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+        rect: Rect,
+        file_vertex: u32,
+    ) -> Option<Pos2> {
+        self.marker_pos_facing(state, side, rect, file_vertex)
+            .map(|(p, _)| p)
+    }
+
+    /// Screen position of a file vertex's marker and whether its surface faces the camera.
+    fn marker_pos_facing(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+        rect: Rect,
+        file_vertex: u32,
+    ) -> Option<(Pos2, bool)> {
+        let slot = state.slot(side)?;
+        let p = glam::Vec3::from(slot.file_vertex_position(file_vertex)?);
+        let frame = self.frame_of(state, side)?;
+        let size = GVec2::new(rect.width(), rect.height());
+        let cam = &self.cameras[side_index(side)];
+        let s = cam.project(&frame, p, size)?;
+        let facing = slot
+            .to_displayed(file_vertex)
+            .and_then(|d| slot.normals.get(d as usize))
+            .is_none_or(|n| {
+                let (eye, _) = cam.eye_target(&frame);
+                glam::Vec3::from(*n).dot(eye - p) >= 0.0
+            });
+        Some((Pos2::new(rect.min.x + s.x, rect.min.y + s.y), facing))
+    }
+
+    /// All markers of a side with their screen positions.
+    fn markers(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+        rect: Rect,
+    ) -> Vec<(Selection, Pos2, bool)> {
+        let mut out = Vec::new();
+        for (pair, c) in state.corr.iter().enumerate() {
+            let verts: Vec<u32> = match side {
+                Side::Source => vec![c.source_vertex],
+                Side::Target => c.target_vertices.clone(),
+            };
+            for (k, v) in verts.into_iter().enumerate() {
+                if let Some((p, facing)) = self.marker_pos_facing(state, side, rect, v) {
+                    out.push((Selection { pair, side, k }, p, facing));
+                }
+            }
+        }
+        out
+    }
+
+    fn marker_under(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+        rect: Rect,
+        pos: Pos2,
+    ) -> Option<Selection> {
+        self.markers(state, side, rect)
+            .into_iter()
+            .filter(|(_, p, _)| p.distance(pos) <= MARKER_RADIUS + 2.0)
+            .min_by(|a, b| {
+                // Prefer markers on the visible side, then the nearest.
+                (!a.2, a.1.distance(pos))
+                    .partial_cmp(&(!b.2, b.1.distance(pos)))
+                    .unwrap_or(std::cmp::Ordering::Equal)
+            })
+            .map(|(s, _, _)| s)
+    }
+
+    fn handle_input<P: AppParams>(
+        &mut self,
+        ui: &egui::Ui,
+        resp: &egui::Response,
+        rect: Rect,
+        side: Side,
+        state: &mut AppState<P>,
+    ) {
+        let i = side_index(side);
+        let (mods, primary, middle) = ui.input(|inp| {
+            (
+                inp.modifiers,
+                inp.pointer.button_down(egui::PointerButton::Primary),
+                inp.pointer.button_down(egui::PointerButton::Middle),
+            )
+        });
+        // Zoom with the wheel.
+        if resp.hovered() {
+            let scroll = ui.input(|inp| inp.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                self.cameras[i].zoom_by(scroll);
+                self.camera_changed(i);
+            }
+        }
+        // Start of a drag: grab a marker, start a paint stroke, or nothing (camera).
+        if resp.drag_started_by(egui::PointerButton::Primary)
+            && let Some(pos) = resp.interact_pointer_pos()
+        {
+            if self.tool == Tool::Paint && !mods.alt && !mods.shift {
+                if let Some(hit) = self.pick_at(state, side, rect, pos) {
+                    state.paint_at(side, hit.point.to_array(), true);
+                    self.painting = true;
+                }
+            } else if !mods.alt
+                && !mods.shift
+                && let Some(sel) = self.marker_under(
+                    state,
+                    side,
+                    rect,
+                    ui.input(|i| i.pointer.press_origin()).unwrap_or(pos),
+                )
+            {
+                state.select(Some(sel));
+                self.dragging_marker = Some(sel);
+                state.push_undo();
+            }
+        }
+        if resp.dragged() {
+            let delta = resp.drag_delta();
+            let pos = resp.interact_pointer_pos();
+            if let (Some(sel), Some(pos)) = (self.dragging_marker, pos) {
+                if let Some(hit) = self.pick_at(state, side, rect, pos) {
+                    state.move_marker(sel, hit.nearest_vertex, false);
+                }
+            } else if self.painting {
+                if let Some(pos) = pos
+                    && let Some(hit) = self.pick_at(state, side, rect, pos)
+                {
+                    state.paint_at(side, hit.point.to_array(), false);
+                }
+            } else if middle || (primary && mods.shift) {
+                self.cameras[i].pan_by(GVec2::new(delta.x, delta.y), rect.height());
+                self.camera_changed(i);
+            } else if primary {
+                self.cameras[i].orbit(GVec2::new(delta.x, delta.y));
+                self.camera_changed(i);
+            }
+        }
+        if resp.drag_stopped() {
+            self.dragging_marker = None;
+            self.painting = false;
+        }
+        // Click: select a marker, or pick a vertex.
+        if resp.clicked()
+            && self.tool == Tool::Correspond
+            && let Some(pos) = resp.interact_pointer_pos()
+        {
+            if !mods.shift
+                && let Some(sel) = self.marker_under(state, side, rect, pos)
+            {
+                state.select(Some(sel));
+            } else if let Some(hit) = self.pick_at(state, side, rect, pos) {
+                state.click_vertex(side, hit.nearest_vertex, mods.shift);
+            }
+        }
+    }
+
+    fn draw_markers<P: AppParams>(
+        &self,
+        painter: &egui::Painter,
+        rect: Rect,
+        side: Side,
+        state: &AppState<P>,
+    ) {
+        let mut markers = self.markers(state, side, rect);
+        // Hidden-side markers first (drawn faded), visible ones on top.
+        markers.sort_by_key(|m| m.2);
+        for (sel, p, facing) in markers {
+            let [r, g, b] = marker_color(sel.pair);
+            let alpha = if facing { 255 } else { 90 };
+            let selected =
+                state.selected == Some(sel) || (state.selected.is_some_and(|s| s.pair == sel.pair));
+            painter.circle(
+                p,
+                MARKER_RADIUS,
+                Color32::from_rgba_unmultiplied(r, g, b, alpha),
+                Stroke::new(
+                    if selected { 3.0 } else { 1.5 },
+                    if selected {
+                        Color32::WHITE
+                    } else {
+                        Color32::from_black_alpha(alpha)
+                    },
+                ),
+            );
+            painter.text(
+                p,
+                egui::Align2::CENTER_CENTER,
+                format!("{}", sel.pair + 1),
+                egui::FontId::proportional(11.0),
+                Color32::from_black_alpha(alpha),
+            );
+        }
+        if side == Side::Source
+            && let Some(v) = state.pending_source
+            && let Some(p) = self.marker_pos(state, side, rect, v)
+        {
+            let [r, g, b] = marker_color(state.corr.len());
+            painter.circle(
+                p,
+                MARKER_RADIUS,
+                Color32::from_rgb(r, g, b),
+                Stroke::new(2.0, Color32::YELLOW),
+            );
+            painter.text(
+                p,
+                egui::Align2::CENTER_CENTER,
+                "?",
+                egui::FontId::proportional(11.0),
+                Color32::BLACK,
+            );
+        }
+    }
+
+    fn draw_brush_cursor<P: AppParams>(
+        &self,
+        painter: &egui::Painter,
+        rect: Rect,
+        pos: Pos2,
+        side: Side,
+        state: &AppState<P>,
+    ) {
+        let Some(frame) = self.frame_of(state, side) else {
+            return;
+        };
+        // Brush radius in pixels at the orbit distance.
+        let cam = &self.cameras[side_index(side)];
+        let (eye, target) = cam.eye_target(&frame);
+        let dist = (eye - target).length();
+        let px_per_world = rect.height()
+            / (2.0 * dist * (crate::render::camera::FOV_Y_DEG.to_radians() * 0.5).tan());
+        let r = state.brush.radius * frame.radius * px_per_world;
+        let c = state.brush.color.map(|x| (x * 255.0) as u8);
+        painter.circle_stroke(
+            pos,
+            r,
+            Stroke::new(
+                1.5,
+                if state.brush.eraser {
+                    Color32::WHITE
+                } else {
+                    Color32::from_rgb(c[0], c[1], c[2])
+                },
+            ),
+        );
+    }
+}
+
+fn mesh_name(m: &crate::TriMesh) -> String {
+    let name = m
+        .path
+        .as_ref()
+        .and_then(|p| p.file_name())
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "demo mesh".into());
+    format!("{name} ({} vertices)", m.positions.len())
+}

@@ -1,0 +1,534 @@
+//! GPU side of the renderer: pipelines, per-mesh buffers and offscreen targets (wgpu via eframe).
+
+use eframe::wgpu;
+use eframe::wgpu::util::DeviceExt;
+
+use super::camera::{Camera, Frame};
+use crate::TriMesh;
+
+/// Colour format of every render target: gamma-encoded RGBA8, which egui samples as-is.
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// Depth format of every render target.
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Colour of vertices that have no colour (light grey, sRGB).
+pub const DEFAULT_VERTEX_COLOR: [f32; 3] = [0.75, 0.75, 0.75];
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Uniforms {
+    view_proj: [[f32; 4]; 4],
+    eye: [f32; 4],
+    wire: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+}
+
+/// How to draw one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DrawStyle {
+    /// Draw the triangle edges over the shaded surface.
+    pub wireframe: bool,
+    /// Background colour (sRGB, straight alpha).
+    pub background: [f32; 4],
+    /// Ambient fraction of the headlight shading in [0, 1].
+    pub ambient: f32,
+}
+
+impl Default for DrawStyle {
+    fn default() -> Self {
+        DrawStyle {
+            wireframe: false,
+            background: [0.16, 0.17, 0.19, 1.0],
+            ambient: 0.25,
+        }
+    }
+}
+
+/// The mesh pipelines for one device (shaded triangles and wireframe lines).
+pub struct MeshRenderer {
+    fill: wgpu::RenderPipeline,
+    wire: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    /// MSAA sample count used by targets made for this renderer.
+    pub samples: u32,
+}
+
+impl MeshRenderer {
+    /// Build the pipelines; `samples` is the MSAA count (1 or 4; falls back to 1 if unsupported).
+    pub fn new(device: &wgpu::Device, adapter: Option<&wgpu::Adapter>, samples: u32) -> Self {
+        let samples = match adapter {
+            Some(a) => {
+                let c = a.get_texture_format_features(COLOR_FORMAT).flags;
+                let d = a.get_texture_format_features(DEPTH_FORMAT).flags;
+                if samples > 1
+                    && c.sample_count_supported(samples)
+                    && d.sample_count_supported(samples)
+                {
+                    samples
+                } else {
+                    1
+                }
+            }
+            None => 1,
+        };
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("meshmatch mesh shader"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/mesh.wgsl").into()),
+        });
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("meshmatch uniforms"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("meshmatch pipeline layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let buffers = [
+            Some(wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<Vertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![2 => Float32x3],
+            }),
+        ];
+        let make = |vs: &str, fs: &str, topology: wgpu::PrimitiveTopology| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(vs),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some(vs),
+                    buffers: &buffers,
+                    compilation_options: Default::default(),
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: wgpu::MultisampleState {
+                    count: samples,
+                    mask: !0,
+                    alpha_to_coverage_enabled: false,
+                },
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some(fs),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: COLOR_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                    compilation_options: Default::default(),
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        MeshRenderer {
+            fill: make("vs_main", "fs_main", wgpu::PrimitiveTopology::TriangleList),
+            wire: make("vs_wire", "fs_wire", wgpu::PrimitiveTopology::LineList),
+            layout,
+            samples,
+        }
+    }
+
+    /// Encode a frame: clear `target`, draw `mesh` seen by `camera`.
+    pub fn draw(
+        &self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        target: &RenderTarget,
+        mesh: Option<&GpuMesh>,
+        camera: &Camera,
+        style: &DrawStyle,
+    ) {
+        if let Some(mesh) = mesh {
+            let aspect = target.width as f32 / target.height.max(1) as f32;
+            let vp = camera.view_proj(&mesh.frame, aspect);
+            let (eye, _) = camera.eye_target(&mesh.frame);
+            let u = Uniforms {
+                view_proj: vp.to_cols_array_2d(),
+                eye: [eye.x, eye.y, eye.z, 2e-4],
+                wire: [0.05, 0.05, 0.05, style.ambient],
+            };
+            queue.write_buffer(&mesh.uniforms, 0, bytemuck::bytes_of(&u));
+        }
+        let bg = style.background;
+        let (view, resolve) = match &target.msaa {
+            Some(m) => (m, Some(&target.view)),
+            None => (&target.view, None),
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("meshmatch pass"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: resolve,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: bg[0] as f64,
+                        g: bg[1] as f64,
+                        b: bg[2] as f64,
+                        a: bg[3] as f64,
+                    }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &target.depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        let Some(mesh) = mesh else { return };
+        pass.set_bind_group(0, &mesh.bind_group, &[]);
+        pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+        pass.set_vertex_buffer(1, mesh.colors.slice(..));
+        pass.set_pipeline(&self.fill);
+        pass.set_index_buffer(mesh.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..mesh.index_count, 0, 0..1);
+        if style.wireframe && mesh.edge_count > 0 {
+            pass.set_pipeline(&self.wire);
+            pass.set_index_buffer(mesh.edges.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..mesh.edge_count, 0, 0..1);
+        }
+    }
+}
+
+/// Smooth per-vertex normals (area-weighted sum of face normals).
+pub fn vertex_normals(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<[f32; 3]> {
+    let mut n = vec![glam::Vec3::ZERO; positions.len()];
+    for f in faces {
+        let idx = [f[0] as usize, f[1] as usize, f[2] as usize];
+        if idx.iter().any(|&i| i >= positions.len()) {
+            continue;
+        }
+        let a = glam::Vec3::from(positions[idx[0]]);
+        let b = glam::Vec3::from(positions[idx[1]]);
+        let c = glam::Vec3::from(positions[idx[2]]);
+        let fnrm = (b - a).cross(c - a);
+        if fnrm.is_finite() {
+            for &i in &idx {
+                n[i] += fnrm;
+            }
+        }
+    }
+    n.into_iter()
+        .map(|v| v.normalize_or_zero().to_array())
+        .collect()
+}
+
+/// The colours to draw for a mesh: explicit colours, else the mesh's own signal, else grey.
+pub fn display_colors(mesh: &TriMesh, colors: Option<&[[f32; 3]]>) -> Vec<[f32; 3]> {
+    let n = mesh.positions.len();
+    let src = match colors {
+        Some(c) => Some(c.to_vec()),
+        None => mesh.vertex_signal(),
+    };
+    let mut out = src.unwrap_or_default();
+    out.resize(n, DEFAULT_VERTEX_COLOR);
+    for c in &mut out {
+        for x in c.iter_mut() {
+            *x = if x.is_finite() {
+                x.clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+        }
+    }
+    out
+}
+
+/// A mesh uploaded to the GPU: positions+normals, colours (rewritable), triangles and edges.
+pub struct GpuMesh {
+    vertices: wgpu::Buffer,
+    colors: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    edges: wgpu::Buffer,
+    uniforms: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    index_count: u32,
+    edge_count: u32,
+    vertex_count: usize,
+    /// Bounding sphere of the mesh (the camera frames it).
+    pub frame: Frame,
+}
+
+impl GpuMesh {
+    /// Upload `mesh` with per-vertex sRGB `colors` (see [`display_colors`]).
+    pub fn new(
+        device: &wgpu::Device,
+        renderer: &MeshRenderer,
+        mesh: &TriMesh,
+        colors: &[[f32; 3]],
+    ) -> Self {
+        let normals = vertex_normals(&mesh.positions, &mesh.faces);
+        let n = mesh.positions.len().max(1);
+        let mut verts: Vec<Vertex> = mesh
+            .positions
+            .iter()
+            .zip(&normals)
+            .map(|(p, nr)| Vertex {
+                position: *p,
+                normal: *nr,
+            })
+            .collect();
+        verts.resize(
+            n,
+            Vertex {
+                position: [0.0; 3],
+                normal: [0.0; 3],
+            },
+        );
+        let mut cols = colors.to_vec();
+        cols.resize(n, DEFAULT_VERTEX_COLOR);
+        let nv = mesh.positions.len() as u32;
+        let tris: Vec<u32> = mesh
+            .faces
+            .iter()
+            .filter(|f| f.iter().all(|&i| i < nv))
+            .flat_map(|f| *f)
+            .collect();
+        let mut edge_list: Vec<[u32; 2]> = mesh
+            .faces
+            .iter()
+            .filter(|f| f.iter().all(|&i| i < nv))
+            .flat_map(|f| [[f[0], f[1]], [f[1], f[2]], [f[2], f[0]]])
+            .map(|[a, b]| if a < b { [a, b] } else { [b, a] })
+            .collect();
+        edge_list.sort_unstable();
+        edge_list.dedup();
+        let edges: Vec<u32> = edge_list.into_iter().flatten().collect();
+        let init = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
+            // wgpu rejects zero-sized bindings; keep at least 4 bytes.
+            let pad = [0u8; 16];
+            let contents = if bytes.is_empty() { &pad[..] } else { bytes };
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+        };
+        let vertices = init(
+            "mesh vertices",
+            bytemuck::cast_slice(&verts),
+            wgpu::BufferUsages::VERTEX,
+        );
+        let colors = init(
+            "mesh colours",
+            bytemuck::cast_slice(&cols),
+            wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+        );
+        let indices = init(
+            "mesh triangles",
+            bytemuck::cast_slice(&tris),
+            wgpu::BufferUsages::INDEX,
+        );
+        let edges_buf = init(
+            "mesh edges",
+            bytemuck::cast_slice(&edges),
+            wgpu::BufferUsages::INDEX,
+        );
+        let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("mesh uniforms"),
+            size: std::mem::size_of::<Uniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("mesh bind group"),
+            layout: &renderer.layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniforms.as_entire_binding(),
+            }],
+        });
+        GpuMesh {
+            vertices,
+            colors,
+            indices,
+            edges: edges_buf,
+            uniforms,
+            bind_group,
+            index_count: tris.len() as u32,
+            edge_count: edges.len() as u32,
+            vertex_count: mesh.positions.len(),
+            frame: Frame::of_points(&mesh.positions),
+        }
+    }
+
+    /// Replace the per-vertex colours (writes the colour buffer only). Extra entries are ignored;
+    /// missing ones are left unchanged.
+    pub fn update_colors(&self, queue: &wgpu::Queue, colors: &[[f32; 3]]) {
+        let n = colors.len().min(self.vertex_count);
+        if n > 0 {
+            queue.write_buffer(&self.colors, 0, bytemuck::cast_slice(&colors[..n]));
+        }
+    }
+
+    /// Number of vertices uploaded.
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+}
+
+/// An offscreen colour+depth target (with optional MSAA) that can be shown by egui or read back.
+pub struct RenderTarget {
+    /// The resolved colour texture (Rgba8Unorm, sampleable, copyable).
+    pub texture: wgpu::Texture,
+    /// View of [`Self::texture`].
+    pub view: wgpu::TextureView,
+    msaa: Option<wgpu::TextureView>,
+    depth: wgpu::TextureView,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
+impl RenderTarget {
+    /// Create a `width`×`height` target for `renderer`'s sample count.
+    pub fn new(device: &wgpu::Device, renderer: &MeshRenderer, width: u32, height: u32) -> Self {
+        let width = width.clamp(1, 8192);
+        let height = height.clamp(1, 8192);
+        let size = wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        };
+        let tex = |label, format, samples, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: samples,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let texture = tex(
+            "target colour",
+            COLOR_FORMAT,
+            1,
+            wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+        );
+        let msaa = (renderer.samples > 1).then(|| {
+            tex(
+                "target msaa",
+                COLOR_FORMAT,
+                renderer.samples,
+                wgpu::TextureUsages::RENDER_ATTACHMENT,
+            )
+            .create_view(&Default::default())
+        });
+        let depth = tex(
+            "target depth",
+            DEPTH_FORMAT,
+            renderer.samples,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        )
+        .create_view(&Default::default());
+        let view = texture.create_view(&Default::default());
+        RenderTarget {
+            texture,
+            view,
+            msaa,
+            depth,
+            width,
+            height,
+        }
+    }
+
+    /// Copy the colour texture to the CPU as tightly packed RGBA8 rows (blocks until done).
+    pub fn read_rgba(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> crate::Result<Vec<u8>> {
+        let bpr = (self.width * 4).div_ceil(256) * 256;
+        let buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: bpr as u64 * self.height as u64,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut enc = device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buf,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(bpr),
+                    rows_per_image: Some(self.height),
+                },
+            },
+            wgpu::Extent3d {
+                width: self.width,
+                height: self.height,
+                depth_or_array_layers: 1,
+            },
+        );
+        queue.submit([enc.finish()]);
+        let slice = buf.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| crate::Error::InvalidInput(format!("GPU readback failed: {e}")))?;
+        rx.recv()
+            .map_err(|_| crate::Error::InvalidInput("GPU readback was dropped".into()))?
+            .map_err(|e| crate::Error::InvalidInput(format!("GPU readback failed: {e}")))?;
+        let data = slice
+            .get_mapped_range()
+            .map_err(|e| crate::Error::InvalidInput(format!("GPU readback failed: {e}")))?;
+        let mut out = Vec::with_capacity((self.width * self.height * 4) as usize);
+        for row in 0..self.height as usize {
+            let start = row * bpr as usize;
+            out.extend_from_slice(&data[start..start + self.width as usize * 4]);
+        }
+        drop(data);
+        buf.unmap();
+        Ok(out)
+    }
+}

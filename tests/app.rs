@@ -1,0 +1,530 @@
+//! The app driven through its UI (egui_kittest, no window) and its state: correspondences added,
+//! moved and deleted by simulated clicks, one-to-many, undo/redo, parameter edits restarting the
+//! transfer, progressive results, cancel, and errors from bad files shown as messages.
+#![cfg(feature = "gui")]
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use eframe::egui::{self, Pos2};
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use meshmatch::TriMesh;
+use meshmatch::app::{AppParams, MeshMatchApp, Selection};
+use meshmatch::jobs::worker::{Engine, Side, Solved};
+use meshmatch::jobs::{CancelToken, Correspondence, Event, Progress};
+
+/// Parameters of the test engine.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+struct TestParams {
+    iterations: usize,
+    step_ms: u64,
+}
+
+impl Default for TestParams {
+    fn default() -> Self {
+        TestParams {
+            iterations: 3,
+            step_ms: 5,
+        }
+    }
+}
+
+impl AppParams for TestParams {
+    fn ui(&mut self, ui: &mut egui::Ui) -> bool {
+        ui.add(egui::DragValue::new(&mut self.iterations).prefix("iterations "))
+            .changed()
+    }
+}
+
+/// A test double for the transfer engine: every target vertex takes the source colour of the
+/// nearest correspondence (by target-space distance), streaming one partial per iteration.
+/// It counts preparations so tests can check the cache.
+#[derive(Clone, Default)]
+struct TestEngine {
+    prepared: Arc<std::sync::atomic::AtomicUsize>,
+}
+
+impl Engine for TestEngine {
+    type Params = TestParams;
+    type Prepared = Arc<TriMesh>;
+    fn prepare_key(&self, _: &TestParams) -> String {
+        String::new()
+    }
+    fn prepare(
+        &self,
+        mesh: &TriMesh,
+        _: &TestParams,
+        _: &dyn Fn(Event),
+        cancel: &CancelToken,
+    ) -> meshmatch::Result<Arc<TriMesh>> {
+        cancel.check()?;
+        self.prepared
+            .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        Ok(Arc::new(mesh.clone()))
+    }
+    fn working(&self, p: &Arc<TriMesh>) -> (Arc<TriMesh>, Arc<[u32]>, Arc<[u32]>) {
+        let ids: Arc<[u32]> = (0..p.positions.len() as u32).collect();
+        (p.clone(), ids.clone(), ids)
+    }
+    fn solve(
+        &self,
+        s: &Arc<TriMesh>,
+        t: &Arc<TriMesh>,
+        corr: &[Correspondence],
+        params: &TestParams,
+        sink: &dyn Fn(Event),
+        cancel: &CancelToken,
+    ) -> meshmatch::Result<Solved> {
+        let src_cols = s.colors.clone().unwrap_or_default();
+        let mut out = vec![[0.5; 3]; t.positions.len()];
+        for it in 1..=params.iterations {
+            for _ in 0..params.step_ms {
+                std::thread::sleep(Duration::from_millis(1));
+                cancel.check()?;
+            }
+            for (v, o) in out.iter_mut().enumerate() {
+                let p = glam::Vec3::from(t.positions[v]);
+                let best = corr
+                    .iter()
+                    .flat_map(|c| {
+                        c.target_vertices
+                            .iter()
+                            .map(move |&tv| (c.source_vertex, tv))
+                    })
+                    .min_by(|a, b| {
+                        let da = p.distance(glam::Vec3::from(t.positions[a.1 as usize]));
+                        let db = p.distance(glam::Vec3::from(t.positions[b.1 as usize]));
+                        da.total_cmp(&db)
+                    });
+                if let Some((sv, _)) = best {
+                    *o = src_cols.get(sv as usize).copied().unwrap_or([0.5; 3]);
+                }
+            }
+            sink(Event::Partial {
+                progress: Progress {
+                    stage: "solve",
+                    iteration: it,
+                    levels: 1,
+                    fraction: it as f32 / params.iterations as f32,
+                    ..Default::default()
+                },
+                signal: out.clone().into(),
+            });
+        }
+        Ok(Solved {
+            working_signal: out.clone(),
+            file_signal: out,
+        })
+    }
+}
+
+/// A UV sphere with colours red (x > 0) / blue.
+fn sphere(rings: u32, segments: u32) -> TriMesh {
+    let mut positions = vec![[0.0, 1.0, 0.0]];
+    for r in 1..rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..segments {
+            let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
+            positions.push([
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            ]);
+        }
+    }
+    positions.push([0.0, -1.0, 0.0]);
+    let south = positions.len() as u32 - 1;
+    let idx = |r: u32, s: u32| 1 + (r - 1) * segments + (s % segments);
+    let mut faces = Vec::new();
+    for s in 0..segments {
+        faces.push([0, idx(1, s + 1), idx(1, s)]);
+        faces.push([south, idx(rings - 1, s), idx(rings - 1, s + 1)]);
+    }
+    for r in 1..rings - 1 {
+        for s in 0..segments {
+            faces.push([idx(r, s), idx(r, s + 1), idx(r + 1, s + 1)]);
+            faces.push([idx(r, s), idx(r + 1, s + 1), idx(r + 1, s)]);
+        }
+    }
+    let mut m = TriMesh::new(positions, faces);
+    m.colors = Some(
+        m.positions
+            .iter()
+            .map(|p| {
+                if p[0] > 0.0 {
+                    [1.0, 0.0, 0.0]
+                } else {
+                    [0.0, 0.0, 1.0]
+                }
+            })
+            .collect(),
+    );
+    m
+}
+
+type App = MeshMatchApp<TestEngine>;
+
+fn harness(app: App) -> Harness<'static, App> {
+    Harness::builder()
+        .with_size(egui::Vec2::new(1200.0, 700.0))
+        .with_max_steps(20)
+        .build_ui_state(|ui, app: &mut App| app.frame_ui(ui, None), app)
+}
+
+fn app_with_spheres() -> App {
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.set_mesh(Side::Target, sphere(16, 24), false);
+    app
+}
+
+/// Screen position of a file vertex in a view (after at least one frame).
+fn vertex_pos(h: &Harness<'static, App>, side: Side, v: u32) -> Pos2 {
+    let app = h.state();
+    let rect = app.views.rects[if side == Side::Source { 0 } else { 1 }];
+    app.views
+        .marker_pos(&app.state, side, rect, v)
+        .expect("vertex visible")
+}
+
+fn click(h: &mut Harness<'static, App>, pos: Pos2, modifiers: egui::Modifiers) {
+    h.hover_at(pos);
+    h.step();
+    for pressed in [true, false] {
+        h.event_modifiers(
+            egui::Event::PointerButton {
+                pos,
+                button: egui::PointerButton::Primary,
+                pressed,
+                modifiers,
+            },
+            modifiers,
+        );
+    }
+    h.step();
+    h.step();
+}
+
+/// A vertex facing the default camera (the one nearest to the eye).
+fn front_vertex(h: &Harness<'static, App>, side: Side, nth: usize) -> u32 {
+    let app = h.state();
+    let slot = app.state.slot(side).unwrap();
+    let m = slot.displayed();
+    let frame = meshmatch::render::Frame::of_points(&m.positions);
+    let cam = app.views.cameras[if side == Side::Source { 0 } else { 1 }];
+    let (eye, _) = cam.eye_target(&frame);
+    let mut order: Vec<u32> = (0..m.positions.len() as u32).collect();
+    order.sort_by(|&a, &b| {
+        let da = glam::Vec3::from(m.positions[a as usize]).distance(eye);
+        let db = glam::Vec3::from(m.positions[b as usize]).distance(eye);
+        da.total_cmp(&db)
+    });
+    // Spread picks out: take every 7th of the nearest vertices.
+    order[nth * 7]
+}
+
+fn wait_done(h: &mut Harness<'static, App>, job_at_least: u64) {
+    let t0 = Instant::now();
+    loop {
+        h.step();
+        let s = &h.state().state;
+        if s.job.job >= job_at_least && !s.job.running && !s.restart_pending() && s.result.is_some()
+        {
+            return;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(10), "job did not finish");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn clicks_add_pairs_shift_click_adds_targets_delete_and_undo_redo() {
+    let mut h = harness(app_with_spheres());
+    h.run_steps(3);
+    let s0 = front_vertex(&h, Side::Source, 0);
+    let t0 = front_vertex(&h, Side::Target, 0);
+    let t1 = front_vertex(&h, Side::Target, 3);
+    // Source click, then target click: one pair with the clicked vertices.
+    let p = vertex_pos(&h, Side::Source, s0);
+    click(&mut h, p, egui::Modifiers::NONE);
+    assert_eq!(h.state().state.pending_source, Some(s0));
+    let p = vertex_pos(&h, Side::Target, t0);
+    click(&mut h, p, egui::Modifiers::NONE);
+    assert_eq!(
+        h.state().state.corr,
+        vec![Correspondence {
+            source_vertex: s0,
+            target_vertices: vec![t0]
+        }]
+    );
+    // Shift-click another target point: one-to-many.
+    let p = vertex_pos(&h, Side::Target, t1);
+    click(&mut h, p, egui::Modifiers::SHIFT);
+    assert_eq!(h.state().state.corr[0].target_vertices, vec![t0, t1]);
+    // Click the first target marker to select it, Delete removes that target only.
+    let p = vertex_pos(&h, Side::Target, t0);
+    click(&mut h, p, egui::Modifiers::NONE);
+    assert_eq!(
+        h.state().state.selected,
+        Some(Selection {
+            pair: 0,
+            side: Side::Target,
+            k: 0
+        })
+    );
+    h.key_press(egui::Key::Delete);
+    h.step();
+    assert_eq!(h.state().state.corr[0].target_vertices, vec![t1]);
+    // Undo restores it, redo removes it again.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    assert_eq!(h.state().state.corr[0].target_vertices, vec![t0, t1]);
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    h.step();
+    assert_eq!(h.state().state.corr[0].target_vertices, vec![t1]);
+    // Selecting the source marker and deleting removes the whole pair.
+    let p = vertex_pos(&h, Side::Source, s0);
+    click(&mut h, p, egui::Modifiers::NONE);
+    h.key_press(egui::Key::Delete);
+    h.step();
+    assert!(h.state().state.corr.is_empty());
+    // Undo twice walks back through the history.
+    assert!(h.state_mut().state.undo());
+    assert_eq!(h.state().state.corr.len(), 1);
+    assert!(h.state_mut().state.undo());
+    assert_eq!(h.state().state.corr[0].target_vertices, vec![t0, t1]);
+}
+
+#[test]
+fn dragging_a_marker_moves_it_and_one_undo_restores_it() {
+    let mut h = harness(app_with_spheres());
+    h.run_steps(3);
+    let s0 = front_vertex(&h, Side::Source, 0);
+    let t0 = front_vertex(&h, Side::Target, 0);
+    let t_new = front_vertex(&h, Side::Target, 6);
+    let p = vertex_pos(&h, Side::Source, s0);
+    click(&mut h, p, egui::Modifiers::NONE);
+    let p = vertex_pos(&h, Side::Target, t0);
+    click(&mut h, p, egui::Modifiers::NONE);
+    let (undo_before, _) = h.state().state.history_len();
+    // Press on the marker, move in steps to the new vertex, release.
+    let from = vertex_pos(&h, Side::Target, t0);
+    let to = vertex_pos(&h, Side::Target, t_new);
+    h.drag_at(from);
+    h.step();
+    for k in 1..=8 {
+        h.hover_at(from + (to - from) * (k as f32 / 8.0));
+        h.step();
+    }
+    h.drop_at(to);
+    h.step();
+    let cams = h.state().views.cameras;
+    assert_eq!(h.state().state.corr[0].target_vertices, vec![t_new]);
+    // The drag moved the marker, not the camera.
+    assert_eq!(cams[1], meshmatch::render::Camera::default());
+    assert_eq!(h.state().state.history_len().0, undo_before + 1);
+    h.state_mut().state.undo();
+    assert_eq!(h.state().state.corr[0].target_vertices, vec![t0]);
+}
+
+#[test]
+fn orbit_drag_moves_both_locked_cameras() {
+    let mut h = harness(app_with_spheres());
+    h.run_steps(3);
+    let rect = h.state().views.rects[0];
+    // Drag on empty background (corner of the source view) orbits.
+    let from = rect.left_top() + egui::vec2(20.0, 40.0);
+    h.drag_at(from);
+    h.step();
+    for k in 1..=5 {
+        h.hover_at(from + egui::vec2(20.0 * k as f32, 0.0));
+        h.step();
+    }
+    h.drop_at(from + egui::vec2(100.0, 0.0));
+    h.step();
+    let cams = h.state().views.cameras;
+    assert_ne!(cams[0], meshmatch::render::Camera::default());
+    assert_eq!(cams[0], cams[1]);
+    assert!(h.state().state.corr.is_empty());
+}
+
+#[test]
+fn transfer_streams_partials_and_a_parameter_edit_restarts_only_solve() {
+    let engine = TestEngine::default();
+    let prepared = engine.prepared.clone();
+    let mut app = App::new(engine, None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.set_mesh(Side::Target, sphere(16, 24), false);
+    app.state
+        .set_correspondences(vec![Correspondence {
+            source_vertex: 20,
+            target_vertices: vec![30],
+        }])
+        .unwrap();
+    let mut h = harness(app);
+    wait_done(&mut h, 1);
+    let first_job = h.state().state.job.job;
+    assert!(h.state().state.job.partials >= 1);
+    assert_eq!(prepared.load(std::sync::atomic::Ordering::SeqCst), 2);
+    // The target colours are the streamed result (source vertex 20 is red or blue, not grey).
+    let slot = h.state().state.slot(Side::Target).unwrap();
+    assert!(slot.base_colors.iter().all(|c| *c != [0.5, 0.5, 0.5]));
+    // A parameter edit (through the state, as the panel's editor does) starts a new job after the
+    // debounce delay; the meshes are not prepared again.
+    let mut p = h.state().state.params.clone();
+    p.iterations = 4;
+    h.state_mut().state.set_params(p, Instant::now());
+    assert!(h.state().state.restart_pending());
+    wait_done(&mut h, first_job + 1);
+    assert!(h.state().state.job.job > first_job);
+    assert_eq!(h.state().state.job.partials, 4);
+    assert_eq!(prepared.load(std::sync::atomic::Ordering::SeqCst), 2);
+}
+
+#[test]
+fn cancel_stops_a_running_job_quickly() {
+    let mut app = app_with_spheres();
+    app.state.params = TestParams {
+        iterations: 100,
+        step_ms: 50,
+    };
+    app.state
+        .schedule_restart(Instant::now() - Duration::from_secs(1));
+    app.pump(Instant::now());
+    assert!(app.state.job.running);
+    std::thread::sleep(Duration::from_millis(100));
+    app.state.cancel_job();
+    let t0 = Instant::now();
+    app.pump(Instant::now());
+    while app.state.job.running {
+        assert!(
+            app.wait_events(Duration::from_millis(500)),
+            "no event after cancel"
+        );
+    }
+    let dt = t0.elapsed();
+    assert_eq!(app.state.job.outcome, "cancelled");
+    assert!(dt < Duration::from_millis(100), "cancel took {dt:?}");
+}
+
+#[test]
+fn a_bad_file_shows_a_dismissable_error_and_the_app_keeps_running() {
+    let dir = std::env::temp_dir().join(format!("meshmatch_app_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("broken.ply");
+    std::fs::write(
+        &bad,
+        b"ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n",
+    )
+    .unwrap();
+    let mut h = harness(app_with_spheres());
+    h.run_steps(2);
+    let r = h.state_mut().state.open_mesh(Side::Target, &bad);
+    assert!(r.is_err());
+    h.state_mut().state.report(r.unwrap_err());
+    // A missing session and a non-mesh file are errors too.
+    let r = h.state_mut().state.open_session(&dir.join("missing.json"));
+    h.state_mut().state.report(r.unwrap_err());
+    h.run_steps(3);
+    assert_eq!(h.state().state.errors.len(), 2);
+    // The meshes are untouched and the error window is shown with a Dismiss button.
+    assert_eq!(
+        h.state()
+            .state
+            .slot(Side::Target)
+            .unwrap()
+            .file
+            .positions
+            .len(),
+        sphere(16, 24).positions.len()
+    );
+    h.get_by_label("Dismiss").click();
+    h.run_steps(2);
+    assert!(h.state().state.errors.is_empty());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn session_round_trip_keeps_correspondences_and_params() {
+    let dir = std::env::temp_dir().join(format!("meshmatch_session_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (src, tgt) = (dir.join("src.ply"), dir.join("tgt.ply"));
+    meshmatch::mesh::io::save(&sphere(10, 12), &src).unwrap();
+    meshmatch::mesh::io::save(&sphere(12, 14), &tgt).unwrap();
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.open_mesh(Side::Source, &src).unwrap();
+    app.state.open_mesh(Side::Target, &tgt).unwrap();
+    let corr = vec![
+        Correspondence {
+            source_vertex: 3,
+            target_vertices: vec![5, 9],
+        },
+        Correspondence {
+            source_vertex: 40,
+            target_vertices: vec![60],
+        },
+    ];
+    app.state.set_correspondences(corr.clone()).unwrap();
+    app.state.params.iterations = 7;
+    app.state.paint_at(Side::Target, [1.0, 0.0, 0.0], true);
+    let session = dir.join("s.json");
+    app.state.save_session(&session).unwrap();
+    let text = std::fs::read_to_string(&session).unwrap();
+    assert!(text.contains("\"correspondences\""));
+    let mut b = App::new(TestEngine::default(), None);
+    b.state.open_session(&session).unwrap();
+    assert_eq!(b.state.corr, corr);
+    assert_eq!(b.state.params.iterations, 7);
+    assert!(dir.join("s.target_paint.ply").exists());
+    // Out-of-range correspondences are refused with an error.
+    assert!(
+        b.state
+            .set_correspondences(vec![Correspondence {
+                source_vertex: 1_000_000,
+                target_vertices: vec![0],
+            }])
+            .is_err()
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn painting_colours_vertices_near_the_brush_and_undo_removes_the_stroke() {
+    let mut app = app_with_spheres();
+    app.state.brush.color = [0.0, 1.0, 0.0];
+    app.state.brush.radius = 0.3;
+    app.state.brush.hardness = 1.0;
+    let n = app.state.paint_at(Side::Source, [0.0, 1.0, 0.0], true);
+    assert!(n > 0);
+    let cols = app.state.slot(Side::Source).unwrap().display_colors();
+    let top = &cols[0];
+    assert!(top[1] > 0.99 && top[0] < 0.01, "{top:?}");
+    let bottom = cols.last().unwrap();
+    assert!(bottom[1] < 0.01);
+    app.state.brush.eraser = true;
+    app.state.paint_at(Side::Source, [0.0, 1.0, 0.0], true);
+    let cols = app.state.slot(Side::Source).unwrap().display_colors();
+    assert!(cols[0][1] < 0.01);
+    app.state.undo();
+    let cols = app.state.slot(Side::Source).unwrap().display_colors();
+    assert!(cols[0][1] > 0.99);
+    app.state.undo();
+    assert!(app.state.slot(Side::Source).unwrap().paint.is_none());
+}
+
+#[test]
+fn help_overlay_toggles_with_h_and_the_question_button() {
+    let mut h = harness(app_with_spheres());
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("Orbit: left-drag").is_none());
+    h.get_by_label("?").click();
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("Orbit: left-drag").is_some());
+    h.key_press(egui::Key::H);
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("Orbit: left-drag").is_none());
+}
