@@ -205,10 +205,10 @@ pub fn prepare(
                     sig[w as usize] = base[i];
                 }
             }
-            for v in nw..r.positions.len() {
+            for (v, slot) in sig.iter_mut().enumerate().skip(nw) {
                 let (wf, b) = r.vert_src[v];
                 let f = welded_to_input[wf as usize] as usize;
-                sig[v] = match kind {
+                *slot = match kind {
                     SignalKind::Texture => {
                         let (tex, uvs) = (
                             mesh.texture.as_ref().expect("texture"),
