@@ -1,0 +1,102 @@
+//! End-to-end smoke test of the desktop app under a real X display (`.ci/run` starts Xvfb):
+//! start `meshmatch` on the default scene, take screenshots of the screen while the transfer
+//! runs, and check that both viewports drew a mesh and that the target's colours change between
+//! screenshots (the progressive preview is alive). Needs `DISPLAY` and ImageMagick's `import`.
+
+#![cfg(feature = "gui")]
+
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+struct KillOnDrop(Child);
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn screenshot() -> image::RgbImage {
+    let out = Command::new("import").args(["-window", "root", "png:-"]).output().expect("ImageMagick `import`");
+    assert!(out.status.success(), "import failed: {}", String::from_utf8_lossy(&out.stderr));
+    image::load_from_memory(&out.stdout).expect("PNG screenshot").to_rgb8()
+}
+
+/// Bounding box of the app window: the non-black pixels of the root window.
+fn window_box(img: &image::RgbImage) -> Option<(u32, u32, u32, u32)> {
+    let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
+    for (x, y, p) in img.enumerate_pixels() {
+        if p.0.iter().any(|&c| c > 8) {
+            x0 = x0.min(x);
+            y0 = y0.min(y);
+            x1 = x1.max(x);
+            y1 = y1.max(y);
+        }
+    }
+    (x1 > x0 + 200 && y1 > y0 + 200).then_some((x0, y0, x1, y1))
+}
+
+/// Pixels of a region given as fractions of the window box.
+fn region(img: &image::RgbImage, b: (u32, u32, u32, u32), fx: (f32, f32), fy: (f32, f32)) -> Vec<[u8; 3]> {
+    let (w, h) = ((b.2 - b.0) as f32, (b.3 - b.1) as f32);
+    let xs = (b.0 + (fx.0 * w) as u32)..(b.0 + (fx.1 * w) as u32);
+    let ys = (b.1 + (fy.0 * h) as u32)..(b.1 + (fy.1 * h) as u32);
+    ys.flat_map(|y| xs.clone().map(move |x| (x, y))).map(|(x, y)| img.get_pixel(x, y).0).collect()
+}
+
+/// Fraction of pixels that differ from the region's most common colour (the viewport background).
+fn mesh_coverage(px: &[[u8; 3]]) -> f32 {
+    let mut counts = std::collections::HashMap::new();
+    for p in px {
+        *counts.entry(*p).or_insert(0usize) += 1;
+    }
+    let bg = counts.into_iter().max_by_key(|(_, c)| *c).map(|(p, _)| p).unwrap_or([0; 3]);
+    let far = |p: &[u8; 3]| p.iter().zip(bg).map(|(a, b)| (*a as i32 - b as i32).abs()).sum::<i32>() > 40;
+    px.iter().filter(|p| far(p)).count() as f32 / px.len().max(1) as f32
+}
+
+fn mean_abs_diff(a: &[[u8; 3]], b: &[[u8; 3]]) -> f32 {
+    let s: u64 = a.iter().zip(b).map(|(p, q)| (0..3).map(|k| (p[k] as i32 - q[k] as i32).unsigned_abs() as u64).sum::<u64>()).sum();
+    s as f32 / (a.len().max(1) * 3) as f32
+}
+
+#[test]
+fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
+    if std::env::var_os("DISPLAY").is_none() {
+        eprintln!("gui smoke test: no DISPLAY, not run (`.ci/run` provides Xvfb)");
+        return;
+    }
+    let mut app = KillOnDrop(
+        Command::new(env!("CARGO_BIN_EXE_meshmatch")).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap(),
+    );
+    let start = Instant::now();
+    std::thread::sleep(Duration::from_secs(20));
+    let (left, right) = ((0.05, 0.34), (0.44, 0.73));
+    let rows = (0.1, 0.85);
+    let mut prev: Option<Vec<[u8; 3]>> = None;
+    let mut drew_both = false;
+    let mut changed = false;
+    // Screenshots a few seconds apart until the target's colours change (preparing the 64K-vertex
+    // working meshes can take a while on two busy cores), for at most 4 minutes.
+    while start.elapsed() < Duration::from_secs(240) {
+        assert!(app.0.try_wait().unwrap().is_none(), "the app exited early");
+        let img = screenshot();
+        let b = window_box(&img).expect("the app window is on screen");
+        let (l, r) = (region(&img, b, left, rows), region(&img, b, right, rows));
+        let (cl, cr) = (mesh_coverage(&l), mesh_coverage(&r));
+        eprintln!("t = {:5.1} s: source coverage {cl:.3}, target coverage {cr:.3}", start.elapsed().as_secs_f32());
+        drew_both |= cl > 0.05 && cr > 0.05;
+        if let Some(p) = &prev {
+            let d = mean_abs_diff(p, &r);
+            eprintln!("          target change since the last screenshot: {d:.2}");
+            if d > 1.0 && drew_both {
+                changed = true;
+                break;
+            }
+        }
+        prev = Some(r);
+        std::thread::sleep(Duration::from_secs(4));
+    }
+    assert!(drew_both, "both viewports should show a mesh");
+    assert!(changed, "the target's colours should change while the transfer streams");
+}
