@@ -10,7 +10,7 @@ use crate::{Error, Result, TriMesh};
 use glam::Vec3;
 
 /// Taubin λ|μ iterations (λ = 0.5, μ = -0.53) that define the smooth base surface.
-pub const DETAIL_SMOOTH_ITERATIONS: usize = 10;
+pub const DETAIL_SMOOTH_ITERATIONS: usize = 30;
 
 /// Result of [`transfer_detail`].
 #[derive(Clone, Debug)]
