@@ -91,7 +91,6 @@ fn views(
     out
 }
 
-
 fn main() -> meshmatch::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let outdir = PathBuf::from(args.get(1).cloned().unwrap_or("/tmp/apps_preview".into()));

@@ -193,7 +193,11 @@ pub fn complete(
         .timings()
         .iter()
         .map(|(k, s)| (format!("example {k}"), *s))
-        .chain(pt.timings().iter().map(|(k, s)| (format!("target {k}"), *s)))
+        .chain(
+            pt.timings()
+                .iter()
+                .map(|(k, s)| (format!("target {k}"), *s)),
+        )
         .collect();
     timings.extend(r.timings.iter().cloned());
     Ok(CompletionResult {

@@ -45,9 +45,10 @@ fn working_geometry(mesh: &TriMesh, vertices: usize) -> Result<TriMesh> {
                 max_levels: None,
             },
         )?;
-        let top = h.levels.last().ok_or_else(|| {
-            Error::InvalidMesh("simplification produced no level".into())
-        })?;
+        let top = h
+            .levels
+            .last()
+            .ok_or_else(|| Error::InvalidMesh("simplification produced no level".into()))?;
         Ok(TriMesh::new(top.positions.clone(), top.faces.clone()))
     } else {
         Ok(refine_to_density(&plain, vertices).mesh)
@@ -154,7 +155,11 @@ pub fn transfer_detail(
         .timings()
         .iter()
         .map(|(k, s)| (format!("source {k}"), *s))
-        .chain(pt.timings().iter().map(|(k, s)| (format!("target {k}"), *s)))
+        .chain(
+            pt.timings()
+                .iter()
+                .map(|(k, s)| (format!("target {k}"), *s)),
+        )
         .collect();
     timings.extend(r.timings.iter().cloned());
     Ok(DetailResult {

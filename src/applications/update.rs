@@ -143,7 +143,11 @@ pub fn update_texture(
             ps.timings()
                 .iter()
                 .map(|(k, s)| (format!("example {k}"), *s))
-                .chain(pt.timings().iter().map(|(k, s)| (format!("target {k}"), *s))),
+                .chain(
+                    pt.timings()
+                        .iter()
+                        .map(|(k, s)| (format!("target {k}"), *s)),
+                ),
         );
         timings.extend(r.timings.iter().cloned());
         (
