@@ -325,22 +325,13 @@ fn load_usable(path: &Path) -> Result<TriMesh> {
 fn transfer(a: &TransferArgs) -> Result<i32> {
     use crate::meshmatch::{self as mm, TransferParams};
     for p in [Some(&a.out), a.out_dense.as_ref()].into_iter().flatten() {
-        let ext = p
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase());
+        let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
-            return Err(Error::InvalidInput(format!(
-                "{}: output must end in .ply, .glb or .obj",
-                p.display()
-            )));
+            return Err(Error::InvalidInput(format!("{}: output must end in .ply, .glb or .obj", p.display())));
         }
     }
     // Make sure every output can be written before spending minutes on the transfer.
-    for p in [Some(&a.out), a.out_dense.as_ref(), a.nnf_out.as_ref()]
-        .into_iter()
-        .flatten()
-    {
+    for p in [Some(&a.out), a.out_dense.as_ref(), a.nnf_out.as_ref()].into_iter().flatten() {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
@@ -348,10 +339,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     let mut source = load_usable(&a.source)?;
     if let Some(tex) = &a.source_texture {
         if source.uvs.is_none() {
-            return Err(Error::InvalidInput(format!(
-                "{}: --source-texture needs a source with UVs",
-                a.source.display()
-            )));
+            return Err(Error::InvalidInput(format!("{}: --source-texture needs a source with UVs", a.source.display())));
         }
         source.texture = Some(std::sync::Arc::new(io::load_texture(tex)?));
         source.colors = None;
@@ -378,19 +366,14 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     };
     let bar = indicatif::ProgressBar::new(1000);
     bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}",
-        )
-        .expect("valid template"),
+        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}")
+            .expect("valid template"),
     );
     let sink = |e: Event| match e {
         Event::Progress(p) | Event::Partial { progress: p, .. } => {
             bar.set_position((p.fraction.clamp(0.0, 1.0) * 1000.0) as u64);
             if p.iteration > 0 {
-                bar.set_message(format!(
-                    "{} level {}/{} iteration {} energy {:.4}",
-                    p.stage, p.level, p.levels, p.iteration, p.energy
-                ));
+                bar.set_message(format!("{} level {}/{} iteration {} energy {:.4}", p.stage, p.level, p.levels, p.iteration, p.energy));
             } else {
                 bar.set_message(p.stage.to_string());
             }
@@ -401,20 +384,9 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     let t = std::time::Instant::now();
     let prepared_source = mm::prepare(&source, &params, &sink, &cancel)?;
     let prepared_target = mm::prepare(&target, &params, &sink, &cancel)?;
-    let result = mm::solve(
-        &prepared_source,
-        &prepared_target,
-        &corr,
-        &params,
-        &sink,
-        &cancel,
-    )?;
+    let result = mm::solve(&prepared_source, &prepared_target, &corr, &params, &sink, &cancel)?;
     bar.finish_and_clear();
-    eprintln!(
-        "transfer finished in {:.2} s (energy {:.4})",
-        t.elapsed().as_secs_f64(),
-        result.energy
-    );
+    eprintln!("transfer finished in {:.2} s (energy {:.4})", t.elapsed().as_secs_f64(), result.energy);
     for (name, s) in &result.timings {
         eprintln!("  {name:<12} {s:8.3} s");
     }
@@ -423,23 +395,10 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     let mut out_mesh = target.clone();
     out_mesh.colors = Some(result.file_signal.clone());
     out_mesh.texture = None;
-    let ext = a
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if ext != "ply" && target.uvs.is_some() {
-        let img = mm::bake_texture(
-            &target,
-            &prepared_target,
-            &result.working_signal,
-            a.texture_size,
-        );
-        out_mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
-            image: img,
-            path: None,
-        }));
+        let img = mm::bake_texture(&target, &prepared_target, &result.working_signal, a.texture_size);
+        out_mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture { image: img, path: None }));
         if ext == "glb" {
             out_mesh.colors = None;
         }
