@@ -338,6 +338,10 @@ pub fn min_norm_affine(target_rows: &[Vec<f32>], source_rows: &[Vec<f32>], k: us
     out
 }
 
+/// Most vertices one fan gathers (dense spots of non-uniform meshes stop early; the walk is
+/// breadth-first, so the nearest vertices come first).
+pub const MAX_FAN_VERTICES: usize = 400;
+
 /// Entries kept per fan bin by [`FanSampler`].
 pub const FAN_TAPS: usize = 3;
 
@@ -356,7 +360,7 @@ pub struct FanSampler {
 impl FanSampler {
     /// Geodesic fans (Zelinka & Garland 2004, as used by MeshMatch §3.1) of one level: every
     /// vertex's bins at polar positions (r_k = (k+1)/R * radius, θ_a = a * 20°) in its tangent
-    /// frame. The surrounding vertices (graph walk up to radius + 2.5σ) are unfolded into the
+    /// frame. The surrounding vertices (breadth-first walk up to radius + 2.5σ, at most `MAX_FAN_VERTICES`) are unfolded into the
     /// tangent plane (direction projected, length kept = Euclidean distance as the local geodesic)
     /// and weighted by exp(-|x - bin|² / 2σ²), σ = 0.6 mean edge lengths; the `FAN_TAPS` largest
     /// weights are kept and normalised. Empty bins take the entries one ring inwards (the centre
@@ -455,7 +459,9 @@ impl FanSampler {
                             let w = w as usize;
                             if stamp[w] != v as u32 {
                                 stamp[w] = v as u32;
-                                if (Vec3::from(level.positions[w]) - pv).length() <= reach {
+                                if queue.len() < MAX_FAN_VERTICES
+                                    && (Vec3::from(level.positions[w]) - pv).length() <= reach
+                                {
                                     queue.push(w as u32);
                                 }
                             }

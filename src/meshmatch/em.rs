@@ -250,7 +250,7 @@ pub(crate) fn propagate(
 
 /// Random search (MeshMatch §4.2): candidates at growing distance from the current match by
 /// hopping j = 1, 2, ... levels up the source hierarchy and back down through random children,
-/// plus one uniformly random source vertex; each candidate with its best of 18 rotations.
+/// plus uniformly random source vertices (max(1, 8 - hops) of them); each candidate with its best of 18 rotations.
 /// Deterministic: one RNG per (seed, level, iteration, vertex).
 pub(crate) fn random_search(
     ctx: &Ctx,
@@ -279,7 +279,9 @@ pub(crate) fn random_search(
                 let mut rng = SmallRng::seed_from_u64(
                     seed ^ (t as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ ((l as u64) << 56),
                 );
-                for j in 1..=hops + 1 {
+                // Uniform candidates make up for missing hops near the top of the hierarchy.
+                let uniform = 8usize.saturating_sub(hops).max(1);
+                for j in 1..=hops + uniform {
                     let c = if j <= hops {
                         hs.random_hop(l, mm.0, j, &mut rng)
                     } else {

@@ -584,6 +584,9 @@ pub fn solve_constrained(
         nl = nl.min(k.max(1));
     }
     let top = nl - 1;
+    // The coarsest level is searched exhaustively when that is cheap (the usual ~128-250
+    // vertices); a hierarchy cut short by `levels` starts from the random field instead.
+    let exhaustive_top = (hs.levels[top].len() as f64) * (ht.levels[top].len() as f64) <= 4.0e6;
 
     // Shape features, per level.
     let sw = Stopwatch::start();
@@ -735,9 +738,11 @@ pub fn solve_constrained(
                 hs,
                 l,
             };
-            let sw = Stopwatch::start();
-            em::exhaustive(&ctx, &mut nnf, &mut dist, &locked[l], cancel)?;
-            t_search += sw.secs();
+            if exhaustive_top {
+                let sw = Stopwatch::start();
+                em::exhaustive(&ctx, &mut nnf, &mut dist, &locked[l], cancel)?;
+                t_search += sw.secs();
+            }
         } else {
             nnf = em::upsample(hs, ht, &source.frames, &target.frames, l, &nnf, ratio);
         }
@@ -809,7 +814,7 @@ pub fn solve_constrained(
             }
             // E-step.
             let sw = Stopwatch::start();
-            if l == top {
+            if l == top && exhaustive_top {
                 em::exhaustive(&ctx, &mut nnf, &mut dist, &locked[l], cancel)?;
             } else {
                 let order = em::bfs_order(lt, order_start);
