@@ -42,6 +42,15 @@ pub enum Command {
     },
     /// Transfer a texture from a source mesh to a target mesh (MeshMatch).
     Transfer(TransferArgs),
+    /// Time the transfer's stages at several working resolutions (Spot -> horse from the shared data).
+    Bench {
+        /// Working resolutions, e.g. `16k,64k,256k,1m`.
+        #[arg(long, default_value = "16k,64k")]
+        sizes: String,
+        /// One JSON object per line per size.
+        #[arg(long)]
+        json: bool,
+    },
     /// Render a mesh to a PNG offscreen (headlight Lambert shading, vertex colours or texture).
     #[cfg(feature = "gui")]
     Render {
@@ -152,6 +161,10 @@ fn run(cli: Cli) -> Result<i32> {
         }
         Some(Command::Demo { out }) => demo(&out),
         Some(Command::Transfer(args)) => transfer(&args),
+        Some(Command::Bench { sizes, json }) => {
+            crate::bench::run(&crate::bench::parse_sizes(&sizes)?, json)?;
+            Ok(0)
+        }
         #[cfg(feature = "gui")]
         Some(Command::Render {
             mesh,

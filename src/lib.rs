@@ -5,6 +5,7 @@
 //! See `docs/ARCHITECTURE.md` for the module map.
 
 pub mod applications;
+pub mod bench;
 pub mod cli;
 pub mod color;
 pub mod demo;

@@ -228,7 +228,7 @@ fn mutate_glb_json(glb: &[u8], picks: &[(f64, u64)]) -> Vec<u8> {
         t.replace_range(s..e, &v.to_string());
     }
     let mut js = t.into_bytes();
-    while js.len() % 4 != 0 {
+    while !js.len().is_multiple_of(4) {
         js.push(b' ');
     }
     let mut out = Vec::new();

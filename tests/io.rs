@@ -39,14 +39,14 @@ fn every_shared_mesh_loads_with_documented_counts() {
     for (rel, nv) in cases {
         let t = std::time::Instant::now();
         let m = load(rel);
+        let load_ms = t.elapsed().as_secs_f64() * 1e3;
         let r = m.validate();
         println!(
-            "{rel}: {} vertices, {} faces, {} boundary loops, {} components, {:.1} ms",
+            "{rel}: {} vertices, {} faces, {} boundary loops, {} components, loaded in {load_ms:.1} ms",
             m.num_vertices(),
             m.num_faces(),
             r.boundary_loops,
             r.components,
-            t.elapsed().as_secs_f64() * 1e3
         );
         assert_eq!(m.num_vertices(), nv, "{rel}");
         assert_eq!(m.file_vertex_count, nv, "{rel}");
@@ -435,7 +435,7 @@ fn bad_inputs_give_clear_errors() {
     );
     assert_ne!(grown, text);
     let mut grown = grown.into_bytes();
-    while grown.len() % 4 != 0 {
+    while !grown.len().is_multiple_of(4) {
         grown.push(b' ');
     }
     let mut b = Vec::new();
@@ -525,6 +525,10 @@ fn obj_features_polygons_negative_indices_colours_groups() {
     )
     .unwrap();
     assert!(io::load(&p).unwrap().texture.is_some());
+    // A UTF-8 byte order mark does not hide the first line.
+    let p = dir.join("bom.obj");
+    std::fs::write(&p, "\u{feff}v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    assert_eq!(io::load(&p).unwrap().num_vertices(), 3);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -606,9 +610,13 @@ fn gltf_node_transforms_strips_and_colours() {
             {"mesh": 0, "scale": [-1.0, 1.0, 1.0]}
         ],
         "meshes": [{"primitives": [
-            {"attributes": {"POSITION": 0, "COLOR_0": 1}, "indices": 2, "mode": 5},
+            {"attributes": {"POSITION": 0, "COLOR_0": 1}, "indices": 2, "mode": 5, "material": 0},
             {"attributes": {"POSITION": 0}, "mode": 0}
         ]}],
+        // An image with no mimeType whose bytes are not an image: a warning, no texture.
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+        "textures": [{"source": 0}],
+        "images": [{"bufferView": 2}],
         "buffers": [{"byteLength": bin.len(), "uri": format!("data:application/octet-stream;base64,{}", b64(&bin))}],
         "bufferViews": [
             {"buffer": 0, "byteOffset": 0, "byteLength": 48},
@@ -639,6 +647,7 @@ fn gltf_node_transforms_strips_and_colours() {
     assert_eq!(m.faces[..2], [[0, 1, 2], [2, 1, 3]]);
     // The mirrored instance flips winding back so its faces stay counter-clockwise.
     assert_eq!(m.faces[2..], [[4, 6, 5], [6, 7, 5]]);
+    assert!(m.texture.is_none());
     let c = m.colors.as_ref().unwrap();
     assert!((c[0][0] - 1.0).abs() < 1e-6 && c[0][1] == 0.0 && c[0][2] == 0.0);
     // 188/255 linear is about 0.737 -> sRGB about 0.874
@@ -662,4 +671,48 @@ fn b64(data: &[u8]) -> String {
         }
     }
     s
+}
+
+#[test]
+fn per_vertex_uvs_go_to_ply_vertex_properties_and_jpeg_textures_load() {
+    let mut cow = load("cow/cow.ply");
+    let uvs: Vec<[f32; 2]> = cow
+        .faces
+        .iter()
+        .flat_map(|f| {
+            f.map(|v| {
+                let p = cow.positions[v as usize];
+                [p[0] * 0.1 + 0.5, p[1] * 0.1 + 0.5]
+            })
+        })
+        .collect();
+    cow.uvs = Some(uvs);
+    let tex = io::load_texture(&data_path("textures/1.jpg")).unwrap();
+    assert!(tex.image.width() > 0 && tex.path.is_some());
+    cow.texture = Some(std::sync::Arc::new(tex));
+    let dir = scratch("pvuv");
+    let p = dir.join("cow_uv.ply");
+    io::save(&cow, &p).unwrap();
+    let bytes = std::fs::read(&p).unwrap();
+    let header = String::from_utf8_lossy(&bytes[..400]);
+    assert!(
+        header.contains("property float s\nproperty float t\n"),
+        "{header}"
+    );
+    assert!(!header.contains("texcoord"));
+    assert!(header.contains("comment TextureFile cow_uv_texture.png"));
+    assert!(dir.join("cow_uv_texture.png").is_file());
+    let _ = std::fs::remove_dir_all(&dir);
+    round_trip_all(&cow, "cow_uv");
+    // OBJ colours written as 0..255 integers are scaled to 0..1.
+    let dir = scratch("obj255");
+    let p = dir.join("c.obj");
+    std::fs::write(
+        &p,
+        "v 0 0 0 255 0 0\nv 1 0 0 0 128 0\nv 0 1 0 0 0 51\nf 1 2 3\n",
+    )
+    .unwrap();
+    let m = io::load(&p).unwrap();
+    assert_eq!(m.colors.unwrap()[2], [0.0, 0.0, 0.2]);
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -293,11 +293,14 @@ pub(crate) fn zebra_stripe(p: Vec3) -> f32 {
     let (a, b) = (0.1415f32, -0.0923f32);
     let lam_t = (a + b * xw).max(0.05);
     let vert = stripe(lam_t.ln() / b, lam_t, 0.5);
-    // Haunch: wide arcs around a centre in front of and below the hip, turning horizontal
-    // towards the hind leg.
-    let c = Vec3::new(-0.02, 0.52, 0.0);
-    let r = ((q.x - c.x).powi(2) + (q.y - c.y).powi(2)).sqrt();
-    let arcs = stripe(r / 0.165 + 0.3, 0.165, 0.48);
+    // Haunch: stripes fanning out from a centre below the flank (rays of constant angle), so
+    // they run vertically where they meet the torso bands, sweep back over the rump and turn
+    // horizontal on the back of the thigh; their spacing r * dtheta widens away from the centre.
+    let c = Vec3::new(0.0, 0.45, 0.0);
+    let (dx, dy) = (q.x - c.x, q.y - c.y);
+    let r = (dx * dx + dy * dy).sqrt().max(1e-3);
+    let dtheta = 0.30;
+    let arcs = stripe(dy.atan2(dx) / dtheta + 0.25, r * dtheta, 0.5);
     let hw = smoothstep(-0.05, -0.28, q.x);
     let mut torso = vert + (arcs - vert) * hw;
     // White belly midline, black dorsal line.
@@ -308,9 +311,9 @@ pub(crate) fn zebra_stripe(p: Vec3) -> f32 {
     let nu = (Z_NECK_B - Z_NECK_A).normalize();
     let neck = stripe((q - Z_NECK_A).dot(nu) / 0.07 + 0.15, 0.07, 0.5);
 
-    // Head: thin rings along the head axis (period 0.036), black muzzle, black ear tips.
+    // Head: thin rings along the head axis (period 0.046), black muzzle, black ear tips.
     let hu = (Z_HEAD_B - Z_HEAD_A).normalize();
-    let mut head = stripe((q - Z_HEAD_A).dot(hu) / 0.036, 0.036, 0.45);
+    let mut head = stripe((q - Z_HEAD_A).dot(hu) / 0.046, 0.046, 0.45);
     let muzzle = smoothstep(
         0.085,
         0.06,

@@ -96,11 +96,8 @@ fn mean_edge_length(mesh: &TriMesh) -> f32 {
 
 /// Mesh an animal SDF: marching tetrahedra on the grid, then on-surface relaxation.
 fn animal(f: fn(Vec3) -> f32, bounds: (Vec3, Vec3)) -> TriMesh {
-    let t = std::time::Instant::now();
     let mut m = sdf::mesh_sdf(&f, bounds.0, bounds.1, GRID_SPACING);
-    eprintln!("TIMING mesh {:.3}", t.elapsed().as_secs_f64());
     sdf::relax(&mut m, &f, RELAX_ITERS, 1e-3);
-    eprintln!("TIMING relax {:.3}", t.elapsed().as_secs_f64());
     m
 }
 
@@ -111,7 +108,7 @@ fn animal(f: fn(Vec3) -> f32, bounds: (Vec3, Vec3)) -> TriMesh {
 pub fn zebra() -> TriMesh {
     use rayon::prelude::*;
     let mut m = animal(animals::zebra_sdf, animals::zebra_bounds());
-    let aa = mean_edge_length(&m);
+    let aa = 1.25 * mean_edge_length(&m);
     m.colors = Some(
         m.positions
             .par_iter()

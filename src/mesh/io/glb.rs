@@ -29,6 +29,13 @@ impl Default for GlbOptions {
     }
 }
 
+/// Required extensions the loader can ignore safely (they only change shading).
+const SUPPORTED_REQUIRED: &[&str] = &[
+    "KHR_materials_unlit",
+    "KHR_materials_pbrSpecularGlossiness",
+    "KHR_texture_transform",
+];
+
 /// Most nested nodes followed (guards against cyclic or absurdly deep node graphs).
 const MAX_NODE_DEPTH: usize = 64;
 
@@ -255,21 +262,37 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Resu
     Ok(out)
 }
 
-/// Decode the image of a texture (buffer view or URI); errors describe what failed.
-fn read_image(img: &gltf::image::Image, buffers: &[Vec<u8>], path: &Path) -> Result<Texture> {
-    let bytes: Vec<u8> = match img.source() {
-        gltf::image::Source::View { view, .. } => {
-            let buf = buffers
-                .get(view.buffer().index())
-                .ok_or_else(|| Error::format(path, "image buffer missing"))?;
-            let end = view
-                .offset()
-                .checked_add(view.length())
-                .filter(|&e| e <= buf.len())
-                .ok_or_else(|| Error::format(path, "image buffer view out of range"))?;
-            buf[view.offset()..end].to_vec()
-        }
-        gltf::image::Source::Uri { uri, .. } => read_uri(uri, path)?,
+/// Decode the image of a texture (buffer view or URI); errors describe what failed. Reads the
+/// JSON directly: `gltf::Image::source` unwraps a missing `mimeType` / `uri`.
+fn read_image(
+    img: &gltf::image::Image,
+    doc: &gltf::Document,
+    buffers: &[Vec<u8>],
+    path: &Path,
+) -> Result<Texture> {
+    let json = doc
+        .as_json()
+        .images
+        .get(img.index())
+        .ok_or_else(|| Error::format(path, "image index out of range"))?;
+    let bytes: Vec<u8> = if let Some(vi) = &json.buffer_view {
+        let view = doc
+            .views()
+            .nth(vi.value())
+            .ok_or_else(|| Error::format(path, "image buffer view out of range"))?;
+        let buf = buffers
+            .get(view.buffer().index())
+            .ok_or_else(|| Error::format(path, "image buffer missing"))?;
+        let end = view
+            .offset()
+            .checked_add(view.length())
+            .filter(|&e| e <= buf.len())
+            .ok_or_else(|| Error::format(path, "image buffer view out of range"))?;
+        buf[view.offset()..end].to_vec()
+    } else if let Some(uri) = &json.uri {
+        read_uri(uri, path)?
+    } else {
+        return Err(Error::format(path, "image has neither bufferView nor uri"));
     };
     super::decode_texture(&bytes, path)
 }
@@ -299,6 +322,19 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     let gltf = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| Error::format(path, format!("invalid glTF: {e}")))?;
     validate(gltf.document.as_json(), path)?;
+    if let Some(ext) = gltf
+        .document
+        .extensions_required()
+        .find(|e| !SUPPORTED_REQUIRED.contains(e))
+    {
+        return Err(Error::format(
+            path,
+            format!(
+                "requires glTF extension {} which is not supported",
+                clip(ext)
+            ),
+        ));
+    }
     let doc = &gltf.document;
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for b in doc.buffers() {
@@ -345,7 +381,7 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     if roots.is_empty() && doc.nodes().len() == 0 {
         // No scene graph at all: take the meshes as they are.
         for mesh in doc.meshes() {
-            read_mesh(&mesh, glam::Mat4::IDENTITY, &buffers, path, &mut acc)?;
+            read_mesh(&mesh, glam::Mat4::IDENTITY, &buffers, path, &mut acc, doc)?;
         }
     }
     let mut visited = vec![false; doc.nodes().len()];
@@ -363,7 +399,7 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         }
         let world = parent * glam::Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(mesh) = node.mesh() {
-            read_mesh(&mesh, world, &buffers, path, &mut acc)?;
+            read_mesh(&mesh, world, &buffers, path, &mut acc, doc)?;
         }
         let children: Vec<gltf::Node> = node.children().collect();
         for c in children.into_iter().rev() {
@@ -395,6 +431,7 @@ fn read_mesh(
     buffers: &[Vec<u8>],
     path: &Path,
     acc: &mut Acc,
+    doc: &gltf::Document,
 ) -> Result<()> {
     let normal_m = glam::Mat3::from_mat4(world).inverse().transpose();
     let flip = glam::Mat3::from_mat4(world).determinant() < 0.0;
@@ -550,7 +587,7 @@ fn read_mesh(
         {
             let src = info.texture().source();
             match acc.texture_source {
-                None if !acc.texture_failed => match read_image(&src, buffers, path) {
+                None if !acc.texture_failed => match read_image(&src, doc, buffers, path) {
                     Ok(t) => {
                         acc.texture = Some(Arc::new(t));
                         acc.texture_source = Some(src.index());
@@ -581,7 +618,7 @@ struct GlbData {
 
 /// Append `data` to `bin` at a 4-byte aligned offset, returning (offset, length).
 fn push_aligned(bin: &mut Vec<u8>, data: &[u8]) -> (usize, usize) {
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let off = bin.len();
@@ -718,7 +755,7 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
         images.push(json!({"bufferView": views.len() - 1, "mimeType": "image/png"}));
         material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let mut root = json!({
@@ -748,7 +785,7 @@ pub fn save_glb(mesh: &TriMesh, path: &Path, opts: &GlbOptions) -> Result<()> {
     check_exportable(mesh, path)?;
     let d = build(mesh, opts, path)?;
     let mut js = serde_json::to_vec(&d.json).map_err(|e| Error::format(path, e.to_string()))?;
-    while js.len() % 4 != 0 {
+    while !js.len().is_multiple_of(4) {
         js.push(b' ');
     }
     let total = 12 + 8 + js.len() + 8 + d.bin.len();

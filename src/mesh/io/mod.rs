@@ -164,6 +164,8 @@ pub fn load_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
 }
 
 fn load_format_bytes(bytes: &[u8], fmt: MeshFormat, path: &Path) -> Result<TriMesh> {
+    // A UTF-8 byte order mark (some Windows tools write one) is not part of the content.
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     match fmt {
         MeshFormat::Obj => load_obj_bytes(bytes, path),
         MeshFormat::Ply => load_ply_bytes(bytes, path),

@@ -1,0 +1,146 @@
+//! `meshmatch bench`: stage timings of a MeshMatch transfer at several working resolutions, on
+//! inputs built from the shared data (Spot textured as source, the horse as target).
+
+use crate::jobs::{CancelToken, Event};
+use crate::meshmatch::{self as mm, TransferParams};
+use crate::{Result, TriMesh};
+use std::time::Instant;
+
+/// One row of the benchmark table.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct BenchRow {
+    /// Working vertices of the target.
+    pub vertices: usize,
+    /// Working vertices of the source.
+    pub source_vertices: usize,
+    /// Hierarchy construction, source + target, seconds.
+    pub hierarchy_s: f64,
+    /// Shape features (HKS and frames), source + target, seconds.
+    pub hks_s: f64,
+    /// Geodesic fans (source preparation + target fans during the solve), seconds.
+    pub fans_s: f64,
+    /// E-step (propagation + random search) per EM iteration, seconds.
+    pub estep_s_per_iter: f64,
+    /// M-step (voting) per EM iteration, seconds.
+    pub mstep_s_per_iter: f64,
+    /// From the start of the solve to its first partial result, seconds.
+    pub first_preview_s: f64,
+    /// Load-free end to end: prepare both meshes and solve, seconds.
+    pub end_to_end_s: f64,
+    /// Peak resident set size of the process so far, MiB.
+    pub peak_rss_mb: f64,
+    /// Final mean patch distance over exact nearest-neighbour distance (not measured yet).
+    pub energy_ratio_vs_exact: Option<f64>,
+    /// MeshMatch time over exact-search time (not measured yet).
+    pub speed_ratio_vs_exact: Option<f64>,
+}
+
+/// Peak resident set size of this process in MiB (Linux `VmHWM`), 0 where unknown.
+pub fn peak_rss_mb() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1).and_then(|k| k.parse::<f64>().ok()))
+        })
+        .map(|kb| kb / 1024.0)
+        .unwrap_or(0.0)
+}
+
+/// Parse sizes such as `16k,64k,256k,1m` or `20000`.
+pub fn parse_sizes(s: &str) -> Result<Vec<usize>> {
+    s.split(',')
+        .map(|t| {
+            let t = t.trim().to_ascii_lowercase();
+            let (num, mul) = if let Some(n) = t.strip_suffix('k') {
+                (n, 1_000.0)
+            } else if let Some(n) = t.strip_suffix('m') {
+                (n, 1_000_000.0)
+            } else {
+                (t.as_str(), 1.0)
+            };
+            num.parse::<f64>()
+                .ok()
+                .filter(|v| *v > 0.0)
+                .map(|v| (v * mul) as usize)
+                .ok_or_else(|| crate::Error::InvalidInput(format!("--sizes: cannot read '{t}' (use e.g. 16k,64k)")))
+        })
+        .collect()
+}
+
+fn sum(timings: &[(String, f64)], pred: impl Fn(&str) -> bool) -> f64 {
+    timings.iter().filter(|(n, _)| pred(n)).map(|(_, s)| s).sum()
+}
+
+/// Run one size: prepare Spot (source) and the horse (target) at `n` working vertices, solve.
+pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchRow> {
+    let params = TransferParams { vertices: n, ..TransferParams::default() };
+    let cancel = CancelToken::new();
+    let t0 = Instant::now();
+    let ps = mm::prepare(source, &params, &crate::jobs::no_events, &cancel)?;
+    let pt = mm::prepare(target, &params, &crate::jobs::no_events, &cancel)?;
+    let solve_start = Instant::now();
+    let first = std::sync::Mutex::new(None::<f64>);
+    let sink = |e: Event| {
+        if let Event::Partial { .. } = e {
+            let mut f = first.lock().expect("not poisoned");
+            if f.is_none() {
+                *f = Some(solve_start.elapsed().as_secs_f64());
+            }
+        }
+    };
+    let r = mm::solve(&ps, &pt, &[], &params, &sink, &cancel)?;
+    let end = t0.elapsed().as_secs_f64();
+    let iters = (pt.hierarchy().num_levels() * params.iterations).max(1) as f64;
+    let prep = |p: &mm::PreparedMesh, name: &str| sum(p.timings(), |n| n == name);
+    Ok(BenchRow {
+        vertices: pt.working_mesh().num_vertices(),
+        source_vertices: ps.working_mesh().num_vertices(),
+        hierarchy_s: prep(&ps, "hierarchy") + prep(&pt, "hierarchy"),
+        hks_s: prep(&ps, "features") + prep(&pt, "features"),
+        fans_s: prep(&ps, "fans") + prep(&pt, "fans") + sum(&r.timings, |n| n == "target fans"),
+        estep_s_per_iter: sum(&r.timings, |n| n == "search") / iters,
+        mstep_s_per_iter: sum(&r.timings, |n| n == "vote") / iters,
+        first_preview_s: first.into_inner().expect("not poisoned").unwrap_or(f64::NAN),
+        end_to_end_s: end,
+        peak_rss_mb: peak_rss_mb(),
+        energy_ratio_vs_exact: None,
+        speed_ratio_vs_exact: None,
+    })
+}
+
+/// Run the benchmark at every size, printing a table (or JSON lines) as rows complete.
+pub fn run(sizes: &[usize], json: bool) -> Result<()> {
+    let mut source = crate::mesh::io::load(&crate::testdata::data_path("spot/spot.obj"))?;
+    source.repair()?;
+    let mut target = crate::mesh::io::load(&crate::testdata::data_path("horse/horse.ply"))?;
+    target.repair()?;
+    if !json {
+        println!(
+            "{:>9} {:>9} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>9} {:>9}",
+            "vertices", "source", "hier_s", "hks_s", "fans_s", "estep/it", "mstep/it", "preview", "total_s", "rss_MiB"
+        );
+    }
+    for &n in sizes {
+        let row = bench_size(&source, &target, n)?;
+        if json {
+            println!("{}", serde_json::to_string(&row).expect("serialisable"));
+        } else {
+            println!(
+                "{:>9} {:>9} {:>8.3} {:>8.3} {:>8.3} {:>10.3} {:>10.3} {:>9.3} {:>9.2} {:>9.0}",
+                row.vertices,
+                row.source_vertices,
+                row.hierarchy_s,
+                row.hks_s,
+                row.fans_s,
+                row.estep_s_per_iter,
+                row.mstep_s_per_iter,
+                row.first_preview_s,
+                row.end_to_end_s,
+                row.peak_rss_mb
+            );
+        }
+    }
+    Ok(())
+}
