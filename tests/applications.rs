@@ -505,7 +505,7 @@ fn detail_onto(target: &TriMesh, name: &str) {
         target,
         1.0,
         &TransferParams {
-            shape_weight: 10.0,
+            shape_weight: meshmatch::applications::DETAIL_SHAPE_WEIGHT,
             ..params(16_000)
         },
         &|_| {},

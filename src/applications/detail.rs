@@ -12,6 +12,11 @@ use glam::Vec3;
 /// Taubin λ|μ iterations (λ = 0.5, μ = -0.53) that define the smooth base surface.
 pub const DETAIL_SMOOTH_ITERATIONS: usize = 30;
 
+/// Shape weight the CLI uses for detail transfer: shape features guide where detail goes, and a
+/// higher weight keeps the search from settling on the source's smoothest patches (measured on
+/// Igea onto Nefertiti/human at 16K: std ratio 0.35 at weight 1, 0.71 at 10, 0.78 at 30).
+pub const DETAIL_SHAPE_WEIGHT: f32 = 10.0;
+
 /// Result of [`transfer_detail`].
 #[derive(Clone, Debug)]
 pub struct DetailResult {

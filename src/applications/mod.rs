@@ -11,7 +11,9 @@ mod detail;
 mod update;
 
 pub use complete::{CompletionResult, complete, unpainted_mask};
-pub use detail::{DETAIL_SMOOTH_ITERATIONS, DetailResult, split_detail, transfer_detail};
+pub use detail::{
+    DETAIL_SHAPE_WEIGHT, DETAIL_SMOOTH_ITERATIONS, DetailResult, split_detail, transfer_detail,
+};
 pub use update::{UPDATE_TOLERANCE, UpdateResult, update_texture};
 
 use crate::mesh::Csr;
