@@ -574,3 +574,49 @@ fn detail_igea_onto_human() {
     let human = meshmatch::mesh::io::load(&data("human/human_man.obj")).expect("human");
     detail_onto(&human, "human");
 }
+
+/// A coloured tetrahedron (cheap input for the error paths).
+fn tetra() -> TriMesh {
+    let mut m = TriMesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ],
+        vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+    );
+    m.colors = Some(vec![
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.5; 3],
+    ]);
+    m
+}
+
+#[test]
+fn bad_inputs_are_errors_not_panics() {
+    let c = CancelToken::new();
+    let p = params(200);
+    let m = tetra();
+    // Mask of the wrong length, nothing painted, no signal.
+    assert!(complete(&m, &[true; 3], &p, &|_| {}, &c).is_err());
+    assert!(complete(&m, &[true; 4], &p, &|_| {}, &c).is_err());
+    let plain = TriMesh::new(m.positions.clone(), m.faces.clone());
+    assert!(complete(&plain, &[false, true, true, true], &p, &|_| {}, &c).is_err());
+    assert!(unpainted_mask(&plain, None).is_err());
+    // Nothing to synthesise: the colours come back unchanged.
+    let r = complete(&m, &[false; 4], &p, &|_| {}, &c).unwrap();
+    assert_eq!(r.colors, m.colors.clone().unwrap());
+    // Update from an uncoloured old mesh; an unchanged mesh keeps its colours exactly.
+    assert!(update_texture(&plain, &m, &p, &|_| {}, &c).is_err());
+    let same = update_texture(&m, &plain, &params(4), &|_| {}, &c).unwrap();
+    assert!(same.changed.iter().all(|&x| !x));
+    assert_eq!(same.colors, m.colors.clone().unwrap());
+    // Detail with a non-finite strength or an empty mesh.
+    assert!(transfer_detail(&m, &m, f32::NAN, &p, &|_| {}, &c).is_err());
+    let empty = TriMesh::new(Vec::new(), Vec::new());
+    assert!(transfer_detail(&empty, &m, 1.0, &p, &|_| {}, &c).is_err());
+    assert!(update_texture(&m, &empty, &p, &|_| {}, &c).is_err());
+}
