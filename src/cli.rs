@@ -44,6 +44,14 @@ pub enum Command {
     Transfer(TransferArgs),
     /// Synthesize a texture over a mesh from a 2D exemplar image (Wei and Levoy 2001).
     Synth(SynthArgs),
+    /// Complete a partly painted mesh by example: the painted (or unmasked) vertices are the
+    /// example, the rest is synthesised; painted vertices keep their colours exactly.
+    Complete(CompleteArgs),
+    /// Update the texture after a geometry edit: copy colours where the new surface coincides with
+    /// the old one, synthesise only the changed region.
+    Update(UpdateArgs),
+    /// Transfer geometric detail (displacement along the normal) from a detailed mesh to a smooth one.
+    Detail(DetailArgs),
     /// Time the transfer's stages at several working resolutions (Spot -> horse from the shared data).
     Bench {
         /// Working resolutions, e.g. `16k,64k,256k,1m`.
@@ -216,6 +224,101 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     io::save(&r.mesh, &a.out)?;
     eprintln!("wrote {}", a.out.display());
     Ok(0)
+/// Solver settings shared by `complete`, `update` and `detail`.
+#[derive(clap::Args, Debug)]
+pub struct SolveArgs {
+    /// Working resolution (vertices; coarser meshes are refined to it).
+    #[arg(long, default_value_t = 64_000)]
+    pub vertices: usize,
+    /// Number of hierarchy levels (default: down to about 128 vertices).
+    #[arg(long)]
+    pub levels: Option<usize>,
+    /// EM iterations per level.
+    #[arg(long, default_value_t = 5)]
+    pub iterations: usize,
+    /// Random seed (runs with the same seed are identical).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Weight of shape features against colour (1 = equal).
+    #[arg(long)]
+    pub shape_weight: Option<f32>,
+    /// Keep the filtered vote at the finest level instead of the nearest-neighbour copy.
+    #[arg(long)]
+    pub no_sharpen: bool,
+}
+
+impl SolveArgs {
+    /// The transfer parameters, with `shape_weight` defaulting to `default_shape_weight`.
+    fn params(&self, default_shape_weight: f32) -> crate::meshmatch::TransferParams {
+        crate::meshmatch::TransferParams {
+            vertices: self.vertices,
+            levels: self.levels,
+            iterations: self.iterations,
+            seed: self.seed,
+            shape_weight: self.shape_weight.unwrap_or(default_shape_weight),
+            sharpen: !self.no_sharpen,
+            ..Default::default()
+        }
+    }
+}
+
+/// Arguments of `meshmatch complete`.
+#[derive(clap::Args, Debug)]
+pub struct CompleteArgs {
+    /// The mesh (its vertex colours or texture are the example unless --painted is given).
+    #[arg(long)]
+    pub mesh: PathBuf,
+    /// A copy of the mesh (same vertices) whose vertex colours mark the painted vertices: a vertex
+    /// is unpainted when its 8-bit colour equals the clay colour (--clay, default: the most
+    /// frequent colour); its colours are the example.
+    #[arg(long, conflicts_with = "mask")]
+    pub painted: Option<PathBuf>,
+    /// Text file listing the vertex indices to synthesise, one per line ('#' starts a comment).
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
+    /// Clay (unpainted) colour as R,G,B in 0-255, for --painted.
+    #[arg(long)]
+    pub clay: Option<String>,
+    /// Output mesh with vertex colours (.ply, .glb, .obj).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub solve: SolveArgs,
+}
+
+/// Arguments of `meshmatch update`.
+#[derive(clap::Args, Debug)]
+pub struct UpdateArgs {
+    /// The mesh before the edit, with its texture or vertex colours.
+    #[arg(long)]
+    pub old: PathBuf,
+    /// The edited mesh.
+    #[arg(long)]
+    pub new: PathBuf,
+    /// Output: the edited mesh with vertex colours (.ply, .glb, .obj).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub solve: SolveArgs,
+}
+
+/// Arguments of `meshmatch detail`.
+#[derive(clap::Args, Debug)]
+pub struct DetailArgs {
+    /// The detailed mesh to take the detail from.
+    #[arg(long)]
+    pub source: PathBuf,
+    /// The smooth mesh to receive it.
+    #[arg(long)]
+    pub target: PathBuf,
+    /// Output: the displaced target at the working resolution (.ply, .glb, .obj).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Scale of the transferred displacement (1 = the source's amplitude relative to its edge length).
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub strength: f32,
+    #[command(flatten)]
+    pub solve: SolveArgs,
 }
 
 /// Run the CLI; returns the process exit code.
@@ -259,6 +362,9 @@ fn run(cli: Cli) -> Result<i32> {
         Some(Command::Demo { out }) => demo(&out),
         Some(Command::Transfer(args)) => transfer(&args),
         Some(Command::Synth(args)) => synth(&args),
+        Some(Command::Complete(args)) => complete(&args),
+        Some(Command::Update(args)) => update(&args),
+        Some(Command::Detail(args)) => detail(&args),
         Some(Command::Bench { sizes, json }) => {
             crate::bench::run(&crate::bench::parse_sizes(&sizes)?, json)?;
             Ok(0)
@@ -532,5 +638,152 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         io::write_atomic(nnf, csv.as_bytes())?;
         eprintln!("wrote {}", nnf.display());
     }
+    Ok(0)
+}
+
+/// Fail early on an output path with an unknown extension; create its folder.
+fn prepare_output(p: &Path) -> Result<()> {
+    let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+    if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
+        return Err(Error::InvalidInput(format!("{}: output must end in .ply, .glb or .obj", p.display())));
+    }
+    if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    Ok(())
+}
+
+/// A progress bar and the event sink that drives it (stage times printed above the bar).
+fn progress_bar() -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(1000);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}")
+            .expect("valid template"),
+    );
+    bar
+}
+
+fn bar_sink(bar: &indicatif::ProgressBar, e: Event) {
+    match e {
+        Event::Progress(p) | Event::Partial { progress: p, .. } => {
+            bar.set_position((p.fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+            bar.set_message(p.stage.to_string());
+        }
+        Event::StageTime(name, s) => bar.println(format!("  {name:<12} {s:8.3} s")),
+    }
+}
+
+/// Parse "R,G,B" (0-255) into an sRGB colour in [0, 1].
+fn parse_rgb(s: &str) -> Result<[f32; 3]> {
+    let v: Vec<&str> = s.split(',').map(str::trim).collect();
+    let bad = || Error::InvalidInput(format!("--clay {s}: expected R,G,B with values 0-255"));
+    if v.len() != 3 {
+        return Err(bad());
+    }
+    let mut c = [0.0f32; 3];
+    for (k, x) in v.iter().enumerate() {
+        c[k] = x.parse::<u8>().map_err(|_| bad())? as f32 / 255.0;
+    }
+    Ok(c)
+}
+
+fn complete(a: &CompleteArgs) -> Result<i32> {
+    prepare_output(&a.out)?;
+    let mut mesh = load_usable(&a.mesh)?;
+    let synth = match (&a.painted, &a.mask) {
+        (Some(p), _) => {
+            let painted = load_usable(p)?;
+            if painted.file_vertex_count != mesh.file_vertex_count {
+                return Err(Error::InvalidInput(format!(
+                    "{}: has {} vertices but {} has {}",
+                    p.display(),
+                    painted.file_vertex_count,
+                    a.mesh.display(),
+                    mesh.file_vertex_count
+                )));
+            }
+            let clay = a.clay.as_deref().map(parse_rgb).transpose()?;
+            let synth = crate::applications::unpainted_mask(&painted, clay)?;
+            // The painted copy's colours are the example, on the mesh's own vertices.
+            let cols = painted.to_file_order(&painted.vertex_signal().unwrap_or_default(), [0.0; 3]);
+            mesh.colors = Some(mesh.file_index.iter().map(|&f| cols.get(f as usize).copied().unwrap_or([0.0; 3])).collect());
+            mesh.texture = None;
+            synth
+        }
+        (None, Some(m)) => read_mask(m, mesh.file_vertex_count)?,
+        (None, None) => return Err(Error::InvalidInput("complete needs --painted or --mask".into())),
+    };
+    let params = a.solve.params(1.0);
+    let bar = progress_bar();
+    let sink = |e: Event| bar_sink(&bar, e);
+    let t = std::time::Instant::now();
+    let r = crate::applications::complete(&mesh, &synth, &params, &sink, &CancelToken::new())?;
+    bar.finish_and_clear();
+    eprintln!(
+        "completed {} of {} vertices in {:.2} s (energy {:.4})",
+        synth.iter().filter(|&&s| s).count(),
+        synth.len(),
+        t.elapsed().as_secs_f64(),
+        r.energy
+    );
+    let mut out = mesh.clone();
+    out.colors = Some(mesh.file_index.iter().map(|&f| r.colors[f as usize]).collect());
+    out.texture = None;
+    io::save(&out, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
+    Ok(0)
+}
+
+fn update(a: &UpdateArgs) -> Result<i32> {
+    prepare_output(&a.out)?;
+    let old = load_usable(&a.old)?;
+    if old.vertex_signal().is_none() {
+        return Err(Error::InvalidInput(format!("{}: the old mesh carries no texture or vertex colours", a.old.display())));
+    }
+    let new = load_usable(&a.new)?;
+    let params = a.solve.params(1.0);
+    let bar = progress_bar();
+    let sink = |e: Event| bar_sink(&bar, e);
+    let t = std::time::Instant::now();
+    let r = crate::applications::update_texture(&old, &new, &params, &sink, &CancelToken::new())?;
+    bar.finish_and_clear();
+    eprintln!(
+        "updated: {} of {} vertices changed, {:.2} s (energy {:.4})",
+        r.changed.iter().filter(|&&c| c).count(),
+        r.changed.len(),
+        t.elapsed().as_secs_f64(),
+        r.energy
+    );
+    let mut out = new.clone();
+    out.colors = Some(new.file_index.iter().map(|&f| r.colors[f as usize]).collect());
+    out.texture = None;
+    io::save(&out, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
+    Ok(0)
+}
+
+fn detail(a: &DetailArgs) -> Result<i32> {
+    prepare_output(&a.out)?;
+    let source = load_usable(&a.source)?;
+    let target = load_usable(&a.target)?;
+    let params = a.solve.params(crate::applications::DETAIL_SHAPE_WEIGHT);
+    let bar = progress_bar();
+    let sink = |e: Event| bar_sink(&bar, e);
+    let t = std::time::Instant::now();
+    let r = crate::applications::transfer_detail(&source, &target, a.strength, &params, &sink, &CancelToken::new())?;
+    bar.finish_and_clear();
+    let stat = |d: &[f32]| {
+        let n = d.len().max(1) as f64;
+        let m = d.iter().map(|&x| x as f64).sum::<f64>() / n;
+        (m, (d.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n).sqrt())
+    };
+    let (ms, ss) = stat(&r.source_displacement);
+    let (mt, st) = stat(&r.target_displacement);
+    eprintln!(
+        "detail transferred in {:.2} s: displacement (mean edge lengths) source mean {ms:.4} std {ss:.4}, result mean {mt:.4} std {st:.4}",
+        t.elapsed().as_secs_f64()
+    );
+    io::save(&r.mesh, &a.out)?;
+    eprintln!("wrote {} ({} vertices)", a.out.display(), r.mesh.num_vertices());
     Ok(0)
 }

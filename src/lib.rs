@@ -4,6 +4,7 @@
 //! the desktop app and the CLI are thin clients of the same library calls.
 //! See `docs/ARCHITECTURE.md` for the module map.
 
+pub mod applications;
 pub mod bench;
 pub mod cli;
 pub mod color;

@@ -1,0 +1,210 @@
+//! Completion by example ("paint by example", MeshMatch §5.4): the painted part of a mesh is the
+//! example, the rest is synthesised with automatic (HKS) shape features; painted vertices keep
+//! their colours exactly.
+
+use super::fill_from_known;
+use crate::geometry::refine_to_density;
+use crate::jobs::{CancelToken, Event};
+use crate::meshmatch::{Constraints, TransferParams, prepare, solve_constrained};
+use crate::{Error, Result, TriMesh};
+
+/// Result of [`complete`].
+#[derive(Clone, Debug)]
+pub struct CompletionResult {
+    /// sRGB colour of every file vertex: painted ones exactly as given, the rest synthesised.
+    pub colors: Vec<[f32; 3]>,
+    /// The working mesh (the input refined to the working density) with the completed colours.
+    pub working: TriMesh,
+    /// Per working vertex: whether it was synthesised.
+    pub synthesized: Vec<bool>,
+    /// Final MeshMatch energy (mean patch distance).
+    pub energy: f64,
+    /// Stage timings (seconds).
+    pub timings: Vec<(String, f64)>,
+}
+
+/// Which file vertices of a painted copy are unpainted: a vertex is unpainted when its colour,
+/// quantised to 8 bits per channel, equals the clay colour quantised the same way. `clay = None`
+/// takes the most frequent quantised colour (an unpainted region is one flat colour, a painted
+/// one varies). Returns one flag per file vertex (`true` = unpainted, to synthesise); a mesh
+/// without vertex colours or texture is an error.
+pub fn unpainted_mask(painted: &TriMesh, clay: Option<[f32; 3]>) -> Result<Vec<bool>> {
+    let Some(cols) = painted.vertex_signal() else {
+        return Err(Error::InvalidInput(
+            "the painted mesh has no vertex colours or texture".into(),
+        ));
+    };
+    let q: Vec<[u8; 3]> = cols.iter().map(|&c| crate::color::to_u8(c)).collect();
+    let clay = match clay {
+        Some(c) => crate::color::to_u8(c),
+        None => {
+            let mut counts: std::collections::HashMap<[u8; 3], usize> = Default::default();
+            for c in &q {
+                *counts.entry(*c).or_default() += 1;
+            }
+            counts
+                .into_iter()
+                .max_by_key(|&(c, n)| (n, c))
+                .map(|(c, _)| c)
+                .unwrap_or([0; 3])
+        }
+    };
+    let flags: Vec<bool> = q.iter().map(|&c| c == clay).collect();
+    Ok(painted.to_file_order(&flags, false))
+}
+
+/// Complete a partly painted mesh by example (MeshMatch §5.4, paint-by-example): the vertices with
+/// `synthesize[file vertex] == false` are the example. The mesh is refined to
+/// `params.vertices` (a new vertex is painted when both endpoints of its edge are), the example
+/// mesh is the sub-mesh of fully painted working faces, the target is the whole working mesh with
+/// every painted working vertex fixed to its colour ([`solve_constrained`]); automatic shape
+/// features (HKS + normal·up) guide the search. Colours come back in file order; painted file
+/// vertices keep their input colours bit for bit.
+pub fn complete(
+    mesh: &TriMesh,
+    synthesize: &[bool],
+    params: &TransferParams,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<CompletionResult> {
+    let nfile = mesh.file_vertex_count;
+    if synthesize.len() != nfile {
+        return Err(Error::InvalidInput(format!(
+            "the mask has {} entries but the mesh has {nfile} vertices",
+            synthesize.len()
+        )));
+    }
+    let Some(base) = mesh.vertex_signal() else {
+        return Err(Error::InvalidInput(
+            "the mesh has no vertex colours or texture to complete from".into(),
+        ));
+    };
+    let n = mesh.positions.len();
+    let synth_in: Vec<bool> = (0..n)
+        .map(|i| {
+            let f = mesh.file_index.get(i).copied().unwrap_or(i as u32) as usize;
+            synthesize.get(f).copied().unwrap_or(false)
+        })
+        .collect();
+    let painted_in: Vec<bool> = synth_in.iter().map(|&s| !s).collect();
+    if !painted_in.iter().any(|&p| p) {
+        return Err(Error::InvalidInput(
+            "nothing is painted: completion needs an example region".into(),
+        ));
+    }
+    if !synth_in.iter().any(|&s| s) {
+        return Ok(CompletionResult {
+            colors: mesh.to_file_order(&base, [0.0; 3]),
+            working: {
+                let mut w = TriMesh::new(mesh.positions.clone(), mesh.faces.clone());
+                w.colors = Some(base.clone());
+                w
+            },
+            synthesized: vec![false; n],
+            energy: 0.0,
+            timings: Vec::new(),
+        });
+    }
+    // Working mesh: unpainted colours pre-filled from the nearest painted vertex so that
+    // interpolation at the border does not mix in the clay colour.
+    let mut plain = TriMesh::new(mesh.positions.clone(), mesh.faces.clone());
+    plain.colors = Some(fill_from_known(&plain.adjacency(), &base, &painted_in));
+    let refined = refine_to_density(&plain, params.vertices);
+    let wmesh = refined.mesh;
+    let nw = wmesh.positions.len();
+    let mut painted_w = vec![false; nw];
+    for v in 0..nw {
+        painted_w[v] = if v < n {
+            painted_in[v]
+        } else {
+            let [a, b] = refined.parent_map[v];
+            painted_w[a as usize] && painted_w[b as usize]
+        };
+    }
+    let wcols = wmesh.colors.clone().unwrap_or_else(|| vec![[0.0; 3]; nw]);
+    // Example: the fully painted working faces, compacted.
+    let mut remap = vec![u32::MAX; nw];
+    let mut spos = Vec::new();
+    let mut scol = Vec::new();
+    let mut sfaces = Vec::new();
+    for f in &wmesh.faces {
+        if f.iter().all(|&v| painted_w[v as usize]) {
+            let g = f.map(|v| {
+                if remap[v as usize] == u32::MAX {
+                    remap[v as usize] = spos.len() as u32;
+                    spos.push(wmesh.positions[v as usize]);
+                    scol.push(wcols[v as usize]);
+                }
+                remap[v as usize]
+            });
+            sfaces.push(g);
+        }
+    }
+    if sfaces.is_empty() {
+        return Err(Error::InvalidInput(
+            "the painted region contains no whole triangle to learn from".into(),
+        ));
+    }
+    let mut source = TriMesh::new(spos, sfaces);
+    source.colors = Some(scol);
+    let target = TriMesh::new(wmesh.positions.clone(), wmesh.faces.clone());
+    let ps = prepare(
+        &source,
+        &TransferParams {
+            vertices: source.positions.len(),
+            ..params.clone()
+        },
+        sink,
+        cancel,
+    )?;
+    let pt = prepare(
+        &target,
+        &TransferParams {
+            vertices: nw,
+            ..params.clone()
+        },
+        sink,
+        cancel,
+    )?;
+    let fixed: Vec<(u32, [f32; 3])> = pt
+        .working_to_file()
+        .iter()
+        .enumerate()
+        .filter(|&(_, &v)| painted_w[v as usize])
+        .map(|(w, &v)| (w as u32, wcols[v as usize]))
+        .collect();
+    let r = solve_constrained(&ps, &pt, &[], &Constraints { fixed }, params, sink, cancel)?;
+    let f2w = pt.file_to_working();
+    let out_w: Vec<[f32; 3]> = (0..nw)
+        .map(|v| {
+            if painted_w[v] {
+                wcols[v]
+            } else {
+                r.working_signal[f2w[v] as usize]
+            }
+        })
+        .collect();
+    let out_in: Vec<[f32; 3]> = (0..n)
+        .map(|i| if painted_in[i] { base[i] } else { out_w[i] })
+        .collect();
+    let mut working = wmesh;
+    working.colors = Some(out_w);
+    let mut timings: Vec<(String, f64)> = ps
+        .timings()
+        .iter()
+        .map(|(k, s)| (format!("example {k}"), *s))
+        .chain(
+            pt.timings()
+                .iter()
+                .map(|(k, s)| (format!("target {k}"), *s)),
+        )
+        .collect();
+    timings.extend(r.timings.iter().cloned());
+    Ok(CompletionResult {
+        colors: mesh.to_file_order(&out_in, [0.0; 3]),
+        working,
+        synthesized: painted_w.iter().map(|&p| !p).collect(),
+        energy: r.energy,
+        timings,
+    })
+}

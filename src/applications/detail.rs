@@ -1,0 +1,177 @@
+//! Geometric detail transfer (MeshMatch §5.3, facial detail): a detailed source is split into a
+//! smooth surface plus a scalar displacement along its normals; the displacement is transferred as
+//! a one-channel signal by MeshMatch guided by shape features, and applied to the target.
+
+use crate::geometry::{mean_edge_length, refine_to_density, taubin_smooth, vertex_normals, weld};
+use crate::hierarchy::{Hierarchy, HierarchyOptions};
+use crate::jobs::{CancelToken, Event};
+use crate::meshmatch::{TransferParams, prepare, solve};
+use crate::{Error, Result, TriMesh};
+use glam::Vec3;
+
+/// Taubin λ|μ iterations (λ = 0.5, μ = -0.53) that define the smooth base surface.
+pub const DETAIL_SMOOTH_ITERATIONS: usize = 30;
+
+/// Shape weight the CLI uses for detail transfer: shape features guide where detail goes, and a
+/// higher weight keeps the search from settling on the source's smoothest patches (measured on
+/// Igea onto Nefertiti/human at 16K: std ratio 0.35 at weight 1, 0.71 at 10, 0.78 at 30).
+pub const DETAIL_SHAPE_WEIGHT: f32 = 10.0;
+
+/// Result of [`transfer_detail`].
+#[derive(Clone, Debug)]
+pub struct DetailResult {
+    /// The target at the working density, displaced along its normals.
+    pub mesh: TriMesh,
+    /// Source displacement per source working vertex, in source mean edge lengths.
+    pub source_displacement: Vec<f32>,
+    /// Applied displacement per result vertex, in target mean edge lengths (strength included).
+    pub target_displacement: Vec<f32>,
+    /// Final MeshMatch energy.
+    pub energy: f64,
+    /// Stage timings (seconds).
+    pub timings: Vec<(String, f64)>,
+}
+
+/// The mesh welded and brought to about `vertices` vertices: refined by longest-edge bisection
+/// when coarser, simplified through the MeshMatch hierarchy (shortest-edge midpoint collapses)
+/// when more than 1.25 times denser.
+fn working_geometry(mesh: &TriMesh, vertices: usize) -> Result<TriMesh> {
+    let (w, _) = weld(mesh);
+    let plain = TriMesh::new(w.positions, w.faces);
+    if plain.faces.is_empty() {
+        return Err(Error::InvalidMesh("mesh has no faces".into()));
+    }
+    if plain.positions.len() * 4 > vertices * 5 {
+        let h = Hierarchy::build(
+            &plain.positions,
+            &plain.faces,
+            HierarchyOptions {
+                min_vertices: vertices,
+                max_levels: None,
+            },
+        )?;
+        let top = h
+            .levels
+            .last()
+            .ok_or_else(|| Error::InvalidMesh("simplification produced no level".into()))?;
+        Ok(TriMesh::new(top.positions.clone(), top.faces.clone()))
+    } else {
+        Ok(refine_to_density(&plain, vertices).mesh)
+    }
+}
+
+/// Split a surface into a smooth base (Taubin smoothing, [`DETAIL_SMOOTH_ITERATIONS`]) and the
+/// scalar displacement d_i = (p_i - s_i) · n(s)_i along the base's vertex normals. Returns the
+/// base positions and the displacement.
+pub fn split_detail(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> (Vec<[f32; 3]>, Vec<f32>) {
+    let adj = crate::mesh::vertex_adjacency(positions.len(), faces);
+    let smooth = taubin_smooth(positions, &adj, DETAIL_SMOOTH_ITERATIONS, 0.5, -0.53);
+    let normals = vertex_normals(&smooth, faces);
+    let d = positions
+        .iter()
+        .zip(&smooth)
+        .zip(&normals)
+        .map(|((p, s), n)| (Vec3::from(*p) - Vec3::from(*s)).dot(Vec3::from(*n)))
+        .collect();
+    (smooth, d)
+}
+
+/// Transfer geometric detail (MeshMatch §5.3): the source, simplified or refined to
+/// `params.vertices`, is split by [`split_detail`]; its displacement, in units of its mean edge
+/// length and mapped affinely to [0, 1], is the one-channel signal (replicated over the three
+/// colour channels) of the smooth base; MeshMatch ([`solve`], shape features only on the target)
+/// synthesises it on the target at the working density, and every target vertex moves along its
+/// normal by `strength` × the synthesised displacement × the target's mean edge length.
+pub fn transfer_detail(
+    source: &TriMesh,
+    target: &TriMesh,
+    strength: f32,
+    params: &TransferParams,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<DetailResult> {
+    if !strength.is_finite() {
+        return Err(Error::InvalidInput("strength must be finite".into()));
+    }
+    if source.faces.is_empty() || target.faces.is_empty() {
+        return Err(Error::InvalidMesh(
+            "both meshes need vertices and faces".into(),
+        ));
+    }
+    let src = working_geometry(source, params.vertices)?;
+    cancel.check()?;
+    let (base, d) = split_detail(&src.positions, &src.faces);
+    let me_s = mean_edge_length(&src.positions, &src.faces).max(1e-30);
+    let dn: Vec<f32> = d.iter().map(|x| x / me_s).collect();
+    let lo = dn.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = dn.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Err(Error::InvalidMesh(
+            "the source has non-finite positions".into(),
+        ));
+    }
+    let span = (hi - lo).max(1e-12);
+    let mut smesh = TriMesh::new(base, src.faces.clone());
+    smesh.colors = Some(
+        dn.iter()
+            .map(|&x| {
+                let c = (x - lo) / span;
+                [c, c, c]
+            })
+            .collect(),
+    );
+    let tgt = working_geometry(target, params.vertices)?;
+    cancel.check()?;
+    let ps = prepare(
+        &smesh,
+        &TransferParams {
+            vertices: smesh.positions.len(),
+            ..params.clone()
+        },
+        sink,
+        cancel,
+    )?;
+    let pt = prepare(
+        &tgt,
+        &TransferParams {
+            vertices: tgt.positions.len(),
+            ..params.clone()
+        },
+        sink,
+        cancel,
+    )?;
+    let r = solve(&ps, &pt, &[], params, sink, cancel)?;
+    let wm = pt.working_mesh();
+    let me_t = mean_edge_length(&wm.positions, &wm.faces);
+    let normals = vertex_normals(&wm.positions, &wm.faces);
+    let td: Vec<f32> = r
+        .working_signal
+        .iter()
+        .map(|c| strength * (lo + span * (c[0] + c[1] + c[2]) / 3.0))
+        .collect();
+    let positions: Vec<[f32; 3]> = wm
+        .positions
+        .iter()
+        .zip(&normals)
+        .zip(&td)
+        .map(|((p, n), &x)| (Vec3::from(*p) + Vec3::from(*n) * (x * me_t)).to_array())
+        .collect();
+    let mut timings: Vec<(String, f64)> = ps
+        .timings()
+        .iter()
+        .map(|(k, s)| (format!("source {k}"), *s))
+        .chain(
+            pt.timings()
+                .iter()
+                .map(|(k, s)| (format!("target {k}"), *s)),
+        )
+        .collect();
+    timings.extend(r.timings.iter().cloned());
+    Ok(DetailResult {
+        mesh: TriMesh::new(positions, wm.faces.clone()),
+        source_displacement: dn,
+        target_displacement: td,
+        energy: r.energy,
+        timings,
+    })
+}
