@@ -224,6 +224,8 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     io::save(&r.mesh, &a.out)?;
     eprintln!("wrote {}", a.out.display());
     Ok(0)
+}
+
 /// Solver settings shared by `complete`, `update` and `detail`.
 #[derive(clap::Args, Debug)]
 pub struct SolveArgs {
