@@ -532,6 +532,16 @@ fn demo(out: &Path) -> Result<i32> {
             mesh.num_faces()
         );
     }
+    // The default correspondences the app starts with, for `meshmatch transfer --correspondences`.
+    let zebra_marks = crate::demo::landmarks_zebra();
+    for (name, mesh, marks) in [
+        ("zebra_to_giraffe", &scene.giraffe, crate::demo::landmarks_giraffe()),
+        ("zebra_to_cerberus", &scene.cerberus, crate::demo::landmarks_cerberus()),
+    ] {
+        let path = out.join(format!("{name}.json"));
+        crate::demo::default_correspondences(&scene.zebra, &zebra_marks, mesh, &marks).save(&path)?;
+        println!("{}", path.display());
+    }
     Ok(0)
 }
 
