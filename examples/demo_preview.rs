@@ -31,7 +31,7 @@ fn render(mesh: &TriMesh, eye_dir: Vec3, img: &mut image::RgbImage, x0: u32, w: 
     let normals = mesh
         .normals
         .clone()
-        .unwrap_or_else(|| meshmatch::demo::vertex_normals(mesh));
+        .unwrap_or_else(|| meshmatch::geometry::vertex_normals(&mesh.positions, &mesh.faces));
     let light =
         (Vec3::new(0.0, 1.0, 0.0) * 0.8 + eye_dir.normalize() * 0.6 + right * -0.5).normalize();
     let base = [0.78f32, 0.74, 0.66];

@@ -40,9 +40,11 @@ pub fn peak_rss_mb() -> f64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1).and_then(|k| k.parse::<f64>().ok()))
+            s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| {
+                l.split_whitespace()
+                    .nth(1)
+                    .and_then(|k| k.parse::<f64>().ok())
+            })
         })
         .map(|kb| kb / 1024.0)
         .unwrap_or(0.0)
@@ -64,18 +66,29 @@ pub fn parse_sizes(s: &str) -> Result<Vec<usize>> {
                 .ok()
                 .filter(|v| *v > 0.0)
                 .map(|v| (v * mul) as usize)
-                .ok_or_else(|| crate::Error::InvalidInput(format!("--sizes: cannot read '{t}' (use e.g. 16k,64k)")))
+                .ok_or_else(|| {
+                    crate::Error::InvalidInput(format!(
+                        "--sizes: cannot read '{t}' (use e.g. 16k,64k)"
+                    ))
+                })
         })
         .collect()
 }
 
 fn sum(timings: &[(String, f64)], pred: impl Fn(&str) -> bool) -> f64 {
-    timings.iter().filter(|(n, _)| pred(n)).map(|(_, s)| s).sum()
+    timings
+        .iter()
+        .filter(|(n, _)| pred(n))
+        .map(|(_, s)| s)
+        .sum()
 }
 
 /// Run one size: prepare Spot (source) and the horse (target) at `n` working vertices, solve.
 pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchRow> {
-    let params = TransferParams { vertices: n, ..TransferParams::default() };
+    let params = TransferParams {
+        vertices: n,
+        ..TransferParams::default()
+    };
     let cancel = CancelToken::new();
     let t0 = Instant::now();
     let ps = mm::prepare(source, &params, &crate::jobs::no_events, &cancel)?;
@@ -102,7 +115,10 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
         fans_s: prep(&ps, "fans") + prep(&pt, "fans") + sum(&r.timings, |n| n == "target fans"),
         estep_s_per_iter: sum(&r.timings, |n| n == "search") / iters,
         mstep_s_per_iter: sum(&r.timings, |n| n == "vote") / iters,
-        first_preview_s: first.into_inner().expect("not poisoned").unwrap_or(f64::NAN),
+        first_preview_s: first
+            .into_inner()
+            .expect("not poisoned")
+            .unwrap_or(f64::NAN),
         end_to_end_s: end,
         peak_rss_mb: peak_rss_mb(),
         energy_ratio_vs_exact: None,
@@ -119,7 +135,16 @@ pub fn run(sizes: &[usize], json: bool) -> Result<()> {
     if !json {
         println!(
             "{:>9} {:>9} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>9} {:>9}",
-            "vertices", "source", "hier_s", "hks_s", "fans_s", "estep/it", "mstep/it", "preview", "total_s", "rss_MiB"
+            "vertices",
+            "source",
+            "hier_s",
+            "hks_s",
+            "fans_s",
+            "estep/it",
+            "mstep/it",
+            "preview",
+            "total_s",
+            "rss_MiB"
         );
     }
     for &n in sizes {

@@ -176,11 +176,14 @@ pub fn read_mask(path: &Path, n: usize) -> Result<Vec<bool>> {
         if t.is_empty() {
             continue;
         }
-        let v: usize = t
-            .parse()
-            .map_err(|_| Error::format(path, format!("line {}: '{t}' is not a vertex index", i + 1)))?;
+        let v: usize = t.parse().map_err(|_| {
+            Error::format(path, format!("line {}: '{t}' is not a vertex index", i + 1))
+        })?;
         if v >= n {
-            return Err(Error::format(path, format!("line {}: vertex {v} out of range (the mesh has {n})", i + 1)));
+            return Err(Error::format(
+                path,
+                format!("line {}: vertex {v} out of range (the mesh has {n})", i + 1),
+            ));
         }
         mask[v] = true;
     }
@@ -189,12 +192,15 @@ pub fn read_mask(path: &Path, n: usize) -> Result<Vec<bool>> {
 
 fn synth(a: &SynthArgs) -> Result<i32> {
     use crate::synthesis::{Orientation, Search, SynthParams};
-    let orientation: Orientation = a
-        .orientation
-        .parse()
-        .map_err(|_| Error::InvalidInput(format!("--orientation {}: use random, up, relax2 or relax4", a.orientation)))?;
-    let search: Search =
-        a.search.parse().map_err(|_| Error::InvalidInput(format!("--search {}: use exhaustive or fast", a.search)))?;
+    let orientation: Orientation = a.orientation.parse().map_err(|_| {
+        Error::InvalidInput(format!(
+            "--orientation {}: use random, up, relax2 or relax4",
+            a.orientation
+        ))
+    })?;
+    let search: Search = a.search.parse().map_err(|_| {
+        Error::InvalidInput(format!("--search {}: use exhaustive or fast", a.search))
+    })?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
@@ -214,7 +220,14 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         ..SynthParams::default()
     };
     let t = std::time::Instant::now();
-    let r = crate::synthesis::synthesize(&exemplar, &target, mask.as_deref(), &params, &crate::jobs::no_events, &CancelToken::new())?;
+    let r = crate::synthesis::synthesize(
+        &exemplar,
+        &target,
+        mask.as_deref(),
+        &params,
+        &crate::jobs::no_events,
+        &CancelToken::new(),
+    )?;
     eprintln!(
         "synthesized {} vertices in {:.2} s (search {:.2} s)",
         r.mesh.num_vertices(),
@@ -535,11 +548,20 @@ fn demo(out: &Path) -> Result<i32> {
     // The default correspondences the app starts with, for `meshmatch transfer --correspondences`.
     let zebra_marks = crate::demo::landmarks_zebra();
     for (name, mesh, marks) in [
-        ("zebra_to_giraffe", &scene.giraffe, crate::demo::landmarks_giraffe()),
-        ("zebra_to_cerberus", &scene.cerberus, crate::demo::landmarks_cerberus()),
+        (
+            "zebra_to_giraffe",
+            &scene.giraffe,
+            crate::demo::landmarks_giraffe(),
+        ),
+        (
+            "zebra_to_cerberus",
+            &scene.cerberus,
+            crate::demo::landmarks_cerberus(),
+        ),
     ] {
         let path = out.join(format!("{name}.json"));
-        crate::demo::default_correspondences(&scene.zebra, &zebra_marks, mesh, &marks).save(&path)?;
+        crate::demo::default_correspondences(&scene.zebra, &zebra_marks, mesh, &marks)
+            .save(&path)?;
         println!("{}", path.display());
     }
     Ok(0)
@@ -554,13 +576,22 @@ fn load_usable(path: &Path) -> Result<TriMesh> {
 fn transfer(a: &TransferArgs) -> Result<i32> {
     use crate::meshmatch::{self as mm, TransferParams};
     for p in [Some(&a.out), a.out_dense.as_ref()].into_iter().flatten() {
-        let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+        let ext = p
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
         if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
-            return Err(Error::InvalidInput(format!("{}: output must end in .ply, .glb or .obj", p.display())));
+            return Err(Error::InvalidInput(format!(
+                "{}: output must end in .ply, .glb or .obj",
+                p.display()
+            )));
         }
     }
     // Make sure every output can be written before spending minutes on the transfer.
-    for p in [Some(&a.out), a.out_dense.as_ref(), a.nnf_out.as_ref()].into_iter().flatten() {
+    for p in [Some(&a.out), a.out_dense.as_ref(), a.nnf_out.as_ref()]
+        .into_iter()
+        .flatten()
+    {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
@@ -568,7 +599,10 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     let mut source = load_usable(&a.source)?;
     if let Some(tex) = &a.source_texture {
         if source.uvs.is_none() {
-            return Err(Error::InvalidInput(format!("{}: --source-texture needs a source with UVs", a.source.display())));
+            return Err(Error::InvalidInput(format!(
+                "{}: --source-texture needs a source with UVs",
+                a.source.display()
+            )));
         }
         source.texture = Some(std::sync::Arc::new(io::load_texture(tex)?));
         source.colors = None;
@@ -595,14 +629,19 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     };
     let bar = indicatif::ProgressBar::new(1000);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}")
-            .expect("valid template"),
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}",
+        )
+        .expect("valid template"),
     );
     let sink = |e: Event| match e {
         Event::Progress(p) | Event::Partial { progress: p, .. } => {
             bar.set_position((p.fraction.clamp(0.0, 1.0) * 1000.0) as u64);
             if p.iteration > 0 {
-                bar.set_message(format!("{} level {}/{} iteration {} energy {:.4}", p.stage, p.level, p.levels, p.iteration, p.energy));
+                bar.set_message(format!(
+                    "{} level {}/{} iteration {} energy {:.4}",
+                    p.stage, p.level, p.levels, p.iteration, p.energy
+                ));
             } else {
                 bar.set_message(p.stage.to_string());
             }
@@ -613,9 +652,20 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     let t = std::time::Instant::now();
     let prepared_source = mm::prepare(&source, &params, &sink, &cancel)?;
     let prepared_target = mm::prepare(&target, &params, &sink, &cancel)?;
-    let result = mm::solve(&prepared_source, &prepared_target, &corr, &params, &sink, &cancel)?;
+    let result = mm::solve(
+        &prepared_source,
+        &prepared_target,
+        &corr,
+        &params,
+        &sink,
+        &cancel,
+    )?;
     bar.finish_and_clear();
-    eprintln!("transfer finished in {:.2} s (energy {:.4})", t.elapsed().as_secs_f64(), result.energy);
+    eprintln!(
+        "transfer finished in {:.2} s (energy {:.4})",
+        t.elapsed().as_secs_f64(),
+        result.energy
+    );
     for (name, s) in &result.timings {
         eprintln!("  {name:<12} {s:8.3} s");
     }
@@ -624,10 +674,23 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     let mut out_mesh = target.clone();
     out_mesh.colors = Some(result.file_signal.clone());
     out_mesh.texture = None;
-    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let ext = a
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
     if ext != "ply" && target.uvs.is_some() {
-        let img = mm::bake_texture(&target, &prepared_target, &result.working_signal, a.texture_size);
-        out_mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture { image: img, path: None }));
+        let img = mm::bake_texture(
+            &target,
+            &prepared_target,
+            &result.working_signal,
+            a.texture_size,
+        );
+        out_mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
+            image: img,
+            path: None,
+        }));
         if ext == "glb" {
             out_mesh.colors = None;
         }
@@ -655,9 +718,15 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
 
 /// Fail early on an output path with an unknown extension; create its folder.
 fn prepare_output(p: &Path) -> Result<()> {
-    let ext = p.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+    let ext = p
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
     if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
-        return Err(Error::InvalidInput(format!("{}: output must end in .ply, .glb or .obj", p.display())));
+        return Err(Error::InvalidInput(format!(
+            "{}: output must end in .ply, .glb or .obj",
+            p.display()
+        )));
     }
     if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
@@ -669,8 +738,10 @@ fn prepare_output(p: &Path) -> Result<()> {
 fn progress_bar() -> indicatif::ProgressBar {
     let bar = indicatif::ProgressBar::new(1000);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}")
-            .expect("valid template"),
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}",
+        )
+        .expect("valid template"),
     );
     bar
 }
@@ -717,13 +788,23 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
             let clay = a.clay.as_deref().map(parse_rgb).transpose()?;
             let synth = crate::applications::unpainted_mask(&painted, clay)?;
             // The painted copy's colours are the example, on the mesh's own vertices.
-            let cols = painted.to_file_order(&painted.vertex_signal().unwrap_or_default(), [0.0; 3]);
-            mesh.colors = Some(mesh.file_index.iter().map(|&f| cols.get(f as usize).copied().unwrap_or([0.0; 3])).collect());
+            let cols =
+                painted.to_file_order(&painted.vertex_signal().unwrap_or_default(), [0.0; 3]);
+            mesh.colors = Some(
+                mesh.file_index
+                    .iter()
+                    .map(|&f| cols.get(f as usize).copied().unwrap_or([0.0; 3]))
+                    .collect(),
+            );
             mesh.texture = None;
             synth
         }
         (None, Some(m)) => read_mask(m, mesh.file_vertex_count)?,
-        (None, None) => return Err(Error::InvalidInput("complete needs --painted or --mask".into())),
+        (None, None) => {
+            return Err(Error::InvalidInput(
+                "complete needs --painted or --mask".into(),
+            ));
+        }
     };
     let params = a.solve.params(1.0);
     let bar = progress_bar();
@@ -739,7 +820,12 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
         r.energy
     );
     let mut out = mesh.clone();
-    out.colors = Some(mesh.file_index.iter().map(|&f| r.colors[f as usize]).collect());
+    out.colors = Some(
+        mesh.file_index
+            .iter()
+            .map(|&f| r.colors[f as usize])
+            .collect(),
+    );
     out.texture = None;
     io::save(&out, &a.out)?;
     eprintln!("wrote {}", a.out.display());
@@ -750,7 +836,10 @@ fn update(a: &UpdateArgs) -> Result<i32> {
     prepare_output(&a.out)?;
     let old = load_usable(&a.old)?;
     if old.vertex_signal().is_none() {
-        return Err(Error::InvalidInput(format!("{}: the old mesh carries no texture or vertex colours", a.old.display())));
+        return Err(Error::InvalidInput(format!(
+            "{}: the old mesh carries no texture or vertex colours",
+            a.old.display()
+        )));
     }
     let new = load_usable(&a.new)?;
     let params = a.solve.params(1.0);
@@ -767,7 +856,12 @@ fn update(a: &UpdateArgs) -> Result<i32> {
         r.energy
     );
     let mut out = new.clone();
-    out.colors = Some(new.file_index.iter().map(|&f| r.colors[f as usize]).collect());
+    out.colors = Some(
+        new.file_index
+            .iter()
+            .map(|&f| r.colors[f as usize])
+            .collect(),
+    );
     out.texture = None;
     io::save(&out, &a.out)?;
     eprintln!("wrote {}", a.out.display());
@@ -782,12 +876,22 @@ fn detail(a: &DetailArgs) -> Result<i32> {
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);
     let t = std::time::Instant::now();
-    let r = crate::applications::transfer_detail(&source, &target, a.strength, &params, &sink, &CancelToken::new())?;
+    let r = crate::applications::transfer_detail(
+        &source,
+        &target,
+        a.strength,
+        &params,
+        &sink,
+        &CancelToken::new(),
+    )?;
     bar.finish_and_clear();
     let stat = |d: &[f32]| {
         let n = d.len().max(1) as f64;
         let m = d.iter().map(|&x| x as f64).sum::<f64>() / n;
-        (m, (d.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n).sqrt())
+        (
+            m,
+            (d.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / n).sqrt(),
+        )
     };
     let (ms, ss) = stat(&r.source_displacement);
     let (mt, st) = stat(&r.target_displacement);
@@ -796,6 +900,10 @@ fn detail(a: &DetailArgs) -> Result<i32> {
         t.elapsed().as_secs_f64()
     );
     io::save(&r.mesh, &a.out)?;
-    eprintln!("wrote {} ({} vertices)", a.out.display(), r.mesh.num_vertices());
+    eprintln!(
+        "wrote {} ({} vertices)",
+        a.out.display(),
+        r.mesh.num_vertices()
+    );
     Ok(0)
 }

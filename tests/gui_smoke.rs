@@ -17,9 +17,18 @@ impl Drop for KillOnDrop {
 }
 
 fn screenshot() -> image::RgbImage {
-    let out = Command::new("import").args(["-window", "root", "png:-"]).output().expect("ImageMagick `import`");
-    assert!(out.status.success(), "import failed: {}", String::from_utf8_lossy(&out.stderr));
-    image::load_from_memory(&out.stdout).expect("PNG screenshot").to_rgb8()
+    let out = Command::new("import")
+        .args(["-window", "root", "png:-"])
+        .output()
+        .expect("ImageMagick `import`");
+    assert!(
+        out.status.success(),
+        "import failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    image::load_from_memory(&out.stdout)
+        .expect("PNG screenshot")
+        .to_rgb8()
 }
 
 /// Bounding box of the app window: the non-black pixels of the root window.
@@ -37,11 +46,18 @@ fn window_box(img: &image::RgbImage) -> Option<(u32, u32, u32, u32)> {
 }
 
 /// Pixels of a region given as fractions of the window box.
-fn region(img: &image::RgbImage, b: (u32, u32, u32, u32), fx: (f32, f32), fy: (f32, f32)) -> Vec<[u8; 3]> {
+fn region(
+    img: &image::RgbImage,
+    b: (u32, u32, u32, u32),
+    fx: (f32, f32),
+    fy: (f32, f32),
+) -> Vec<[u8; 3]> {
     let (w, h) = ((b.2 - b.0) as f32, (b.3 - b.1) as f32);
     let xs = (b.0 + (fx.0 * w) as u32)..(b.0 + (fx.1 * w) as u32);
     let ys = (b.1 + (fy.0 * h) as u32)..(b.1 + (fy.1 * h) as u32);
-    ys.flat_map(|y| xs.clone().map(move |x| (x, y))).map(|(x, y)| img.get_pixel(x, y).0).collect()
+    ys.flat_map(|y| xs.clone().map(move |x| (x, y)))
+        .map(|(x, y)| img.get_pixel(x, y).0)
+        .collect()
 }
 
 /// Fraction of pixels that differ from the region's most common colour (the viewport background).
@@ -50,13 +66,31 @@ fn mesh_coverage(px: &[[u8; 3]]) -> f32 {
     for p in px {
         *counts.entry(*p).or_insert(0usize) += 1;
     }
-    let bg = counts.into_iter().max_by_key(|(_, c)| *c).map(|(p, _)| p).unwrap_or([0; 3]);
-    let far = |p: &[u8; 3]| p.iter().zip(bg).map(|(a, b)| (*a as i32 - b as i32).abs()).sum::<i32>() > 40;
+    let bg = counts
+        .into_iter()
+        .max_by_key(|(_, c)| *c)
+        .map(|(p, _)| p)
+        .unwrap_or([0; 3]);
+    let far = |p: &[u8; 3]| {
+        p.iter()
+            .zip(bg)
+            .map(|(a, b)| (*a as i32 - b as i32).abs())
+            .sum::<i32>()
+            > 40
+    };
     px.iter().filter(|p| far(p)).count() as f32 / px.len().max(1) as f32
 }
 
 fn mean_abs_diff(a: &[[u8; 3]], b: &[[u8; 3]]) -> f32 {
-    let s: u64 = a.iter().zip(b).map(|(p, q)| (0..3).map(|k| (p[k] as i32 - q[k] as i32).unsigned_abs() as u64).sum::<u64>()).sum();
+    let s: u64 = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| {
+            (0..3)
+                .map(|k| (p[k] as i32 - q[k] as i32).unsigned_abs() as u64)
+                .sum::<u64>()
+        })
+        .sum();
     s as f32 / (a.len().max(1) * 3) as f32
 }
 
@@ -67,7 +101,11 @@ fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
         return;
     }
     let mut app = KillOnDrop(
-        Command::new(env!("CARGO_BIN_EXE_meshmatch")).stdout(Stdio::null()).stderr(Stdio::null()).spawn().unwrap(),
+        Command::new(env!("CARGO_BIN_EXE_meshmatch"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
     );
     let start = Instant::now();
     std::thread::sleep(Duration::from_secs(20));
@@ -84,7 +122,10 @@ fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
         let b = window_box(&img).expect("the app window is on screen");
         let (l, r) = (region(&img, b, left, rows), region(&img, b, right, rows));
         let (cl, cr) = (mesh_coverage(&l), mesh_coverage(&r));
-        eprintln!("t = {:5.1} s: source coverage {cl:.3}, target coverage {cr:.3}", start.elapsed().as_secs_f32());
+        eprintln!(
+            "t = {:5.1} s: source coverage {cl:.3}, target coverage {cr:.3}",
+            start.elapsed().as_secs_f32()
+        );
         drew_both |= cl > 0.05 && cr > 0.05;
         if let Some(p) = &prev {
             let d = mean_abs_diff(p, &r);
@@ -98,5 +139,8 @@ fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
         std::thread::sleep(Duration::from_secs(4));
     }
     assert!(drew_both, "both viewports should show a mesh");
-    assert!(changed, "the target's colours should change while the transfer streams");
+    assert!(
+        changed,
+        "the target's colours should change while the transfer streams"
+    );
 }

@@ -66,34 +66,6 @@ pub struct DemoScene {
     pub vase_painted: Vec<bool>,
 }
 
-/// Area-weighted vertex normals of a mesh (unit length; +Y for isolated vertices).
-pub fn vertex_normals(mesh: &TriMesh) -> Vec<[f32; 3]> {
-    let mut acc = vec![Vec3::ZERO; mesh.num_vertices()];
-    for f in &mesh.faces {
-        let [a, b, c] = f.map(|i| Vec3::from(mesh.positions[i as usize]));
-        let n = (b - a).cross(c - a);
-        for &v in f {
-            acc[v as usize] += n;
-        }
-    }
-    acc.iter()
-        .map(|n| n.normalize_or(Vec3::Y).to_array())
-        .collect()
-}
-
-/// Mean edge length (used as the antialiasing width of painted patterns).
-fn mean_edge_length(mesh: &TriMesh) -> f32 {
-    let mut s = 0.0f64;
-    for f in &mesh.faces {
-        for k in 0..3 {
-            let a = Vec3::from(mesh.positions[f[k] as usize]);
-            let b = Vec3::from(mesh.positions[f[(k + 1) % 3] as usize]);
-            s += (a - b).length() as f64;
-        }
-    }
-    (s / (3 * mesh.faces.len()).max(1) as f64) as f32
-}
-
 /// Mesh an animal SDF: marching tetrahedra on the grid, then on-surface relaxation.
 fn animal(f: fn(Vec3) -> f32, bounds: (Vec3, Vec3)) -> TriMesh {
     let mut m = sdf::mesh_sdf(&f, bounds.0, bounds.1, GRID_SPACING);
@@ -108,7 +80,7 @@ fn animal(f: fn(Vec3) -> f32, bounds: (Vec3, Vec3)) -> TriMesh {
 pub fn zebra() -> TriMesh {
     use rayon::prelude::*;
     let mut m = animal(animals::zebra_sdf, animals::zebra_bounds());
-    let aa = 1.25 * mean_edge_length(&m);
+    let aa = 1.25 * crate::geometry::mean_edge_length(&m.positions, &m.faces);
     m.colors = Some(
         m.positions
             .par_iter()

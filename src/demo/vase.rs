@@ -252,6 +252,9 @@ pub(crate) fn vase_with_mask() -> (TriMesh, Vec<bool>) {
         }
     }
     mesh.colors = Some(col);
-    mesh.normals = Some(super::vertex_normals(&mesh));
+    mesh.normals = Some(crate::geometry::vertex_normals(
+        &mesh.positions,
+        &mesh.faces,
+    ));
     (mesh, mask)
 }

@@ -74,7 +74,7 @@ impl EdgeFaces {
     }
 }
 
-/// A refined mesh and where its vertices came from.
+/// A refined mesh and where its vertices and faces came from.
 #[derive(Clone, Debug)]
 pub struct Refined {
     /// The refined mesh: its first `n` vertices are the input's `n` vertices in order.
@@ -82,6 +82,29 @@ pub struct Refined {
     /// For every refined vertex, the endpoints of the edge it was inserted on (`[i, i]` for an
     /// input vertex `i`; a later vertex's parents may themselves be inserted vertices).
     pub parent_map: Vec<[u32; 2]>,
+    /// For every refined face, the input face (index into the input's `faces`) it lies in.
+    pub source_face: Vec<u32>,
+    /// For every refined face, the barycentric coordinates of its three corners in its
+    /// `source_face` (a refined face is the affine image of these points).
+    pub source_bary: Vec<[[f32; 3]; 3]>,
+}
+
+impl Refined {
+    /// For every refined vertex, one input face containing it and its barycentric coordinates
+    /// there (the first refined face using the vertex decides); `(u32::MAX, [0; 3])` for a
+    /// vertex no face uses.
+    pub fn vertex_sources(&self) -> Vec<(u32, [f32; 3])> {
+        let mut out = vec![(u32::MAX, [0.0f32; 3]); self.mesh.positions.len()];
+        for (fi, face) in self.mesh.faces.iter().enumerate() {
+            for k in 0..3 {
+                let slot = &mut out[face[k] as usize];
+                if slot.0 == u32::MAX {
+                    *slot = (self.source_face[fi], self.source_bary[fi][k]);
+                }
+            }
+        }
+        out
+    }
 }
 
 /// Refine `mesh` to about `target_vertices` vertices by longest-edge bisection (Rivara 1984):
@@ -105,9 +128,11 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
         .as_ref()
         .is_some_and(|u| u.len() == 3 * mesh.faces.len());
     let mut uvs: Vec<[f32; 2]> = Vec::new();
+    let mut source_face: Vec<u32> = Vec::with_capacity(mesh.faces.len());
     for (f, face) in mesh.faces.iter().enumerate() {
         if face.iter().all(|&v| (v as usize) < n0) {
             faces.push(*face);
+            source_face.push(f as u32);
             if has_uv {
                 uvs.extend_from_slice(&mesh.uvs.as_ref().unwrap()[3 * f..3 * f + 3]);
             }
@@ -124,6 +149,8 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
     };
     let mut normals = mesh.normals.clone().filter(|n| n.len() == n0);
     let mut parent_map: Vec<[u32; 2]> = (0..n0 as u32).map(|i| [i, i]).collect();
+    const UNIT: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let mut source_bary: Vec<[[f32; 3]; 3]> = vec![UNIT; faces.len()];
 
     // vertex indices are u32: never grow past that (a huge target refines until it is reached)
     let target_vertices = target_vertices.min(u32::MAX as usize / 2);
@@ -132,6 +159,8 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
         positions.reserve(extra);
         parent_map.reserve(extra);
         faces.reserve(2 * extra + 16);
+        source_face.reserve(2 * extra + 16);
+        source_bary.reserve(2 * extra + 16);
         let mut edges: IntMap<EdgeFaces> = IntMap::default();
         edges.reserve(faces.len() * 3 / 2 + 3 * extra);
         for (fi, f) in faces.iter().enumerate() {
@@ -191,6 +220,12 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
                 let g = faces.len() as u32;
                 faces[fi as usize] = [p0, m, p2];
                 faces.push([m, p1, p2]);
+                let fb = source_bary[fi as usize];
+                let (b0, b1, b2) = (fb[k], fb[(k + 1) % 3], fb[(k + 2) % 3]);
+                let bm = [0, 1, 2].map(|c| 0.5 * (b0[c] + b1[c]));
+                source_bary[fi as usize] = [b0, bm, b2];
+                source_bary.push([bm, b1, b2]);
+                source_face.push(source_face[fi as usize]);
                 if has_uv {
                     let base = 3 * fi as usize;
                     let (u0, u1, u2) = (
@@ -240,6 +275,8 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
     Refined {
         mesh: out,
         parent_map,
+        source_face,
+        source_bary,
     }
 }
 
@@ -345,5 +382,65 @@ mod tests {
         assert_eq!(out.file_index[59], u32::MAX);
         // already dense enough: unchanged
         assert_eq!(refine_to_density(&m, 3).mesh.num_vertices(), 4);
+    }
+
+    #[test]
+    fn refine_records_source_face_and_barycentrics() {
+        // a bent strip of three faces, plus one face with an out-of-range index that is dropped
+        let pos = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [1.0, 1.0, 0.5],
+            [2.0, 0.5, 1.0],
+        ];
+        let m = TriMesh::new(pos, vec![[0, 1, 2], [9, 1, 2], [1, 3, 2], [1, 4, 3]]);
+        let r = refine_to_density(&m, 200);
+        let out = &r.mesh;
+        assert_eq!(out.num_vertices(), 200);
+        assert_eq!(r.source_face.len(), out.faces.len());
+        assert_eq!(r.source_bary.len(), out.faces.len());
+        assert!(r.source_face.iter().all(|&f| f != 1 && (f as usize) < 4));
+        // every corner is the barycentric combination of its source face's corners
+        let lerp = |f: u32, b: [f32; 3]| {
+            let face = m.faces[f as usize];
+            (0..3).fold(Vec3::ZERO, |a, k| {
+                a + b[k] * Vec3::from(m.positions[face[k] as usize])
+            })
+        };
+        for (fi, face) in out.faces.iter().enumerate() {
+            for k in 0..3 {
+                let b = r.source_bary[fi][k];
+                assert!((b.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+                assert!(b.iter().all(|&x| x >= 0.0));
+                let p = lerp(r.source_face[fi], b);
+                assert!(p.distance(Vec3::from(out.positions[face[k] as usize])) < 1e-5);
+            }
+        }
+        // the refined faces of each input face tile it exactly
+        let tri_area = |a: Vec3, b: Vec3, c: Vec3| 0.5 * (b - a).cross(c - a).length();
+        for f in [0u32, 2, 3] {
+            let face = m.faces[f as usize];
+            let want = tri_area(
+                Vec3::from(m.positions[face[0] as usize]),
+                Vec3::from(m.positions[face[1] as usize]),
+                Vec3::from(m.positions[face[2] as usize]),
+            );
+            let got: f32 = (0..out.faces.len())
+                .filter(|&i| r.source_face[i] == f)
+                .map(|i| {
+                    let q = out.faces[i].map(|v| Vec3::from(out.positions[v as usize]));
+                    tri_area(q[0], q[1], q[2])
+                })
+                .sum();
+            assert!(
+                (got - want).abs() < 1e-4 * want.max(1.0),
+                "face {f}: {got} vs {want}"
+            );
+        }
+        // vertex sources locate every vertex on the surface
+        for (v, (f, b)) in r.vertex_sources().into_iter().enumerate() {
+            assert!(lerp(f, b).distance(Vec3::from(out.positions[v])) < 1e-5);
+        }
     }
 }

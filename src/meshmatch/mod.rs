@@ -9,7 +9,6 @@
 //! for the target's own vertices and [`bake_texture`] for its UV layout.
 
 mod em;
-mod refine;
 
 use crate::features::{
     self, FAN_ANGLES, FanSampler, Frames, SHAPE_DIM, compute_fans, edge_geodesics,
@@ -191,7 +190,15 @@ pub fn prepare(
         })
         .map(|(i, _)| i as u32)
         .collect();
-    let r = refine::refine(&welded.positions, &welded.faces, params.vertices);
+    // Refine the bare welded surface (the signal is sampled below from the input itself).
+    let bare = TriMesh::new(welded.positions.clone(), welded.faces.clone());
+    let r = crate::geometry::refine_to_density(&bare, params.vertices);
+    drop(bare);
+    let vert_src: Vec<(u32, [f32; 3])> = r
+        .vertex_sources()
+        .into_iter()
+        .map(|(f, b)| if f == u32::MAX { (0, b) } else { (f, b) })
+        .collect();
     cancel.check()?;
     let nw = welded.positions.len();
     // Per working vertex signal.
@@ -199,14 +206,14 @@ pub fn prepare(
         SignalKind::None => None,
         kind => {
             let base = mesh.vertex_signal();
-            let mut sig = vec![[0.0f32; 3]; r.positions.len()];
+            let mut sig = vec![[0.0f32; 3]; r.mesh.positions.len()];
             if let Some(base) = base {
                 for (i, &w) in map.iter().enumerate() {
                     sig[w as usize] = base[i];
                 }
             }
             for (v, slot) in sig.iter_mut().enumerate().skip(nw) {
-                let (wf, b) = r.vert_src[v];
+                let (wf, b) = vert_src[v];
                 let f = welded_to_input[wf as usize] as usize;
                 *slot = match kind {
                     SignalKind::Texture => {
@@ -241,12 +248,12 @@ pub fn prepare(
         }
     }
     let file_of_input = |i: u32| mesh.file_index.get(i as usize).copied().unwrap_or(i);
-    let working_to_file: Vec<u32> = (0..r.positions.len())
+    let working_to_file: Vec<u32> = (0..r.mesh.positions.len())
         .map(|v| {
             let wv = if v < nw {
                 v as u32
             } else {
-                let (wf, b) = r.vert_src[v];
+                let (wf, b) = vert_src[v];
                 let k = (0..3).max_by(|&a, &c| b[a].total_cmp(&b[c])).unwrap_or(0);
                 welded.faces[wf as usize][k]
             };
@@ -261,11 +268,11 @@ pub fn prepare(
         }
     }
     let face_input: Vec<u32> = r
-        .face_src
+        .source_face
         .iter()
         .map(|&f| welded_to_input[f as usize])
         .collect();
-    let mut working = TriMesh::new(r.positions, r.faces);
+    let mut working = TriMesh::new(r.mesh.positions, r.mesh.faces);
     working.colors = signal0.clone();
     stage("refine", sw.secs(), &mut timings);
 
@@ -340,7 +347,7 @@ pub fn prepare(
         working_to_file,
         file_to_working,
         face_input,
-        face_bary: r.face_bary,
+        face_bary: r.source_bary,
         input_faces: mesh.faces.len(),
         hierarchy,
         frames,
