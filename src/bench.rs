@@ -29,11 +29,18 @@ pub struct BenchRow {
     pub end_to_end_s: f64,
     /// Peak resident set size of the process so far, MiB.
     pub peak_rss_mb: f64,
-    /// Final mean patch distance over exact nearest-neighbour distance (not measured yet).
+    /// Final mean patch distance over the exact nearest-neighbour distance, on a sample of
+    /// finest-level target vertices searched exhaustively (all source vertices x 18 rotations).
     pub energy_ratio_vs_exact: Option<f64>,
-    /// MeshMatch time over exact-search time (not measured yet).
+    /// MeshMatch's whole solve time over the exhaustive search's time at the finest level.
     pub speed_ratio_vs_exact: Option<f64>,
+    /// Every stage's time (source and target preparation, then the solve), seconds.
+    #[serde(skip)]
+    pub stages: Vec<(String, f64)>,
 }
+
+/// Finest-level target vertices searched exhaustively for the exact baseline.
+pub const EXACT_SAMPLES: usize = 48;
 
 /// Peak resident set size of this process in MiB (Linux `VmHWM`), 0 where unknown.
 pub fn peak_rss_mb() -> f64 {
@@ -87,6 +94,7 @@ fn sum(timings: &[(String, f64)], pred: impl Fn(&str) -> bool) -> f64 {
 pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchRow> {
     let params = TransferParams {
         vertices: n,
+        exact_samples: EXACT_SAMPLES,
         ..TransferParams::default()
     };
     let cancel = CancelToken::new();
@@ -112,7 +120,11 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
         source_vertices: ps.working_mesh().num_vertices(),
         hierarchy_s: prep(&ps, "hierarchy") + prep(&pt, "hierarchy"),
         hks_s: prep(&ps, "features") + prep(&pt, "features"),
-        fans_s: prep(&ps, "fans") + prep(&pt, "fans") + sum(&r.timings, |n| n == "target fans"),
+        fans_s: ["fan tables", "fans"]
+            .iter()
+            .map(|s| prep(&ps, s) + prep(&pt, s))
+            .sum::<f64>()
+            + sum(&r.timings, |n| n == "target fans"),
         estep_s_per_iter: sum(&r.timings, |n| n == "search") / iters,
         mstep_s_per_iter: sum(&r.timings, |n| n == "vote") / iters,
         first_preview_s: first
@@ -121,8 +133,25 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
             .unwrap_or(f64::NAN),
         end_to_end_s: end,
         peak_rss_mb: peak_rss_mb(),
-        energy_ratio_vs_exact: None,
-        speed_ratio_vs_exact: None,
+        energy_ratio_vs_exact: r
+            .exact
+            .as_ref()
+            .map(|e| e.meshmatch_energy / e.exact_energy.max(1e-30)),
+        speed_ratio_vs_exact: r
+            .exact
+            .as_ref()
+            .map(|e| e.meshmatch_seconds / e.exact_seconds.max(1e-30)),
+        stages: ps
+            .timings()
+            .iter()
+            .map(|(n, t)| (format!("source {n}"), *t))
+            .chain(
+                pt.timings()
+                    .iter()
+                    .map(|(n, t)| (format!("target {n}"), *t)),
+            )
+            .chain(r.timings.iter().cloned())
+            .collect(),
     })
 }
 
@@ -134,7 +163,7 @@ pub fn run(sizes: &[usize], json: bool) -> Result<()> {
     target.repair()?;
     if !json {
         println!(
-            "{:>9} {:>9} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>9} {:>9}",
+            "{:>9} {:>9} {:>8} {:>8} {:>8} {:>10} {:>10} {:>9} {:>9} {:>9} {:>8} {:>9}",
             "vertices",
             "source",
             "hier_s",
@@ -144,7 +173,9 @@ pub fn run(sizes: &[usize], json: bool) -> Result<()> {
             "mstep/it",
             "preview",
             "total_s",
-            "rss_MiB"
+            "rss_MiB",
+            "E/exact",
+            "t/exact"
         );
     }
     for &n in sizes {
@@ -153,7 +184,7 @@ pub fn run(sizes: &[usize], json: bool) -> Result<()> {
             println!("{}", serde_json::to_string(&row).expect("serialisable"));
         } else {
             println!(
-                "{:>9} {:>9} {:>8.3} {:>8.3} {:>8.3} {:>10.3} {:>10.3} {:>9.3} {:>9.2} {:>9.0}",
+                "{:>9} {:>9} {:>8.3} {:>8.3} {:>8.3} {:>10.3} {:>10.3} {:>9.3} {:>9.2} {:>9.0} {:>8.3} {:>9.4}",
                 row.vertices,
                 row.source_vertices,
                 row.hierarchy_s,
@@ -163,8 +194,16 @@ pub fn run(sizes: &[usize], json: bool) -> Result<()> {
                 row.mstep_s_per_iter,
                 row.first_preview_s,
                 row.end_to_end_s,
-                row.peak_rss_mb
+                row.peak_rss_mb,
+                row.energy_ratio_vs_exact.unwrap_or(f64::NAN),
+                row.speed_ratio_vs_exact.unwrap_or(f64::NAN)
             );
+            let stages: Vec<String> = row
+                .stages
+                .iter()
+                .map(|(n, t)| format!("{n} {t:.2}"))
+                .collect();
+            eprintln!("  stages (s): {}", stages.join(", "));
         }
     }
     Ok(())

@@ -338,6 +338,24 @@ pub fn min_norm_affine(target_rows: &[Vec<f32>], source_rows: &[Vec<f32>], k: us
     out
 }
 
+/// exp(-x) for x >= 0, relative error below 1e-4 (0 past x = 87, where f32 turns subnormal): 2^-x·log2(e) split into a power of
+/// two and a degree-6 Taylor polynomial (much cheaper than libm's `expf` in the fan builder's
+/// hot loop, where it only weights taps).
+#[inline]
+fn exp_neg(x: f32) -> f32 {
+    if x >= 87.0 {
+        return 0.0;
+    }
+    let y = x.max(0.0) * std::f32::consts::LOG2_E;
+    let n = y.floor();
+    let t = (y - n) * std::f32::consts::LN_2;
+    let p = 1.0
+        - t * (1.0
+            - t * (0.5
+                - t * (1.0 / 6.0 - t * (1.0 / 24.0 - t * (1.0 / 120.0 - t * (1.0 / 720.0))))));
+    p * f32::from_bits(((127 - n as i32) as u32) << 23)
+}
+
 /// Most vertices one fan gathers (dense spots of non-uniform meshes stop early; the walk is
 /// breadth-first, so the nearest vertices come first).
 pub const MAX_FAN_VERTICES: usize = 400;
@@ -386,21 +404,26 @@ impl FanSampler {
                 })
             })
             .collect();
-        const CHUNK: usize = 256;
-        idx.par_chunks_mut(per * CHUNK)
-            .zip(wts.par_chunks_mut(per * CHUNK))
+        // Few enough chunks that the per-chunk visit stamps stay cheap on large meshes.
+        let chunk = (n / 64).max(256);
+        let cut2 = cut * cut;
+        let rks: [f32; FAN_RADII] =
+            std::array::from_fn(|r| (r + 1) as f32 / FAN_RADII as f32 * radius);
+        idx.par_chunks_mut(per * chunk)
+            .zip(wts.par_chunks_mut(per * chunk))
             .enumerate()
             .for_each(|(ci, (oi, ow))| {
                 let mut stamp = vec![u32::MAX; n];
                 let mut queue: Vec<u32> = Vec::with_capacity(256);
-                // Top taps per bin: (weight, vertex).
-                let mut top = vec![(0.0f32, 0u32); nb * FAN_TAPS];
+                // Top taps per bin as (squared distance, vertex), nearest first: ranking by
+                // distance is ranking by Gaussian weight, so exp runs only on the kept taps.
+                let mut top = vec![(f32::INFINITY, 0u32); nb * FAN_TAPS];
                 for (k, (fi, fw)) in oi.chunks_mut(per).zip(ow.chunks_mut(per)).enumerate() {
-                    let v = ci * CHUNK + k;
+                    let v = ci * chunk + k;
                     let pv = Vec3::from(level.positions[v]);
                     let t1 = Vec3::from(frames.t1[v]);
                     let t2 = Vec3::from(frames.t2[v]);
-                    top.iter_mut().for_each(|x| *x = (0.0, v as u32));
+                    top.iter_mut().for_each(|x| *x = (f32::INFINITY, v as u32));
                     queue.clear();
                     queue.push(v as u32);
                     stamp[v] = v as u32;
@@ -419,19 +442,24 @@ impl FanSampler {
                         };
                         let rho = len;
                         let theta = y.atan2(x);
-                        for r in 0..FAN_RADII {
-                            let rk = (r + 1) as f32 / FAN_RADII as f32 * radius;
+                        for (r, &rk) in rks.iter().enumerate() {
                             if (rho - rk).abs() >= cut {
                                 continue;
                             }
-                            let (a0, na) = if rho < 1e-6 || rk <= cut {
+                            // Bins of this ring within `cut`: |Δθ| <= acos((ρ² + r² - cut²) / 2ρr).
+                            let (a0, na) = if rho < 1e-6 {
                                 (0i64, FAN_ANGLES as i64)
                             } else {
-                                let half = (cut / rk).min(1.0).asin() / step + 1.0;
-                                let centre = theta / step;
-                                let lo = (centre - half).ceil() as i64;
-                                let hi = (centre + half).floor() as i64;
-                                (lo, (hi - lo + 1).clamp(0, FAN_ANGLES as i64))
+                                let c = (rho * rho + rk * rk - cut2) / (2.0 * rho * rk);
+                                if c <= -1.0 {
+                                    (0i64, FAN_ANGLES as i64)
+                                } else {
+                                    let half = c.min(1.0).acos() / step;
+                                    let centre = theta / step;
+                                    let lo = (centre - half).ceil() as i64;
+                                    let hi = (centre + half).floor() as i64;
+                                    (lo, (hi - lo + 1).clamp(0, FAN_ANGLES as i64))
+                                }
                             };
                             for ai in a0..a0 + na {
                                 let a = ai.rem_euclid(FAN_ANGLES as i64) as usize;
@@ -440,18 +468,15 @@ impl FanSampler {
                                 let dx = x - bc[0];
                                 let dy = y - bc[1];
                                 let d2 = dx * dx + dy * dy;
-                                if d2 < cut * cut {
-                                    let w = (-d2 * inv2s2).exp();
-                                    let t = &mut top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
-                                    // Insert into the sorted (descending) top list.
-                                    if w > t[FAN_TAPS - 1].0 {
-                                        let mut j = FAN_TAPS - 1;
-                                        while j > 0 && t[j - 1].0 < w {
-                                            t[j] = t[j - 1];
-                                            j -= 1;
-                                        }
-                                        t[j] = (w, u as u32);
+                                let t = &mut top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
+                                // Insert into the sorted (ascending) top list.
+                                if d2 < cut2 && d2 < t[FAN_TAPS - 1].0 {
+                                    let mut j = FAN_TAPS - 1;
+                                    while j > 0 && t[j - 1].0 > d2 {
+                                        t[j] = t[j - 1];
+                                        j -= 1;
                                     }
+                                    t[j] = (d2, u as u32);
                                 }
                             }
                         }
@@ -466,6 +491,13 @@ impl FanSampler {
                                 }
                             }
                         }
+                    }
+                    for e in top.iter_mut() {
+                        e.0 = if e.0.is_finite() {
+                            exp_neg(e.0 * inv2s2)
+                        } else {
+                            0.0
+                        };
                     }
                     for b in 0..nb {
                         let t = &top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
@@ -550,6 +582,16 @@ mod tests {
             }
         }
         Level::new(p, f)
+    }
+
+    #[test]
+    fn exp_neg_matches_exp() {
+        assert_eq!(exp_neg(100.0), 0.0);
+        for i in 0..8_700 {
+            let x = i as f32 * 0.01;
+            let (a, b) = (exp_neg(x), (-x).exp());
+            assert!((a - b).abs() <= 1e-4 * b, "exp(-{x}): {a} vs {b}");
+        }
     }
 
     #[test]

@@ -102,6 +102,21 @@ impl Ctx<'_> {
     }
 }
 
+/// Exact nearest-neighbour distance of each of `targets`: every source vertex, every rotation.
+pub(crate) fn exact_distances(ctx: &Ctx, targets: &[usize]) -> Vec<f32> {
+    let ns = ctx.s.level.len();
+    targets
+        .par_iter()
+        .map(|&t| {
+            let mut best = f32::INFINITY;
+            for s in 0..ns {
+                best = ctx.best_rotation(t, s, best).0;
+            }
+            best
+        })
+        .collect()
+}
+
 /// Rotation index of an angle in radians.
 #[inline]
 fn rot_index(angle: f32) -> u8 {

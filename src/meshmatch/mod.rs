@@ -11,8 +11,8 @@
 mod em;
 
 use crate::features::{
-    self, FAN_ANGLES, FanSampler, Frames, SHAPE_DIM, compute_fans, edge_geodesics,
-    edge_transport_angles, min_norm_affine, tangent_frames,
+    self, FAN_ANGLES, FanSampler, Frames, SHAPE_DIM, edge_geodesics, edge_transport_angles,
+    min_norm_affine, tangent_frames,
 };
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
 use crate::jobs::{self, CancelToken, Event, Progress, Stopwatch};
@@ -43,6 +43,9 @@ pub struct TransferParams {
     pub sharpen: bool,
     /// Fan radius in mean edge lengths of each level.
     pub fan_radius: f32,
+    /// Benchmark diagnostic: target vertices of the finest level whose exact nearest neighbour
+    /// (all source vertices x all rotations) is found by brute force after the solve (0 = off).
+    pub exact_samples: usize,
 }
 
 impl Default for TransferParams {
@@ -55,6 +58,7 @@ impl Default for TransferParams {
             shape_weight: 1.0,
             sharpen: true,
             fan_radius: 2.5,
+            exact_samples: 0,
         }
     }
 }
@@ -78,6 +82,8 @@ pub struct PreparedMesh {
     shape: Vec<Vec<f32>>,
     signal: Option<Vec<Vec<[f32; 3]>>>,
     fans: Option<Vec<Vec<f32>>>,
+    /// Fan sampling tables per level (built once; reused by every solve on this mesh).
+    samplers: Vec<FanSampler>,
     fan_radius: f32,
     timings: Vec<(String, f64)>,
 }
@@ -124,6 +130,23 @@ pub struct TransferResult {
     pub timings: Vec<(String, f64)>,
     /// Final energy: mean patch distance of the NNF.
     pub energy: f64,
+    /// The exact-search comparison, when `exact_samples` asked for one.
+    pub exact: Option<ExactCheck>,
+}
+
+/// MeshMatch's final NNF against exhaustive search on a sample of finest-level target vertices.
+#[derive(Clone, Debug)]
+pub struct ExactCheck {
+    /// Target vertices compared.
+    pub samples: usize,
+    /// Mean patch distance of MeshMatch's NNF on the sample.
+    pub meshmatch_energy: f64,
+    /// Mean exact nearest-neighbour patch distance on the sample.
+    pub exact_energy: f64,
+    /// Exhaustive search time extrapolated to every finest-level target vertex, seconds.
+    pub exact_seconds: f64,
+    /// The whole solve's time, seconds.
+    pub meshmatch_seconds: f64,
 }
 
 /// Extra constraints on the target: vertices whose signal is fixed (paint-by-example masks and
@@ -306,6 +329,21 @@ pub fn prepare(
     stage("features", sw.secs(), &mut timings);
     cancel.check()?;
 
+    // Fan sampling tables of every level: built once here, so a correspondence edit only
+    // re-runs the solve.
+    sink(Event::Progress(progress("fans", &watch, 0.6)));
+    let sw = Stopwatch::start();
+    let mut samplers = Vec::with_capacity(hierarchy.num_levels());
+    for (l, lev) in hierarchy.levels.iter().enumerate() {
+        cancel.check()?;
+        samplers.push(FanSampler::new(
+            lev,
+            &frames[l],
+            params.fan_radius * lev.mean_edge,
+        ));
+    }
+    stage("fan tables", sw.secs(), &mut timings);
+
     let (signal, fans) = if let Some(s0) = signal0 {
         sink(Event::Progress(progress("fans", &watch, 0.7)));
         let sw = Stopwatch::start();
@@ -327,14 +365,7 @@ pub fn prepare(
         let mut fans = Vec::with_capacity(sig.len());
         for (l, s) in sig.iter().enumerate() {
             cancel.check()?;
-            let lev = &hierarchy.levels[l];
-            fans.push(compute_fans(
-                lev,
-                &frames[l],
-                s.as_flattened(),
-                C,
-                params.fan_radius * lev.mean_edge,
-            ));
+            fans.push(samplers[l].fans(&hierarchy.levels[l], s.as_flattened(), C));
         }
         stage("fans", sw.secs(), &mut timings);
         (Some(sig), Some(fans))
@@ -355,6 +386,7 @@ pub fn prepare(
         shape,
         signal,
         fans,
+        samplers,
         fan_radius: params.fan_radius,
         timings,
     })
@@ -678,6 +710,7 @@ pub fn solve_constrained(
     let mut t_search = 0.0;
     let mut t_vote = 0.0;
     let mut t_fans = 0.0;
+    let mut exact = None;
     let mut rng = SmallRng::seed_from_u64(params.seed);
     for l in (0..nl).rev() {
         let sw_level = Stopwatch::start();
@@ -715,7 +748,13 @@ pub fn solve_constrained(
         };
         let fan_r = source.fan_radius * lt.mean_edge;
         let sw = Stopwatch::start();
-        let sampler_t = FanSampler::new(lt, &target.frames[l], fan_r);
+        let built;
+        let sampler_t = if target.fan_radius == source.fan_radius && target.samplers.len() > l {
+            &target.samplers[l]
+        } else {
+            built = FanSampler::new(lt, &target.frames[l], fan_r);
+            &built
+        };
         t_fans += sw.secs();
         let mut fans_t = vec![0.0f32; lt.len() * PER];
         let mut dist = vec![0.0f32; lt.len()];
@@ -817,6 +856,9 @@ pub fn solve_constrained(
                 signal: expanded,
             });
             if it == params.iterations {
+                if l == 0 && params.exact_samples > 0 {
+                    exact = Some(exact_check(&ctx, &dist, &locked[0], params, watch.secs()));
+                }
                 break;
             }
             // E-step.
@@ -890,7 +932,33 @@ pub fn solve_constrained(
         file_nnf,
         timings,
         energy,
+        exact,
     })
+}
+
+/// Exhaustive nearest neighbours of an evenly spaced sample of unconstrained target vertices.
+fn exact_check(
+    ctx: &Ctx,
+    dist: &[f32],
+    locked: &[Option<u32>],
+    params: &TransferParams,
+    solve_seconds: f64,
+) -> ExactCheck {
+    let n = dist.len();
+    let free: Vec<usize> = (0..n).filter(|&v| locked[v].is_none()).collect();
+    let k = params.exact_samples.min(free.len());
+    let sample: Vec<usize> = (0..k).map(|i| free[i * free.len() / k.max(1)]).collect();
+    let sw = Stopwatch::start();
+    let exact = em::exact_distances(ctx, &sample);
+    let secs = sw.secs();
+    let mean = |x: &mut dyn Iterator<Item = f64>| x.sum::<f64>() / k.max(1) as f64;
+    ExactCheck {
+        samples: k,
+        meshmatch_energy: mean(&mut sample.iter().map(|&v| dist[v] as f64)),
+        exact_energy: mean(&mut exact.iter().map(|&d| d as f64)),
+        exact_seconds: secs * n as f64 / k.max(1) as f64,
+        meshmatch_seconds: solve_seconds,
+    }
 }
 
 const LEVEL_NAMES: [&str; 10] = [
