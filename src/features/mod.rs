@@ -342,7 +342,7 @@ pub fn min_norm_affine(target_rows: &[Vec<f32>], source_rows: &[Vec<f32>], k: us
 /// two and a degree-6 Taylor polynomial (much cheaper than libm's `expf` in the fan builder's
 /// hot loop, where it only weights taps).
 #[inline]
-fn exp_neg(x: f32) -> f32 {
+pub(crate) fn exp_neg(x: f32) -> f32 {
     if x >= 87.0 {
         return 0.0;
     }
@@ -393,7 +393,6 @@ impl FanSampler {
         // Gaussian cut-off at 2.5σ (weight 0.044).
         let cut = 2.5 * sigma;
         let reach = radius + cut;
-        let step = ANGLE_STEP_DEG.to_radians();
         let inv2s2 = 1.0 / (2.0 * sigma * sigma);
         let bins: Vec<[f32; 2]> = (0..FAN_RADII)
             .flat_map(|r| {
@@ -441,33 +440,20 @@ impl FanSampler {
                             (0.0, 0.0)
                         };
                         let rho = len;
-                        let theta = y.atan2(x);
                         for (r, &rk) in rks.iter().enumerate() {
                             if (rho - rk).abs() >= cut {
                                 continue;
                             }
-                            // Bins of this ring within `cut`: |Δθ| <= acos((ρ² + r² - cut²) / 2ρr).
-                            let (a0, na) = if rho < 1e-6 {
-                                (0i64, FAN_ANGLES as i64)
-                            } else {
-                                let c = (rho * rho + rk * rk - cut2) / (2.0 * rho * rk);
-                                if c <= -1.0 {
-                                    (0i64, FAN_ANGLES as i64)
-                                } else {
-                                    let half = c.min(1.0).acos() / step;
-                                    let centre = theta / step;
-                                    let lo = (centre - half).ceil() as i64;
-                                    let hi = (centre + half).floor() as i64;
-                                    (lo, (hi - lo + 1).clamp(0, FAN_ANGLES as i64))
-                                }
-                            };
-                            for ai in a0..a0 + na {
-                                let a = ai.rem_euclid(FAN_ANGLES as i64) as usize;
-                                let b = r * FAN_ANGLES + a;
-                                let bc = bins[b];
+                            // Every bin of the ring: a few multiply-adds each, cheaper than
+                            // locating the angular window with atan2/acos.
+                            for (a, bc) in bins[r * FAN_ANGLES..(r + 1) * FAN_ANGLES]
+                                .iter()
+                                .enumerate()
+                            {
                                 let dx = x - bc[0];
                                 let dy = y - bc[1];
                                 let d2 = dx * dx + dy * dy;
+                                let b = r * FAN_ANGLES + a;
                                 let t = &mut top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
                                 // Insert into the sorted (ascending) top list.
                                 if d2 < cut2 && d2 < t[FAN_TAPS - 1].0 {

@@ -2,7 +2,7 @@
 //! rotation search, propagation in breadth-first order, random search through hierarchy hops,
 //! Gaussian voting and coarse-to-fine upsampling of the nearest-neighbour field.
 
-use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, FAN_RADII, Frames, transport_angle};
+use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, FAN_RADII, Frames, exp_neg, transport_angle};
 use crate::hierarchy::{Hierarchy, Level};
 use crate::jobs::CancelToken;
 use crate::{Error, Result};
@@ -209,58 +209,108 @@ pub(crate) fn propagate(
     locked: &[Option<u32>],
     cancel: &CancelToken,
 ) -> Result<()> {
-    let adj_t = &ctx.t.level.adjacency;
-    let adj_s = &ctx.s.level.adjacency;
-    for (i, &vt) in order.iter().enumerate() {
-        if i % 2048 == 0 {
-            cancel.check()?;
-        }
-        let vt = vt as usize;
-        let (mut bs, mut bk) = nnf[vt];
-        let mut bd = dist[vt];
-        let start = (bs, bk);
-        if let Some(s) = locked[vt] {
-            let (d, k) = ctx.best_rotation(vt, s as usize, f32::INFINITY);
-            nnf[vt] = (s, k);
-            dist[vt] = d;
-            continue;
-        }
-        let off_t = adj_t.offsets[vt] as usize;
-        for (ni, &vn) in adj_t.row(vt).iter().enumerate() {
-            let (sn, kn) = nnf[vn as usize];
-            let base = ctx.t.eang[off_t + ni] + kn as f32 * STEP;
-            let try_c = |c: u32, ang: f32, bs: &mut u32, bk: &mut u8, bd: &mut f32| {
-                let k = rot_index(ang);
-                if c == *bs && k == *bk {
-                    return;
+    // Parallel sweeps: the order is cut into contiguous parts (bands of the breadth-first
+    // order) swept concurrently; inside a part every vertex sees its predecessors' fresh
+    // matches, across a part boundary the matches from before this sweep.
+    let n = order.len();
+    let parts = if n < 8192 {
+        1
+    } else {
+        2 * rayon::current_num_threads()
+    };
+    let len = n.div_ceil(parts.max(1)).max(1);
+    let mut pos = vec![0u32; nnf.len()];
+    for (i, &v) in order.iter().enumerate() {
+        pos[v as usize] = i as u32;
+    }
+    let before: Vec<(u32, u8)> = nnf.to_vec();
+    let results: Vec<Vec<((u32, u8), f32)>> = order
+        .par_chunks(len)
+        .enumerate()
+        .map(|(p, chunk)| {
+            let lo = p * len;
+            let mut local: Vec<((u32, u8), f32)> = Vec::with_capacity(chunk.len());
+            for (i, &vt) in chunk.iter().enumerate() {
+                if i % 2048 == 0 {
+                    cancel.check()?;
                 }
-                let d = ctx.dist(vt, c as usize, k as usize, *bd);
-                if d < *bd {
-                    *bd = d;
-                    *bs = c;
-                    *bk = k;
-                }
-            };
-            try_c(sn, base, &mut bs, &mut bk, &mut bd);
-            let off_s = adj_s.offsets[sn as usize] as usize;
-            for (ci, &c) in adj_s.row(sn as usize).iter().enumerate() {
-                try_c(c, base + ctx.s.eang[off_s + ci], &mut bs, &mut bk, &mut bd);
+                let vt = vt as usize;
+                let get = |v: usize| {
+                    let q = pos[v] as usize;
+                    if q >= lo && q < lo + i {
+                        local[q - lo].0
+                    } else {
+                        before[v]
+                    }
+                };
+                let r = propagate_one(ctx, vt, before[vt], dist[vt], locked[vt], get);
+                local.push(r);
             }
+            Ok(local)
+        })
+        .collect::<Result<_>>()?;
+    for (p, local) in results.into_iter().enumerate() {
+        for (i, (m, d)) in local.into_iter().enumerate() {
+            let v = order[p * len + i] as usize;
+            nnf[v] = m;
+            dist[v] = d;
         }
-        if (bs, bk) != start && ctx.wc > 0.0 {
-            for dk in [1, FAN_ANGLES - 1] {
-                let k = (bk as usize + dk) % FAN_ANGLES;
-                let d = ctx.dist(vt, bs as usize, k, bd);
-                if d < bd {
-                    bd = d;
-                    bk = k as u8;
-                }
-            }
-        }
-        nnf[vt] = (bs, bk);
-        dist[vt] = bd;
     }
     Ok(())
+}
+
+/// One propagation step at target vertex `vt` (current match `cur` at distance `curd`;
+/// `get(v)` reads a neighbour's match): the new match and its distance.
+#[inline]
+fn propagate_one(
+    ctx: &Ctx,
+    vt: usize,
+    cur: (u32, u8),
+    curd: f32,
+    locked: Option<u32>,
+    get: impl Fn(usize) -> (u32, u8),
+) -> ((u32, u8), f32) {
+    let adj_t = &ctx.t.level.adjacency;
+    let adj_s = &ctx.s.level.adjacency;
+    if let Some(s) = locked {
+        let (d, k) = ctx.best_rotation(vt, s as usize, f32::INFINITY);
+        return ((s, k), d);
+    }
+    let (mut bs, mut bk) = cur;
+    let mut bd = curd;
+    let off_t = adj_t.offsets[vt] as usize;
+    for (ni, &vn) in adj_t.row(vt).iter().enumerate() {
+        let (sn, kn) = get(vn as usize);
+        let base = ctx.t.eang[off_t + ni] + kn as f32 * STEP;
+        let try_c = |c: u32, ang: f32, bs: &mut u32, bk: &mut u8, bd: &mut f32| {
+            let k = rot_index(ang);
+            if c == *bs && k == *bk {
+                return;
+            }
+            let d = ctx.dist(vt, c as usize, k as usize, *bd);
+            if d < *bd {
+                *bd = d;
+                *bs = c;
+                *bk = k;
+            }
+        };
+        try_c(sn, base, &mut bs, &mut bk, &mut bd);
+        let off_s = adj_s.offsets[sn as usize] as usize;
+        for (ci, &c) in adj_s.row(sn as usize).iter().enumerate() {
+            try_c(c, base + ctx.s.eang[off_s + ci], &mut bs, &mut bk, &mut bd);
+        }
+    }
+    if (bs, bk) != cur && ctx.wc > 0.0 {
+        for dk in [1, FAN_ANGLES - 1] {
+            let k = (bk as usize + dk) % FAN_ANGLES;
+            let d = ctx.dist(vt, bs as usize, k, bd);
+            if d < bd {
+                bd = d;
+                bk = k as u8;
+            }
+        }
+    }
+    ((bs, bk), bd)
 }
 
 /// Random search (MeshMatch §4.2): candidates at growing distance from the current match by
@@ -325,13 +375,12 @@ fn polar(level: &Level, frames: &Frames, v: usize, q: Vec3) -> (f32, f32) {
     (d.length(), y.atan2(x))
 }
 
-/// Walk on the source level from `s` towards the point at polar offset (rho, phi) in `s`'s frame:
-/// greedy steps to the neighbour closest to that point (at most 4 steps).
+/// Walk on the source level from `s` towards the point at tangent offset `(x, y)` in `s`'s
+/// frame: greedy steps to the neighbour closest to that point (at most 4 steps).
 #[inline]
-fn walk(level: &Level, frames: &Frames, s: usize, rho: f32, phi: f32) -> usize {
+fn walk(level: &Level, frames: &Frames, s: usize, x: f32, y: f32) -> usize {
     let ps = Vec3::from(level.positions[s]);
-    let goal =
-        ps + rho * (phi.cos() * Vec3::from(frames.t1[s]) + phi.sin() * Vec3::from(frames.t2[s]));
+    let goal = ps + x * Vec3::from(frames.t1[s]) + y * Vec3::from(frames.t2[s]);
     let mut best = s;
     let mut bd = (ps - goal).length_squared();
     for _ in 0..4 {
@@ -350,6 +399,11 @@ fn walk(level: &Level, frames: &Frames, s: usize, rho: f32, phi: f32) -> usize {
     best
 }
 
+/// (cos, sin) of every rotation step.
+fn rotations() -> [(f32, f32); FAN_ANGLES] {
+    std::array::from_fn(|k| (k as f32 * STEP).sin_cos()).map(|(s, c)| (c, s))
+}
+
 /// M-step, Gaussian voting (MeshMatch §4.3): the signal at target vertex vT is the average over
 /// vp ∈ {vT} ∪ 1-ring(vT), weighted by exp(-|vT - vp|² / 2σ²) with σ = the level's mean edge
 /// length, of the source signal found at vT's offset from vp (in vp's frame, rotated by vp's
@@ -364,6 +418,7 @@ pub(crate) fn vote(
     let lt = t.level;
     let sigma = lt.mean_edge.max(1e-12);
     let inv2s2 = 1.0 / (2.0 * sigma * sigma);
+    let rot = rotations();
     (0..lt.len())
         .into_par_iter()
         .map(|vt| {
@@ -373,15 +428,23 @@ pub(crate) fn vote(
             let pt = Vec3::from(lt.positions[vt]);
             for &vp in lt.adjacency.row(vt) {
                 let vp = vp as usize;
-                let (rho, phi) = polar(lt, t.frames, vp, pt);
-                let w = (-rho * rho * inv2s2).exp();
+                // vT's offset from vp: tangent direction of vp's frame, length kept.
+                let d = pt - Vec3::from(lt.positions[vp]);
+                let (x, y) = (
+                    d.dot(Vec3::from(t.frames.t1[vp])),
+                    d.dot(Vec3::from(t.frames.t2[vp])),
+                );
+                let rho2 = d.length_squared();
+                let w = exp_neg(rho2 * inv2s2);
+                let scale = ratio * (rho2 / (x * x + y * y).max(1e-30)).sqrt();
                 let (sp, kp) = nnf[vp];
+                let (c, sn) = rot[kp as usize];
                 let u = walk(
                     s.level,
                     s.frames,
                     sp as usize,
-                    rho * ratio,
-                    phi + kp as f32 * STEP,
+                    scale * (c * x - sn * y),
+                    scale * (sn * x + c * y),
                 );
                 acc += w * Vec3::from(src_signal[u]);
                 wsum += w;

@@ -63,6 +63,9 @@ impl Default for TransferParams {
     }
 }
 
+/// Working vertex count up to which a target keeps its fan sampling tables between solves.
+const KEEP_SAMPLERS_UP_TO: usize = 300_000;
+
 /// A mesh made ready for MeshMatch: the working mesh (welded + refined), its hierarchy, frames,
 /// shape features and, when it carries a signal, per-level signals and colour fans. Reusable
 /// across correspondence edits.
@@ -329,24 +332,18 @@ pub fn prepare(
     stage("features", sw.secs(), &mut timings);
     cancel.check()?;
 
-    // Fan sampling tables of every level: built once here, so a correspondence edit only
-    // re-runs the solve.
+    // Fan sampling tables of every level. A mesh with a signal builds each level's table, takes
+    // its fans and drops it. A mesh without one (a target) keeps them, so a correspondence edit
+    // only re-runs the solve; very large targets rebuild them level by level in the solve
+    // instead of holding ~2 KB per vertex.
     sink(Event::Progress(progress("fans", &watch, 0.6)));
     let sw = Stopwatch::start();
-    let mut samplers = Vec::with_capacity(hierarchy.num_levels());
-    for (l, lev) in hierarchy.levels.iter().enumerate() {
-        cancel.check()?;
-        samplers.push(FanSampler::new(
-            lev,
-            &frames[l],
-            params.fan_radius * lev.mean_edge,
-        ));
-    }
-    stage("fan tables", sw.secs(), &mut timings);
-
+    let table = |l: usize| {
+        let lev = &hierarchy.levels[l];
+        FanSampler::new(lev, &frames[l], params.fan_radius * lev.mean_edge)
+    };
+    let mut samplers = Vec::new();
     let (signal, fans) = if let Some(s0) = signal0 {
-        sink(Event::Progress(progress("fans", &watch, 0.7)));
-        let sw = Stopwatch::start();
         let mut sig = vec![s0];
         for l in 1..hierarchy.num_levels() {
             let prev = &sig[l - 1];
@@ -365,13 +362,19 @@ pub fn prepare(
         let mut fans = Vec::with_capacity(sig.len());
         for (l, s) in sig.iter().enumerate() {
             cancel.check()?;
-            fans.push(samplers[l].fans(&hierarchy.levels[l], s.as_flattened(), C));
+            fans.push(table(l).fans(&hierarchy.levels[l], s.as_flattened(), C));
         }
-        stage("fans", sw.secs(), &mut timings);
         (Some(sig), Some(fans))
     } else {
+        if working.num_vertices() <= KEEP_SAMPLERS_UP_TO {
+            for l in 0..hierarchy.num_levels() {
+                cancel.check()?;
+                samplers.push(table(l));
+            }
+        }
         (None, None)
     };
+    stage("fans", sw.secs(), &mut timings);
     sink(Event::Progress(progress("prepare", &watch, 1.0)));
     Ok(PreparedMesh {
         working,
@@ -709,6 +712,8 @@ pub fn solve_constrained(
     let mut energy = 0.0f64;
     let mut t_search = 0.0;
     let mut t_vote = 0.0;
+    // Finest level alone (the per-iteration figures the benchmark reports).
+    let (mut t_search0, mut t_vote0, mut t_prop0) = (0.0, 0.0, 0.0);
     let mut t_fans = 0.0;
     let mut exact = None;
     let mut rng = SmallRng::seed_from_u64(params.seed);
@@ -816,6 +821,9 @@ pub fn solve_constrained(
             );
             apply_fixed(&mut signal, l);
             t_vote += sw.secs();
+            if l == 0 && it > 0 {
+                t_vote0 += sw.secs();
+            }
             let sw = Stopwatch::start();
             fans_t = sampler_t.fans(lt, signal.as_flattened(), C);
             t_fans += sw.secs();
@@ -868,7 +876,11 @@ pub fn solve_constrained(
             } else {
                 let order = em::bfs_order(lt, order_start);
                 order_start = *order.last().unwrap_or(&0) as usize;
+                let swp = Stopwatch::start();
                 em::propagate(&ctx, &mut nnf, &mut dist, &order, &locked[l], cancel)?;
+                if l == 0 {
+                    t_prop0 += swp.secs();
+                }
                 em::random_search(
                     &ctx,
                     &mut nnf,
@@ -879,13 +891,19 @@ pub fn solve_constrained(
                 )?;
             }
             t_search += sw.secs();
+            if l == 0 {
+                t_search0 += sw.secs();
+            }
         }
         let name: &'static str = LEVEL_NAMES.get(l).copied().unwrap_or("level >=10");
         stage(name, sw_level.secs(), &mut timings);
     }
     stage("search", t_search, &mut timings);
     stage("vote", t_vote, &mut timings);
-    stage("target fans", t_fans, &mut timings);
+    stage("search finest", t_search0, &mut timings);
+    stage("vote finest", t_vote0, &mut timings);
+    stage("propagate finest", t_prop0, &mut timings);
+    stage("fan updates", t_fans, &mut timings);
     if params.sharpen {
         let s0 = &sig_s[0];
         for (v, &(s, _)) in nnf.iter().enumerate() {
