@@ -46,6 +46,17 @@ impl Ctx<'_> {
     /// fan rotated by a cyclic shift of k angle steps), stopping early once it reaches `best`.
     #[inline]
     pub fn dist(&self, t: usize, s: usize, k: usize, best: f32) -> f32 {
+        let d = self.shape_dist(t, s);
+        if d >= best || self.wc == 0.0 {
+            return d;
+        }
+        self.fan_dist(t, s, k, d, best)
+    }
+
+    /// The rotation-independent part of [`Ctx::dist`]: squared L2 of the weighted shape
+    /// features.
+    #[inline]
+    pub fn shape_dist(&self, t: usize, s: usize) -> f32 {
         let dsh = self.dsh;
         let a = &self.t.shape[t * dsh..(t + 1) * dsh];
         let b = &self.s.shape[s * dsh..(s + 1) * dsh];
@@ -54,9 +65,13 @@ impl Ctx<'_> {
             let x = a[i] - b[i];
             d += x * x;
         }
-        if d >= best || self.wc == 0.0 {
-            return d;
-        }
+        d
+    }
+
+    /// `d` plus the weighted colour fan distance at rotation k, ring by ring, stopping once the
+    /// sum reaches `best`.
+    #[inline]
+    fn fan_dist(&self, t: usize, s: usize, k: usize, mut d: f32, best: f32) -> f32 {
         let tf = &self.t.fans[t * PER..(t + 1) * PER];
         let sf = &self.s.fans[s * PER..(s + 1) * PER];
         let ring = FAN_ANGLES * C;
@@ -91,8 +106,14 @@ impl Ctx<'_> {
             let d = self.dist(t, s, 0, f32::INFINITY);
             return if d < best { (d, 0) } else { (best, u8::MAX) };
         }
+        // The shape part is the same for every rotation: once, and out early if it already
+        // loses.
+        let sd = self.shape_dist(t, s);
+        if sd >= bd {
+            return (bd, bk);
+        }
         for k in 0..FAN_ANGLES {
-            let d = self.dist(t, s, k, bd);
+            let d = self.fan_dist(t, s, k, sd, bd);
             if d < bd {
                 bd = d;
                 bk = k as u8;
