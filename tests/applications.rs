@@ -553,9 +553,7 @@ fn detail_onto(target: &TriMesh, name: &str) {
         None,
     );
     assert!((mt - ms).abs() <= 0.2 * ss.max(ms.abs()), "mean");
-    // The paper-level goal is std within 20%; the patch search prefers the smoother parts of the
-    // source, so we get about 0.7 of the source's spread (see the report).
-    assert!(st >= 0.6 * ss && st <= 1.2 * ss, "std");
+    assert!(st >= 0.8 * ss && st <= 1.2 * ss, "std");
     assert!(xt <= xs * 1.0001, "spikes");
     assert!(corr > 0.2, "detail visible on the result");
 }

@@ -2,7 +2,10 @@
 //! smooth surface plus a scalar displacement along its normals; the displacement is transferred as
 //! a one-channel signal by MeshMatch guided by shape features, and applied to the target.
 
-use crate::geometry::{mean_edge_length, refine_to_density, taubin_smooth, vertex_normals, weld};
+use crate::geometry::{
+    mass_matrix_barycentric, mean_edge_length, refine_to_density, taubin_smooth, vertex_normals,
+    weld,
+};
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
 use crate::jobs::{CancelToken, Event};
 use crate::meshmatch::{TransferParams, prepare, solve};
@@ -60,6 +63,45 @@ fn working_geometry(mesh: &TriMesh, vertices: usize) -> Result<TriMesh> {
     }
 }
 
+/// Weighted histogram matching (Heeger & Bergen 1995; the histogram step of texture
+/// optimization, Kopf et al. 2007 §4.3): every value is replaced by the `reference` value at the
+/// same weighted quantile, so the result has the reference's distribution (within its range)
+/// and keeps the input's order.
+pub fn match_histogram(
+    values: &mut [f32],
+    weights: &[f64],
+    reference: &[f32],
+    ref_weights: &[f64],
+) {
+    if values.is_empty() || reference.is_empty() {
+        return;
+    }
+    let mut r: Vec<usize> = (0..reference.len()).collect();
+    r.sort_by(|&a, &b| reference[a].total_cmp(&reference[b]));
+    let mut cdf = Vec::with_capacity(r.len());
+    let mut acc = 0.0f64;
+    for &i in &r {
+        acc += ref_weights.get(i).copied().unwrap_or(1.0).max(0.0);
+        cdf.push(acc);
+    }
+    let rtotal = acc.max(1e-300);
+    let mut order: Vec<usize> = (0..values.len()).collect();
+    order.sort_by(|&a, &b| values[a].total_cmp(&values[b]));
+    let total: f64 = order
+        .iter()
+        .map(|&i| weights.get(i).copied().unwrap_or(1.0).max(0.0))
+        .sum::<f64>()
+        .max(1e-300);
+    let mut before = 0.0f64;
+    for &i in &order {
+        let w = weights.get(i).copied().unwrap_or(1.0).max(0.0);
+        let q = (before + 0.5 * w) / total * rtotal;
+        before += w;
+        let k = cdf.partition_point(|&c| c < q).min(r.len() - 1);
+        values[i] = reference[r[k]];
+    }
+}
+
 /// Split a surface into a smooth base (Taubin smoothing, [`DETAIL_SMOOTH_ITERATIONS`]) and the
 /// scalar displacement d_i = (p_i - s_i) · n(s)_i along the base's vertex normals. Returns the
 /// base positions and the displacement.
@@ -80,8 +122,9 @@ pub fn split_detail(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> (Vec<[f32; 3]
 /// `params.vertices`, is split by [`split_detail`]; its displacement, in units of its mean edge
 /// length and mapped affinely to [0, 1], is the one-channel signal (replicated over the three
 /// colour channels) of the smooth base; MeshMatch ([`solve`], shape features only on the target)
-/// synthesises it on the target at the working density, and every target vertex moves along its
-/// normal by `strength` × the synthesised displacement × the target's mean edge length.
+/// synthesises it on the target at the working density, [`match_histogram`] gives it the
+/// source's distribution, and every target vertex moves along its normal by `strength` × the
+/// displacement × the target's mean edge length.
 pub fn transfer_detail(
     source: &TriMesh,
     target: &TriMesh,
@@ -144,11 +187,20 @@ pub fn transfer_detail(
     let wm = pt.working_mesh();
     let me_t = mean_edge_length(&wm.positions, &wm.faces);
     let normals = vertex_normals(&wm.positions, &wm.faces);
-    let td: Vec<f32> = r
+    let mut td: Vec<f32> = r
         .working_signal
         .iter()
-        .map(|c| strength * (lo + span * (c[0] + c[1] + c[2]) / 3.0))
+        .map(|c| lo + span * (c[0] + c[1] + c[2]) / 3.0)
         .collect();
+    // The patch search favours the source's smoother patches a little, which narrows the
+    // spread; match the synthesised displacement's distribution to the source's.
+    match_histogram(
+        &mut td,
+        &mass_matrix_barycentric(&wm.positions, &wm.faces),
+        &dn,
+        &mass_matrix_barycentric(&src.positions, &src.faces),
+    );
+    td.iter_mut().for_each(|x| *x *= strength);
     let positions: Vec<[f32; 3]> = wm
         .positions
         .iter()
@@ -174,4 +226,40 @@ pub fn transfer_detail(
         energy: r.energy,
         timings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::match_histogram;
+
+    #[test]
+    fn histogram_matching_takes_the_reference_distribution_and_keeps_order() {
+        let mut v: Vec<f32> = (0..1000)
+            .map(|i| ((i * 7919) % 1000) as f32 * 1e-3)
+            .collect();
+        let before = v.clone();
+        let reference: Vec<f32> = (0..500)
+            .map(|i| (i as f32 / 499.0 - 0.5).powi(3) * 8.0)
+            .collect();
+        match_histogram(&mut v, &vec![1.0; 1000], &reference, &vec![1.0; 500]);
+        let stat = |x: &[f32]| {
+            let m = x.iter().sum::<f32>() / x.len() as f32;
+            let s = (x.iter().map(|y| (y - m).powi(2)).sum::<f32>() / x.len() as f32).sqrt();
+            (m, s)
+        };
+        let ((mv, sv), (mr, sr)) = (stat(&v), stat(&reference));
+        assert!(
+            (mv - mr).abs() < 0.01 && (sv / sr - 1.0).abs() < 0.01,
+            "{mv} {sv} vs {mr} {sr}"
+        );
+        let (lo, hi) = (reference[0], reference[499]);
+        assert!(v.iter().all(|&x| x >= lo && x <= hi));
+        for i in 0..1000 {
+            for j in 0..1000 {
+                if before[i] < before[j] {
+                    assert!(v[i] <= v[j]);
+                }
+            }
+        }
+    }
 }

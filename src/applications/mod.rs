@@ -12,7 +12,8 @@ mod update;
 
 pub use complete::{CompletionResult, complete, unpainted_mask};
 pub use detail::{
-    DETAIL_SHAPE_WEIGHT, DETAIL_SMOOTH_ITERATIONS, DetailResult, split_detail, transfer_detail,
+    DETAIL_SHAPE_WEIGHT, DETAIL_SMOOTH_ITERATIONS, DetailResult, match_histogram, split_detail,
+    transfer_detail,
 };
 pub use update::{UPDATE_TOLERANCE, UpdateResult, update_texture};
 
