@@ -528,3 +528,79 @@ fn help_overlay_toggles_with_h_and_the_question_button() {
     h.run_steps(2);
     assert!(h.query_by_label_contains("Orbit: left-drag").is_none());
 }
+
+#[test]
+fn complete_from_paint_fills_the_rest_from_the_painted_example_and_undo_restores() {
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.set_mesh(Side::Target, sphere(40, 48), false);
+    // Nothing painted yet: a clear error, nothing runs.
+    app.start_tool("complete-target");
+    assert!(app.tool.is_none());
+    assert!(
+        app.state
+            .errors
+            .iter()
+            .any(|e| e.contains("paint part of the mesh"))
+    );
+    // Paint the upper half in green and yellow bands.
+    app.state.brush.radius = 0.12;
+    app.state.brush.hardness = 1.0;
+    let positions = app
+        .state
+        .slot(Side::Target)
+        .unwrap()
+        .displayed()
+        .positions
+        .clone();
+    for (i, p) in positions.iter().enumerate() {
+        if p[1] > 0.05 && i % 3 == 0 {
+            app.state.brush.color = if (p[1] * 8.0) as i32 % 2 == 0 {
+                [0.0, 0.8, 0.0]
+            } else {
+                [1.0, 1.0, 0.0]
+            };
+            app.state.paint_at(Side::Target, *p, i == 0);
+        }
+    }
+    let before = app.state.slot(Side::Target).unwrap().paint.clone().unwrap();
+    let painted: Vec<bool> = before.iter().map(|p| p[3] >= 0.5).collect();
+    let np = painted.iter().filter(|x| **x).count();
+    assert!(
+        np > positions.len() / 4 && np < positions.len(),
+        "{np} painted"
+    );
+    app.start_tool("complete-target");
+    let outcome = app.tool.as_ref().expect("completion started").wait();
+    let outcome = outcome.expect("completion succeeded");
+    app.state.apply_tool_outcome(outcome);
+    let after = app.state.slot(Side::Target).unwrap().paint.clone().unwrap();
+    // Painted vertices keep their colours; every other vertex now carries the example's
+    // green or yellow, not the sphere's own blue or red.
+    let mut like_example = 0;
+    let mut filled = 0;
+    for v in 0..after.len() {
+        assert_eq!(after[v][3], 1.0);
+        if painted[v] {
+            assert_eq!(
+                &after[v][..3],
+                &before[v][..3],
+                "painted vertex {v} changed"
+            );
+        } else {
+            filled += 1;
+            let c = &after[v];
+            if c[1] > 0.5 && c[2] < 0.3 {
+                like_example += 1;
+            }
+        }
+    }
+    assert!(
+        like_example * 10 >= filled * 9,
+        "{like_example} of {filled} completed vertices look like the painted example"
+    );
+    // One undo step takes the completion back.
+    app.state.undo();
+    let restored = app.state.slot(Side::Target).unwrap().paint.clone().unwrap();
+    assert_eq!(restored, before);
+}

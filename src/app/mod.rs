@@ -6,6 +6,7 @@
 
 pub mod engine;
 pub mod state;
+pub mod tools;
 pub mod view;
 
 use std::path::PathBuf;
@@ -76,6 +77,9 @@ where
     demo_scenes: Vec<SceneEntry>,
     frame_log_every: Option<std::time::Duration>,
     frame_log_at: Instant,
+    /// The running application (completion, update, detail), if any.
+    pub tool: Option<tools::ToolJob>,
+    repaint: Option<egui::Context>,
 }
 
 /// A Scene-menu entry: its name and the function that builds it.
@@ -97,6 +101,7 @@ where
 {
     /// Create the app with `engine` on a worker thread; `repaint` wakes the UI on worker events.
     pub fn new(engine: E, repaint: Option<egui::Context>) -> Self {
+        let wake_ctx = repaint.clone();
         let worker = Worker::spawn(engine, move || {
             if let Some(ctx) = &repaint {
                 ctx.request_repaint();
@@ -113,6 +118,101 @@ where
             frame_log_every: std::env::var_os("MESHMATCH_FRAME_LOG")
                 .map(|_| std::time::Duration::from_secs(2)),
             frame_log_at: Instant::now(),
+            tool: None,
+            repaint: wake_ctx,
+        }
+    }
+
+    /// Start an application on the current meshes (`which`: "complete-target",
+    /// "complete-source", "detail"); errors become messages.
+    pub fn start_tool(&mut self, which: &str) {
+        if let Some(t) = &self.tool {
+            self.state.report(format!(
+                "{} is still running: wait for it or cancel it",
+                t.name
+            ));
+            return;
+        }
+        let ctx = self.repaint.clone();
+        let wake = move || {
+            if let Some(c) = &ctx {
+                c.request_repaint();
+            }
+        };
+        let job = match which {
+            "complete-target" | "complete-source" => {
+                let side = if which == "complete-target" {
+                    Side::Target
+                } else {
+                    Side::Source
+                };
+                match (
+                    self.state.painted_mesh(side),
+                    self.state.paint_coverage(side),
+                ) {
+                    (Some(m), Some(c)) => tools::completion_job(side, m, c, wake),
+                    _ => Err(Error::InvalidInput(format!("no {side:?} mesh to complete"))),
+                }
+            }
+            "detail" => match (self.state.slot(Side::Source), self.state.slot(Side::Target)) {
+                (Some(s), Some(t)) => Ok(tools::detail_job(
+                    (*s.file).clone(),
+                    (*t.file).clone(),
+                    wake,
+                )),
+                _ => Err(Error::InvalidInput(
+                    "detail transfer needs a source (detailed) and a target mesh".into(),
+                )),
+            },
+            _ => Err(Error::InvalidInput(format!("unknown tool {which}"))),
+        };
+        match job {
+            Ok(j) => {
+                self.state.message = format!("{} running...", j.name);
+                self.tool = Some(j);
+            }
+            Err(e) => self.state.report(e),
+        }
+    }
+
+    /// Start the texture update: the source (textured, old geometry) onto `new` geometry.
+    pub fn start_update(&mut self, new: crate::TriMesh) {
+        if self.tool.is_some() {
+            self.state
+                .report("an application is still running: wait for it or cancel it");
+            return;
+        }
+        let Some(old) = self.state.slot(Side::Source).map(|s| (*s.file).clone()) else {
+            self.state
+                .report("open the textured mesh (old geometry) as the source first");
+            return;
+        };
+        let ctx = self.repaint.clone();
+        let j = tools::update_job(old, new, move || {
+            if let Some(c) = &ctx {
+                c.request_repaint();
+            }
+        });
+        self.state.message = format!("{} running...", j.name);
+        self.tool = Some(j);
+    }
+
+    /// Apply a finished application's outcome (called every frame).
+    pub fn poll_tool(&mut self) {
+        let Some(t) = &self.tool else { return };
+        let Some(r) = t.poll() else { return };
+        let name = t.name;
+        self.tool = None;
+        match r {
+            Ok(o) => {
+                let replaces = matches!(o, tools::ToolOutcome::Mesh(..));
+                self.state.apply_tool_outcome(o);
+                if replaces {
+                    self.views.frame_all();
+                }
+            }
+            Err(Error::Cancelled) => self.state.message = format!("{name} cancelled"),
+            Err(e) => self.state.report(format!("{name}: {e}")),
         }
     }
 
@@ -327,6 +427,57 @@ where
                     self.state.delete_selected();
                 }
             });
+            ui.menu_button("Tools", |ui| {
+                let busy = self.tool.is_some();
+                if ui
+                    .add_enabled(!busy, egui::Button::new("Complete target from its paint"))
+                    .on_hover_text(
+                        "Paint-by-example: the painted part of the target is the example, \
+                         the rest is synthesised (MeshMatch §5.4)",
+                    )
+                    .clicked()
+                {
+                    self.start_tool("complete-target");
+                    ui.close();
+                }
+                if ui
+                    .add_enabled(!busy, egui::Button::new("Complete source from its paint"))
+                    .clicked()
+                {
+                    self.start_tool("complete-source");
+                    ui.close();
+                }
+                if ui
+                    .add_enabled(
+                        !busy,
+                        egui::Button::new("Update texture for new geometry..."),
+                    )
+                    .on_hover_text(
+                        "The source is the textured mesh before the edit; pick the edited \
+                         geometry: unchanged parts keep their colours, the rest is synthesised",
+                    )
+                    .clicked()
+                {
+                    ui.close();
+                    if let Some(p) = self.open_dialog("Open edited geometry") {
+                        match crate::mesh::io::load(&p) {
+                            Ok(m) => self.start_update(m),
+                            Err(e) => self.state.report(e),
+                        }
+                    }
+                }
+                if ui
+                    .add_enabled(!busy, egui::Button::new("Transfer detail source -> target"))
+                    .on_hover_text(
+                        "Move the source's fine geometric detail onto the target's surface \
+                         (MeshMatch §5.3)",
+                    )
+                    .clicked()
+                {
+                    self.start_tool("detail");
+                    ui.close();
+                }
+            });
             ui.menu_button("Scene", |ui| {
                 let mut pick = None;
                 for (i, (name, _)) in self.demo_scenes.iter().enumerate() {
@@ -471,6 +622,20 @@ where
             } else if self.state.restart_pending() {
                 ui.label("transfer starting...");
             }
+            if let Some(t) = &self.tool {
+                ui.separator();
+                ui.spinner();
+                let f = t.fraction.lock().map(|f| *f).unwrap_or(0.0);
+                ui.label(format!(
+                    "{} {:.1} s",
+                    t.name,
+                    t.started.elapsed().as_secs_f32()
+                ));
+                ui.add(egui::ProgressBar::new(f).desired_width(100.0));
+                if ui.small_button("Cancel").clicked() {
+                    t.cancel.cancel();
+                }
+            }
             ui.separator();
             ui.label(&self.state.message);
             ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
@@ -565,6 +730,7 @@ where
         let clock = Instant::now();
         let ctx = ui.ctx().clone();
         self.pump(Instant::now());
+        self.poll_tool();
         self.shortcuts(&ctx);
         egui::Panel::top("menu").show(ui, |ui| self.menu_bar(ui));
         egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
@@ -587,7 +753,7 @@ where
         if self.state.restart_pending() {
             ctx.request_repaint_after(state::DEBOUNCE / 3);
         }
-        if self.state.job.running {
+        if self.state.job.running || self.tool.is_some() {
             ctx.request_repaint_after(std::time::Duration::from_millis(100));
         }
         self.frame_stats

@@ -763,6 +763,45 @@ impl<P: AppParams> AppState<P> {
         count
     }
 
+    /// Paint coverage per displayed vertex of one side (0 where unpainted).
+    pub fn paint_coverage(&self, side: Side) -> Option<Vec<f32>> {
+        let slot = self.slot(side)?;
+        let n = slot.displayed().num_vertices();
+        Some(match &slot.paint {
+            Some(p) => p.iter().map(|x| x[3]).collect(),
+            None => vec![0.0; n],
+        })
+    }
+
+    /// Take a finished application's outcome: new colours become the side's paint layer (one
+    /// undo step), a new mesh replaces the side without starting a transfer on it.
+    pub fn apply_tool_outcome(&mut self, outcome: super::tools::ToolOutcome) {
+        use super::tools::ToolOutcome;
+        match outcome {
+            ToolOutcome::Colors(side, colors) => {
+                let Some(n) = self.slot(side).map(|s| s.displayed().num_vertices()) else {
+                    return;
+                };
+                if colors.len() != n {
+                    self.report("the completed mesh no longer matches the view (it was re-prepared); run it again");
+                    return;
+                }
+                self.push_undo();
+                if let Some(slot) = self.meshes[side_index(side)].as_mut() {
+                    slot.paint = Some(colors.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect());
+                    slot.colors_dirty = true;
+                }
+                self.message = format!("{side:?} completed from its paint (Ctrl+Z undoes)");
+            }
+            ToolOutcome::Mesh(side, mesh, message) => {
+                self.set_mesh(side, mesh, false);
+                // The result is the answer: do not overwrite it with a transfer.
+                self.restart_at = None;
+                self.message = message;
+            }
+        }
+    }
+
     /// The displayed mesh of one side with its displayed colours (paint included), for export.
     pub fn painted_mesh(&self, side: Side) -> Option<TriMesh> {
         let slot = self.slot(side)?;
