@@ -89,14 +89,13 @@ pub fn connected_components(n: usize, faces: &[[u32; 3]]) -> (Vec<u32>, usize) {
     let mut next = 0u32;
     let mut root_label = HashMap::new();
     let mut with_faces = 0usize;
-    for v in 0..n {
+    for (v, slot) in label.iter_mut().enumerate().take(n) {
         let r = find(&mut parent, v as u32);
-        let l = *root_label.entry(r).or_insert_with(|| {
+        *slot = *root_label.entry(r).or_insert_with(|| {
             let l = next;
             next += 1;
             l
         });
-        label[v] = l;
     }
     let mut seen = vec![false; next as usize];
     for v in 0..n {
@@ -139,10 +138,7 @@ pub fn boundary_loops(faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
         while next.get(&s).is_some_and(|v| !v.is_empty()) {
             let mut lp = vec![s];
             let mut cur = s;
-            loop {
-                let Some(nb) = next.get_mut(&cur).and_then(|v| v.pop()) else {
-                    break;
-                };
+            while let Some(nb) = next.get_mut(&cur).and_then(|v| v.pop()) {
                 used += 1;
                 if nb == s {
                     break;

@@ -220,7 +220,8 @@ impl TriMesh {
                     .map(|i| v[i])
                     .collect::<Vec<_>>()
             };
-            self.positions = filt(&self.positions);
+            let positions = std::mem::take(&mut self.positions);
+            self.positions = (0..n).filter(|&i| used[i]).map(|i| positions[i]).collect();
             self.normals = self.normals.as_ref().map(filt);
             self.colors = self.colors.as_ref().map(filt);
             self.file_index = (0..n)
