@@ -477,7 +477,39 @@ fn to_levels(h: &Hierarchy, base: Vec<f32>, dim: usize) -> Vec<Vec<f32>> {
     out
 }
 
-/// Correspondence affinities (MeshMatch §3.2): geodesic distances to each constrained point (a
+/// Largest level on which correspondence geodesics are computed.
+const GEODESIC_LEVEL_VERTICES: usize = 8_000;
+
+/// Geodesic distance from every finest-level vertex to each of `sets` (finest-level vertex
+/// sets): the heat method (Crane et al. 2013, `geometry::HeatGeodesics`) on the first hierarchy
+/// level with at most [`GEODESIC_LEVEL_VERTICES`] vertices, carried to the finest level through
+/// the vertex tree (affinities are smooth at the scale of σ = max distance / 3). Falls back to
+/// edge-graph Dijkstra on the finest level if the heat method cannot factor the level.
+fn geodesics(h: &Hierarchy, sets: &[Vec<u32>]) -> Vec<Vec<f32>> {
+    let l = (0..h.num_levels())
+        .find(|&l| h.levels[l].len() <= GEODESIC_LEVEL_VERTICES)
+        .unwrap_or(h.num_levels() - 1);
+    let lev = &h.levels[l];
+    match crate::geometry::HeatGeodesics::new(&lev.positions, &lev.faces) {
+        Ok(heat) => {
+            let map = h.ancestor_map(0, l);
+            let coarse: Vec<Vec<u32>> = sets
+                .iter()
+                .map(|s| s.iter().map(|&v| map[v as usize]).collect())
+                .collect();
+            heat.distances(&coarse)
+                .into_iter()
+                .map(|d| map.iter().map(|&a| d[a as usize] as f32).collect())
+                .collect()
+        }
+        Err(_) => sets
+            .par_iter()
+            .map(|s| edge_geodesics(&h.levels[0], s))
+            .collect(),
+    }
+}
+
+/// Correspondence affinities (MeshMatch §3.2): geodesic distances ([`geodesics`]) to each constrained point (a
 /// one-to-many target point set is one multi-source), target distances mapped by the affine map of
 /// [`min_norm_affine`], then G'(v) = exp(-G(v)² / (2σ²)) with σ = (max source geodesic distance)
 /// / 3. We square the distance: the paper's printed exp(-G/(2σ²)) mixes units (length over length²)
@@ -490,14 +522,10 @@ fn affinities(
 ) -> (Vec<f32>, Vec<f32>) {
     let k = pairs.len();
     let (ls, lt) = (&source.hierarchy.levels[0], &target.hierarchy.levels[0]);
-    let gs: Vec<Vec<f32>> = pairs
-        .par_iter()
-        .map(|(s, _)| edge_geodesics(ls, &[*s]))
-        .collect();
-    let gt: Vec<Vec<f32>> = pairs
-        .par_iter()
-        .map(|(_, t)| edge_geodesics(lt, t))
-        .collect();
+    let src_sets: Vec<Vec<u32>> = pairs.iter().map(|(s, _)| vec![*s]).collect();
+    let tgt_sets: Vec<Vec<u32>> = pairs.iter().map(|(_, t)| t.clone()).collect();
+    let gs = geodesics(&source.hierarchy, &src_sets);
+    let gt = geodesics(&target.hierarchy, &tgt_sets);
     let row = |g: &[Vec<f32>], v: u32| -> Vec<f32> { g.iter().map(|d| d[v as usize]).collect() };
     let mut trows = Vec::new();
     let mut srows = Vec::new();
@@ -511,6 +539,7 @@ fn affinities(
     let maxd = gs
         .iter()
         .flat_map(|d| d.iter().copied())
+        .filter(|d| d.is_finite())
         .fold(0.0f32, f32::max);
     let sigma = (maxd / 3.0).max(1e-12);
     let inv = 1.0 / (2.0 * sigma * sigma);
