@@ -217,6 +217,10 @@ pub(crate) fn bfs_order(level: &Level, start: usize) -> Vec<u32> {
     order
 }
 
+/// Bands of the breadth-first order swept concurrently by [`propagate`] on levels of 8192 or
+/// more vertices (a constant, so results do not depend on the machine's core count).
+pub(crate) const PROPAGATION_BANDS: usize = 8;
+
 /// Propagation (MeshMatch §4.2): in `order`, each target vertex tries every source vertex
 /// adjacent to (or equal to) the match of each of its neighbours, with the rotation carried
 /// through the frames: target frame -> neighbour frame (edge transport) -> neighbour's matched
@@ -232,13 +236,11 @@ pub(crate) fn propagate(
 ) -> Result<()> {
     // Parallel sweeps: the order is cut into contiguous parts (bands of the breadth-first
     // order) swept concurrently; inside a part every vertex sees its predecessors' fresh
-    // matches, across a part boundary the matches from before this sweep.
+    // matches, across a part boundary the matches from before this sweep. The number of parts
+    // depends on the level's size only, never on the thread count, so a seed gives the same
+    // result on every machine.
     let n = order.len();
-    let parts = if n < 8192 {
-        1
-    } else {
-        2 * rayon::current_num_threads()
-    };
+    let parts = if n < 8192 { 1 } else { PROPAGATION_BANDS };
     let len = n.div_ceil(parts.max(1)).max(1);
     let mut pos = vec![0u32; nnf.len()];
     for (i, &v) in order.iter().enumerate() {
