@@ -256,7 +256,10 @@ fn a_seed_reproduces_the_transfer_on_any_core_count() {
     };
     let a = run(1, 7);
     let b = run(3, 7);
-    assert!(a.nnf.len() > 8192, "the finest level must use banded sweeps");
+    assert!(
+        a.nnf.len() > 8192,
+        "the finest level must use banded sweeps"
+    );
     assert_eq!(a.nnf, b.nnf, "same seed, different core count");
     assert_eq!(a.working_signal, b.working_signal);
     assert_eq!(a.file_signal, b.file_signal);

@@ -1,11 +1,12 @@
 //! Transfers between different shapes keep the source's look: the target's area-weighted colour
 //! distribution is close to the source's, and no colour appears that the source does not have.
-//! Spot -> cow (real data) and the demo zebra -> giraffe (with the default correspondences).
+//! Spot -> cow and Spot -> horse (real data), the demo zebra -> giraffe and zebra -> cerberus (with
+//! the default correspondences; the cerberus's three heads share one-to-many pairs).
 
 use meshmatch::color::{delta_e76, srgb_to_lab};
 use meshmatch::geometry::mass_matrix_barycentric;
 use meshmatch::jobs::{CancelToken, Correspondence, no_events};
-use meshmatch::meshmatch::{TransferParams, prepare, solve};
+use meshmatch::meshmatch::{PreparedMesh, TransferParams, TransferResult, prepare, solve};
 use meshmatch::{TriMesh, demo, mesh::io, testdata::data_path};
 
 /// Area-weighted Lab histogram (8 x 8 x 8 bins over L [0,100], a and b [-64,64]), normalised.
@@ -43,7 +44,12 @@ fn novel_fraction(source: &[[f32; 3]], target: &[[f32; 3]], tol: f32) -> f64 {
     novel as f64 / target.len() as f64
 }
 
-fn check(name: &str, source: &TriMesh, target: &TriMesh, corr: &[Correspondence]) {
+fn check(
+    name: &str,
+    source: &TriMesh,
+    target: &TriMesh,
+    corr: &[Correspondence],
+) -> (PreparedMesh, PreparedMesh, TransferResult) {
     let params = TransferParams {
         vertices: 12_000,
         iterations: 3,
@@ -82,6 +88,7 @@ fn check(name: &str, source: &TriMesh, target: &TriMesh, corr: &[Correspondence]
         "{name}: {:.2}% of target vertices have colours the source lacks",
         100.0 * novel
     );
+    (ps, pt, r)
 }
 
 #[test]
@@ -89,6 +96,13 @@ fn spot_onto_cow_keeps_spots_palette_and_proportions() {
     let spot = io::load(&data_path("spot/spot.obj")).unwrap();
     let cow = io::load(&data_path("cow/cow.ply")).unwrap();
     check("spot -> cow", &spot, &cow, &[]);
+}
+
+#[test]
+fn spot_onto_horse_keeps_spots_palette_and_proportions() {
+    let spot = io::load(&data_path("spot/spot.obj")).unwrap();
+    let horse = io::load(&data_path("horse/horse.ply")).unwrap();
+    check("spot -> horse", &spot, &horse, &[]);
 }
 
 #[test]
@@ -101,4 +115,27 @@ fn zebra_onto_giraffe_keeps_the_stripes_palette_and_proportions() {
         &demo::landmarks_giraffe(),
     );
     check("zebra -> giraffe", &zebra, &giraffe, &corr.correspondences);
+}
+
+#[test]
+fn zebra_onto_cerberus_keeps_the_stripes_palette_and_proportions() {
+    let (zebra, cerberus) = (demo::zebra(), demo::cerberus());
+    let corr = demo::default_correspondences(
+        &zebra,
+        &demo::landmarks_zebra(),
+        &cerberus,
+        &demo::landmarks_cerberus(),
+    );
+    assert!(
+        corr.correspondences
+            .iter()
+            .any(|c| c.target_vertices.len() == 3),
+        "the cerberus pairs include one-to-many entries"
+    );
+    check(
+        "zebra -> cerberus",
+        &zebra,
+        &cerberus,
+        &corr.correspondences,
+    );
 }
