@@ -23,8 +23,11 @@ pub struct BenchRow {
     pub estep_s_per_iter: f64,
     /// M-step (voting) per EM iteration at the finest level, seconds.
     pub mstep_s_per_iter: f64,
-    /// From the start of the solve to its first partial result, seconds.
+    /// After a correspondence edit (six pairs, on the prepared meshes): from the start of the new
+    /// solve, affinities included, to its first partial result, seconds.
     pub first_preview_s: f64,
+    /// From the start of the first solve (no correspondences) to its first partial result.
+    pub first_solve_preview_s: f64,
     /// Load-free end to end: prepare both meshes and solve, seconds.
     pub end_to_end_s: f64,
     /// Peak resident set size of the process so far, MiB.
@@ -94,6 +97,34 @@ fn sum(timings: &[(String, f64)], pred: impl Fn(&str) -> bool) -> f64 {
         .sum()
 }
 
+/// Six correspondences for the edit measurement: on each mesh, the vertices at both ends of the
+/// three bounding-box axes (file indices). What they mean does not matter for the timing.
+fn extreme_pairs(source: &TriMesh, target: &TriMesh) -> Vec<crate::jobs::Correspondence> {
+    let ends = |m: &TriMesh| -> Vec<u32> {
+        let mut out = Vec::with_capacity(6);
+        for axis in 0..3 {
+            for sign in [-1.0f32, 1.0] {
+                let v = (0..m.positions.len())
+                    .filter(|&i| m.positions[i][axis].is_finite())
+                    .max_by(|&a, &b| {
+                        (sign * m.positions[a][axis]).total_cmp(&(sign * m.positions[b][axis]))
+                    })
+                    .unwrap_or(0);
+                out.push(m.file_index.get(v).copied().unwrap_or(v as u32));
+            }
+        }
+        out
+    };
+    ends(source)
+        .into_iter()
+        .zip(ends(target))
+        .map(|(s, t)| crate::jobs::Correspondence {
+            source_vertex: s,
+            target_vertices: vec![t],
+        })
+        .collect()
+}
+
 /// Run one size: prepare Spot (source) and the horse (target) at `n` working vertices, solve.
 pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchRow> {
     let params_source = TransferParams {
@@ -121,6 +152,26 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
     };
     let r = mm::solve(&ps, &pt, &[], &params, &sink, &cancel)?;
     let end = t0.elapsed().as_secs_f64();
+    // A correspondence edit: a new solve on the same prepared meshes with six pairs (affinities
+    // recomputed), stopped at its first partial result.
+    let corr = extreme_pairs(source, target);
+    let edit_cancel = CancelToken::new();
+    let edit_start = Instant::now();
+    let edit_first = std::sync::Mutex::new(None::<f64>);
+    let edit_sink = |e: Event| {
+        if let Event::Partial { .. } = e {
+            let mut f = edit_first.lock().expect("not poisoned");
+            if f.is_none() {
+                *f = Some(edit_start.elapsed().as_secs_f64());
+            }
+            edit_cancel.cancel();
+        }
+    };
+    match mm::solve(&ps, &pt, &corr, &params, &edit_sink, &edit_cancel) {
+        Ok(_) | Err(crate::Error::Cancelled) => {}
+        Err(e) => return Err(e),
+    }
+    let edit_preview = edit_first.into_inner().expect("not poisoned");
     let iters = params.iterations.max(1) as f64;
     let prep = |p: &mm::PreparedMesh, name: &str| sum(p.timings(), |n| n == name);
     Ok(BenchRow {
@@ -131,7 +182,8 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
         fans_s: prep(&ps, "fans") + prep(&pt, "fans") + sum(&r.timings, |n| n == "fan updates"),
         estep_s_per_iter: sum(&r.timings, |n| n == "search finest") / iters,
         mstep_s_per_iter: sum(&r.timings, |n| n == "vote finest") / iters,
-        first_preview_s: first
+        first_preview_s: edit_preview.unwrap_or(f64::NAN),
+        first_solve_preview_s: first
             .into_inner()
             .expect("not poisoned")
             .unwrap_or(f64::NAN),

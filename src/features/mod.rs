@@ -394,15 +394,10 @@ impl FanSampler {
         let cut = 2.5 * sigma;
         let reach = radius + cut;
         let inv2s2 = 1.0 / (2.0 * sigma * sigma);
-        let bins: Vec<[f32; 2]> = (0..FAN_RADII)
-            .flat_map(|r| {
-                let rad = (r + 1) as f32 / FAN_RADII as f32 * radius;
-                (0..FAN_ANGLES).map(move |a| {
-                    let th = (a as f32 * ANGLE_STEP_DEG).to_radians();
-                    [rad * th.cos(), rad * th.sin()]
-                })
-            })
-            .collect();
+        let dirs: [[f32; 2]; FAN_ANGLES] = std::array::from_fn(|a| {
+            let th = (a as f32 * ANGLE_STEP_DEG).to_radians();
+            [th.cos(), th.sin()]
+        });
         // Few enough chunks that the per-chunk visit stamps stay cheap on large meshes.
         let chunk = (n / 64).max(256);
         let cut2 = cut * cut;
@@ -440,19 +435,31 @@ impl FanSampler {
                             (0.0, 0.0)
                         };
                         let rho = len;
+                        // |x - bin|² = ρ² + r_k² - 2 r_k (x cos θ_a + y sin θ_a): the 18
+                        // projections are shared by the three rings, so each ring costs one
+                        // multiply-add per bin (cheaper than locating the angular window with
+                        // atan2/acos).
+                        let mut any = false;
+                        for &rk in rks.iter() {
+                            any |= (rho - rk).abs() < cut;
+                        }
+                        if !any {
+                            continue_walk(level, &mut queue, &mut stamp, u, v, pv, reach);
+                            continue;
+                        }
+                        let mut proj = [0.0f32; FAN_ANGLES];
+                        for (a, p) in proj.iter_mut().enumerate() {
+                            *p = x * dirs[a][0] + y * dirs[a][1];
+                        }
+                        let rho2 = x * x + y * y;
                         for (r, &rk) in rks.iter().enumerate() {
                             if (rho - rk).abs() >= cut {
                                 continue;
                             }
-                            // Every bin of the ring: a few multiply-adds each, cheaper than
-                            // locating the angular window with atan2/acos.
-                            for (a, bc) in bins[r * FAN_ANGLES..(r + 1) * FAN_ANGLES]
-                                .iter()
-                                .enumerate()
-                            {
-                                let dx = x - bc[0];
-                                let dy = y - bc[1];
-                                let d2 = dx * dx + dy * dy;
+                            let base = rho2 + rk * rk;
+                            let two_rk = 2.0 * rk;
+                            for (a, &pa) in proj.iter().enumerate() {
+                                let d2 = (base - two_rk * pa).max(0.0);
                                 let b = r * FAN_ANGLES + a;
                                 let t = &mut top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
                                 // Insert into the sorted (ascending) top list.
@@ -466,17 +473,7 @@ impl FanSampler {
                                 }
                             }
                         }
-                        for &w in level.adjacency.row(u) {
-                            let w = w as usize;
-                            if stamp[w] != v as u32 {
-                                stamp[w] = v as u32;
-                                if queue.len() < MAX_FAN_VERTICES
-                                    && (Vec3::from(level.positions[w]) - pv).length() <= reach
-                                {
-                                    queue.push(w as u32);
-                                }
-                            }
-                        }
+                        continue_walk(level, &mut queue, &mut stamp, u, v, pv, reach);
                     }
                     for e in top.iter_mut() {
                         e.0 = if e.0.is_finite() {
@@ -515,10 +512,18 @@ impl FanSampler {
     /// Fans of a signal with `channels` values per vertex, pre-filtered by one pass of 1-ring
     /// averaging before the gather. Layout: `fans[((v * R + r) * A + a) * C + c]`.
     pub fn fans(&self, level: &Level, signal: &[f32], channels: usize) -> Vec<f32> {
+        let mut out = Vec::new();
+        self.fans_into(level, signal, channels, &mut out);
+        out
+    }
+
+    /// [`FanSampler::fans`] into an existing buffer (resized as needed), so the EM loop reuses
+    /// one allocation instead of holding the old and the new fans at once.
+    pub fn fans_into(&self, level: &Level, signal: &[f32], channels: usize, out: &mut Vec<f32>) {
         let c = channels;
         let sig = smooth(level, signal, c);
         let nb = FAN_RADII * FAN_ANGLES;
-        let mut out = vec![0.0f32; level.len() * nb * c];
+        out.resize(level.len() * nb * c, 0.0);
         out.par_chunks_mut(nb * c).enumerate().for_each(|(v, fan)| {
             for b in 0..nb {
                 let o = (v * nb + b) * FAN_TAPS;
@@ -533,7 +538,33 @@ impl FanSampler {
                 }
             }
         });
-        out
+    }
+}
+
+/// One step of [`FanSampler::new`]'s breadth-first walk around `v`: queue the unvisited
+/// neighbours of `u` within `reach` (Euclidean) of `pv`, up to [`MAX_FAN_VERTICES`].
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn continue_walk(
+    level: &Level,
+    queue: &mut Vec<u32>,
+    stamp: &mut [u32],
+    u: usize,
+    v: usize,
+    pv: Vec3,
+    reach: f32,
+) {
+    let reach2 = reach * reach;
+    for &w in level.adjacency.row(u) {
+        let w = w as usize;
+        if stamp[w] != v as u32 {
+            stamp[w] = v as u32;
+            if queue.len() < MAX_FAN_VERTICES
+                && (Vec3::from(level.positions[w]) - pv).length_squared() <= reach2
+            {
+                queue.push(w as u32);
+            }
+        }
     }
 }
 

@@ -854,7 +854,7 @@ pub fn solve_constrained(
                 t_vote0 += sw.secs();
             }
             let sw = Stopwatch::start();
-            fans_t = sampler_t.fans(lt, signal.as_flattened(), C);
+            sampler_t.fans_into(lt, signal.as_flattened(), C, &mut fans_t);
             t_fans += sw.secs();
             let ctx = Ctx {
                 s: side_s_clone(&side_s),
