@@ -146,6 +146,10 @@ pub struct SynthArgs {
     /// Mesh units spanned by the exemplar's width (default: a quarter of the bounding-box diagonal).
     #[arg(long)]
     pub scale: Option<f32>,
+    /// Shrink the exemplar to at most this many pixels wide first (aspect kept): the texel
+    /// spacing is scale / width, so this sets the synthesized vertex count (grows with its square).
+    #[arg(long)]
+    pub exemplar_width: Option<u32>,
     /// Texture orientation field: random (isotropic textures; the library's default too), up
     /// (projected +Y), relax2 (stripes) or relax4 (grids).
     #[arg(long, default_value = crate::synthesis::Orientation::default().as_str())]
@@ -205,7 +209,15 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    let exemplar = io::load_texture(&a.exemplar)?.image;
+    let mut exemplar = io::load_texture(&a.exemplar)?.image;
+    if let Some(w) = a.exemplar_width {
+        if w < 8 {
+            return Err(Error::InvalidInput(format!(
+                "--exemplar-width {w}: use at least 8 pixels"
+            )));
+        }
+        exemplar = crate::synthesis::wei_levoy::shrink_exemplar(exemplar, w);
+    }
     let target = load_usable(&a.target)?;
     // The mask file numbers vertices as the file does; the synthesis takes one flag per vertex
     // of the loaded mesh (repair may have dropped unreferenced file vertices).

@@ -255,17 +255,7 @@ impl ExemplarSettings {
 /// Load an exemplar image and shrink it to at most `pixels` wide (aspect kept).
 pub fn load_exemplar(path: &std::path::Path, pixels: u32) -> Result<image::RgbImage> {
     let img = crate::mesh::io::load_texture(path)?.image;
-    let (w, h) = img.dimensions();
-    if pixels == 0 || w <= pixels {
-        return Ok(img);
-    }
-    let nh = ((h as f64 * pixels as f64 / w as f64).round() as u32).max(1);
-    Ok(image::imageops::resize(
-        &img,
-        pixels,
-        nh,
-        image::imageops::FilterType::Triangle,
-    ))
+    Ok(crate::synthesis::wei_levoy::shrink_exemplar(img, pixels))
 }
 
 /// Paint with exemplar: synthesize the image's texture over `mesh` (the displayed mesh of
