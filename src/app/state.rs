@@ -196,6 +196,9 @@ pub struct Session<P> {
     pub target_paint: Option<PathBuf>,
 }
 
+/// The paint layer under a tool preview: side, mesh id and the paint itself.
+type PreviewBackup = (Side, u64, Option<Vec<[f32; 4]>>);
+
 /// Everything the app knows, without any window.
 pub struct AppState<P: AppParams> {
     /// Source and target meshes (index 0 = source, 1 = target).
@@ -223,7 +226,7 @@ pub struct AppState<P: AppParams> {
     undo: Vec<Snapshot>,
     redo: Vec<Snapshot>,
     /// Paint layer kept aside while a tool previews partial results: side, mesh id, paint.
-    preview_backup: Option<(Side, u64, Option<Vec<[f32; 4]>>)>,
+    preview_backup: Option<PreviewBackup>,
     restart_at: Option<Instant>,
     requests: Vec<Request<P>>,
     next_id: u64,

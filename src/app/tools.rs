@@ -30,6 +30,12 @@ pub enum ToolOutcome {
     Mesh(Side, TriMesh, String),
 }
 
+/// A partial result: colours per vertex of the tool's working mesh.
+pub type Partial = Arc<[[f32; 3]]>;
+
+/// The chosen image's path and its size in pixels, or why its header cannot be read.
+type ImageSize = (PathBuf, std::result::Result<(u32, u32), String>);
+
 /// A running tool.
 pub struct ToolJob {
     /// What it does, for the status bar.
@@ -44,7 +50,7 @@ pub struct ToolJob {
     /// tools that stream partial results (`None`: partials are not previewed).
     pub preview: Option<Side>,
     /// Latest partial result not yet taken by [`ToolJob::take_partial`].
-    partial: Arc<Mutex<Option<Arc<[[f32; 3]]>>>>,
+    partial: Arc<Mutex<Option<Partial>>>,
     rx: Receiver<Result<ToolOutcome>>,
 }
 
@@ -98,7 +104,7 @@ impl ToolJob {
 
     /// The latest partial result since the last call, if any (colours per vertex of the tool's
     /// working mesh; its first vertices are the displayed ones of [`ToolJob::preview`]).
-    pub fn take_partial(&self) -> Option<Arc<[[f32; 3]]>> {
+    pub fn take_partial(&self) -> Option<Partial> {
         self.partial.lock().ok().and_then(|mut p| p.take())
     }
 
@@ -348,7 +354,7 @@ pub struct ExemplarDialog {
     /// The settings the next run uses.
     pub settings: ExemplarSettings,
     /// Size of the chosen image (read from its header once per path), or why it cannot be read.
-    size_of: Option<(PathBuf, std::result::Result<(u32, u32), String>)>,
+    size_of: Option<ImageSize>,
 }
 
 impl ExemplarDialog {
