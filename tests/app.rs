@@ -731,6 +731,34 @@ fn paint_with_exemplar_streams_partials_resembles_the_exemplar_and_undo_restores
     let undone = h.state().state.slot(Side::Target).unwrap().display_colors();
     assert_eq!(undone, before);
 
+    // Cancel during a run: the preview goes away, the colours and the history are as before.
+    let history = h.state().state.history_len();
+    h.state_mut().start_exemplar(&settings);
+    let t0 = Instant::now();
+    while h.state().state.slot(Side::Target).unwrap().display_colors() == before {
+        h.step();
+        assert!(h.state().tool.is_some(), "finished before a preview showed");
+        assert!(t0.elapsed() < Duration::from_secs(120), "no preview");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    h.state().tool.as_ref().unwrap().cancel.cancel();
+    let t0 = Instant::now();
+    while h.state().tool.is_some() {
+        h.step();
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "cancel was not honoured"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    h.run_steps(2);
+    assert!(h.state().state.message.contains("cancelled"));
+    assert_eq!(
+        h.state().state.slot(Side::Target).unwrap().display_colors(),
+        before
+    );
+    assert_eq!(h.state().state.history_len(), history);
+
     // Painted region only: the rest keeps its colours exactly.
     {
         let st = &mut h.state_mut().state;
