@@ -146,8 +146,13 @@ pub struct SynthArgs {
     /// Mesh units spanned by the exemplar's width (default: a quarter of the bounding-box diagonal).
     #[arg(long)]
     pub scale: Option<f32>,
-    /// Texture orientation field: random, up, relax2 (stripes) or relax4 (grids).
-    #[arg(long, default_value = "relax4")]
+    /// Shrink the exemplar to at most this many pixels wide first (aspect kept): the texel
+    /// spacing is scale / width, so this sets the synthesized vertex count (grows with its square).
+    #[arg(long)]
+    pub exemplar_width: Option<u32>,
+    /// Texture orientation field: random (isotropic textures; the library's default too), up
+    /// (projected +Y), relax2 (stripes) or relax4 (grids).
+    #[arg(long, default_value = crate::synthesis::Orientation::default().as_str())]
     pub orientation: String,
     /// Pyramid levels.
     #[arg(long, default_value_t = 4)]
@@ -156,7 +161,7 @@ pub struct SynthArgs {
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Neighbourhood search: exhaustive (reference) or fast (coherence + random search).
-    #[arg(long, default_value = "fast")]
+    #[arg(long, default_value = crate::synthesis::Search::default().as_str())]
     pub search: String,
     /// Random seed.
     #[arg(long, default_value_t = 0)]
@@ -204,10 +209,29 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    let exemplar = io::load_texture(&a.exemplar)?.image;
+    let mut exemplar = io::load_texture(&a.exemplar)?.image;
+    if let Some(w) = a.exemplar_width {
+        if w < 8 {
+            return Err(Error::InvalidInput(format!(
+                "--exemplar-width {w}: use at least 8 pixels"
+            )));
+        }
+        exemplar = crate::synthesis::wei_levoy::shrink_exemplar(exemplar, w);
+    }
     let target = load_usable(&a.target)?;
+    // The mask file numbers vertices as the file does; the synthesis takes one flag per vertex
+    // of the loaded mesh (repair may have dropped unreferenced file vertices).
     let mask = match &a.mask {
-        Some(p) => Some(read_mask(p, target.num_vertices())?),
+        Some(p) => {
+            let file_mask = read_mask(p, target.file_vertex_count)?;
+            Some(
+                target
+                    .file_index
+                    .iter()
+                    .map(|&f| file_mask[f as usize])
+                    .collect::<Vec<bool>>(),
+            )
+        }
         None => None,
     };
     let params = SynthParams {
@@ -229,10 +253,14 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         &CancelToken::new(),
     )?;
     eprintln!(
-        "synthesized {} vertices in {:.2} s (search {:.2} s)",
+        "synthesized {} vertices in {:.2} s (search {:.2} s, {} search, orientation {}); \
+         finest-level neighbourhood energy {:.5}",
         r.mesh.num_vertices(),
         t.elapsed().as_secs_f64(),
-        r.timings.search
+        r.timings.search,
+        search.as_str(),
+        orientation.as_str(),
+        r.level_energy.first().copied().unwrap_or(0.0)
     );
     io::save(&r.mesh, &a.out)?;
     eprintln!("wrote {}", a.out.display());

@@ -604,3 +604,231 @@ fn complete_from_paint_fills_the_rest_from_the_painted_example_and_undo_restores
     let restored = app.state.slot(Side::Target).unwrap().paint.clone().unwrap();
     assert_eq!(restored, before);
 }
+
+#[test]
+fn paint_with_exemplar_streams_partials_resembles_the_exemplar_and_undo_restores() {
+    use meshmatch::app::tools::{ExemplarSettings, Region, load_exemplar};
+    let image = meshmatch::testdata::data_path("textures/bricks.png");
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.set_mesh(Side::Target, sphere(40, 48), false);
+    let mut h = harness(app);
+    // Let the worker prepare the meshes (the view then shows the target in its default grey).
+    let t0 = Instant::now();
+    while h
+        .state()
+        .state
+        .slot(Side::Target)
+        .unwrap()
+        .working
+        .is_none()
+    {
+        h.step();
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "target not prepared"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.run_steps(2);
+    let before = h.state().state.slot(Side::Target).unwrap().display_colors();
+    let n = before.len();
+    // The exemplar as the tool uses it (shrunk to the default 64 px width).
+    let settings = ExemplarSettings {
+        image: Some(image.clone()),
+        scale: 0.5,
+        ..ExemplarSettings::default()
+    };
+    assert_eq!(settings.region, Region::Whole);
+    assert_eq!(settings.side, Side::Target);
+    let ex = load_exemplar(&image, settings.pixels).unwrap();
+    assert_eq!(ex.width(), settings.pixels);
+    let mean = |c: &[[f32; 3]]| {
+        c.iter()
+            .fold([0.0f32; 3], |a, x| [a[0] + x[0], a[1] + x[1], a[2] + x[2]])
+            .map(|s| s / c.len().max(1) as f32)
+    };
+    let dist = |a: [f32; 3], b: [f32; 3]| {
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    };
+    let ex_colors = meshmatch::synthesis::wei_levoy::image_colors(&ex);
+    let ex_mean = mean(&ex_colors);
+    let old_mean = mean(&before);
+    assert!(
+        dist(ex_mean, old_mean) > 0.15,
+        "the exemplar ({ex_mean:?}) must differ from the old colours ({old_mean:?})"
+    );
+    let palette: std::collections::HashSet<[u8; 3]> = ex.pixels().map(|p| p.0).collect();
+    let to_u8 = |c: [f32; 3]| c.map(|x| (x * 255.0).round().clamp(0.0, 255.0) as u8);
+
+    // Drive the tool through its window: the image is already chosen, the user clicks Run.
+    h.state_mut().open_exemplar_dialog(Some(image.clone()));
+    h.state_mut().exemplar.settings.scale = 0.5;
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("Paint with exemplar").is_some());
+    h.get_by_label("Run").click();
+    h.step();
+    assert!(h.state().tool.is_some(), "the tool started");
+    assert!(!h.state().exemplar.open, "the window closes on Run");
+    // Partial results show in the view while the tool runs (no undo step for them).
+    let mut previews = 0;
+    let mut last_preview: Option<Vec<[f32; 3]>> = None;
+    let t0 = Instant::now();
+    while h.state().tool.is_some() {
+        h.step();
+        let app = h.state();
+        if app.tool.is_some() {
+            let cols = app.state.slot(Side::Target).unwrap().display_colors();
+            if cols != before && last_preview.as_ref() != Some(&cols) {
+                previews += 1;
+                last_preview = Some(cols);
+            }
+            assert_eq!(
+                app.state.history_len().0,
+                0,
+                "a preview is not an undo step"
+            );
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "synthesis did not finish"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    h.run_steps(2);
+    assert!(
+        h.state().state.errors.is_empty(),
+        "{:?}",
+        h.state().state.errors
+    );
+    assert!(previews >= 1, "no partial result was shown while it ran");
+    let after = h.state().state.slot(Side::Target).unwrap().display_colors();
+    assert_eq!(after.len(), n);
+    // Every vertex changed and carries a colour of the exemplar; the mean colour is the
+    // exemplar's, far from the old one.
+    let changed = after.iter().zip(&before).filter(|(a, b)| a != b).count();
+    assert!(changed * 100 >= n * 95, "{changed} of {n} vertices changed");
+    let in_palette = after
+        .iter()
+        .filter(|c| palette.contains(&to_u8(**c)))
+        .count();
+    assert!(
+        in_palette * 100 >= n * 99,
+        "{in_palette} of {n} vertices carry an exemplar colour"
+    );
+    let out_mean = mean(&after);
+    println!("mean colour: exemplar {ex_mean:?}, output {out_mean:?}, old {old_mean:?}");
+    assert!(
+        dist(out_mean, ex_mean) < 0.08,
+        "output mean {out_mean:?} vs exemplar {ex_mean:?}"
+    );
+    assert!(dist(out_mean, old_mean) > 0.5 * dist(ex_mean, old_mean));
+    assert!(h.state().state.message.contains("bricks.png"));
+    // One undo takes the whole result back.
+    assert_eq!(h.state().state.history_len().0, 1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    let undone = h.state().state.slot(Side::Target).unwrap().display_colors();
+    assert_eq!(undone, before);
+
+    // Cancel during a run: the preview goes away, the colours and the history are as before.
+    let history = h.state().state.history_len();
+    h.state_mut().start_exemplar(&settings);
+    let t0 = Instant::now();
+    while h.state().state.slot(Side::Target).unwrap().display_colors() == before {
+        h.step();
+        assert!(h.state().tool.is_some(), "finished before a preview showed");
+        assert!(t0.elapsed() < Duration::from_secs(120), "no preview");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    h.state().tool.as_ref().unwrap().cancel.cancel();
+    let t0 = Instant::now();
+    while h.state().tool.is_some() {
+        h.step();
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "cancel was not honoured"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    h.run_steps(2);
+    assert!(h.state().state.message.contains("cancelled"));
+    assert_eq!(
+        h.state().state.slot(Side::Target).unwrap().display_colors(),
+        before
+    );
+    assert_eq!(h.state().state.history_len(), history);
+
+    // Painted region only: the rest keeps its colours exactly.
+    {
+        let st = &mut h.state_mut().state;
+        st.brush.radius = 0.3;
+        st.brush.hardness = 1.0;
+        st.brush.color = [0.0, 0.0, 1.0];
+        st.paint_at(Side::Target, [0.0, 1.0, 0.0], true);
+    }
+    let painted_before = h.state().state.slot(Side::Target).unwrap().display_colors();
+    let painted: Vec<bool> = h
+        .state()
+        .state
+        .paint_coverage(Side::Target)
+        .unwrap()
+        .iter()
+        .map(|&c| c >= 0.5)
+        .collect();
+    let np = painted.iter().filter(|p| **p).count();
+    assert!(np > 10 && np < n / 2, "{np} painted");
+    let region = ExemplarSettings {
+        region: Region::Painted,
+        ..settings.clone()
+    };
+    h.state_mut().start_exemplar(&region);
+    let job = h.state_mut().tool.take().expect("started");
+    let out = job.wait().unwrap();
+    h.state_mut().state.apply_tool_outcome(out);
+    let cols = h.state().state.slot(Side::Target).unwrap().display_colors();
+    let mut region_in_palette = 0;
+    for v in 0..n {
+        if painted[v] {
+            region_in_palette += palette.contains(&to_u8(cols[v])) as usize;
+        } else {
+            assert_eq!(
+                to_u8(cols[v]),
+                to_u8(painted_before[v]),
+                "vertex {v} outside"
+            );
+        }
+    }
+    assert!(
+        region_in_palette * 100 >= np * 99,
+        "{region_in_palette} of {np} painted vertices carry an exemplar colour"
+    );
+
+    // A file that is not an image: a dismissable error, no panic, colours untouched.
+    let bad = std::env::temp_dir().join(format!("meshmatch_not_image_{}.png", std::process::id()));
+    std::fs::write(&bad, b"not an image").unwrap();
+    let shown = h.state().state.slot(Side::Target).unwrap().display_colors();
+    h.state_mut().open_exemplar_dialog(Some(bad.clone()));
+    h.run_steps(2);
+    h.get_by_label("Run").click();
+    h.step();
+    assert!(h.state().tool.is_some(), "the tool started");
+    let t0 = Instant::now();
+    while h.state().tool.is_some() {
+        h.step();
+        assert!(t0.elapsed() < Duration::from_secs(10));
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.run_steps(2);
+    let errors = &h.state().state.errors;
+    assert_eq!(errors.len(), 1, "{errors:?}");
+    assert!(errors[0].contains("cannot decode image"), "{errors:?}");
+    assert_eq!(
+        h.state().state.slot(Side::Target).unwrap().display_colors(),
+        shown
+    );
+    h.get_by_label("Dismiss").click();
+    h.run_steps(2);
+    assert!(h.state().state.errors.is_empty());
+    std::fs::remove_file(&bad).ok();
+}

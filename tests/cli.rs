@@ -1,5 +1,5 @@
 //! End-to-end tests of the `meshmatch` command line: `info` on every shared mesh, bad inputs,
-//! `convert`, `demo`.
+//! `convert`, `demo`, `synth`.
 
 use meshmatch::testdata::data_path;
 use std::path::{Path, PathBuf};
@@ -142,4 +142,89 @@ fn convert_keeps_counts_across_formats() {
             assert!(v["vertices"].as_u64().unwrap() >= 2930);
         }
     }
+}
+
+/// A small exemplar for `synth`: a shared texture shrunk to 48 x 48, written as PNG; returns its
+/// path and its colour palette.
+fn small_exemplar(d: &Path, name: &str) -> (PathBuf, std::collections::HashSet<[u8; 3]>) {
+    let img = image::open(data_path(&format!("textures/{name}")))
+        .unwrap()
+        .to_rgb8();
+    let img = image::imageops::resize(&img, 48, 48, image::imageops::FilterType::Triangle);
+    let path = d.join("exemplar.png");
+    img.save(&path).unwrap();
+    (path, img.pixels().map(|p| p.0).collect())
+}
+
+#[test]
+fn synth_on_bunny_with_fast_search_uses_the_exemplars_palette() {
+    let d = tmpdir("synth");
+    let (ex, palette) = small_exemplar(&d, "bricks.png");
+    let out_path = d.join("bunny_bricks.ply");
+    let out = bin()
+        .args(["synth", "--search", "fast", "--seed", "1", "--exemplar"])
+        .arg(&ex)
+        .arg("--target")
+        .arg(data_path("bunny/bunny.obj"))
+        .arg("--out")
+        .arg(&out_path)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "synth failed: {err}");
+    assert!(err.contains("fast search"), "{err}");
+    let m = meshmatch::mesh::io::load(&out_path).unwrap();
+    // The uniform-density mesh: the bunny refined, every vertex coloured from the exemplar.
+    assert!(m.num_vertices() > 3301, "{} vertices", m.num_vertices());
+    let cols = m.colors.as_ref().expect("vertex colours");
+    let to_u8 = |c: &[f32; 3]| c.map(|x| (x * 255.0).round() as u8);
+    let hits = cols.iter().filter(|c| palette.contains(&to_u8(c))).count();
+    assert!(
+        hits * 100 >= cols.len() * 99,
+        "{hits} of {} vertices carry an exemplar colour",
+        cols.len()
+    );
+    // and its colour distribution: the exemplar's, not a few of its colours
+    let exc: Vec<[f32; 3]> = palette_colors(&ex);
+    let hx = meshmatch::synthesis::wei_levoy::color_histogram(&exc, 8);
+    let ho = meshmatch::synthesis::wei_levoy::color_histogram(cols, 8);
+    let l1 = meshmatch::synthesis::wei_levoy::histogram_l1(&hx, &ho);
+    assert!(l1 < 0.5, "colour histogram L1 {l1}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+fn palette_colors(path: &Path) -> Vec<[f32; 3]> {
+    let img = image::open(path).unwrap().to_rgb8();
+    meshmatch::synthesis::wei_levoy::image_colors(&img)
+}
+
+#[test]
+fn synth_with_a_missing_image_fails_cleanly_and_defaults_match_the_library() {
+    let d = tmpdir("synth_bad");
+    let missing = d.join("no_such_exemplar.png");
+    expect_clean_failure(
+        &[
+            "synth".as_ref(),
+            "--exemplar".as_ref(),
+            missing.as_os_str(),
+            "--target".as_ref(),
+            data_path("bunny/bunny.obj").as_os_str(),
+            "--out".as_ref(),
+            d.join("out.ply").as_os_str(),
+        ],
+        "no_such_exemplar.png",
+    );
+    assert!(!d.join("out.ply").exists());
+    // The command's documented defaults are the library's.
+    let help = bin().args(["synth", "--help"]).output().unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    let p = meshmatch::synthesis::SynthParams::default();
+    for want in [
+        format!("[default: {}]", p.orientation.as_str()),
+        format!("[default: {}]", p.search.as_str()),
+        format!("[default: {}]", p.levels),
+    ] {
+        assert!(help.contains(&want), "synth --help lacks {want}: {help}");
+    }
+    std::fs::remove_dir_all(&d).ok();
 }

@@ -79,6 +79,8 @@ where
     frame_log_at: Instant,
     /// The running application (completion, update, detail), if any.
     pub tool: Option<tools::ToolJob>,
+    /// The "Paint with exemplar" window and its settings.
+    pub exemplar: tools::ExemplarDialog,
     repaint: Option<egui::Context>,
 }
 
@@ -119,6 +121,7 @@ where
                 .map(|_| std::time::Duration::from_secs(2)),
             frame_log_at: Instant::now(),
             tool: None,
+            exemplar: tools::ExemplarDialog::default(),
             repaint: wake_ctx,
         }
     }
@@ -175,6 +178,48 @@ where
         }
     }
 
+    /// Open the "Paint with exemplar" window, with `image` already chosen when given.
+    pub fn open_exemplar_dialog(&mut self, image: Option<PathBuf>) {
+        self.exemplar.open = true;
+        if image.is_some() {
+            self.exemplar.settings.image = image;
+        }
+    }
+
+    /// Paint with exemplar: synthesize the image's texture on one side's displayed mesh (whole or
+    /// painted region) on its own thread; partial results show in the view; errors are messages.
+    pub fn start_exemplar(&mut self, settings: &tools::ExemplarSettings) {
+        if let Some(t) = &self.tool {
+            self.state.report(format!(
+                "{} is still running: wait for it or cancel it",
+                t.name
+            ));
+            return;
+        }
+        let side = settings.side;
+        let (Some(mesh), Some(coverage)) = (
+            self.state.painted_mesh(side),
+            self.state.paint_coverage(side),
+        ) else {
+            self.state
+                .report(format!("open a {side:?} mesh to paint first"));
+            return;
+        };
+        let ctx = self.repaint.clone();
+        let wake = move || {
+            if let Some(c) = &ctx {
+                c.request_repaint();
+            }
+        };
+        match tools::exemplar_job(settings, mesh, &coverage, wake) {
+            Ok(j) => {
+                self.state.message = format!("{} running...", j.name);
+                self.tool = Some(j);
+            }
+            Err(e) => self.state.report(e),
+        }
+    }
+
     /// Start the texture update: the source (textured, old geometry) onto `new` geometry.
     pub fn start_update(&mut self, new: crate::TriMesh) {
         if self.tool.is_some() {
@@ -200,9 +245,15 @@ where
     /// Apply a finished application's outcome (called every frame).
     pub fn poll_tool(&mut self) {
         let Some(t) = &self.tool else { return };
+        if let Some(side) = t.preview
+            && let Some(p) = t.take_partial()
+        {
+            self.state.show_tool_preview(side, &p);
+        }
         let Some(r) = t.poll() else { return };
         let name = t.name;
         self.tool = None;
+        self.state.end_tool_preview();
         match r {
             Ok(o) => {
                 let replaces = matches!(o, tools::ToolOutcome::Mesh(..));
@@ -477,6 +528,17 @@ where
                     self.start_tool("detail");
                     ui.close();
                 }
+                if ui
+                    .add_enabled(!busy, egui::Button::new("Paint with exemplar..."))
+                    .on_hover_text(
+                        "Synthesize an image's texture over the whole mesh or its painted \
+                         region (Wei & Levoy 2001); the view updates after every pass",
+                    )
+                    .clicked()
+                {
+                    self.open_exemplar_dialog(None);
+                    ui.close();
+                }
             });
             ui.menu_button("Scene", |ui| {
                 let mut pick = None;
@@ -672,6 +734,26 @@ where
         self.show_help = open;
     }
 
+    fn exemplar_window(&mut self, ctx: &egui::Context) {
+        if !self.exemplar.open {
+            return;
+        }
+        let mut open = true;
+        let mut action = tools::ExemplarAction::None;
+        let busy = self.tool.is_some();
+        let (dialog, state) = (&mut self.exemplar, &self.state);
+        egui::Window::new("Paint with exemplar")
+            .open(&mut open)
+            .collapsible(false)
+            .resizable(false)
+            .show(ctx, |ui| action = dialog.ui(ui, state, busy));
+        self.exemplar.open = open && action == tools::ExemplarAction::None;
+        if action == tools::ExemplarAction::Run {
+            let settings = self.exemplar.settings.clone();
+            self.start_exemplar(&settings);
+        }
+    }
+
     fn errors_window(&mut self, ctx: &egui::Context) {
         if self.state.errors.is_empty() {
             return;
@@ -747,6 +829,7 @@ where
             self.views.frame_all();
         }
         self.help_window(&ctx);
+        self.exemplar_window(&ctx);
         self.errors_window(&ctx);
         // Edits made this frame: send them now rather than next frame.
         self.pump(Instant::now());

@@ -196,6 +196,9 @@ pub struct Session<P> {
     pub target_paint: Option<PathBuf>,
 }
 
+/// The paint layer under a tool preview: side, mesh id and the paint itself.
+type PreviewBackup = (Side, u64, Option<Vec<[f32; 4]>>);
+
 /// Everything the app knows, without any window.
 pub struct AppState<P: AppParams> {
     /// Source and target meshes (index 0 = source, 1 = target).
@@ -222,6 +225,8 @@ pub struct AppState<P: AppParams> {
     pub recent: Vec<PathBuf>,
     undo: Vec<Snapshot>,
     redo: Vec<Snapshot>,
+    /// Paint layer kept aside while a tool previews partial results: side, mesh id, paint.
+    preview_backup: Option<PreviewBackup>,
     restart_at: Option<Instant>,
     requests: Vec<Request<P>>,
     next_id: u64,
@@ -258,6 +263,7 @@ impl<P: AppParams> AppState<P> {
             recent: Vec::new(),
             undo: Vec::new(),
             redo: Vec::new(),
+            preview_backup: None,
             restart_at: None,
             requests: Vec::new(),
             next_id: 1,
@@ -499,7 +505,11 @@ impl<P: AppParams> AppState<P> {
         Snapshot {
             corr: self.corr.clone(),
             pending_source: self.pending_source,
-            paint: [0, 1].map(|i| self.meshes[i].as_ref().and_then(|s| s.paint.clone())),
+            // a tool preview is never an undo state: record the paint underneath it
+            paint: [0, 1].map(|i| match &self.preview_backup {
+                Some((side, _, p)) if side_index(*side) == i => p.clone(),
+                _ => self.meshes[i].as_ref().and_then(|s| s.paint.clone()),
+            }),
         }
     }
 
@@ -778,7 +788,8 @@ impl<P: AppParams> AppState<P> {
     pub fn apply_tool_outcome(&mut self, outcome: super::tools::ToolOutcome) {
         use super::tools::ToolOutcome;
         match outcome {
-            ToolOutcome::Colors(side, colors) => {
+            ToolOutcome::Colors(side, colors, message) => {
+                self.end_tool_preview();
                 let Some(n) = self.slot(side).map(|s| s.displayed().num_vertices()) else {
                     return;
                 };
@@ -791,7 +802,7 @@ impl<P: AppParams> AppState<P> {
                     slot.paint = Some(colors.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect());
                     slot.colors_dirty = true;
                 }
-                self.message = format!("{side:?} completed from its paint (Ctrl+Z undoes)");
+                self.message = message;
             }
             ToolOutcome::Mesh(side, mesh, message) => {
                 self.set_mesh(side, mesh, false);
@@ -799,6 +810,46 @@ impl<P: AppParams> AppState<P> {
                 self.restart_at = None;
                 self.message = message;
             }
+        }
+    }
+
+    /// Show a running tool's partial result on one side: `colors` (at least one per displayed
+    /// vertex; the first ones are used) replace the displayed colours until the tool ends. The
+    /// paint layer underneath is kept aside and comes back with [`AppState::end_tool_preview`];
+    /// previews are not undo steps. False when the side is gone or has fewer colours than vertices.
+    pub fn show_tool_preview(&mut self, side: Side, colors: &[[f32; 3]]) -> bool {
+        let Some(slot) = self.meshes[side_index(side)].as_mut() else {
+            return false;
+        };
+        let n = slot.displayed().num_vertices();
+        if colors.len() < n {
+            return false;
+        }
+        if self.preview_backup.is_none() {
+            self.preview_backup = Some((side, slot.id, slot.paint.clone()));
+        }
+        slot.paint = Some(
+            colors[..n]
+                .iter()
+                .map(|c| [c[0], c[1], c[2], 1.0])
+                .collect(),
+        );
+        slot.colors_dirty = true;
+        true
+    }
+
+    /// Take a tool preview down: the side's paint layer returns to what it was before.
+    pub fn end_tool_preview(&mut self) {
+        let Some((side, id, paint)) = self.preview_backup.take() else {
+            return;
+        };
+        if let Some(slot) = self.meshes[side_index(side)].as_mut()
+            && slot.id == id
+        {
+            let n = slot.displayed().num_vertices();
+            // a re-prepared mesh (other vertices) dropped its paint: keep it dropped
+            slot.paint = paint.filter(|p| p.len() == n);
+            slot.colors_dirty = true;
         }
     }
 

@@ -1,7 +1,9 @@
 //! The applications as app actions (MeshMatch §5.3-5.4): completion from the paint layer,
-//! texture update for new geometry and detail transfer, each run on its own thread with
-//! progress and cancel while the window stays responsive.
+//! texture update for new geometry and detail transfer, and texture synthesis from an image
+//! exemplar (Wei & Levoy 2001), each run on its own thread with progress and cancel while the
+//! window stays responsive.
 
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -11,6 +13,7 @@ use crate::applications::{DETAIL_SHAPE_WEIGHT, complete, transfer_detail, update
 use crate::jobs::worker::Side;
 use crate::jobs::{CancelToken, Event};
 use crate::meshmatch::TransferParams;
+use crate::synthesis::{Orientation, Search, SynthParams, synthesize};
 use crate::{Error, Result, TriMesh};
 
 /// Working vertices of the applications started from the app (a responsive default; the CLI
@@ -20,11 +23,18 @@ pub const TOOL_VERTICES: usize = 32_000;
 /// What a finished tool hands back to the app.
 #[derive(Debug)]
 pub enum ToolOutcome {
-    /// New colours for every displayed vertex of one side (applied as a paint layer, undoable).
-    Colors(Side, Vec<[f32; 3]>),
+    /// New colours for every displayed vertex of one side (applied as a paint layer, undoable),
+    /// with the status message to show.
+    Colors(Side, Vec<[f32; 3]>, String),
     /// A new mesh for one side (replaces it).
     Mesh(Side, TriMesh, String),
 }
+
+/// A partial result: colours per vertex of the tool's working mesh.
+pub type Partial = Arc<[[f32; 3]]>;
+
+/// The chosen image's path and its size in pixels, or why its header cannot be read.
+type ImageSize = (PathBuf, std::result::Result<(u32, u32), String>);
 
 /// A running tool.
 pub struct ToolJob {
@@ -36,6 +46,11 @@ pub struct ToolJob {
     pub started: Instant,
     /// Latest progress fraction (0..1).
     pub fraction: Arc<Mutex<f32>>,
+    /// The side whose displayed vertices are the first vertices of every partial result, for
+    /// tools that stream partial results (`None`: partials are not previewed).
+    pub preview: Option<Side>,
+    /// Latest partial result not yet taken by [`ToolJob::take_partial`].
+    partial: Arc<Mutex<Option<Partial>>>,
     rx: Receiver<Result<ToolOutcome>>,
 }
 
@@ -49,17 +64,26 @@ impl ToolJob {
         let (tx, rx) = bounded(1);
         let cancel = CancelToken::new();
         let fraction = Arc::new(Mutex::new(0.0f32));
-        let (c, fr) = (cancel.clone(), fraction.clone());
+        let partial = Arc::new(Mutex::new(None));
+        let (c, fr, pa) = (cancel.clone(), fraction.clone(), partial.clone());
         std::thread::Builder::new()
             .name(format!("meshmatch-{name}"))
             .spawn(move || {
                 let sink = |e: Event| {
-                    if let Event::Progress(p) = e {
-                        if let Ok(mut f) = fr.lock() {
-                            *f = p.fraction;
+                    let p = match e {
+                        Event::Progress(p) => p,
+                        Event::Partial { progress, signal } => {
+                            if let Ok(mut s) = pa.lock() {
+                                *s = Some(signal);
+                            }
+                            progress
                         }
-                        wake();
+                        Event::StageTime(..) => return,
+                    };
+                    if let Ok(mut f) = fr.lock() {
+                        *f = p.fraction;
                     }
+                    wake();
                 };
                 let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(&sink, &c)))
                     .unwrap_or_else(|_| Err(Error::InvalidInput(format!("{name} failed"))));
@@ -72,8 +96,16 @@ impl ToolJob {
             cancel,
             started: Instant::now(),
             fraction,
+            preview: None,
+            partial,
             rx,
         }
+    }
+
+    /// The latest partial result since the last call, if any (colours per vertex of the tool's
+    /// working mesh; its first vertices are the displayed ones of [`ToolJob::preview`]).
+    pub fn take_partial(&self) -> Option<Partial> {
+        self.partial.lock().ok().and_then(|mut p| p.take())
     }
 
     /// The outcome once it has finished.
@@ -116,7 +148,11 @@ pub fn completion_job(
     let n = painted.num_vertices();
     Ok(ToolJob::spawn("completion", wake, move |sink, cancel| {
         let r = complete(&painted, &synth, &params(n), sink, cancel)?;
-        Ok(ToolOutcome::Colors(side, r.colors))
+        Ok(ToolOutcome::Colors(
+            side,
+            r.colors,
+            format!("{side:?} completed from its paint (Ctrl+Z undoes)"),
+        ))
     }))
 }
 
@@ -156,4 +192,328 @@ pub fn detail_job(
             format!("detail transferred onto the target ({n} vertices)"),
         ))
     })
+}
+
+/// Where "Paint with exemplar" puts the texture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Region {
+    /// Every vertex of the mesh.
+    Whole,
+    /// Only the vertices painted with the Paint tool (coverage at least one half); the rest keep
+    /// their displayed colours and constrain the synthesis at the border.
+    Painted,
+}
+
+/// Settings of "Paint with exemplar" (texture synthesis from an image, Wei & Levoy 2001).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExemplarSettings {
+    /// The exemplar image (PNG or JPEG); `None` until chosen.
+    pub image: Option<PathBuf>,
+    /// Which mesh to texture.
+    pub side: Side,
+    /// Whole mesh or only the painted region.
+    pub region: Region,
+    /// Exemplar width on the surface as a fraction of the mesh's bounding-box diagonal.
+    pub scale: f32,
+    /// Texture orientation field.
+    pub orientation: Orientation,
+    /// The exemplar is resized to this width in pixels (never enlarged); with `scale` it sets
+    /// the texel spacing and so the number of synthesized vertices.
+    pub pixels: u32,
+    /// Best-match search strategy.
+    pub search: Search,
+    /// Random seed.
+    pub seed: u64,
+}
+
+impl Default for ExemplarSettings {
+    fn default() -> Self {
+        ExemplarSettings {
+            image: None,
+            side: Side::Target,
+            region: Region::Whole,
+            scale: 0.25,
+            orientation: Orientation::default(),
+            pixels: 64,
+            search: Search::default(),
+            seed: 0,
+        }
+    }
+}
+
+impl ExemplarSettings {
+    /// Synthesized vertex count to expect on `mesh` for an exemplar `width` pixels wide (the
+    /// uniform density `1 / h^2` with texel spacing `h = scale * diagonal / width`).
+    pub fn estimated_vertices(&self, mesh: &TriMesh, width: u32) -> usize {
+        let Some((lo, hi)) = mesh.bounds() else {
+            return 0;
+        };
+        let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) as f64;
+        let h = self.scale as f64 * diag / width.clamp(1, self.pixels.max(1)) as f64;
+        if h > 0.0 {
+            (mesh.area() / (h * h)).max(mesh.num_vertices() as f64) as usize
+        } else {
+            0
+        }
+    }
+}
+
+/// Load an exemplar image and shrink it to at most `pixels` wide (aspect kept).
+pub fn load_exemplar(path: &std::path::Path, pixels: u32) -> Result<image::RgbImage> {
+    let img = crate::mesh::io::load_texture(path)?.image;
+    Ok(crate::synthesis::wei_levoy::shrink_exemplar(img, pixels))
+}
+
+/// Paint with exemplar: synthesize the image's texture over `mesh` (the displayed mesh of
+/// `settings.side` with its displayed colours). `coverage` (paint coverage per displayed vertex)
+/// limits it to the painted region when `settings.region` is [`Region::Painted`]. Partial results
+/// stream after every pass (see [`ToolJob::take_partial`]); the outcome colours every displayed
+/// vertex. The image is read on the tool's thread, so a bad file ends the job with an error.
+pub fn exemplar_job(
+    settings: &ExemplarSettings,
+    mesh: TriMesh,
+    coverage: &[f32],
+    wake: impl Fn() + Send + Sync + 'static,
+) -> Result<ToolJob> {
+    let path = settings.image.clone().ok_or_else(|| {
+        Error::InvalidInput("choose an exemplar image first (PNG or JPEG)".into())
+    })?;
+    if !(settings.scale.is_finite() && settings.scale > 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "scale must be positive, got {}",
+            settings.scale
+        )));
+    }
+    let mask = match settings.region {
+        Region::Whole => None,
+        Region::Painted => {
+            let m: Vec<bool> = coverage.iter().map(|&c| c >= 0.5).collect();
+            if !m.iter().any(|&b| b) {
+                return Err(Error::InvalidInput(
+                    "paint the region to texture first (Paint tool), or choose the whole mesh"
+                        .into(),
+                ));
+            }
+            Some(m)
+        }
+    };
+    let (lo, hi) = mesh
+        .bounds()
+        .ok_or_else(|| Error::InvalidMesh("the mesh is empty".into()))?;
+    let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo));
+    let side = settings.side;
+    let params = SynthParams {
+        scale: Some(settings.scale * diag),
+        orientation: settings.orientation,
+        search: settings.search,
+        seed: settings.seed,
+        ..SynthParams::default()
+    };
+    let pixels = settings.pixels;
+    let n = mesh.num_vertices();
+    let mut job = ToolJob::spawn("paint with exemplar", wake, move |sink, cancel| {
+        let img = load_exemplar(&path, pixels)?;
+        let r = synthesize(&img, &mesh, mask.as_deref(), &params, sink, cancel)?;
+        let colors = r
+            .mesh
+            .colors
+            .as_ref()
+            .map(|c| c[..n].to_vec())
+            .ok_or_else(|| Error::InvalidInput("synthesis gave no colours".into()))?;
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        Ok(ToolOutcome::Colors(
+            side,
+            colors,
+            format!(
+                "{side:?} painted with {name} ({} vertices synthesized in {:.1} s; Ctrl+Z undoes)",
+                r.mesh.num_vertices(),
+                r.timings.total
+            ),
+        ))
+    });
+    job.preview = Some(side);
+    Ok(job)
+}
+
+/// What the user asked for in the "Paint with exemplar" window.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExemplarAction {
+    /// Nothing this frame.
+    None,
+    /// Run with the current settings.
+    Run,
+    /// Close the window.
+    Close,
+}
+
+/// The "Paint with exemplar" window: its settings (kept between runs) and whether it is open.
+#[derive(Clone, Debug, Default)]
+pub struct ExemplarDialog {
+    /// Shown this frame.
+    pub open: bool,
+    /// The settings the next run uses.
+    pub settings: ExemplarSettings,
+    /// Size of the chosen image (read from its header once per path), or why it cannot be read.
+    size_of: Option<ImageSize>,
+}
+
+impl ExemplarDialog {
+    /// Draw the settings with tooltips; returns what the user clicked. `busy`: a tool is running.
+    pub fn ui<P: super::AppParams>(
+        &mut self,
+        ui: &mut eframe::egui::Ui,
+        state: &super::AppState<P>,
+        busy: bool,
+    ) -> ExemplarAction {
+        use eframe::egui;
+        let s = &mut self.settings;
+        let mut action = ExemplarAction::None;
+        ui.horizontal(|ui| {
+            let name = s.image.as_ref().map_or("(no image chosen)".into(), |p| {
+                p.file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into_owned()
+            });
+            ui.label(format!("Image: {name}"));
+            if ui
+                .button("Choose image...")
+                .on_hover_text("A PNG or JPEG swatch: bricks, scales, fur, stripes...")
+                .clicked()
+                && let Some(p) = rfd::FileDialog::new()
+                    .set_title("Choose an exemplar image")
+                    .add_filter("image", &["png", "jpg", "jpeg"])
+                    .pick_file()
+            {
+                s.image = Some(p);
+            }
+        });
+        if let Some(p) = &s.image
+            && self.size_of.as_ref().is_none_or(|(q, _)| q != p)
+        {
+            let size = image::image_dimensions(p).map_err(|e| e.to_string());
+            self.size_of = Some((p.clone(), size));
+        }
+        let mut width = s.pixels;
+        match self
+            .size_of
+            .as_ref()
+            .filter(|(q, _)| Some(q) == s.image.as_ref())
+        {
+            Some((_, Ok((w, h)))) => {
+                width = (*w).min(s.pixels);
+                ui.label(format!("{w} x {h} pixels, used {width} wide"));
+            }
+            Some((_, Err(e))) => {
+                ui.colored_label(egui::Color32::from_rgb(255, 120, 120), e);
+            }
+            None => {}
+        }
+        ui.separator();
+        ui.horizontal(|ui| {
+            ui.label("Mesh:");
+            for side in [Side::Source, Side::Target] {
+                ui.selectable_value(&mut s.side, side, format!("{side:?}"))
+                    .on_hover_text(format!("Texture the {side:?} mesh (left view = source)"));
+            }
+        });
+        let painted = state
+            .paint_coverage(s.side)
+            .map_or(0, |c| c.iter().filter(|&&c| c >= 0.5).count());
+        ui.horizontal(|ui| {
+            ui.label("Apply to:");
+            ui.selectable_value(&mut s.region, Region::Whole, "Whole mesh")
+                .on_hover_text("Replace the colours of every vertex");
+            ui.selectable_value(
+                &mut s.region,
+                Region::Painted,
+                format!("Painted region ({painted} vertices)"),
+            )
+            .on_hover_text(
+                "Only the vertices painted with the Paint tool; the rest keep their colours \
+                 and guide the border",
+            );
+        });
+        ui.add(
+            egui::Slider::new(&mut s.scale, 0.02..=2.0)
+                .logarithmic(true)
+                .text("scale"),
+        )
+        .on_hover_text(
+            "How wide the exemplar appears on the surface, as a fraction of the mesh's \
+             bounding-box diagonal: smaller = more repetitions, finer texture",
+        );
+        ui.add(egui::Slider::new(&mut s.pixels, 32..=256).text("exemplar width (px)"))
+            .on_hover_text(
+                "The image is shrunk to this width before synthesis: more pixels = finer detail, \
+                 but more surface vertices and a slower run (the count grows with its square)",
+            );
+        egui::ComboBox::from_label("orientation")
+            .selected_text(s.orientation.as_str())
+            .show_ui(ui, |ui| {
+                for (o, tip) in [
+                    (
+                        Orientation::Random,
+                        "Random direction per vertex: for isotropic textures (noise, gravel, fur)",
+                    ),
+                    (
+                        Orientation::Up,
+                        "The texture's up follows the mesh's +Y axis: for textures with a \
+                         natural up (grass, drips)",
+                    ),
+                    (
+                        Orientation::Relax2,
+                        "A smooth field with 2-way symmetry: for stripes",
+                    ),
+                    (
+                        Orientation::Relax4,
+                        "A smooth field with 4-way symmetry: for grids (bricks, tiles, weaves)",
+                    ),
+                ] {
+                    ui.selectable_value(&mut s.orientation, o, o.as_str())
+                        .on_hover_text(tip);
+                }
+            })
+            .response
+            .on_hover_text("How the texture is turned at each point of the surface");
+        ui.horizontal(|ui| {
+            ui.label("Search:");
+            ui.selectable_value(&mut s.search, Search::Fast, "fast")
+                .on_hover_text("Coherence candidates + random search: nearly the same quality");
+            ui.selectable_value(&mut s.search, Search::Exhaustive, "exhaustive")
+                .on_hover_text("Every exemplar neighbourhood: the reference, many times slower");
+            ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "))
+                .on_hover_text("Runs with the same seed and settings are identical");
+        });
+        let mesh = state.slot(s.side).map(|m| m.displayed());
+        match mesh {
+            Some(m) => {
+                let n = s.estimated_vertices(m, width);
+                ui.label(format!(
+                    "about {n} surface vertices to synthesize (the view shows {})",
+                    m.num_vertices()
+                ));
+            }
+            None => {
+                ui.label(format!("open a {:?} mesh first", s.side));
+            }
+        }
+        ui.horizontal(|ui| {
+            let ready = s.image.is_some()
+                && mesh.is_some()
+                && !busy
+                && (s.region == Region::Whole || painted > 0);
+            if ui
+                .add_enabled(ready, egui::Button::new("Run"))
+                .on_hover_text("Synthesize on its own thread; the view updates after every pass")
+                .clicked()
+            {
+                action = ExemplarAction::Run;
+            }
+            if ui.button("Close").clicked() {
+                action = ExemplarAction::Close;
+            }
+        });
+        action
+    }
 }

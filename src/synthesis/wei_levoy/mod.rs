@@ -198,6 +198,19 @@ pub struct SynthResult {
     pub timings: SynthTimings,
 }
 
+/// Shrink an exemplar to at most `width` pixels wide, keeping its aspect (Triangle filter); an
+/// image already that narrow, or `width == 0`, is returned unchanged. The exemplar's width in
+/// pixels sets the texel spacing on the surface (`scale / width`), so the synthesized vertex count
+/// grows with its square.
+pub fn shrink_exemplar(img: image::RgbImage, width: u32) -> image::RgbImage {
+    let (w, h) = img.dimensions();
+    if width == 0 || w <= width {
+        return img;
+    }
+    let nh = ((h as f64 * width as f64 / w as f64).round() as u32).max(1);
+    image::imageops::resize(&img, width, nh, image::imageops::FilterType::Triangle)
+}
+
 /// Neighbourhood sizes of level `k` (0 = finest) in an `l`-level pyramid: current `NxN` and parent
 /// size (0 = no parent). Wei & Levoy §4: `{1x1,1}, {3x3,2}, {5x5,2}, {7x7,2}` coarse to fine.
 fn sizes(k: usize, l: usize) -> (usize, usize) {
