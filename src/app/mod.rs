@@ -218,18 +218,21 @@ where
 
     /// Register demo scenes for the Scene menu.
     pub fn with_demo_scenes(mut self, scenes: Vec<SceneEntry>) -> Self {
+        self.state.scenes = scenes.clone();
         self.demo_scenes = scenes;
         self
     }
 
     /// Load a demo scene by its index in the Scene menu.
     pub fn load_demo(&mut self, index: usize) -> Result<()> {
-        let (_, f) = self
+        let (name, _) = self
             .demo_scenes
             .get(index)
             .ok_or_else(|| Error::InvalidInput("no such demo scene".into()))?;
-        let scene = f()?;
-        self.load_scene(scene)
+        let name = name.clone();
+        self.state.load_scene_named(&name)?;
+        self.views.frame_all();
+        Ok(())
     }
 
     /// Show a scene (two meshes + correspondences) and start the transfer.
@@ -392,24 +395,39 @@ where
                     if self.state.recent.is_empty() {
                         ui.label("(none)");
                     }
-                    for p in self.state.recent.clone() {
-                        let name = p.display().to_string();
-                        let is_session = p.extension().is_some_and(|e| e == "json");
-                        if is_session {
-                            if ui.button(format!("Session {name}")).clicked() {
-                                result = self.state.open_session(&p);
+                    let mut opened = false;
+                    for r in self.state.recent.clone() {
+                        let (name, p) = (r.path.display().to_string(), &r.path);
+                        match r.kind {
+                            state::RecentKind::Session => {
+                                if ui.button(format!("Session {name}")).clicked() {
+                                    result = self.state.open_session(p);
+                                    opened = true;
+                                }
                             }
-                        } else {
-                            ui.horizontal(|ui| {
-                                ui.label(&name);
-                                if ui.small_button("as source").clicked() {
-                                    result = self.state.open_mesh(Side::Source, &p);
+                            state::RecentKind::Texture => {
+                                if ui.button(format!("Source texture {name}")).clicked() {
+                                    result = self.state.open_texture(p);
                                 }
-                                if ui.small_button("as target").clicked() {
-                                    result = self.state.open_mesh(Side::Target, &p);
-                                }
-                            });
+                            }
+                            state::RecentKind::Mesh => {
+                                ui.horizontal(|ui| {
+                                    ui.label(&name);
+                                    if ui.small_button("as source").clicked() {
+                                        result = self.state.open_mesh(Side::Source, p);
+                                        opened = true;
+                                    }
+                                    if ui.small_button("as target").clicked() {
+                                        result = self.state.open_mesh(Side::Target, p);
+                                        opened = true;
+                                    }
+                                });
+                            }
                         }
+                    }
+                    if opened {
+                        self.views.frame_all();
+                        ui.close();
                     }
                 });
                 if let Err(e) = result {
@@ -524,7 +542,7 @@ where
                 ui.selectable_value(&mut self.views.tool, Tool::Correspond, "Correspondences")
                     .on_hover_text("Click source then target to add a pair");
                 ui.selectable_value(&mut self.views.tool, Tool::Paint, "Paint")
-                    .on_hover_text("Drag to paint vertex colours; Alt+drag orbits");
+                    .on_hover_text("Click or drag to paint vertex colours; Alt+drag orbits");
             });
             if self.views.tool == Tool::Paint {
                 let b = &mut self.state.brush;
@@ -663,10 +681,11 @@ where
                      - Shift-click on the target: adds another target point to the selected pair.\n\
                      - Click a marker to select it; drag it to move it; Delete removes it.\n\n\
                      Painting (Tool: Paint)\n\
-                     - Left-drag paints with the brush, Alt + left-drag orbits.\n\n\
+                     - Click or left-drag paints with the brush, Alt + left-drag orbits.\n\n\
                      Keys\n\
                      - F frame all - H help - Ctrl+Z undo - Ctrl+Shift+Z redo - Delete remove\n\
-                     - Drop a mesh file on a view to open it there.",
+                     - Drop a file on a view: a mesh opens there, an image becomes its \
+                       texture, a JSON opens as a session (or correspondences).",
                 );
             });
         self.show_help = open;
@@ -741,7 +760,7 @@ where
             .show(ui, |ui| self.views.show(ui, rs, &mut self.state))
             .inner;
         if let Some((side, path)) = dropped {
-            if let Err(e) = self.state.open_mesh(side, &path) {
+            if let Err(e) = self.state.open_any(side, &path) {
                 self.state.report(e);
             }
             self.views.frame_all();
@@ -804,6 +823,9 @@ where
         Box::new(move |cc| {
             let mut app =
                 MeshMatchApp::new(engine, Some(cc.egui_ctx.clone())).with_demo_scenes(demo_scenes);
+            if let Some(store) = state::default_recent_store() {
+                app.state.load_recent(store);
+            }
             app.startup(&startup);
             Ok(Box::new(app))
         }),
