@@ -76,7 +76,9 @@ where
     pub frame_stats: FrameStats,
     demo_scenes: Vec<SceneEntry>,
     frame_log_every: Option<std::time::Duration>,
+    frame_log_each: bool,
     frame_log_at: Instant,
+    last_frame_start: Option<Instant>,
     /// The running application (completion, update, detail), if any.
     pub tool: Option<tools::ToolJob>,
     repaint: Option<egui::Context>,
@@ -117,7 +119,10 @@ where
             // MESHMATCH_FRAME_LOG=1 prints UI frame-time statistics to stderr every 2 s.
             frame_log_every: std::env::var_os("MESHMATCH_FRAME_LOG")
                 .map(|_| std::time::Duration::from_secs(2)),
+            // MESHMATCH_FRAME_LOG=frames also prints every frame's time (for percentiles).
+            frame_log_each: std::env::var_os("MESHMATCH_FRAME_LOG").is_some_and(|v| v == "frames"),
             frame_log_at: Instant::now(),
+            last_frame_start: None,
             tool: None,
             repaint: wake_ctx,
         }
@@ -775,8 +780,20 @@ where
         if self.state.job.running || self.tool.is_some() {
             ctx.request_repaint_after(std::time::Duration::from_millis(100));
         }
-        self.frame_stats
-            .push(clock.elapsed().as_secs_f32() * 1000.0);
+        let frame_ms = clock.elapsed().as_secs_f32() * 1000.0;
+        self.frame_stats.push(frame_ms);
+        if self.frame_log_each {
+            // The interval since the previous frame's start includes egui's tessellation,
+            // the window's paint and present, and any idle wait for the next repaint.
+            let interval = self
+                .last_frame_start
+                .map_or(0.0, |t| clock.duration_since(t).as_secs_f32() * 1000.0);
+            eprintln!(
+                "frame-ms {frame_ms:.3} interval-ms {interval:.3} running {} partials {}",
+                self.state.job.running as u8, self.state.job.partials
+            );
+        }
+        self.last_frame_start = Some(clock);
         if let Some(every) = self.frame_log_every
             && self.frame_log_at.elapsed() >= every
         {
