@@ -325,9 +325,9 @@ pub struct Session<P> {
     pub correspondences: CorrespondenceFile,
     /// Transfer parameters.
     pub params: P,
-    /// Painted source colours (PLY sidecar), if any.
+    /// Painted source colours (PLY sidecar, relative to the session file), if any.
     pub source_paint: Option<PathBuf>,
-    /// Painted target colours (PLY sidecar), if any.
+    /// Painted target colours (PLY sidecar, relative to the session file), if any.
     pub target_paint: Option<PathBuf>,
     /// Paint coverage per sidecar vertex (0-255) of the source; absent = fully painted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -662,6 +662,12 @@ impl<P: AppParams> AppState<P> {
                 working_to_file,
                 file_to_working,
             } => {
+                let i = side_index(side);
+                let history_paint = self
+                    .undo
+                    .iter()
+                    .chain(self.redo.iter())
+                    .any(|s| s.paint[i].is_some());
                 let Some(slot) = self.slot_mut(side) else {
                     return;
                 };
@@ -695,7 +701,11 @@ impl<P: AppParams> AppState<P> {
                 // this side) onto the working mesh by nearest vertex.
                 let old_positions = slot.displayed().positions.clone();
                 let restored = slot.restored_paint.take();
-                let map = nearest_map(&old_positions, &working.positions);
+                let map = if slot.paint.is_some() || history_paint {
+                    nearest_map(&old_positions, &working.positions)
+                } else {
+                    Vec::new()
+                };
                 // Layers of another length belong to an older mesh: left for `restore` to skip.
                 let carry = |layer: &mut Option<Vec<[f32; 4]>>| {
                     if let Some(l) = layer.as_mut()
@@ -723,7 +733,6 @@ impl<P: AppParams> AppState<P> {
                 slot.file_to_working = Some(f2w);
                 slot.geometry_dirty = true;
                 slot.colors_dirty = true;
-                let i = side_index(side);
                 for snap in self.undo.iter_mut().chain(self.redo.iter_mut()) {
                     carry(&mut snap.paint[i]);
                 }
@@ -1162,7 +1171,9 @@ impl<P: AppParams> AppState<P> {
                 .iter()
                 .map(|c| (c[3].clamp(0.0, 1.0) * 255.0).round() as u8)
                 .collect();
-            paint[side_index(side)] = (Some(p), Some(coverage));
+            // Named relative to the session file, so the pair can move together.
+            let name = p.file_name().map_or_else(|| p.clone(), PathBuf::from);
+            paint[side_index(side)] = (Some(name), Some(coverage));
         }
         let [(src_paint, src_cov), (tgt_paint, tgt_cov)] = paint;
         let [(source, source_scene), (target, target_scene)] = names;
