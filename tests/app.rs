@@ -43,6 +43,9 @@ impl AppParams for TestParams {
 #[derive(Clone, Default)]
 struct TestEngine {
     prepared: Arc<std::sync::atomic::AtomicUsize>,
+    /// Number the working mesh's vertices in reverse file order (a working mesh that differs
+    /// from the file mesh, as refinement makes it).
+    reorder: bool,
 }
 
 impl Engine for TestEngine {
@@ -64,8 +67,22 @@ impl Engine for TestEngine {
         Ok(Arc::new(mesh.clone()))
     }
     fn working(&self, p: &Arc<TriMesh>) -> (Arc<TriMesh>, Arc<[u32]>, Arc<[u32]>) {
-        let ids: Arc<[u32]> = (0..p.positions.len() as u32).collect();
-        (p.clone(), ids.clone(), ids)
+        let n = p.positions.len() as u32;
+        if !self.reorder {
+            let ids: Arc<[u32]> = (0..n).collect();
+            return (p.clone(), ids.clone(), ids);
+        }
+        // Working vertex w is file vertex n - 1 - w (the map is its own inverse).
+        let ids: Arc<[u32]> = (0..n).rev().collect();
+        let mut m = TriMesh::new(
+            ids.iter().map(|&f| p.positions[f as usize]).collect(),
+            p.faces.iter().map(|f| f.map(|v| n - 1 - v)).collect(),
+        );
+        m.colors = p
+            .colors
+            .as_ref()
+            .map(|c| ids.iter().map(|&f| c[f as usize]).collect());
+        (Arc::new(m), ids.clone(), ids)
     }
     fn solve(
         &self,
@@ -831,4 +848,382 @@ fn paint_with_exemplar_streams_partials_resembles_the_exemplar_and_undo_restores
     h.run_steps(2);
     assert!(h.state().state.errors.is_empty());
     std::fs::remove_file(&bad).ok();
+}
+
+/// Send pending meshes to the worker and wait until both sides show their working meshes.
+fn wait_prepared(app: &mut App) {
+    let t0 = Instant::now();
+    app.pump(Instant::now());
+    while !app
+        .state
+        .meshes
+        .iter()
+        .all(|m| m.as_ref().is_some_and(|s| s.working.is_some()))
+    {
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "meshes were not prepared"
+        );
+        app.wait_events(Duration::from_millis(50));
+        app.pump(Instant::now());
+    }
+}
+
+fn reordering_app() -> App {
+    App::new(
+        TestEngine {
+            reorder: true,
+            ..Default::default()
+        },
+        None,
+    )
+}
+
+fn temp_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("meshmatch_{name}_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A sphere with (constant) UVs, so that a texture can be applied to it.
+fn uv_sphere(rings: u32, segments: u32) -> TriMesh {
+    let mut m = sphere(rings, segments);
+    m.uvs = Some(vec![[0.25, 0.75]; 3 * m.faces.len()]);
+    m
+}
+
+fn spheres_scene() -> meshmatch::Result<meshmatch::app::DemoScene> {
+    Ok(meshmatch::app::DemoScene {
+        source: uv_sphere(10, 12),
+        target: sphere(12, 14),
+        correspondences: vec![
+            Correspondence {
+                source_vertex: 4,
+                target_vertices: vec![7],
+            },
+            Correspondence {
+                source_vertex: 50,
+                target_vertices: vec![70, 71],
+            },
+        ],
+    })
+}
+
+fn app_with_scene(engine: TestEngine) -> App {
+    App::new(engine, None).with_demo_scenes(vec![(
+        "Two spheres".to_string(),
+        spheres_scene as fn() -> meshmatch::Result<meshmatch::app::DemoScene>,
+    )])
+}
+
+#[test]
+fn opening_a_session_brings_back_the_painted_colours_on_the_working_mesh() {
+    let dir = temp_dir("paint_session");
+    let (src, tgt) = (dir.join("src.ply"), dir.join("tgt.ply"));
+    meshmatch::mesh::io::save(&sphere(10, 12), &src).unwrap();
+    meshmatch::mesh::io::save(&sphere(16, 20), &tgt).unwrap();
+    let mut a = reordering_app();
+    a.state.open_mesh(Side::Source, &src).unwrap();
+    a.state.open_mesh(Side::Target, &tgt).unwrap();
+    wait_prepared(&mut a);
+    a.state.brush.color = [0.0, 1.0, 0.0];
+    a.state.brush.radius = 0.3;
+    a.state.brush.hardness = 0.3;
+    a.state.paint_at(Side::Target, [0.0, 1.0, 0.0], true);
+    a.state.brush.color = [1.0, 1.0, 0.0];
+    a.state.paint_at(Side::Source, [0.0, -1.0, 0.0], true);
+    let want =
+        [Side::Source, Side::Target].map(|s| a.state.slot(s).unwrap().paint.clone().unwrap());
+    let session = dir.join("s.json");
+    a.state.save_session(&session).unwrap();
+
+    let mut b = reordering_app();
+    b.state.open_session(&session).unwrap();
+    // Shown at once on the file meshes (file order: the reverse of the working order)...
+    let tslot = b.state.slot(Side::Target).unwrap();
+    let n = tslot.file.positions.len();
+    let shown = tslot
+        .paint
+        .clone()
+        .expect("target paint restored on opening");
+    for f in 0..n {
+        let w = &want[1][n - 1 - f];
+        for k in 0..4 {
+            assert!(
+                (shown[f][k] - w[k]).abs() <= 1.0 / 255.0,
+                "file vertex {f}: {:?} vs {w:?}",
+                shown[f]
+            );
+        }
+    }
+    // ...and on the working meshes once they are prepared.
+    wait_prepared(&mut b);
+    for (i, side) in [Side::Source, Side::Target].into_iter().enumerate() {
+        let got = b
+            .state
+            .slot(side)
+            .unwrap()
+            .paint
+            .clone()
+            .expect("paint kept");
+        assert_eq!(got.len(), want[i].len());
+        for (g, w) in got.iter().zip(&want[i]) {
+            for k in 0..4 {
+                assert!(
+                    (g[k] - w[k]).abs() <= 1.0 / 255.0,
+                    "{side:?}: {g:?} vs {w:?}"
+                );
+            }
+        }
+        let painted = got.iter().filter(|p| p[3] > 0.99).count();
+        assert!(
+            painted > 0 && painted < got.len(),
+            "{side:?}: {painted} painted"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_session_saved_from_a_built_in_scene_reopens_the_scene_with_its_texture() {
+    let dir = temp_dir("scene_session");
+    let tex = dir.join("tex.png");
+    image::RgbImage::from_pixel(4, 4, image::Rgb([10, 200, 30]))
+        .save(&tex)
+        .unwrap();
+    let mut a = app_with_scene(TestEngine::default());
+    a.startup(&meshmatch::app::Startup::default());
+    a.state.open_texture(&tex).unwrap();
+    let edited = vec![Correspondence {
+        source_vertex: 9,
+        target_vertices: vec![11, 12],
+    }];
+    a.state.set_correspondences(edited.clone()).unwrap();
+    let session = dir.join("scene.json");
+    a.state.save_session(&session).unwrap();
+    let text = std::fs::read_to_string(&session).unwrap();
+    assert!(text.contains("\"source_scene\": \"Two spheres\""), "{text}");
+
+    let mut b = app_with_scene(TestEngine::default());
+    b.state.open_session(&session).unwrap();
+    assert_eq!(b.state.corr, edited);
+    let want = spheres_scene().unwrap();
+    for (side, m) in [(Side::Source, &want.source), (Side::Target, &want.target)] {
+        let slot = b.state.slot(side).unwrap();
+        assert_eq!(slot.file.positions, m.positions);
+        assert_eq!(slot.scene.as_deref(), Some("Two spheres"));
+    }
+    let src = b.state.slot(Side::Source).unwrap();
+    assert!(src.file.texture.is_some(), "texture re-applied");
+    assert_eq!(
+        src.texture_file.as_deref(),
+        Some(std::path::absolute(&tex).unwrap().as_path())
+    );
+    // The reopened session saves the same way again.
+    b.state.save_session(&dir.join("again.json")).unwrap();
+    // A computed mesh (no file, no scene) is refused with a message rather than saved as null.
+    let mut c = App::new(TestEngine::default(), None);
+    c.state.set_mesh(Side::Source, sphere(8, 8), false);
+    assert!(c.state.save_session(&dir.join("bad.json")).is_err());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn paint_survives_preparation_and_undo_never_applies_a_stale_layer() {
+    let mut app = reordering_app();
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.set_mesh(Side::Target, sphere(16, 24), false);
+    app.state.brush.radius = 0.3;
+    app.state.brush.hardness = 1.0;
+    // Two strokes on the file mesh, before the worker prepared it.
+    assert!(app.state.slot(Side::Source).unwrap().working.is_none());
+    app.state.brush.color = [0.0, 1.0, 0.0];
+    app.state.paint_at(Side::Source, [0.0, 1.0, 0.0], true);
+    app.state.brush.color = [1.0, 0.0, 1.0];
+    app.state.paint_at(Side::Source, [0.0, -1.0, 0.0], true);
+    wait_prepared(&mut app);
+    let slot = app.state.slot(Side::Source).unwrap();
+    let n = slot.displayed().num_vertices();
+    // Working vertex 0 is the south pole (file vertex n - 1), the last one the north pole.
+    assert_eq!(slot.displayed().positions[0], [0.0, -1.0, 0.0]);
+    let cols = slot.display_colors();
+    assert_eq!(cols.len(), n);
+    assert_eq!(cols[n - 1], [0.0, 1.0, 0.0], "north stroke kept");
+    assert_eq!(cols[0], [1.0, 0.0, 1.0], "south stroke kept");
+    // Undo takes the second stroke back, on the working mesh.
+    assert!(app.state.undo());
+    let slot = app.state.slot(Side::Source).unwrap();
+    assert_eq!(slot.paint.as_ref().unwrap().len(), n);
+    let cols = slot.display_colors();
+    assert_eq!(cols[n - 1], [0.0, 1.0, 0.0]);
+    assert_eq!(
+        cols[0],
+        [0.0, 0.0, 1.0],
+        "south stroke undone (the sphere's blue)"
+    );
+    assert!(app.state.redo());
+    assert_eq!(
+        app.state.slot(Side::Source).unwrap().display_colors()[0],
+        [1.0, 0.0, 1.0]
+    );
+}
+
+/// A file dropped on the window (the harness has no real file handles).
+#[derive(Debug)]
+struct Dropped(std::path::PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &std::path::Path {
+        &self.0
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}
+
+fn drop_file(h: &mut Harness<'static, App>, path: &std::path::Path) {
+    h.input_mut()
+        .dropped_files
+        .push(Arc::new(Dropped(path.to_path_buf())));
+    h.step();
+    h.step();
+}
+
+#[test]
+fn dropped_files_open_by_kind_even_without_a_pointer_position() {
+    let dir = temp_dir("drop");
+    let mesh = dir.join("big.ply");
+    meshmatch::mesh::io::save(&uv_sphere(20, 30), &mesh).unwrap();
+    let corr = dir.join("corr.json");
+    meshmatch::jobs::CorrespondenceFile {
+        correspondences: vec![Correspondence {
+            source_vertex: 2,
+            target_vertices: vec![3],
+        }],
+    }
+    .save(&corr)
+    .unwrap();
+    let tex = dir.join("t.png");
+    image::RgbImage::from_pixel(2, 2, image::Rgb([200, 0, 0]))
+        .save(&tex)
+        .unwrap();
+    let mut h = harness(app_with_spheres());
+    h.run_steps(2);
+    // No pointer position at all: the mesh goes to the target.
+    assert!(
+        h.state()
+            .state
+            .slot(Side::Target)
+            .unwrap()
+            .file
+            .path
+            .is_none()
+    );
+    drop_file(&mut h, &mesh);
+    let n = uv_sphere(20, 30).positions.len();
+    assert_eq!(
+        h.state()
+            .state
+            .slot(Side::Target)
+            .unwrap()
+            .file
+            .positions
+            .len(),
+        n
+    );
+    // A JSON without parameters is a correspondence file.
+    drop_file(&mut h, &corr);
+    assert_eq!(h.state().state.corr.len(), 1);
+    // After the pointer was over the source and left the window, drops go to the source.
+    let src_centre = h.state().views.rects[0].center();
+    h.hover_at(src_centre);
+    h.step();
+    h.event(egui::Event::PointerGone);
+    h.step();
+    drop_file(&mut h, &mesh);
+    assert_eq!(
+        h.state()
+            .state
+            .slot(Side::Source)
+            .unwrap()
+            .file
+            .positions
+            .len(),
+        n
+    );
+    // An image becomes that side's texture, not a mesh.
+    drop_file(&mut h, &tex);
+    let src = h.state().state.slot(Side::Source).unwrap();
+    assert!(src.file.texture.is_some());
+    assert_eq!(src.file.positions.len(), n);
+    assert!(
+        h.state().state.errors.is_empty(),
+        "{:?}",
+        h.state().state.errors
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn recent_files_persist_across_runs_and_keep_textures_apart_from_meshes() {
+    let dir = temp_dir("recent");
+    let store = dir.join("config").join("recent.json");
+    let mesh = dir.join("m.ply");
+    meshmatch::mesh::io::save(&uv_sphere(8, 10), &mesh).unwrap();
+    let tex = dir.join("t.png");
+    image::RgbImage::from_pixel(2, 2, image::Rgb([0, 0, 200]))
+        .save(&tex)
+        .unwrap();
+    let mut a = App::new(TestEngine::default(), None);
+    a.state.load_recent(store.clone());
+    a.state.open_mesh(Side::Source, &mesh).unwrap();
+    a.state.open_texture(&tex).unwrap();
+    drop(a);
+    // A later run reads the list back.
+    let mut b = App::new(TestEngine::default(), None);
+    b.state.load_recent(store);
+    use meshmatch::app::state::RecentKind;
+    let kinds: Vec<(std::path::PathBuf, RecentKind)> = b
+        .state
+        .recent
+        .iter()
+        .map(|r| (r.path.clone(), r.kind))
+        .collect();
+    assert_eq!(
+        kinds,
+        vec![
+            (std::path::absolute(&tex).unwrap(), RecentKind::Texture),
+            (std::path::absolute(&mesh).unwrap(), RecentKind::Mesh),
+        ]
+    );
+    // The menu offers the texture as a texture, not "as source"/"as target".
+    b.state.set_mesh(Side::Source, uv_sphere(8, 10), false);
+    let mut h = harness(b);
+    h.run_steps(2);
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Recent").hover();
+    h.run_steps(3);
+    assert!(h.query_by_label_contains("Source texture").is_some());
+    assert_eq!(h.query_all_by_label("as source").count(), 1);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_single_click_in_paint_mode_paints_one_dab() {
+    let mut h = harness(app_with_spheres());
+    h.run_steps(3);
+    h.state_mut().views.tool = meshmatch::app::Tool::Paint;
+    h.state_mut().state.brush.color = [0.0, 1.0, 0.0];
+    h.state_mut().state.brush.radius = 0.2;
+    h.run_steps(1);
+    let v = front_vertex(&h, Side::Source, 0);
+    let p = vertex_pos(&h, Side::Source, v);
+    let (undo_before, _) = h.state().state.history_len();
+    click(&mut h, p, egui::Modifiers::NONE);
+    let slot = h.state().state.slot(Side::Source).unwrap();
+    let paint = slot.paint.as_ref().expect("the click painted");
+    assert!(paint[v as usize][3] > 0.5, "{:?}", paint[v as usize]);
+    assert_eq!(h.state().state.history_len().0, undo_before + 1);
+    assert!(h.state().state.corr.is_empty() && h.state().state.pending_source.is_none());
 }

@@ -76,7 +76,9 @@ where
     pub frame_stats: FrameStats,
     demo_scenes: Vec<SceneEntry>,
     frame_log_every: Option<std::time::Duration>,
+    frame_log_each: bool,
     frame_log_at: Instant,
+    last_frame_start: Option<Instant>,
     /// The running application (completion, update, detail), if any.
     pub tool: Option<tools::ToolJob>,
     /// The "Paint with exemplar" window and its settings.
@@ -119,7 +121,10 @@ where
             // MESHMATCH_FRAME_LOG=1 prints UI frame-time statistics to stderr every 2 s.
             frame_log_every: std::env::var_os("MESHMATCH_FRAME_LOG")
                 .map(|_| std::time::Duration::from_secs(2)),
+            // MESHMATCH_FRAME_LOG=frames also prints every frame's time (for percentiles).
+            frame_log_each: std::env::var_os("MESHMATCH_FRAME_LOG").is_some_and(|v| v == "frames"),
             frame_log_at: Instant::now(),
+            last_frame_start: None,
             tool: None,
             exemplar: tools::ExemplarDialog::default(),
             repaint: wake_ctx,
@@ -269,18 +274,21 @@ where
 
     /// Register demo scenes for the Scene menu.
     pub fn with_demo_scenes(mut self, scenes: Vec<SceneEntry>) -> Self {
+        self.state.scenes = scenes.clone();
         self.demo_scenes = scenes;
         self
     }
 
     /// Load a demo scene by its index in the Scene menu.
     pub fn load_demo(&mut self, index: usize) -> Result<()> {
-        let (_, f) = self
+        let (name, _) = self
             .demo_scenes
             .get(index)
             .ok_or_else(|| Error::InvalidInput("no such demo scene".into()))?;
-        let scene = f()?;
-        self.load_scene(scene)
+        let name = name.clone();
+        self.state.load_scene_named(&name)?;
+        self.views.frame_all();
+        Ok(())
     }
 
     /// Show a scene (two meshes + correspondences) and start the transfer.
@@ -443,24 +451,39 @@ where
                     if self.state.recent.is_empty() {
                         ui.label("(none)");
                     }
-                    for p in self.state.recent.clone() {
-                        let name = p.display().to_string();
-                        let is_session = p.extension().is_some_and(|e| e == "json");
-                        if is_session {
-                            if ui.button(format!("Session {name}")).clicked() {
-                                result = self.state.open_session(&p);
+                    let mut opened = false;
+                    for r in self.state.recent.clone() {
+                        let (name, p) = (r.path.display().to_string(), &r.path);
+                        match r.kind {
+                            state::RecentKind::Session => {
+                                if ui.button(format!("Session {name}")).clicked() {
+                                    result = self.state.open_session(p);
+                                    opened = true;
+                                }
                             }
-                        } else {
-                            ui.horizontal(|ui| {
-                                ui.label(&name);
-                                if ui.small_button("as source").clicked() {
-                                    result = self.state.open_mesh(Side::Source, &p);
+                            state::RecentKind::Texture => {
+                                if ui.button(format!("Source texture {name}")).clicked() {
+                                    result = self.state.open_texture(p);
                                 }
-                                if ui.small_button("as target").clicked() {
-                                    result = self.state.open_mesh(Side::Target, &p);
-                                }
-                            });
+                            }
+                            state::RecentKind::Mesh => {
+                                ui.horizontal(|ui| {
+                                    ui.label(&name);
+                                    if ui.small_button("as source").clicked() {
+                                        result = self.state.open_mesh(Side::Source, p);
+                                        opened = true;
+                                    }
+                                    if ui.small_button("as target").clicked() {
+                                        result = self.state.open_mesh(Side::Target, p);
+                                        opened = true;
+                                    }
+                                });
+                            }
                         }
+                    }
+                    if opened {
+                        self.views.frame_all();
+                        ui.close();
                     }
                 });
                 if let Err(e) = result {
@@ -586,7 +609,7 @@ where
                 ui.selectable_value(&mut self.views.tool, Tool::Correspond, "Correspondences")
                     .on_hover_text("Click source then target to add a pair");
                 ui.selectable_value(&mut self.views.tool, Tool::Paint, "Paint")
-                    .on_hover_text("Drag to paint vertex colours; Alt+drag orbits");
+                    .on_hover_text("Click or drag to paint vertex colours; Alt+drag orbits");
             });
             if self.views.tool == Tool::Paint {
                 let b = &mut self.state.brush;
@@ -725,10 +748,11 @@ where
                      - Shift-click on the target: adds another target point to the selected pair.\n\
                      - Click a marker to select it; drag it to move it; Delete removes it.\n\n\
                      Painting (Tool: Paint)\n\
-                     - Left-drag paints with the brush, Alt + left-drag orbits.\n\n\
+                     - Click or left-drag paints with the brush, Alt + left-drag orbits.\n\n\
                      Keys\n\
                      - F frame all - H help - Ctrl+Z undo - Ctrl+Shift+Z redo - Delete remove\n\
-                     - Drop a mesh file on a view to open it there.",
+                     - Drop a file on a view: a mesh opens there, an image becomes its \
+                       texture, a JSON opens as a session (or correspondences).",
                 );
             });
         self.show_help = open;
@@ -823,7 +847,7 @@ where
             .show(ui, |ui| self.views.show(ui, rs, &mut self.state))
             .inner;
         if let Some((side, path)) = dropped {
-            if let Err(e) = self.state.open_mesh(side, &path) {
+            if let Err(e) = self.state.open_any(side, &path) {
                 self.state.report(e);
             }
             self.views.frame_all();
@@ -839,8 +863,20 @@ where
         if self.state.job.running || self.tool.is_some() {
             ctx.request_repaint_after(std::time::Duration::from_millis(100));
         }
-        self.frame_stats
-            .push(clock.elapsed().as_secs_f32() * 1000.0);
+        let frame_ms = clock.elapsed().as_secs_f32() * 1000.0;
+        self.frame_stats.push(frame_ms);
+        if self.frame_log_each {
+            // The interval since the previous frame's start includes egui's tessellation,
+            // the window's paint and present, and any idle wait for the next repaint.
+            let interval = self
+                .last_frame_start
+                .map_or(0.0, |t| clock.duration_since(t).as_secs_f32() * 1000.0);
+            eprintln!(
+                "frame-ms {frame_ms:.3} interval-ms {interval:.3} running {} partials {}",
+                self.state.job.running as u8, self.state.job.partials
+            );
+        }
+        self.last_frame_start = Some(clock);
         if let Some(every) = self.frame_log_every
             && self.frame_log_at.elapsed() >= every
         {
@@ -887,6 +923,9 @@ where
         Box::new(move |cc| {
             let mut app =
                 MeshMatchApp::new(engine, Some(cc.egui_ctx.clone())).with_demo_scenes(demo_scenes);
+            if let Some(store) = state::default_recent_store() {
+                app.state.load_recent(store);
+            }
             app.startup(&startup);
             Ok(Box::new(app))
         }),

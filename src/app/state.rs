@@ -45,6 +45,14 @@ pub struct MeshSlot {
     pub geometry_dirty: bool,
     /// Colours changed since the renderer last uploaded them.
     pub colors_dirty: bool,
+    /// Name of the built-in scene this mesh came from (it has no file), if any.
+    pub scene: Option<String>,
+    /// Texture image applied with File > Open texture (or a dropped image), if any.
+    pub texture_file: Option<PathBuf>,
+    /// Paint restored from a session, kept with the positions it was painted on so that the
+    /// working mesh, once prepared, gets it from the original rather than from the file mesh;
+    /// with it, the layer applied at load (to tell whether strokes were made since).
+    restored_paint: Option<(PaintSample, Vec<[f32; 4]>)>,
 }
 
 impl MeshSlot {
@@ -62,6 +70,9 @@ impl MeshSlot {
             paint: None,
             geometry_dirty: true,
             colors_dirty: true,
+            scene: None,
+            texture_file: None,
+            restored_paint: None,
         }
     }
 
@@ -148,6 +159,130 @@ pub struct JobStatus {
     pub outcome: String,
 }
 
+/// A paint layer with the vertex positions it was painted on.
+#[derive(Clone, Debug)]
+struct PaintSample {
+    positions: Vec<[f32; 3]>,
+    rgba: Vec<[f32; 4]>,
+}
+
+/// For each point of `to`, the index of the nearest point of `from` (identity when both lists
+/// are the same points); empty when `from` is empty.
+pub fn nearest_map(from: &[[f32; 3]], to: &[[f32; 3]]) -> Vec<u32> {
+    if from.is_empty() {
+        return Vec::new();
+    }
+    if from == to {
+        return (0..to.len() as u32).collect();
+    }
+    let grid = PointGrid::new(from);
+    to.iter().map(|&p| grid.nearest(from, p)).collect()
+}
+
+/// Carry a per-vertex paint layer painted on `from` onto the vertices `to` (nearest vertex).
+pub fn remap_paint(from: &[[f32; 3]], paint: &[[f32; 4]], to: &[[f32; 3]]) -> Vec<[f32; 4]> {
+    if paint.len() != from.len() {
+        return vec![[0.0; 4]; to.len()];
+    }
+    let map = nearest_map(from, to);
+    if map.is_empty() {
+        return vec![[0.0; 4]; to.len()];
+    }
+    map.iter().map(|&i| paint[i as usize]).collect()
+}
+
+/// A uniform grid over points for nearest-point queries (about two points per cell).
+struct PointGrid {
+    min: glam::Vec3,
+    cell: f32,
+    dims: [i32; 3],
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl PointGrid {
+    fn new(points: &[[f32; 3]]) -> Self {
+        let mut min = glam::Vec3::splat(f32::INFINITY);
+        let mut max = glam::Vec3::splat(f32::NEG_INFINITY);
+        for p in points {
+            let v = glam::Vec3::from(*p);
+            min = min.min(v);
+            max = max.max(v);
+        }
+        let ext = (max - min).max(glam::Vec3::splat(1e-6));
+        let cells = (points.len() as f32 / 2.0).max(1.0);
+        let cell = ((ext.x * ext.y * ext.z) / cells)
+            .cbrt()
+            .max(ext.max_element() / 256.0);
+        let dims = [0, 1, 2].map(|k| ((ext[k] / cell).floor() as i32 + 1).clamp(1, 1024));
+        let n = (dims[0] * dims[1] * dims[2]) as usize;
+        let mut grid = PointGrid {
+            min,
+            cell,
+            dims,
+            start: vec![0; n + 1],
+            items: vec![0; points.len()],
+        };
+        let ids: Vec<usize> = points.iter().map(|p| grid.index(grid.coord(*p))).collect();
+        for &c in &ids {
+            grid.start[c + 1] += 1;
+        }
+        for c in 0..n {
+            grid.start[c + 1] += grid.start[c];
+        }
+        let mut fill = grid.start.clone();
+        for (i, &c) in ids.iter().enumerate() {
+            grid.items[fill[c] as usize] = i as u32;
+            fill[c] += 1;
+        }
+        grid
+    }
+
+    fn coord(&self, p: [f32; 3]) -> [i32; 3] {
+        [0, 1, 2]
+            .map(|k| (((p[k] - self.min[k]) / self.cell).floor() as i32).clamp(0, self.dims[k] - 1))
+    }
+
+    fn index(&self, c: [i32; 3]) -> usize {
+        ((c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]) as usize
+    }
+
+    /// Index of the point nearest to `p` (rings of cells until no nearer one can exist).
+    fn nearest(&self, points: &[[f32; 3]], p: [f32; 3]) -> u32 {
+        let q = glam::Vec3::from(p);
+        let c = self.coord(p);
+        let mut best = (f32::INFINITY, 0u32);
+        let max_r = self.dims.into_iter().max().unwrap_or(1);
+        for r in 0..=max_r {
+            for z in (c[2] - r).max(0)..=(c[2] + r).min(self.dims[2] - 1) {
+                for y in (c[1] - r).max(0)..=(c[1] + r).min(self.dims[1] - 1) {
+                    for x in (c[0] - r).max(0)..=(c[0] + r).min(self.dims[0] - 1) {
+                        let ring = (x - c[0]).abs().max((y - c[1]).abs()).max((z - c[2]).abs());
+                        if ring != r {
+                            continue;
+                        }
+                        let cell = self.index([x, y, z]);
+                        for &i in
+                            &self.items[self.start[cell] as usize..self.start[cell + 1] as usize]
+                        {
+                            let d = q.distance_squared(glam::Vec3::from(points[i as usize]));
+                            if d < best.0 || (d == best.0 && i < best.1) {
+                                best = (d, i);
+                            }
+                        }
+                    }
+                }
+            }
+            // Points in ring r + 1 are at least r cells away from `p`.
+            let reach = r as f32 * self.cell;
+            if best.0.is_finite() && best.0 <= reach * reach {
+                break;
+            }
+        }
+        best.1
+    }
+}
+
 #[derive(Clone)]
 struct Snapshot {
     corr: Vec<Correspondence>,
@@ -190,10 +325,56 @@ pub struct Session<P> {
     pub correspondences: CorrespondenceFile,
     /// Transfer parameters.
     pub params: P,
-    /// Painted source colours (PLY sidecar), if any.
+    /// Painted source colours (PLY sidecar, relative to the session file), if any.
     pub source_paint: Option<PathBuf>,
-    /// Painted target colours (PLY sidecar), if any.
+    /// Painted target colours (PLY sidecar, relative to the session file), if any.
     pub target_paint: Option<PathBuf>,
+    /// Paint coverage per sidecar vertex (0-255) of the source; absent = fully painted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_paint_coverage: Option<Vec<u8>>,
+    /// Paint coverage per sidecar vertex (0-255) of the target; absent = fully painted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_paint_coverage: Option<Vec<u8>>,
+    /// Built-in scene the source mesh comes from when it has no file (e.g. "Zebra -> giraffe").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_scene: Option<String>,
+    /// Built-in scene the target mesh comes from when it has no file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_scene: Option<String>,
+    /// Texture image opened for the source (File > Open texture), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_texture: Option<PathBuf>,
+}
+
+/// What a recently opened file was opened as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum RecentKind {
+    /// A mesh (offered as source or target).
+    Mesh,
+    /// A texture image for the source.
+    Texture,
+    /// A session JSON.
+    Session,
+}
+
+/// One entry of the Recent menu.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct RecentFile {
+    /// The file.
+    pub path: PathBuf,
+    /// What it was opened as.
+    pub kind: RecentKind,
+}
+
+/// Where the Recent list is kept between runs: `$XDG_CONFIG_HOME/meshmatch/recent.json`
+/// (or `~/.config/...`; `%APPDATA%\meshmatch\recent.json` on Windows).
+pub fn default_recent_store() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_CONFIG_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("APPDATA").map(PathBuf::from))
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")))?;
+    Some(base.join("meshmatch").join("recent.json"))
 }
 
 /// The paint layer under a tool preview: side, mesh id and the paint itself.
@@ -222,7 +403,11 @@ pub struct AppState<P: AppParams> {
     /// Brush settings.
     pub brush: Brush,
     /// Recently opened files, newest first.
-    pub recent: Vec<PathBuf>,
+    pub recent: Vec<RecentFile>,
+    /// File the Recent list is saved to after every change (`None`: not persisted).
+    pub recent_store: Option<PathBuf>,
+    /// Built-in scenes by name, so sessions saved from them can be reopened.
+    pub scenes: Vec<super::SceneEntry>,
     undo: Vec<Snapshot>,
     redo: Vec<Snapshot>,
     /// Paint layer kept aside while a tool previews partial results: side, mesh id, paint.
@@ -261,6 +446,8 @@ impl<P: AppParams> AppState<P> {
             message: String::new(),
             brush: Brush::default(),
             recent: Vec::new(),
+            recent_store: None,
+            scenes: Vec::new(),
             undo: Vec::new(),
             redo: Vec::new(),
             preview_backup: None,
@@ -309,33 +496,106 @@ impl<P: AppParams> AppState<P> {
         let mesh = crate::mesh::io::load(path)?;
         mesh_usable(&mesh)?;
         self.set_mesh(side, mesh, false);
-        self.push_recent(path);
+        self.push_recent(path, RecentKind::Mesh);
         Ok(())
     }
 
     /// Apply a texture image to the source mesh (it must have UVs).
     pub fn open_texture(&mut self, path: &Path) -> Result<()> {
-        let tex = crate::mesh::io::load_texture(path)?;
-        let slot = self
-            .slot(Side::Source)
-            .ok_or_else(|| Error::InvalidInput("open a source mesh before its texture".into()))?;
-        let mut mesh = (*slot.file).clone();
-        if mesh.uvs.is_none() {
-            return Err(Error::InvalidInput(
-                "the source mesh has no UV coordinates to map a texture".into(),
-            ));
+        self.open_texture_for(Side::Source, path)
+    }
+
+    /// Apply a texture image to one side's mesh (it must have UVs); correspondences are kept.
+    pub fn open_texture_for(&mut self, side: Side, path: &Path) -> Result<()> {
+        let slot = self.slot(side).ok_or_else(|| {
+            Error::InvalidInput(format!("open a {side:?} mesh before its texture"))
+        })?;
+        let scene = slot.scene.clone();
+        let mesh = with_texture(&slot.file, path)?;
+        self.set_mesh(side, mesh, true);
+        if let Some(slot) = self.slot_mut(side) {
+            slot.scene = scene;
+            slot.texture_file = Some(path.to_path_buf());
         }
-        mesh.texture = Some(Arc::new(tex));
-        mesh.colors = None;
-        self.set_mesh(Side::Source, mesh, true);
-        self.push_recent(path);
+        self.push_recent(path, RecentKind::Texture);
         Ok(())
     }
 
-    fn push_recent(&mut self, path: &Path) {
-        self.recent.retain(|p| p != path);
-        self.recent.insert(0, path.to_path_buf());
+    /// Open a file by its kind: an image becomes `side`'s texture, a JSON a session (or a
+    /// correspondence file when it has no parameters), anything else a mesh on `side`.
+    pub fn open_any(&mut self, side: Side, path: &Path) -> Result<()> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "png" | "jpg" | "jpeg" => self.open_texture_for(side, path),
+            "json" => {
+                let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+                let v: serde_json::Value = serde_json::from_str(&text)
+                    .map_err(|e| Error::format(path, format!("invalid JSON: {e}")))?;
+                if v.get("params").is_some() {
+                    self.open_session(path)
+                } else {
+                    let f = crate::jobs::CorrespondenceFile::load(path)?;
+                    self.set_correspondences(f.correspondences)
+                }
+            }
+            _ => self.open_mesh(side, path),
+        }
+    }
+
+    /// Read the Recent list from `store` (missing or unreadable: empty) and keep it saved there.
+    pub fn load_recent(&mut self, store: PathBuf) {
+        self.recent = std::fs::read(&store)
+            .ok()
+            .and_then(|b| serde_json::from_slice::<Vec<RecentFile>>(&b).ok())
+            .unwrap_or_default();
         self.recent.truncate(10);
+        self.recent_store = Some(store);
+    }
+
+    fn push_recent(&mut self, path: &Path, kind: RecentKind) {
+        let path = abs(path);
+        self.recent.retain(|r| r.path != path);
+        self.recent.insert(0, RecentFile { path, kind });
+        self.recent.truncate(10);
+        if let Some(store) = &self.recent_store {
+            let r = store
+                .parent()
+                .map_or(Ok(()), std::fs::create_dir_all)
+                .map_err(|e| Error::io(store, e))
+                .and_then(|_| {
+                    let text = serde_json::to_vec_pretty(&self.recent).unwrap_or_default();
+                    crate::mesh::io::write_atomic(store, &text)
+                });
+            if let Err(e) = r {
+                self.message = format!("recent files not saved: {e}");
+            }
+        }
+    }
+
+    /// Build a built-in scene by name.
+    fn build_scene(&self, name: &str) -> Result<super::DemoScene> {
+        let (_, f) = self
+            .scenes
+            .iter()
+            .find(|(n, _)| n == name)
+            .ok_or_else(|| Error::InvalidInput(format!("no built-in scene named {name:?}")))?;
+        f()
+    }
+
+    /// Show a built-in scene (both meshes and its correspondences) and start the transfer.
+    pub fn load_scene_named(&mut self, name: &str) -> Result<()> {
+        let scene = self.build_scene(name)?;
+        self.set_mesh(Side::Source, scene.source, false);
+        self.set_mesh(Side::Target, scene.target, false);
+        for side in [Side::Source, Side::Target] {
+            if let Some(slot) = self.slot_mut(side) {
+                slot.scene = Some(name.to_string());
+            }
+        }
+        self.set_correspondences(scene.correspondences)
     }
 
     /// Take the requests for the worker accumulated since the last call.
@@ -408,6 +668,12 @@ impl<P: AppParams> AppState<P> {
                 working_to_file,
                 file_to_working,
             } => {
+                let i = side_index(side);
+                let history_paint = self
+                    .undo
+                    .iter()
+                    .chain(self.redo.iter())
+                    .any(|s| s.paint[i].is_some());
                 let Some(slot) = self.slot_mut(side) else {
                     return;
                 };
@@ -437,7 +703,35 @@ impl<P: AppParams> AppState<P> {
                         vec![crate::render::gpu::DEFAULT_VERTEX_COLOR; working.positions.len()]
                     }
                 };
-                slot.paint = None;
+                // Paint lives on the displayed mesh: carry it (and the undo history's layers of
+                // this side) onto the working mesh by nearest vertex.
+                let old_positions = slot.displayed().positions.clone();
+                let restored = slot.restored_paint.take();
+                let map = if slot.paint.is_some() || history_paint {
+                    nearest_map(&old_positions, &working.positions)
+                } else {
+                    Vec::new()
+                };
+                // Layers of another length belong to an older mesh: left for `restore` to skip.
+                let carry = |layer: &mut Option<Vec<[f32; 4]>>| {
+                    if let Some(l) = layer.as_mut()
+                        && l.len() == old_positions.len()
+                        && !map.is_empty()
+                    {
+                        *l = map.iter().map(|&i| l[i as usize]).collect();
+                    }
+                };
+                slot.paint = match restored {
+                    // Untouched since the session was opened: take it from the saved positions.
+                    Some((sample, applied)) if slot.paint.as_ref() == Some(&applied) => Some(
+                        remap_paint(&sample.positions, &sample.rgba, &working.positions),
+                    ),
+                    _ => {
+                        let mut p = slot.paint.take();
+                        carry(&mut p);
+                        p.filter(|l| l.len() == working.positions.len())
+                    }
+                };
                 slot.normals =
                     crate::render::gpu::vertex_normals(&working.positions, &working.faces);
                 slot.working = Some(working);
@@ -445,6 +739,9 @@ impl<P: AppParams> AppState<P> {
                 slot.file_to_working = Some(f2w);
                 slot.geometry_dirty = true;
                 slot.colors_dirty = true;
+                for snap in self.undo.iter_mut().chain(self.redo.iter_mut()) {
+                    carry(&mut snap.paint[i]);
+                }
             }
             WorkerEvent::Job { job, event } => {
                 if job != self.job.job {
@@ -529,6 +826,8 @@ impl<P: AppParams> AppState<P> {
         for (i, p) in s.paint.into_iter().enumerate() {
             if let Some(slot) = self.meshes[i].as_mut()
                 && slot.paint != p
+                // Never apply a layer painted on another version of the mesh.
+                && p.as_ref().is_none_or(|l| l.len() == slot.displayed().num_vertices())
             {
                 slot.paint = p;
                 slot.colors_dirty = true;
@@ -885,57 +1184,208 @@ impl<P: AppParams> AppState<P> {
         crate::mesh::io::save(&m, path)
     }
 
-    /// Save the session as JSON at `path` (paint layers as PLY sidecars beside it).
+    /// Save the session as JSON at `path`. Meshes are named by file, or by built-in scene when
+    /// they have none; each paint layer goes to a PLY sidecar beside it (the displayed mesh with
+    /// the paint's colours) with its coverage in the JSON.
     pub fn save_session(&self, path: &Path) -> Result<()> {
-        let sidecar = |side: Side, suffix: &str| -> Result<Option<PathBuf>> {
-            match self.slot(side) {
-                Some(s) if s.paint.is_some() => {
-                    let p = path.with_extension(format!("{suffix}.ply"));
-                    let m = self.painted_mesh(side).expect("slot exists");
-                    crate::mesh::io::save(&m, &p)?;
-                    Ok(Some(p))
+        let mut names: [(Option<PathBuf>, Option<String>); 2] = [(None, None), (None, None)];
+        for side in [Side::Source, Side::Target] {
+            if let Some(slot) = self.slot(side) {
+                let file = slot.file.path.as_ref().map(|p| abs(p));
+                let name = (file, slot.scene.clone());
+                if name.0.is_none() && name.1.is_none() {
+                    return Err(Error::InvalidInput(format!(
+                        "the {side:?} mesh has no file (it was computed): export it and open \
+                         the file before saving the session"
+                    )));
                 }
-                _ => Ok(None),
+                names[side_index(side)] = name;
             }
-        };
+        }
+        let mut paint: [(Option<PathBuf>, Option<Vec<u8>>); 2] = [(None, None), (None, None)];
+        for (side, suffix) in [
+            (Side::Source, "source_paint"),
+            (Side::Target, "target_paint"),
+        ] {
+            let Some(slot) = self.slot(side) else {
+                continue;
+            };
+            let Some(layer) = &slot.paint else { continue };
+            let p = path.with_extension(format!("{suffix}.ply"));
+            let mut m = slot.displayed().clone();
+            m.colors = Some(layer.iter().map(|c| [c[0], c[1], c[2]]).collect());
+            m.texture = None;
+            m.uvs = None;
+            m.normals = None;
+            crate::mesh::io::save(&m, &p)?;
+            let coverage = layer
+                .iter()
+                .map(|c| (c[3].clamp(0.0, 1.0) * 255.0).round() as u8)
+                .collect();
+            // Named relative to the session file, so the pair can move together.
+            let name = p.file_name().map_or_else(|| p.clone(), PathBuf::from);
+            paint[side_index(side)] = (Some(name), Some(coverage));
+        }
+        let [(src_paint, src_cov), (tgt_paint, tgt_cov)] = paint;
+        let [(source, source_scene), (target, target_scene)] = names;
         let session = Session {
-            source: self.slot(Side::Source).and_then(|s| s.file.path.clone()),
-            target: self.slot(Side::Target).and_then(|s| s.file.path.clone()),
+            source,
+            target,
             correspondences: CorrespondenceFile {
                 correspondences: self.corr.clone(),
             },
             params: self.params.clone(),
-            source_paint: sidecar(Side::Source, "source_paint")?,
-            target_paint: sidecar(Side::Target, "target_paint")?,
+            source_paint: src_paint,
+            target_paint: tgt_paint,
+            source_paint_coverage: src_cov,
+            target_paint_coverage: tgt_cov,
+            source_scene,
+            target_scene,
+            source_texture: self
+                .slot(Side::Source)
+                .and_then(|s| s.texture_file.as_ref().map(|p| abs(p))),
         };
         let text = serde_json::to_string_pretty(&session)
             .map_err(|e| Error::InvalidInput(format!("cannot serialise session: {e}")))?;
         crate::mesh::io::write_atomic(path, text.as_bytes())
     }
 
-    /// Open a session JSON: loads both meshes, correspondences and parameters.
+    /// Open a session JSON: both meshes (files or built-in scenes), the source texture,
+    /// correspondences, parameters and paint. Nothing changes when any part fails to load.
     pub fn open_session(&mut self, path: &Path) -> Result<()> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let s: Session<P> = serde_json::from_str(&text)
             .map_err(|e| Error::format(path, format!("invalid session JSON: {e}")))?;
-        let (Some(src), Some(tgt)) = (&s.source, &s.target) else {
-            return Err(Error::format(
-                path,
-                "session does not name both mesh files (demo scenes cannot be saved as paths)",
+        // Relative paths in the session are relative to the session file.
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let resolve = |p: &PathBuf| dir.join(p);
+        let mut built: Vec<(String, super::DemoScene)> = Vec::new();
+        let mut meshes = Vec::new();
+        for (side, file, scene) in [
+            (Side::Source, &s.source, &s.source_scene),
+            (Side::Target, &s.target, &s.target_scene),
+        ] {
+            let mesh = match (file, scene) {
+                (Some(f), _) => crate::mesh::io::load(&resolve(f))?,
+                (None, Some(name)) => {
+                    if !built.iter().any(|(n, _)| n == name) {
+                        let sc = self.build_scene(name)?;
+                        built.push((name.clone(), sc));
+                    }
+                    let sc = &built
+                        .iter()
+                        .find(|(n, _)| n == name)
+                        .expect("built above")
+                        .1;
+                    match side {
+                        Side::Source => sc.source.clone(),
+                        Side::Target => sc.target.clone(),
+                    }
+                }
+                (None, None) => {
+                    return Err(Error::format(
+                        path,
+                        format!("session names no {side:?} mesh (neither a file nor a scene)"),
+                    ));
+                }
+            };
+            mesh_usable(&mesh)?;
+            meshes.push((
+                side,
+                mesh,
+                if file.is_none() { scene.clone() } else { None },
             ));
-        };
-        let src_mesh = crate::mesh::io::load(src)?;
-        let tgt_mesh = crate::mesh::io::load(tgt)?;
-        mesh_usable(&src_mesh)?;
-        mesh_usable(&tgt_mesh)?;
-        self.set_mesh(Side::Source, src_mesh, false);
-        self.set_mesh(Side::Target, tgt_mesh, false);
+        }
+        let texture = s.source_texture.as_ref().map(resolve);
+        if let Some(t) = &texture {
+            meshes[0].1 = with_texture(&meshes[0].1, t)?;
+        }
+        let mut samples = [None, None];
+        for (i, (sidecar, coverage)) in [
+            (&s.source_paint, &s.source_paint_coverage),
+            (&s.target_paint, &s.target_paint_coverage),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let Some(sidecar) = sidecar else { continue };
+            let m = crate::mesh::io::load(&resolve(sidecar))?;
+            let colors = m.colors.clone().ok_or_else(|| {
+                Error::format(resolve(sidecar), "paint sidecar has no vertex colours")
+            })?;
+            if coverage.as_ref().is_some_and(|c| c.len() != colors.len()) {
+                return Err(Error::format(
+                    path,
+                    "paint coverage does not match its sidecar's vertex count",
+                ));
+            }
+            let rgba = colors
+                .iter()
+                .enumerate()
+                .map(|(v, c)| {
+                    let a = coverage.as_ref().map_or(1.0, |cov| cov[v] as f32 / 255.0);
+                    [c[0], c[1], c[2], a]
+                })
+                .collect();
+            samples[i] = Some(PaintSample {
+                positions: m.positions,
+                rgba,
+            });
+        }
+        let counts = [meshes[0].1.positions.len(), meshes[1].1.positions.len()];
+        for c in &s.correspondences.correspondences {
+            let bad_t = c.target_vertices.iter().any(|&t| t as usize >= counts[1]);
+            if c.source_vertex as usize >= counts[0] || bad_t {
+                return Err(Error::format(
+                    path,
+                    "a correspondence is out of range for the session's meshes",
+                ));
+            }
+        }
+        // Everything loaded: replace the state.
+        for (side, mesh, scene) in meshes {
+            self.set_mesh(side, mesh, false);
+            if let Some(slot) = self.slot_mut(side) {
+                slot.scene = scene;
+                if side == Side::Source {
+                    slot.texture_file = texture.clone();
+                }
+            }
+        }
+        for (i, sample) in samples.into_iter().enumerate() {
+            if let (Some(sample), Some(slot)) = (sample, self.meshes[i].as_mut()) {
+                let applied =
+                    remap_paint(&sample.positions, &sample.rgba, &slot.displayed().positions);
+                slot.paint = Some(applied.clone());
+                slot.restored_paint = Some((sample, applied));
+                slot.colors_dirty = true;
+            }
+        }
         self.params = s.params;
         self.set_correspondences(s.correspondences.correspondences)?;
         self.undo.clear();
-        self.push_recent(path);
+        self.push_recent(path, RecentKind::Session);
         Ok(())
     }
+}
+
+/// `p` as an absolute path (unchanged if that fails).
+fn abs(p: &Path) -> PathBuf {
+    std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf())
+}
+
+/// `mesh` with a texture image from `path` (it must have UVs); its vertex colours are dropped.
+fn with_texture(mesh: &TriMesh, path: &Path) -> Result<TriMesh> {
+    if mesh.uvs.is_none() {
+        return Err(Error::InvalidInput(
+            "the mesh has no UV coordinates to map a texture".into(),
+        ));
+    }
+    let tex = crate::mesh::io::load_texture(path)?;
+    let mut mesh = mesh.clone();
+    mesh.texture = Some(Arc::new(tex));
+    mesh.colors = None;
+    Ok(mesh)
 }
 
 /// Reject meshes that cannot be displayed or transferred.

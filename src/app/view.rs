@@ -46,6 +46,8 @@ pub struct Views {
     pub last_draw_ms: [f32; 2],
     /// Screen rectangles of the two views in the last frame (points).
     pub rects: [Rect; 2],
+    /// The view the pointer was last over (where a drop with no pointer position goes).
+    pub last_hovered: Option<Side>,
 }
 
 impl Default for Views {
@@ -61,6 +63,7 @@ impl Default for Views {
             painting: false,
             last_draw_ms: [0.0; 2],
             rects: [Rect::NOTHING; 2],
+            last_hovered: None,
         }
     }
 }
@@ -246,15 +249,27 @@ impl Views {
             {
                 self.draw_brush_cursor(&painter, rect, p, side, state);
             }
-            // Drag-and-drop of files onto this view.
             if let Some(pos) = ui.ctx().input(|inp| inp.pointer.hover_pos())
                 && rect.contains(pos)
             {
-                let files = ui.ctx().input(|inp| inp.raw.dropped_files.clone());
-                if let Some(path) = files.into_iter().next().map(|f| f.path().to_path_buf()) {
-                    dropped = Some((side, path));
-                }
+                self.last_hovered = Some(side);
             }
+        }
+        // Drag-and-drop of files: onto the view under the pointer; when the pointer position is
+        // unknown (some platforms report none during a drop), the view last hovered, else the
+        // target.
+        let files = ui.ctx().input(|inp| inp.raw.dropped_files.clone());
+        if let Some(path) = files.into_iter().next().map(|f| f.path().to_path_buf()) {
+            let side = ui
+                .ctx()
+                .input(|inp| inp.pointer.hover_pos())
+                .and_then(|pos| {
+                    let i = rects.iter().position(|r| r.contains(pos))?;
+                    Some(if i == 0 { Side::Source } else { Side::Target })
+                })
+                .or(self.last_hovered)
+                .unwrap_or(Side::Target);
+            dropped = Some((side, path));
         }
         ui.allocate_rect(full, Sense::hover());
         dropped
@@ -441,6 +456,16 @@ impl Views {
         if resp.drag_stopped() {
             self.dragging_marker = None;
             self.painting = false;
+        }
+        // Click in Paint mode: one dab (its own undo step).
+        if resp.clicked()
+            && self.tool == Tool::Paint
+            && !mods.alt
+            && !mods.shift
+            && let Some(pos) = resp.interact_pointer_pos()
+            && let Some(hit) = self.pick_at(state, side, rect, pos)
+        {
+            state.paint_at(side, hit.point.to_array(), true);
         }
         // Click: select a marker, or pick a vertex.
         if resp.clicked()
