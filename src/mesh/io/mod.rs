@@ -47,9 +47,12 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
-/// Largest file read by the loaders (a mesh, an external glTF buffer or image, an MTL file, a
-/// texture), and largest total of external glTF buffers of one file: 2 GiB.
+/// Largest file a loader reads beside a mesh (an external glTF buffer or image, an MTL file, a
+/// texture), and largest total of the external glTF buffers of one file: 2 GiB.
 pub const MAX_FILE_BYTES: u64 = 2 << 30;
+
+/// Largest mesh file read: 4 GiB (a text OBJ within the vertex budget can pass 2 GiB).
+pub const MAX_MESH_FILE_BYTES: u64 = 4 << 30;
 
 /// Read a file the loaders refer to (`what` names it in messages: "mesh", "texture", ...):
 /// it must be a regular file (not a directory, device or pipe such as `/dev/zero` or
@@ -266,7 +269,7 @@ pub fn load_with_warnings(path: &Path) -> Result<(TriMesh, Vec<String>)> {
     let fmt = MeshFormat::from_path(path)
         .ok_or_else(|| Error::UnsupportedFormat { path: path.into() })?;
     let bytes =
-        read_regular_file(path, MAX_FILE_BYTES, "the file").map_err(|e| Error::io(path, e))?;
+        read_regular_file(path, MAX_MESH_FILE_BYTES, "the file").map_err(|e| Error::io(path, e))?;
     let (res, warnings) = load_format_bytes(&bytes, fmt, path);
     res.map(|m| (m, warnings))
 }
