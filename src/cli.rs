@@ -4,6 +4,7 @@ use crate::jobs::{CancelToken, CorrespondenceFile, Event};
 use crate::mesh::{TriMesh, io};
 use crate::{Error, Result};
 use clap::{Parser, Subcommand};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Example-based texturing of 3D meshes.
@@ -373,22 +374,43 @@ pub fn main() -> i32 {
             .map(|s| s.to_string())
             .or_else(|| info.payload().downcast_ref::<String>().cloned())
             .unwrap_or_else(|| "unknown".into());
+        if is_broken_pipe(&msg) {
+            // stdout was closed by the reader (`| head`): not an error, nothing to say.
+            return;
+        }
         let at = info
             .location()
             .map(|l| format!(" at {}:{}", l.file(), l.line()))
             .unwrap_or_default();
-        eprintln!("meshmatch: internal error: {msg}{at}");
+        // Never panic inside the hook (eprintln! would, if stderr is gone too).
+        let _ = writeln!(
+            std::io::stderr().lock(),
+            "meshmatch: internal error: {msg}{at}"
+        );
     }));
     let cli = Cli::parse();
     let res = std::panic::catch_unwind(|| run(cli));
     match res {
         Ok(Ok(code)) => code,
         Ok(Err(e)) => {
-            eprintln!("meshmatch: {e}");
+            let _ = writeln!(std::io::stderr().lock(), "meshmatch: {e}");
             2
         }
-        Err(_) => 2,
+        Err(payload) => {
+            let msg = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            if is_broken_pipe(&msg) { 0 } else { 2 }
+        }
     }
+}
+
+/// True for the panic of `print!`/`println!` when stdout is a closed pipe: the reader (e.g.
+/// `head`) has all it wants, so the program stops quietly with status 0, as Unix tools do.
+fn is_broken_pipe(panic_msg: &str) -> bool {
+    panic_msg.starts_with("failed printing to stdout") && panic_msg.contains("Broken pipe")
 }
 
 fn run(cli: Cli) -> Result<i32> {
@@ -396,9 +418,12 @@ fn run(cli: Cli) -> Result<i32> {
         None => open_app(),
         Some(Command::Info { files, json }) => Ok(info(&files, json)),
         Some(Command::Convert { input, output }) => {
-            let mesh = io::load(&input)?;
+            // The mesh is written as loaded, not repaired: the output keeps the input file's
+            // vertices, their order and its faces (degenerate and duplicate ones included).
+            let (mesh, warnings) = io::load_with_warnings(&input)?;
             mesh.check_usable()?;
             io::save(&mesh, &output)?;
+            io::print_warnings(&warnings);
             eprintln!("wrote {}", output.display());
             Ok(0)
         }
@@ -467,14 +492,24 @@ fn open_app() -> Result<i32> {
     Ok(2)
 }
 
-/// The `info` report of one file as a JSON object.
+/// The `info` report of one file as a JSON object (loader warnings printed on stderr).
 pub fn info_json(path: &Path) -> Result<serde_json::Value> {
-    let mesh = io::load(path)?;
+    let (v, warnings) = info_report(path)?;
+    io::print_warnings(&warnings);
+    Ok(v)
+}
+
+/// The `info` report of one file and the loader's warnings (printed by the caller only on
+/// success, so a refused file gives exactly one line on stderr).
+fn info_report(path: &Path) -> Result<(serde_json::Value, Vec<String>)> {
+    let (mesh, warnings) = io::load_with_warnings(path)?;
+    // The budget and the other refusals first: `validate` allocates per vertex and face.
+    mesh.check_usable()?;
     let report = mesh.validate();
     let mut repaired = mesh.clone();
     let repairs = repaired.repair()?;
     let (lo, hi) = mesh.bounds().unwrap_or(([0.0; 3], [0.0; 3]));
-    Ok(serde_json::json!({
+    let v = serde_json::json!({
         "path": path.display().to_string(),
         "vertices": mesh.file_vertex_count,
         "faces": mesh.num_faces(),
@@ -494,22 +529,36 @@ pub fn info_json(path: &Path) -> Result<serde_json::Value> {
         "non_finite_vertices": report.non_finite_vertices,
         "repairs": repairs,
         "repairs_summary": repairs.summary(),
-    }))
+    });
+    Ok((v, warnings))
 }
 
+/// `meshmatch info`: a report per file on stdout, one error line per bad file on stderr.
+/// A closed stdout (`| head -1`) ends the command quietly with status 0.
 fn info(files: &[PathBuf], json: bool) -> i32 {
     let mut code = 0;
     for f in files {
-        match info_json(f) {
-            Ok(v) => {
-                if json {
-                    println!("{v}");
+        match info_report(f) {
+            Ok((v, warnings)) => {
+                io::print_warnings(&warnings);
+                let mut out = std::io::stdout().lock();
+                let written = if json {
+                    writeln!(out, "{v}")
                 } else {
-                    print_info(&v);
+                    print_info(&mut out, &v)
+                }
+                .and_then(|()| out.flush());
+                match written {
+                    Ok(()) => {}
+                    Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => return 0,
+                    Err(e) => {
+                        let _ = writeln!(std::io::stderr().lock(), "meshmatch: stdout: {e}");
+                        return 2;
+                    }
                 }
             }
             Err(e) => {
-                eprintln!("meshmatch: {e}");
+                let _ = writeln!(std::io::stderr().lock(), "meshmatch: {e}");
                 code = 2;
             }
         }
@@ -517,25 +566,31 @@ fn info(files: &[PathBuf], json: bool) -> i32 {
     code
 }
 
-fn print_info(v: &serde_json::Value) {
+fn print_info(out: &mut impl Write, v: &serde_json::Value) -> std::io::Result<()> {
     let b = &v["bounds"];
-    println!("{}", v["path"].as_str().unwrap_or(""));
-    println!("  vertices        {}", v["vertices"]);
-    println!("  faces           {}", v["faces"]);
-    println!("  components      {}", v["components"]);
-    println!("  boundary loops  {}", v["boundary_loops"]);
-    println!("  bounds          {} .. {}", b["min"], b["max"]);
-    println!("  area            {:.6}", v["area"].as_f64().unwrap_or(0.0));
-    println!(
+    writeln!(out, "{}", v["path"].as_str().unwrap_or(""))?;
+    writeln!(out, "  vertices        {}", v["vertices"])?;
+    writeln!(out, "  faces           {}", v["faces"])?;
+    writeln!(out, "  components      {}", v["components"])?;
+    writeln!(out, "  boundary loops  {}", v["boundary_loops"])?;
+    writeln!(out, "  bounds          {} .. {}", b["min"], b["max"])?;
+    writeln!(
+        out,
+        "  area            {:.6}",
+        v["area"].as_f64().unwrap_or(0.0)
+    )?;
+    writeln!(
+        out,
         "  signal          {}{}",
         v["signal"].as_str().unwrap_or(""),
         v["texture"]
             .as_str()
             .map(|t| format!(" ({t})"))
             .unwrap_or_default()
-    );
-    println!("  uvs / normals   {} / {}", v["uvs"], v["normals"]);
-    println!(
+    )?;
+    writeln!(out, "  uvs / normals   {} / {}", v["uvs"], v["normals"])?;
+    writeln!(
+        out,
         "  defects         {} non-manifold edges, {} non-manifold vertices, {} degenerate faces, {} duplicate faces, {} isolated vertices, {} non-finite vertices",
         v["non_manifold_edges"],
         v["non_manifold_vertices"],
@@ -543,11 +598,12 @@ fn print_info(v: &serde_json::Value) {
         v["duplicate_faces"],
         v["isolated_vertices"],
         v["non_finite_vertices"]
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "  repairs         {}",
         v["repairs_summary"].as_str().unwrap_or("")
-    );
+    )
 }
 
 fn demo(out: &Path) -> Result<i32> {

@@ -228,3 +228,244 @@ fn synth_with_a_missing_image_fails_cleanly_and_defaults_match_the_library() {
     }
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// Run the binary through bash: `prelude` (limits, traps) first, then `meshmatch ARGS`.
+fn via_bash(prelude: &str, args: &[&std::ffi::OsStr]) -> std::process::Output {
+    Command::new("bash")
+        .arg("-c")
+        .arg(format!("{prelude}; exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_meshmatch"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// A GLB container around a JSON document and a BIN chunk.
+fn glb(doc: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let mut js = serde_json::to_vec(doc).unwrap();
+    while !js.len().is_multiple_of(4) {
+        js.push(b' ');
+    }
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend(((12 + 8 + js.len() + 8 + bin.len()) as u32).to_le_bytes());
+    out.extend((js.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&js);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    out
+}
+
+#[test]
+fn crafted_gltf_and_device_references_fail_cleanly_within_3_gb() {
+    use serde_json::json;
+    let d = tmpdir("bombs");
+    let limit = "ulimit -v 3000000";
+    let mut bin = Vec::new();
+    bin.extend(0u32.to_le_bytes());
+    for c in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0] {
+        bin.extend(c.to_le_bytes());
+    }
+    // 20M-vertex sparse POSITION accessor without bufferView, instanced by 100 nodes (2 KB).
+    let bomb = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": (0..100).collect::<Vec<_>>()}],
+        "nodes": (0..100).map(|_| json!({"mesh": 0})).collect::<Vec<_>>(),
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "buffers": [{"byteLength": 40}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 4},
+            {"buffer": 0, "byteOffset": 4, "byteLength": 12}
+        ],
+        "accessors": [{
+            "componentType": 5126, "count": 20_000_000, "type": "VEC3",
+            "sparse": {"count": 1,
+                "indices": {"bufferView": 0, "componentType": 5125},
+                "values": {"bufferView": 1}}
+        }]
+    });
+    let p = d.join("sparse_bomb.glb");
+    std::fs::write(&p, glb(&bomb, &bin)).unwrap();
+    let out = via_bash(limit, &["info".as_ref(), p.as_os_str()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("sparse_bomb.glb") && err.contains("budget"),
+        "{err}"
+    );
+    // 3000 buffers sharing one 4 MB BIN chunk: loads within the limit.
+    let mut big = vec![0u8; 4 << 20];
+    big[..40].copy_from_slice(&bin);
+    let shared = json!({
+        "asset": {"version": "2.0"},
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "buffers": (0..3000).map(|_| json!({"byteLength": 4 << 20})).collect::<Vec<_>>(),
+        "bufferViews": [{"buffer": 1234, "byteOffset": 4, "byteLength": 36}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}]
+    });
+    let p = d.join("bufclone.glb");
+    std::fs::write(&p, glb(&shared, &big)).unwrap();
+    let out = via_bash(limit, &["info".as_ref(), "--json".as_ref(), p.as_os_str()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["faces"], 1);
+    // Buffers and textures that are devices, not files.
+    let p = d.join("devzero.gltf");
+    std::fs::write(
+        &p,
+        r#"{"asset": {"version": "2.0"}, "buffers": [{"byteLength": 4, "uri": "/dev/zero"}]}"#,
+    )
+    .unwrap();
+    let out = via_bash(limit, &["info".as_ref(), p.as_os_str()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("devzero.gltf") && err.contains("not a regular file"),
+        "{err}"
+    );
+    let p = d.join("devzero.ply");
+    std::fs::write(
+        &p,
+        "ply\nformat ascii 1.0\ncomment TextureFile /dev/zero\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+    )
+    .unwrap();
+    let out = via_bash(limit, &["info".as_ref(), "--json".as_ref(), p.as_os_str()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.starts_with("warning:") && err.contains("not a regular file"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_refused_file_prints_one_line_without_its_warnings() {
+    let d = tmpdir("twoline");
+    // A short face (a warning) and an out-of-range index (the error).
+    let ply = d.join("twoline.ply");
+    std::fs::write(
+        &ply,
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n3 0 1 5\n",
+    )
+    .unwrap();
+    // Only a short face: loads with a warning, then has no faces.
+    let obj = d.join("twoline.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nf 1 2\n").unwrap();
+    // A missing material library (a warning) and no faces.
+    let obj2 = d.join("twoline2.obj");
+    std::fs::write(&obj2, "mtllib missing.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
+    for p in [&ply, &obj, &obj2] {
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        expect_clean_failure(&["info".as_ref(), p.as_os_str()], &name);
+        expect_clean_failure(
+            &[
+                "convert".as_ref(),
+                p.as_os_str(),
+                d.join("out.ply").as_os_str(),
+            ],
+            &name,
+        );
+    }
+    // When the file is accepted the warning is printed.
+    let ok = d.join("ok.obj");
+    std::fs::write(&ok, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\nf 1 2 3\n").unwrap();
+    let out = bin().arg("info").arg(&ok).output().unwrap();
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("warning:") && err.contains("skipped 1 faces"),
+        "{err}"
+    );
+}
+
+#[test]
+fn info_stops_quietly_when_stdout_is_closed() {
+    let d = tmpdir("pipe");
+    let cow = data_path("cow/cow.ply");
+    let files: Vec<&std::ffi::OsStr> = std::iter::repeat_n(cow.as_os_str(), 200).collect();
+    for (redirect, label) in [
+        ("2>\"$ERRFILE\"", "stderr apart"),
+        ("2>&1", "stderr on the pipe"),
+    ] {
+        let errfile = d.join("err.txt");
+        let out = Command::new("bash")
+            .arg("-c")
+            .arg(format!(
+                "\"$0\" info --json \"$@\" {redirect} | head -1 >/dev/null; echo \"${{PIPESTATUS[0]}}\""
+            ))
+            .arg(env!("CARGO_BIN_EXE_meshmatch"))
+            .args(&files)
+            .env("ERRFILE", &errfile)
+            .output()
+            .unwrap();
+        let status = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(status.trim(), "0", "{label}: exit status");
+        if redirect.contains("ERRFILE") {
+            let err = std::fs::read_to_string(&errfile).unwrap();
+            assert!(err.is_empty(), "{label}: nothing on stderr, got: {err}");
+        }
+    }
+}
+
+#[test]
+fn convert_removes_its_temporary_file_when_the_write_fails() {
+    let d = tmpdir("fsize");
+    let out_dir = d.join("out");
+    let _ = std::fs::remove_dir_all(&out_dir);
+    std::fs::create_dir_all(&out_dir).unwrap();
+    let target = out_dir.join("cow.ply");
+    // Files larger than 8 KB cannot be written (EFBIG); the cow's PLY is about 120 KB.
+    let out = via_bash(
+        "ulimit -f 8; trap '' XFSZ",
+        &[
+            "convert".as_ref(),
+            data_path("cow/cow.ply").as_os_str(),
+            target.as_os_str(),
+        ],
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("cow.ply"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(&out_dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert!(left.is_empty(), "nothing left behind: {left:?}");
+}
+
+#[test]
+fn convert_keeps_the_file_vertex_order_and_faces_of_a_mesh_needing_repair() {
+    let d = tmpdir("norepair");
+    let src = d.join("repair.obj");
+    // An unused first vertex, a duplicate face and a degenerate face.
+    std::fs::write(
+        &src,
+        "v 9 9 9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 2 3 4\nf 2 3 4\nf 3 5 4\nf 2 2 3\n",
+    )
+    .unwrap();
+    let orig = meshmatch::mesh::io::load(&src).unwrap();
+    for ext in ["ply", "obj", "glb"] {
+        let out = d.join(format!("r.{ext}"));
+        let st = bin().arg("convert").arg(&src).arg(&out).status().unwrap();
+        assert!(st.success(), "{ext}");
+        let back = meshmatch::mesh::io::load(&out).unwrap();
+        assert_eq!(
+            back.positions, orig.positions,
+            "{ext}: same vertices, same order"
+        );
+        assert_eq!(back.faces, orig.faces, "{ext}: same faces");
+        let v = info_json(&out);
+        assert_eq!(v["vertices"], 5, "{ext}");
+        assert_eq!(v["repairs"]["unreferenced_vertices_removed"], 1, "{ext}");
+        assert_eq!(v["repairs"]["duplicate_faces_removed"], 1, "{ext}");
+        assert_eq!(v["repairs"]["degenerate_faces_removed"], 1, "{ext}");
+    }
+}

@@ -1,5 +1,7 @@
 //! Property-based fuzzing of the mesh loaders: real files mutated (bit flips, byte inserts and
-//! deletes, truncation, numbers in glTF JSON replaced) and random ASCII PLY / OBJ text. Every
+//! deletes, truncation, numbers in glTF JSON replaced), glTF structure edited (many nodes
+//! instancing a mesh, many buffers on the BIN chunk, sparse accessors without buffer view, huge
+//! counts, device and directory URIs, node cycles) and random ASCII PLY / OBJ text. Every
 //! input must give `Ok` with a consistent mesh or `Err` with a one-line message naming the
 //! file, never a panic. `PROPTEST_CASES=20000` runs a long campaign.
 
@@ -242,6 +244,126 @@ fn mutate_glb_json(glb: &[u8], picks: &[(f64, u64)]) -> Vec<u8> {
     out
 }
 
+/// A structural change to a glTF document (the kind of input byte mutations rarely reach).
+#[derive(Clone, Debug)]
+enum GltfEdit {
+    /// Add `n` nodes instancing mesh 0 to scene 0.
+    Nodes(usize),
+    /// Add `n` buffers without uri (all on the GLB BIN chunk).
+    BinBuffers(usize),
+    /// Make accessor `a` (fraction of the list) sparse with no bufferView and `count` elements.
+    Sparse(f64, u64),
+    /// Set accessor `a`'s count.
+    Count(f64, u64),
+    /// Add a buffer whose uri is one of a few hostile paths.
+    UriBuffer(usize),
+    /// Set the first primitive's mode.
+    Mode(u64),
+    /// Make node `a` a child of node `b` (fractions), possibly a cycle.
+    Child(f64, f64),
+}
+
+fn gltf_edit() -> impl Strategy<Value = GltfEdit> {
+    let count = prop_oneof![
+        Just(0u64),
+        Just(3),
+        1..1000u64,
+        Just(20_000),
+        Just(20_000_001),
+        Just(u32::MAX as u64),
+        Just(u64::MAX),
+    ];
+    prop_oneof![
+        (1..200usize).prop_map(GltfEdit::Nodes),
+        (1..3000usize).prop_map(GltfEdit::BinBuffers),
+        (0.0..1.0f64, count.clone()).prop_map(|(a, c)| GltfEdit::Sparse(a, c)),
+        (0.0..1.0f64, count).prop_map(|(a, c)| GltfEdit::Count(a, c)),
+        (0..6usize).prop_map(GltfEdit::UriBuffer),
+        (0..9u64).prop_map(GltfEdit::Mode),
+        (0.0..1.0f64, 0.0..1.0f64).prop_map(|(a, b)| GltfEdit::Child(a, b)),
+    ]
+}
+
+/// Apply structural edits to a GLB's JSON and rebuild the container around the same BIN chunk.
+fn edit_glb(glb: &[u8], edits: &[GltfEdit]) -> Vec<u8> {
+    use serde_json::{Value, json};
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut doc: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin = &glb[20 + json_len..];
+    let bin_len = u32::from_le_bytes(bin[0..4].try_into().unwrap());
+    let pick = |f: f64, n: usize| ((f * n as f64) as usize).min(n.saturating_sub(1));
+    for e in edits {
+        match e {
+            GltfEdit::Nodes(n) => {
+                for _ in 0..*n {
+                    let nodes = doc["nodes"].as_array_mut().unwrap();
+                    nodes.push(json!({"mesh": 0}));
+                    let k = nodes.len() - 1;
+                    doc["scenes"][0]["nodes"]
+                        .as_array_mut()
+                        .unwrap()
+                        .push(json!(k));
+                }
+            }
+            GltfEdit::BinBuffers(n) => {
+                let b = doc["buffers"].as_array_mut().unwrap();
+                b.extend((0..*n).map(|_| json!({"byteLength": bin_len})));
+                let last = b.len() - 1;
+                if let Some(v) = doc["bufferViews"].as_array_mut().unwrap().last_mut() {
+                    v["buffer"] = json!(last);
+                }
+            }
+            GltfEdit::Sparse(a, count) => {
+                let accs = doc["accessors"].as_array_mut().unwrap();
+                let k = pick(*a, accs.len());
+                let acc = &mut accs[k];
+                acc.as_object_mut().unwrap().remove("bufferView");
+                acc["count"] = json!(count);
+                acc["sparse"] = json!({"count": 1,
+                    "indices": {"bufferView": 0, "componentType": 5125},
+                    "values": {"bufferView": 0}});
+            }
+            GltfEdit::Count(a, count) => {
+                let accs = doc["accessors"].as_array_mut().unwrap();
+                let k = pick(*a, accs.len());
+                accs[k]["count"] = json!(count);
+            }
+            GltfEdit::UriBuffer(u) => {
+                let uri = ["/dev/zero", "/dev/null", ".", "..", "missing.bin", "data:,"][*u];
+                doc["buffers"]
+                    .as_array_mut()
+                    .unwrap()
+                    .push(json!({"byteLength": 4, "uri": uri}));
+            }
+            GltfEdit::Mode(m) => {
+                doc["meshes"][0]["primitives"][0]["mode"] = json!(m);
+            }
+            GltfEdit::Child(a, b) => {
+                let n = doc["nodes"].as_array().unwrap().len();
+                let (a, b) = (pick(*a, n), pick(*b, n));
+                let node = &mut doc["nodes"][b];
+                if node.get("children").is_none() {
+                    node["children"] = json!([]);
+                }
+                node["children"].as_array_mut().unwrap().push(json!(a));
+            }
+        }
+    }
+    let mut js = serde_json::to_vec(&doc).unwrap();
+    while !js.len().is_multiple_of(4) {
+        js.push(b' ');
+    }
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend(((12 + 8 + js.len() + bin.len()) as u32).to_le_bytes());
+    out.extend((js.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&js);
+    out.extend(bin);
+    out
+}
+
 /// Random ASCII PLY: header from a vocabulary of elements/properties/types, body of numbers
 /// and junk tokens.
 fn ascii_ply() -> impl Strategy<Value = String> {
@@ -404,6 +526,11 @@ proptest! {
         )
     ) {
         check(&mutate_glb_json(&seeds().glb, &picks), "numbers.glb");
+    }
+
+    #[test]
+    fn glb_structure_edited(edits in proptest::collection::vec(gltf_edit(), 1..5)) {
+        check(&edit_glb(&seeds().glb, &edits), "edited.glb");
     }
 
     #[test]

@@ -716,3 +716,249 @@ fn per_vertex_uvs_go_to_ply_vertex_properties_and_jpeg_textures_load() {
     assert_eq!(m.colors.unwrap()[2], [0.0, 0.0, 0.2]);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A GLB container around a JSON document and a BIN chunk.
+fn glb(doc: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let mut js = serde_json::to_vec(doc).unwrap();
+    while !js.len().is_multiple_of(4) {
+        js.push(b' ');
+    }
+    let mut bin = bin.to_vec();
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend(((12 + 8 + js.len() + 8 + bin.len()) as u32).to_le_bytes());
+    out.extend((js.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&js);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(&bin);
+    out
+}
+
+#[test]
+fn sparse_positions_instanced_by_many_nodes_are_refused_by_the_vertex_budget() {
+    use serde_json::json;
+    // A 1M-vertex sparse POSITION accessor with no bufferView (all zeros but one), instanced by
+    // 100 nodes: 100M vertices from a file of a few KB. Refused before any vertex is allocated.
+    let mut bin = Vec::new();
+    bin.extend(0u32.to_le_bytes());
+    for c in [1.0f32, 2.0, 3.0] {
+        bin.extend(c.to_le_bytes());
+    }
+    let doc = |count: usize, nodes: usize| {
+        json!({
+            "asset": {"version": "2.0"},
+            "scene": 0,
+            "scenes": [{"nodes": (0..nodes).collect::<Vec<_>>()}],
+            "nodes": (0..nodes).map(|_| json!({"mesh": 0})).collect::<Vec<_>>(),
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+            "buffers": [{"byteLength": 16}],
+            "bufferViews": [
+                {"buffer": 0, "byteOffset": 0, "byteLength": 4},
+                {"buffer": 0, "byteOffset": 4, "byteLength": 12}
+            ],
+            "accessors": [{
+                "componentType": 5126, "count": count, "type": "VEC3",
+                "sparse": {"count": 1,
+                    "indices": {"bufferView": 0, "componentType": 5125},
+                    "values": {"bufferView": 1}}
+            }]
+        })
+    };
+    let dir = scratch("sparsebomb");
+    let p = dir.join("bomb.glb");
+    std::fs::write(&p, glb(&doc(1_000_000, 100), &bin)).unwrap();
+    // Refused from the declared counts (the message names the instanced total), before anything
+    // is allocated.
+    let msg = expect_err(&p, "exceed the budget of 20000000");
+    assert!(msg.contains("100000000 vertices"), "{msg}");
+    // The same accessor used by 3 nodes is fine: read once, instanced three times.
+    let p = dir.join("three.glb");
+    std::fs::write(&p, glb(&doc(6, 3), &bin)).unwrap();
+    let m = io::load(&p).unwrap();
+    assert_eq!(m.num_vertices(), 18);
+    assert_eq!(m.positions[0], [1.0, 2.0, 3.0]);
+    assert_eq!(m.positions[12], [1.0, 2.0, 3.0]);
+    assert_eq!(m.num_faces(), 6);
+    // A bufferView-backed accessor (within the budget) whose count does not fit its view.
+    let mut d = doc(6, 1);
+    d["accessors"][0] =
+        json!({"bufferView": 1, "componentType": 5126, "count": 1_000_000, "type": "VEC3"});
+    let p = dir.join("count.glb");
+    std::fs::write(&p, glb(&d, &bin)).unwrap();
+    expect_err(&p, "do not fit in buffer view 1");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn external_references_must_be_regular_files() {
+    use serde_json::json;
+    let dir = scratch("devices");
+    // glTF buffers that are devices or a directory: refused, one line.
+    for (name, uri) in [
+        ("zero.gltf", "/dev/zero"),
+        ("null.gltf", "/dev/null"),
+        ("dir.gltf", "."),
+    ] {
+        let p = dir.join(name);
+        let doc = json!({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 4, "uri": uri}]});
+        std::fs::write(&p, serde_json::to_vec(&doc).unwrap()).unwrap();
+        let msg = expect_err(&p, "cannot read buffer/image");
+        assert!(
+            msg.contains("not a regular file") || msg.contains("a directory"),
+            "{msg}"
+        );
+    }
+    // A PLY whose TextureFile is a device: loads, without texture (a warning, not a hang).
+    let p = dir.join("zerotex.ply");
+    std::fs::write(
+        &p,
+        "ply\nformat ascii 1.0\ncomment TextureFile /dev/zero\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty float s\nproperty float t\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0 0 0\n1 0 0 1 0\n0 1 0 0 1\n3 0 1 2\n",
+    )
+    .unwrap();
+    let (m, warnings) = io::load_with_warnings(&p).unwrap();
+    assert!(m.texture.is_none());
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("not a regular file"), "{warnings:?}");
+    // The mesh file itself: a link to a device, a directory.
+    let link = dir.join("zero.obj");
+    std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+    expect_err(&link, "not a regular file");
+    let sub = dir.join("sub.ply");
+    std::fs::create_dir_all(&sub).unwrap();
+    expect_err(&sub, "is a directory");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn obj_with_200k_materials_loads() {
+    let mut s = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+    for i in 0..200_000 {
+        s.push_str(&format!("usemtl m{i}\nf 1 2 3\n"));
+    }
+    let dir = scratch("mats");
+    let p = dir.join("mats.obj");
+    std::fs::write(&p, s).unwrap();
+    // (Quadratic in the material count, this took over a minute; a set keeps it linear.)
+    let m = io::load(&p).unwrap();
+    assert_eq!(m.num_faces(), 200_000);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn obj_without_usemtl_takes_the_first_textured_material_of_the_mtl() {
+    let dir = scratch("nousemtl");
+    image::RgbImage::new(2, 2).save(dir.join("a.png")).unwrap();
+    image::RgbImage::new(3, 3).save(dir.join("b.png")).unwrap();
+    std::fs::write(
+        dir.join("two.mtl"),
+        "newmtl ma\nmap_Kd a.png\nnewmtl mb\nmap_Kd b.png\nnewmtl mc\nmap_Kd b.png\nnewmtl md\nmap_Kd b.png\n",
+    )
+    .unwrap();
+    let p = dir.join("two.obj");
+    std::fs::write(
+        &p,
+        "mtllib two.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
+    )
+    .unwrap();
+    // Hash order differs between maps in one process: 20 loads would disagree if it decided.
+    for _ in 0..20 {
+        let (m, warnings) = io::load_with_warnings(&p).unwrap();
+        assert_eq!(
+            m.texture.as_ref().unwrap().image.width(),
+            2,
+            "ma (a.png) is first"
+        );
+        assert!(
+            warnings.iter().all(|w| w.contains("'a.png' is used")),
+            "{warnings:?}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn obj_and_mtl_with_classic_mac_line_endings_load() {
+    let dir = scratch("cr");
+    image::RgbImage::new(2, 2).save(dir.join("t.png")).unwrap();
+    std::fs::write(dir.join("m.mtl"), "newmtl m\rmap_Kd t.png\r").unwrap();
+    let p = dir.join("cr.obj");
+    std::fs::write(
+        &p,
+        "mtllib m.mtl\rv 0 0 0\rv 1 0 0\rv 0 1 0\rv 1 1 0\rvt 0 0\rusemtl m\rf 1/1 2/1 3/1\r\nf 2/1 4/1 3/1\r",
+    )
+    .unwrap();
+    let m = io::load(&p).unwrap();
+    assert_eq!(m.num_vertices(), 4);
+    assert_eq!(m.faces, vec![[0, 1, 2], [1, 3, 2]]);
+    assert!(m.texture.is_some());
+    // Line numbers in errors count CR, LF and CRLF lines alike.
+    let p = dir.join("crbad.obj");
+    std::fs::write(&p, "v 0 0 0\rv 1 0 0\r\nv 0 1 0\nf 1 2 9\r").unwrap();
+    expect_err(&p, "line 4");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn glb_bin_chunk_is_shared_by_its_buffers() {
+    use serde_json::json;
+    let dir = scratch("glbshare");
+    // 3000 buffers on one 4 MB BIN chunk: borrowed, not copied 3000 times (12 GB).
+    let mut bin = vec![0u8; 4 << 20];
+    for (i, c) in [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .enumerate()
+    {
+        bin[4 * i..4 * i + 4].copy_from_slice(&c.to_le_bytes());
+    }
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "buffers": (0..3000).map(|_| json!({"byteLength": 4 << 20})).collect::<Vec<_>>(),
+        "bufferViews": [{"buffer": 2999, "byteOffset": 0, "byteLength": 36}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3"}]
+    });
+    let p = dir.join("shared.glb");
+    std::fs::write(&p, glb(&doc, &bin)).unwrap();
+    // 3000 copies of the 4 MiB chunk would be 12 GiB; shared, it loads at once.
+    let m = io::load(&p).unwrap();
+    assert_eq!(m.num_faces(), 1);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn repair_reports_counts_and_keeps_the_map_to_file_indices() {
+    let dir = scratch("repair");
+    let p = dir.join("repair.obj");
+    // Vertex 1 is unused; face 2 duplicates face 1 (other winding); face 4 is degenerate.
+    std::fs::write(
+        &p,
+        "v 9 9 9\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 2 3 4\nf 3 2 4\nf 3 5 4\nf 2 2 3\n",
+    )
+    .unwrap();
+    let mut m = io::load(&p).unwrap();
+    let before = m.validate();
+    assert_eq!(
+        (
+            before.degenerate_faces,
+            before.duplicate_faces,
+            before.isolated_vertices
+        ),
+        (1, 1, 1)
+    );
+    let rep = m.repair().unwrap();
+    assert_eq!(rep.degenerate_faces_removed, 1);
+    assert_eq!(rep.duplicate_faces_removed, 1);
+    assert_eq!(rep.unreferenced_vertices_removed, 1);
+    assert_eq!(rep.non_finite_faces_removed, 0);
+    assert_eq!(m.file_index, vec![1, 2, 3, 4]);
+    assert_eq!(m.file_vertex_count, 5);
+    assert_eq!(m.faces, vec![[0, 1, 2], [1, 3, 2]]);
+    assert_eq!(m.positions[0], [0.0, 0.0, 0.0]);
+    let _ = std::fs::remove_dir_all(&dir);
+}

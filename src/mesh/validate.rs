@@ -7,6 +7,10 @@ use std::collections::{HashMap, HashSet};
 /// Largest vertex count accepted (memory budget: about 4 GB of working data at this size).
 pub const MAX_VERTICES: usize = 20_000_000;
 
+/// Largest triangle count a loader builds (checked where instancing can multiply a file's
+/// triangles, as glTF nodes sharing a mesh do).
+pub const MAX_FACES: usize = 3 * MAX_VERTICES;
+
 /// What a mesh looks like: counts and defects.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ValidationReport {

@@ -1,14 +1,20 @@
 //! glTF 2.0 / GLB reader (document model from the `gltf` crate, buffers and accessors read here
 //! with bounds checks) and a hand-written GLB / glTF writer.
 
-use super::{base64, check_content, check_exportable, finish, write_atomic};
+use super::{base64, check_content, check_exportable, finish, warn, write_atomic};
 use crate::mesh::Texture;
+use crate::mesh::validate::{MAX_FACES, MAX_VERTICES};
 use crate::{Error, Result, TriMesh};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::{Mode, Semantic};
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
+
+/// The file's buffers: the GLB BIN chunk is borrowed (shared by every buffer that uses it),
+/// external and data-URI buffers are owned.
+type Buffers<'a> = [Cow<'a, [u8]>];
 
 /// Options for `save_glb` / `save_gltf`.
 #[derive(Clone, Debug)]
@@ -93,8 +99,10 @@ fn percent_decode(s: &str) -> String {
     String::from_utf8_lossy(&out).into_owned()
 }
 
-/// Bytes of a URI: a base64 data URI, or a file relative to the glTF file's directory.
-fn read_uri(uri: &str, path: &Path) -> Result<Vec<u8>> {
+/// Bytes of a URI: a base64 data URI, or a file relative to the glTF file's directory (absolute
+/// paths and `..` are accepted, as for OBJ/MTL and PLY textures) that must be a regular file of
+/// at most `limit` bytes (`what` names it in messages).
+fn read_uri(uri: &str, path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let (meta, data) = rest
             .split_once(',')
@@ -112,7 +120,7 @@ fn read_uri(uri: &str, path: &Path) -> Result<Vec<u8>> {
     }
     let name = percent_decode(uri);
     let file = path.parent().unwrap_or(Path::new(".")).join(&name);
-    std::fs::read(&file).map_err(|e| {
+    super::read_regular_file(&file, limit, what).map_err(|e| {
         Error::format(
             path,
             format!("cannot read buffer/image '{}': {e}", clip(&name)),
@@ -127,7 +135,7 @@ fn clip(s: &str) -> String {
 /// Typed read of a whole accessor as `count * multiplicity` f64 values (exact for u32),
 /// normalized integers mapped to [0,1] / [-1,1] when `normalized` is set; sparse substitution
 /// applied. Every byte range is checked against its view and buffer.
-fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Result<Vec<f64>> {
+fn read_accessor(acc: &gltf::Accessor, buffers: &Buffers, path: &Path) -> Result<Vec<f64>> {
     let dims = acc.dimensions();
     if matches!(dims, Dimensions::Mat2 | Dimensions::Mat3 | Dimensions::Mat4) {
         return Err(Error::format(
@@ -215,8 +223,13 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Resu
             }
         }
     } else {
-        if acc.sparse().is_none() || count > super::super::validate::MAX_VERTICES {
+        if acc.sparse().is_none() {
             return Err(bad("no buffer view".into()));
+        }
+        if count > MAX_VERTICES {
+            return Err(bad(format!(
+                "sparse accessor of {count} elements exceeds the budget of {MAX_VERTICES}"
+            )));
         }
         out = vec![0.0; count * m];
     }
@@ -267,7 +280,7 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &[Vec<u8>], path: &Path) -> Resu
 fn read_image(
     img: &gltf::image::Image,
     doc: &gltf::Document,
-    buffers: &[Vec<u8>],
+    buffers: &Buffers,
     path: &Path,
 ) -> Result<Texture> {
     let json = doc
@@ -290,7 +303,7 @@ fn read_image(
             .ok_or_else(|| Error::format(path, "image buffer view out of range"))?;
         buf[view.offset()..end].to_vec()
     } else if let Some(uri) = &json.uri {
-        read_uri(uri, path)?
+        read_uri(uri, path, super::MAX_FILE_BYTES, "the image")?
     } else {
         return Err(Error::format(path, "image has neither bufferView nor uri"));
     };
@@ -336,32 +349,6 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         ));
     }
     let doc = &gltf.document;
-    let mut buffers: Vec<Vec<u8>> = Vec::new();
-    for b in doc.buffers() {
-        let data = match b.source() {
-            gltf::buffer::Source::Bin => gltf.blob.clone().ok_or_else(|| {
-                Error::format(
-                    path,
-                    format!("buffer {} refers to a missing BIN chunk", b.index()),
-                )
-            })?,
-            gltf::buffer::Source::Uri(uri) => read_uri(uri, path)?,
-        };
-        if data.len() < b.length() {
-            return Err(Error::format(
-                path,
-                format!(
-                    "buffer {} has {} bytes but the file declares {}",
-                    b.index(),
-                    data.len(),
-                    b.length()
-                ),
-            ));
-        }
-        buffers.push(data);
-    }
-    let mut acc = Acc::default();
-    // (node, world matrix) roots.
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| {
         (doc.scenes().len() == 1)
             .then(|| doc.scenes().next())
@@ -378,10 +365,12 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
             doc.nodes().filter(|n| !is_child[n.index()]).collect()
         }
     };
+    // Every (mesh, world transform) to read, in file order.
+    let mut instances: Vec<(gltf::Mesh, glam::Mat4)> = Vec::new();
     if roots.is_empty() && doc.nodes().len() == 0 {
         // No scene graph at all: take the meshes as they are.
         for mesh in doc.meshes() {
-            read_mesh(&mesh, glam::Mat4::IDENTITY, &buffers, path, &mut acc, doc)?;
+            instances.push((mesh, glam::Mat4::IDENTITY));
         }
     }
     let mut visited = vec![false; doc.nodes().len()];
@@ -399,12 +388,69 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         }
         let world = parent * glam::Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(mesh) = node.mesh() {
-            read_mesh(&mesh, world, &buffers, path, &mut acc, doc)?;
+            instances.push((mesh, world));
         }
         let children: Vec<gltf::Node> = node.children().collect();
         for c in children.into_iter().rev() {
             stack.push((c, world, depth + 1));
         }
+    }
+    // The vertex budget on the total over all instances, from the accessors' declared counts,
+    // before any buffer is read or any vertex allocated.
+    let mut total = 0usize;
+    for (mesh, _) in &instances {
+        for prim in mesh.primitives() {
+            if matches!(
+                prim.mode(),
+                Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip
+            ) {
+                continue;
+            }
+            if let Some(a) = prim.get(&Semantic::Positions) {
+                total = total.saturating_add(a.count());
+            }
+        }
+    }
+    if total > MAX_VERTICES {
+        return Err(over_budget(path, total));
+    }
+    let mut buffers: Vec<Cow<[u8]>> = Vec::new();
+    // External buffer files of one glTF may add up to at most MAX_FILE_BYTES.
+    let mut external_left = super::MAX_FILE_BYTES;
+    for b in doc.buffers() {
+        let data: Cow<[u8]> = match b.source() {
+            gltf::buffer::Source::Bin => Cow::Borrowed(gltf.blob.as_deref().ok_or_else(|| {
+                Error::format(
+                    path,
+                    format!("buffer {} refers to a missing BIN chunk", b.index()),
+                )
+            })?),
+            gltf::buffer::Source::Uri(uri) => {
+                let data = read_uri(uri, path, external_left, "the buffer")?;
+                if !uri.starts_with("data:") {
+                    external_left -= data.len() as u64;
+                }
+                Cow::Owned(data)
+            }
+        };
+        if data.len() < b.length() {
+            return Err(Error::format(
+                path,
+                format!(
+                    "buffer {} has {} bytes but the file declares {}",
+                    b.index(),
+                    data.len(),
+                    b.length()
+                ),
+            ));
+        }
+        buffers.push(data);
+    }
+    let mut acc = Acc::default();
+    let mut cache: Vec<Option<Arc<Vec<Option<Prim>>>>> = vec![None; doc.meshes().len()];
+    // (node, world matrix) roots.
+    for (mesh, world) in &instances {
+        read_mesh(mesh, *world, &buffers, path, &mut acc, doc, &mut cache)?;
     }
     let n = acc.positions.len();
     let mut mesh = TriMesh {
@@ -425,88 +471,104 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     finish(mesh, path)
 }
 
-fn read_mesh(
+/// One primitive's data as read from its accessors, before any node transform: read once per
+/// mesh and reused by every node that instances the mesh.
+struct Prim {
+    positions: Vec<[f32; 3]>,
+    normals: Option<Vec<[f32; 3]>>,
+    /// sRGB colours.
+    colors: Option<Vec<[f32; 3]>>,
+    /// Per-vertex UVs, V up.
+    uvs: Option<Vec<[f32; 2]>>,
+    /// Triangles (indices into this primitive's vertices), orientation as in the file.
+    tris: Vec<[u32; 3]>,
+    /// Image of the material's base colour texture.
+    image: Option<usize>,
+}
+
+/// Error for a vertex total over the budget, before anything of that size is allocated.
+fn over_budget(path: &Path, total: usize) -> Error {
+    Error::format(
+        path,
+        format!(
+            "{total} vertices (primitives times the nodes that instance them) exceed the budget of {MAX_VERTICES}"
+        ),
+    )
+}
+
+/// Read every primitive of `mesh` (None for points, lines and primitives without POSITION).
+/// `base` vertices are already loaded: the budget is checked on the running total before each
+/// POSITION accessor is read.
+fn read_prims(
     mesh: &gltf::Mesh,
-    world: glam::Mat4,
-    buffers: &[Vec<u8>],
+    buffers: &Buffers,
     path: &Path,
-    acc: &mut Acc,
-    doc: &gltf::Document,
-) -> Result<()> {
-    let normal_m = glam::Mat3::from_mat4(world).inverse().transpose();
-    let flip = glam::Mat3::from_mat4(world).determinant() < 0.0;
+    mut base: usize,
+) -> Result<Vec<Option<Prim>>> {
+    let mut out = Vec::new();
     for prim in mesh.primitives() {
         let mode = prim.mode();
         if matches!(
             mode,
             Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip
         ) {
+            out.push(None);
             continue;
         }
         let Some(pacc) = prim.get(&Semantic::Positions) else {
-            eprintln!(
-                "warning: {}: mesh {} has a primitive without POSITION; skipped",
+            warn(format!(
+                "{}: mesh {} has a primitive without POSITION; skipped",
                 path.display(),
                 mesh.index()
-            );
+            ));
+            out.push(None);
             continue;
         };
-        let p = read_accessor(&pacc, buffers, path)?;
         if pacc.dimensions() != Dimensions::Vec3 {
             return Err(Error::format(path, "POSITION is not VEC3"));
         }
         let nv = pacc.count();
-        let base = acc.positions.len();
-        if base + nv > u32::MAX as usize {
-            return Err(Error::format(path, "too many vertices"));
+        let total = base.saturating_add(nv);
+        if total > MAX_VERTICES {
+            return Err(over_budget(path, total));
         }
-        acc.positions.extend(p.chunks_exact(3).map(|c| {
-            world
-                .transform_point3(glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
-                .to_array()
-        }));
-        match prim.get(&Semantic::Normals) {
-            Some(a) if a.dimensions() == Dimensions::Vec3 && a.count() == nv => {
-                let v = read_accessor(&a, buffers, path)?;
-                acc.normals.extend(v.chunks_exact(3).map(|c| {
-                    (normal_m * glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32))
-                        .normalize_or_zero()
-                        .to_array()
-                }));
-                acc.has_normals.push(true);
-            }
-            _ => {
-                acc.normals.extend(std::iter::repeat_n([0.0; 3], nv));
-                acc.has_normals.push(false);
-            }
-        }
-        match prim.get(&Semantic::Colors(0)) {
+        base = total;
+        let f3 = |c: &[f64]| [c[0] as f32, c[1] as f32, c[2] as f32];
+        let positions: Vec<[f32; 3]> = read_accessor(&pacc, buffers, path)?
+            .chunks_exact(3)
+            .map(f3)
+            .collect();
+        let normals = match prim.get(&Semantic::Normals) {
+            Some(a) if a.dimensions() == Dimensions::Vec3 && a.count() == nv => Some(
+                read_accessor(&a, buffers, path)?
+                    .chunks_exact(3)
+                    .map(f3)
+                    .collect(),
+            ),
+            _ => None,
+        };
+        let colors = match prim.get(&Semantic::Colors(0)) {
             Some(a)
                 if matches!(a.dimensions(), Dimensions::Vec3 | Dimensions::Vec4)
                     && a.count() == nv =>
             {
                 let m = a.dimensions().multiplicity();
-                let v = read_accessor(&a, buffers, path)?;
-                if !acc.any_colors {
-                    acc.colors = vec![[1.0; 3]; base];
-                    acc.any_colors = true;
-                }
-                acc.colors.extend(
-                    v.chunks_exact(m).map(|c| {
-                        [c[0], c[1], c[2]].map(|x| crate::color::linear_to_srgb(x as f32))
-                    }),
-                );
+                Some(
+                    read_accessor(&a, buffers, path)?
+                        .chunks_exact(m)
+                        .map(|c| [c[0], c[1], c[2]].map(|x| crate::color::linear_to_srgb(x as f32)))
+                        .collect(),
+                )
             }
-            _ => {
-                if acc.any_colors {
-                    acc.colors.extend(std::iter::repeat_n([1.0; 3], nv));
-                }
-            }
-        }
-        let uv = match prim.get(&Semantic::TexCoords(0)) {
-            Some(a) if a.dimensions() == Dimensions::Vec2 && a.count() == nv => {
-                Some(read_accessor(&a, buffers, path)?)
-            }
+            _ => None,
+        };
+        let uvs = match prim.get(&Semantic::TexCoords(0)) {
+            Some(a) if a.dimensions() == Dimensions::Vec2 && a.count() == nv => Some(
+                read_accessor(&a, buffers, path)?
+                    .chunks_exact(2)
+                    .map(|c| [c[0] as f32, 1.0 - c[1] as f32])
+                    .collect(),
+            ),
             _ => None,
         };
         // Corner list (indices into this primitive's vertices).
@@ -558,21 +620,107 @@ fn read_mesh(
             }
             _ => {}
         }
-        if uv.is_some() && !acc.any_uvs {
+        let image = prim
+            .material()
+            .pbr_metallic_roughness()
+            .base_color_texture()
+            .map(|info| info.texture().source().index());
+        out.push(Some(Prim {
+            positions,
+            normals,
+            colors,
+            uvs,
+            tris,
+            image,
+        }));
+    }
+    Ok(out)
+}
+
+/// Append the primitives of `mesh`, transformed by `world`, to `acc`. The accessors of a mesh are
+/// read once (`cache`, by mesh index); the vertex and triangle budgets are checked on the running
+/// totals before anything is appended.
+fn read_mesh(
+    mesh: &gltf::Mesh,
+    world: glam::Mat4,
+    buffers: &Buffers,
+    path: &Path,
+    acc: &mut Acc,
+    doc: &gltf::Document,
+    cache: &mut [Option<Arc<Vec<Option<Prim>>>>],
+) -> Result<()> {
+    let prims = match &cache[mesh.index()] {
+        Some(p) => p.clone(),
+        None => {
+            let p = Arc::new(read_prims(mesh, buffers, path, acc.positions.len())?);
+            cache[mesh.index()] = Some(p.clone());
+            p
+        }
+    };
+    let normal_m = glam::Mat3::from_mat4(world).inverse().transpose();
+    let flip = glam::Mat3::from_mat4(world).determinant() < 0.0;
+    for prim in prims.iter().flatten() {
+        let nv = prim.positions.len();
+        let base = acc.positions.len();
+        let total = base.saturating_add(nv);
+        if total > MAX_VERTICES {
+            return Err(over_budget(path, total));
+        }
+        let faces = acc.faces.len().saturating_add(prim.tris.len());
+        if faces > MAX_FACES {
+            return Err(Error::format(
+                path,
+                format!(
+                    "{faces} triangles (primitives times the nodes that instance them) exceed the budget of {MAX_FACES}"
+                ),
+            ));
+        }
+        acc.positions.extend(
+            prim.positions
+                .iter()
+                .map(|&p| world.transform_point3(glam::Vec3::from(p)).to_array()),
+        );
+        match &prim.normals {
+            Some(n) => {
+                acc.normals.extend(n.iter().map(|&v| {
+                    (normal_m * glam::Vec3::from(v))
+                        .normalize_or_zero()
+                        .to_array()
+                }));
+                acc.has_normals.push(true);
+            }
+            None => {
+                acc.normals.extend(std::iter::repeat_n([0.0; 3], nv));
+                acc.has_normals.push(false);
+            }
+        }
+        match &prim.colors {
+            Some(c) => {
+                if !acc.any_colors {
+                    acc.colors = vec![[1.0; 3]; base];
+                    acc.any_colors = true;
+                }
+                acc.colors.extend_from_slice(c);
+            }
+            None => {
+                if acc.any_colors {
+                    acc.colors.extend(std::iter::repeat_n([1.0; 3], nv));
+                }
+            }
+        }
+        if prim.uvs.is_some() && !acc.any_uvs {
             acc.uvs = vec![[0.0; 2]; 3 * acc.faces.len()];
             acc.any_uvs = true;
         }
-        for t in &mut tris {
+        for t in &prim.tris {
+            let mut t = *t;
             if flip {
                 t.swap(1, 2);
             }
             if acc.any_uvs {
                 for &v in t.iter() {
-                    acc.uvs.push(match &uv {
-                        Some(u) => {
-                            let (s, tt) = (u[2 * v as usize], u[2 * v as usize + 1]);
-                            [s as f32, 1.0 - tt as f32]
-                        }
+                    acc.uvs.push(match &prim.uvs {
+                        Some(u) => u[v as usize],
                         None => [0.0; 2],
                     });
                 }
@@ -580,28 +728,31 @@ fn read_mesh(
             acc.faces.push(t.map(|v| v + base as u32));
         }
         // Base colour texture of the material (the first one found is used).
-        if let Some(info) = prim
-            .material()
-            .pbr_metallic_roughness()
-            .base_color_texture()
-        {
-            let src = info.texture().source();
+        if let Some(src) = prim.image {
             match acc.texture_source {
-                None if !acc.texture_failed => match read_image(&src, doc, buffers, path) {
-                    Ok(t) => {
-                        acc.texture = Some(Arc::new(t));
-                        acc.texture_source = Some(src.index());
+                None if !acc.texture_failed => {
+                    let img = doc
+                        .images()
+                        .nth(src)
+                        .ok_or_else(|| Error::format(path, "image index out of range"))?;
+                    match read_image(&img, doc, buffers, path) {
+                        Ok(t) => {
+                            acc.texture = Some(Arc::new(t));
+                            acc.texture_source = Some(src);
+                        }
+                        Err(e) => {
+                            acc.texture_failed = true;
+                            warn(format!(
+                                "texture not loaded ({e}); continuing without texture"
+                            ));
+                        }
                     }
-                    Err(e) => {
-                        acc.texture_failed = true;
-                        eprintln!("warning: texture not loaded ({e}); continuing without texture");
-                    }
-                },
-                Some(i) if i != src.index() => {
-                    eprintln!(
-                        "warning: {}: several base colour textures; only image {i} is used",
+                }
+                Some(i) if i != src => {
+                    warn(format!(
+                        "{}: several base colour textures; only image {i} is used",
                         path.display()
-                    );
+                    ));
                 }
                 _ => {}
             }

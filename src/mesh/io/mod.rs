@@ -20,8 +20,10 @@ pub use glb::{GlbOptions, load_gltf_bytes, save_glb, save_gltf};
 pub use obj::{ObjOptions, load_obj_bytes, save_obj};
 pub use ply::{PlyOptions, load_ply_bytes, save_ply};
 
-/// Write `bytes` to `path` atomically: a temporary file beside it, then a rename.
+/// Write `bytes` to `path` atomically: a temporary file beside it, flushed to disk (`sync_all`),
+/// then a rename. On any failure the temporary file is removed and `path` is left untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write as _;
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -31,10 +33,115 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
     let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    std::fs::write(&tmp, bytes).map_err(|e| Error::io(path, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
+    let mut file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
+    let written = file
+        .write_all(bytes)
+        .and_then(|()| file.sync_all())
+        .and_then(|()| {
+            drop(file);
+            std::fs::rename(&tmp, path)
+        });
+    written.map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         Error::io(path, e)
+    })
+}
+
+/// Largest file a loader reads beside a mesh (an external glTF buffer or image, an MTL file, a
+/// texture), and largest total of the external glTF buffers of one file: 2 GiB.
+pub const MAX_FILE_BYTES: u64 = 2 << 30;
+
+/// Largest mesh file read: 4 GiB (a text OBJ within the vertex budget can pass 2 GiB).
+pub const MAX_MESH_FILE_BYTES: u64 = 4 << 30;
+
+/// Read a file the loaders refer to (`what` names it in messages: "mesh", "texture", ...):
+/// it must be a regular file (not a directory, device or pipe such as `/dev/zero` or
+/// `/dev/stdin`) of at most `limit` bytes.
+fn read_regular_file(file: &Path, limit: u64, what: &str) -> std::io::Result<Vec<u8>> {
+    use std::io::{Error as IoError, ErrorKind, Read as _};
+    let meta = std::fs::metadata(file)?;
+    if !meta.is_file() {
+        let kind = if meta.is_dir() {
+            "a directory"
+        } else {
+            "not a regular file"
+        };
+        return Err(IoError::new(
+            ErrorKind::InvalidInput,
+            format!("{what} is {kind}"),
+        ));
+    }
+    if meta.len() > limit {
+        return Err(IoError::new(
+            ErrorKind::InvalidInput,
+            format!(
+                "{what} has {} bytes, more than the limit of {limit}",
+                meta.len()
+            ),
+        ));
+    }
+    let f = std::fs::File::open(file)?;
+    let mut out = Vec::with_capacity(meta.len() as usize);
+    // The size may change while reading: never take more than the limit.
+    f.take(limit + 1).read_to_end(&mut out)?;
+    if out.len() as u64 > limit {
+        return Err(IoError::new(
+            ErrorKind::InvalidInput,
+            format!("{what} grew past the limit of {limit} bytes while being read"),
+        ));
+    }
+    Ok(out)
+}
+
+thread_local! {
+    /// Warnings of the load in progress on this thread (see `warn`).
+    static WARNINGS: std::cell::RefCell<Vec<String>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Note a warning of the load in progress; it is printed on stderr only if the load succeeds,
+/// so a failed load prints exactly one line (its error).
+fn warn(msg: String) {
+    WARNINGS.with(|w| w.borrow_mut().push(msg));
+}
+
+/// Run a loader and return its result with the warnings it noted.
+fn collect_warnings(load: impl FnOnce() -> Result<TriMesh>) -> (Result<TriMesh>, Vec<String>) {
+    let outer = WARNINGS.with(|w| std::mem::take(&mut *w.borrow_mut()));
+    let res = load();
+    let mine = WARNINGS.with(|w| std::mem::replace(&mut *w.borrow_mut(), outer));
+    (res, mine)
+}
+
+/// Print warnings on stderr, one `warning: ...` line each.
+pub fn print_warnings(warnings: &[String]) {
+    use std::io::Write as _;
+    let mut err = std::io::stderr().lock();
+    for w in warnings {
+        let _ = writeln!(err, "warning: {w}");
+    }
+}
+
+/// Lines of a text file ending in `\n`, `\r\n` or a lone `\r` (classic Mac OS), without their
+/// terminators; line `i` of the iterator is line `i + 1` of the file.
+fn text_lines(bytes: &[u8]) -> impl Iterator<Item = &[u8]> {
+    let mut rest = Some(bytes);
+    std::iter::from_fn(move || {
+        let r = rest?;
+        match r.iter().position(|&b| b == b'\n' || b == b'\r') {
+            Some(i) => {
+                let skip = if r[i] == b'\r' && r.get(i + 1) == Some(&b'\n') {
+                    2
+                } else {
+                    1
+                };
+                rest = Some(&r[i + skip..]);
+                Some(&r[..i])
+            }
+            None => {
+                rest = None;
+                Some(r)
+            }
+        }
     })
 }
 
@@ -148,29 +255,45 @@ fn check_content(bytes: &[u8], fmt: MeshFormat, path: &Path) -> Result<()> {
 
 /// Load a mesh by file extension (.obj, .ply, .gltf, .glb, case-insensitive), checking that the
 /// content matches the extension. Sets `path`, the identity `file_index` and `file_vertex_count`.
+/// The file must be a regular file of at most `MAX_FILE_BYTES`. Warnings (a missing texture,
+/// skipped faces) are printed on stderr only when the load succeeds.
 pub fn load(path: &Path) -> Result<TriMesh> {
+    let (mesh, warnings) = load_with_warnings(path)?;
+    print_warnings(&warnings);
+    Ok(mesh)
+}
+
+/// Like `load`, but returns the warnings instead of printing them, so a caller that may still
+/// fail (e.g. on `check_usable`) can print exactly one error line.
+pub fn load_with_warnings(path: &Path) -> Result<(TriMesh, Vec<String>)> {
     let fmt = MeshFormat::from_path(path)
         .ok_or_else(|| Error::UnsupportedFormat { path: path.into() })?;
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    load_format_bytes(&bytes, fmt, path)
+    let bytes =
+        read_regular_file(path, MAX_MESH_FILE_BYTES, "the file").map_err(|e| Error::io(path, e))?;
+    let (res, warnings) = load_format_bytes(&bytes, fmt, path);
+    res.map(|m| (m, warnings))
 }
 
 /// Load a mesh from bytes, choosing the format by `path`'s extension; `path` names the file in
 /// messages and is the base for relative references (MTL files, textures, glTF buffers).
+/// Warnings are printed on stderr only when the load succeeds.
 pub fn load_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     let fmt = MeshFormat::from_path(path)
         .ok_or_else(|| Error::UnsupportedFormat { path: path.into() })?;
-    load_format_bytes(bytes, fmt, path)
+    let (res, warnings) = load_format_bytes(bytes, fmt, path);
+    let mesh = res?;
+    print_warnings(&warnings);
+    Ok(mesh)
 }
 
-fn load_format_bytes(bytes: &[u8], fmt: MeshFormat, path: &Path) -> Result<TriMesh> {
+fn load_format_bytes(bytes: &[u8], fmt: MeshFormat, path: &Path) -> (Result<TriMesh>, Vec<String>) {
     // A UTF-8 byte order mark (some Windows tools write one) is not part of the content.
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
-    match fmt {
+    collect_warnings(|| match fmt {
         MeshFormat::Obj => load_obj_bytes(bytes, path),
         MeshFormat::Ply => load_ply_bytes(bytes, path),
         MeshFormat::Gltf | MeshFormat::Glb => load_gltf_bytes(bytes, path),
-    }
+    })
 }
 
 /// Fill the bookkeeping fields of a freshly parsed mesh and check the per-corner UV length.
@@ -209,7 +332,8 @@ fn finish(mut mesh: TriMesh, path: &Path) -> Result<TriMesh> {
 
 /// Load an image file (PNG or JPEG) as an sRGB RGB8 texture.
 pub fn load_texture(path: &Path) -> Result<Texture> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes =
+        read_regular_file(path, MAX_FILE_BYTES, "the texture").map_err(|e| Error::io(path, e))?;
     let mut tex = decode_texture(&bytes, path)?;
     tex.path = Some(path.to_path_buf());
     Ok(tex)
@@ -228,15 +352,15 @@ fn decode_texture(bytes: &[u8], path: &Path) -> Result<Texture> {
     })
 }
 
-/// Load a texture referenced by a mesh file; failures become a warning on stderr and `None`.
+/// Load a texture referenced by a mesh file; failures become a warning (see `warn`) and `None`.
 fn load_texture_or_warn(tex_path: &Path, mesh_path: &Path) -> Option<Arc<Texture>> {
     match load_texture(tex_path) {
         Ok(t) => Some(Arc::new(t)),
         Err(e) => {
-            eprintln!(
-                "warning: {}: texture not loaded ({e}); continuing without texture",
+            warn(format!(
+                "{}: texture not loaded ({e}); continuing without texture",
                 mesh_path.display()
-            );
+            ));
             None
         }
     }

@@ -1,8 +1,8 @@
 //! Wavefront OBJ reader/writer (hand-written) with MTL `map_Kd` textures.
 
-use super::{check_content, check_exportable, fan, finish, write_atomic};
+use super::{check_content, check_exportable, fan, finish, text_lines, warn, write_atomic};
 use crate::{Error, Result, TriMesh};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -125,12 +125,15 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     let (mut max_v, mut max_vt, mut max_vn) =
         (MaxRef::default(), MaxRef::default(), MaxRef::default());
     let mut mtllibs: Vec<String> = Vec::new();
+    // Materials used by faces, in order of first use (the set makes the check O(1)).
     let mut used_materials: Vec<String> = Vec::new();
+    let mut used_set: HashSet<String> = HashSet::new();
     let mut current_mtl: Option<String> = None;
     let mut short_faces = 0usize;
     let mut poly: Vec<[u32; 3]> = Vec::new();
 
-    for (li, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+    // Lines end in \n, \r\n or a lone \r (files from classic Mac OS tools).
+    for (li, raw) in text_lines(bytes).enumerate() {
         let line_no = li + 1;
         let text = String::from_utf8_lossy(raw);
         let text = text.split('#').next().unwrap_or("");
@@ -207,7 +210,7 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
                 }
                 if let Some(m) = &current_mtl
                     && used_materials.last() != Some(m)
-                    && !used_materials.contains(m)
+                    && used_set.insert(m.clone())
                 {
                     used_materials.push(m.clone());
                 }
@@ -236,10 +239,10 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     max_vt.check(tex.len(), "texture coordinate", path)?;
     max_vn.check(nrm.len(), "normal", path)?;
     if short_faces > 0 {
-        eprintln!(
-            "warning: {}: skipped {short_faces} faces with fewer than 3 vertices",
+        warn(format!(
+            "{}: skipped {short_faces} faces with fewer than 3 vertices",
             path.display()
-        );
+        ));
     }
 
     let mut mesh = TriMesh {
@@ -314,8 +317,9 @@ fn find_texture(
     path: &Path,
 ) -> Option<std::sync::Arc<crate::mesh::Texture>> {
     let dir = path.parent().unwrap_or(Path::new("."));
-    // material name -> (map_Kd value, MTL directory)
+    // material name -> (map_Kd value, MTL directory); textured material names in file order.
     let mut maps: HashMap<String, (String, PathBuf)> = HashMap::new();
+    let mut file_order: Vec<String> = Vec::new();
     for lib in mtllibs {
         let candidates: Vec<String> = if resolve_file(dir, lib).is_some() {
             vec![lib.clone()]
@@ -324,28 +328,39 @@ fn find_texture(
         };
         for name in candidates {
             let Some(mtl_path) = resolve_file(dir, &name) else {
-                eprintln!(
-                    "warning: {}: material library '{name}' not found; continuing without it",
-                    path.display()
-                );
+                warn(format!(
+                    "{}: material library '{}' not found; continuing without it",
+                    path.display(),
+                    clip(&name)
+                ));
                 continue;
             };
-            let Ok(text) = std::fs::read(&mtl_path) else {
-                eprintln!("warning: {}: cannot read", mtl_path.display());
-                continue;
+            let text = match super::read_regular_file(
+                &mtl_path,
+                super::MAX_FILE_BYTES,
+                "the material library",
+            ) {
+                Ok(t) => t,
+                Err(e) => {
+                    warn(format!("{}: cannot read ({e})", mtl_path.display()));
+                    continue;
+                }
             };
             let text = String::from_utf8_lossy(&text);
             let mtl_dir = mtl_path.parent().unwrap_or(Path::new(".")).to_path_buf();
             let mut cur: Option<String> = None;
-            for line in text.lines() {
+            for line in text_lines(text.as_bytes()) {
+                let line = String::from_utf8_lossy(line);
                 let t = line.trim();
                 let (key, rest) = t.split_once(char::is_whitespace).unwrap_or((t, ""));
                 match key {
                     "newmtl" => cur = Some(rest.trim().to_string()),
                     "map_Kd" | "map_kd" => {
-                        if let Some(m) = &cur {
-                            maps.entry(m.clone())
-                                .or_insert((rest.trim().to_string(), mtl_dir.clone()));
+                        if let Some(m) = &cur
+                            && !maps.contains_key(m)
+                        {
+                            maps.insert(m.clone(), (rest.trim().to_string(), mtl_dir.clone()));
+                            file_order.push(m.clone());
                         }
                     }
                     _ => {}
@@ -353,27 +368,30 @@ fn find_texture(
             }
         }
     }
-    // Materials in face order; with no usemtl at all, a single map_Kd still applies.
+    // Materials in face order; with no usemtl at all, the first textured material of the MTL
+    // files (in file order) applies, so the choice never depends on hash order.
     let order: Vec<&String> = if used.is_empty() {
-        maps.keys().collect()
+        file_order.iter().collect()
     } else {
         used.iter().collect()
     };
     let textured: Vec<&(String, PathBuf)> = order.iter().filter_map(|m| maps.get(*m)).collect();
     let (name, mtl_dir) = textured.first()?;
     if textured.iter().any(|t| t.0 != *name) {
-        eprintln!(
-            "warning: {}: several textured materials; only '{name}' is used",
-            path.display()
-        );
+        warn(format!(
+            "{}: several textured materials; only '{}' is used",
+            path.display(),
+            clip(name)
+        ));
     }
     match resolve_file(mtl_dir, name) {
         Some(p) => super::load_texture_or_warn(&p, path),
         None => {
-            eprintln!(
-                "warning: {}: texture '{name}' not found; continuing without texture",
-                path.display()
-            );
+            warn(format!(
+                "{}: texture '{}' not found; continuing without texture",
+                path.display(),
+                clip(name)
+            ));
             None
         }
     }

@@ -543,10 +543,10 @@ pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         return Err(Error::format(path, "no vertex element"));
     }
     if short_faces > 0 {
-        eprintln!(
-            "warning: {}: skipped {short_faces} faces with fewer than 3 vertices",
+        super::warn(format!(
+            "{}: skipped {short_faces} faces with fewer than 3 vertices",
             path.display()
-        );
+        ));
     }
     let n = positions.len();
     if let Some(bad) = faces.iter().flatten().find(|&&v| v as usize >= n) {
