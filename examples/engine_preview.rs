@@ -153,13 +153,14 @@ fn main() -> meshmatch::Result<()> {
         );
         let t = std::time::Instant::now();
         let sink = |e: Event| {
-            if let Event::Progress(p) = e {
-                if p.stage == "solve" && p.iteration == params.iterations {
-                    println!(
-                        "  level {} energy {:.4} at {:.1}s",
-                        p.level, p.energy, p.elapsed
-                    );
-                }
+            if let Event::Progress(p) = e
+                && p.stage == "solve"
+                && p.iteration == params.iterations
+            {
+                println!(
+                    "  level {} energy {:.4} at {:.1}s",
+                    p.level, p.energy, p.elapsed
+                );
             }
         };
         let r = solve(&ps, &pt, &[], &params, &sink, &cancel)?;

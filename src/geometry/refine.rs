@@ -409,12 +409,11 @@ mod tests {
             })
         };
         for (fi, face) in out.faces.iter().enumerate() {
-            for k in 0..3 {
-                let b = r.source_bary[fi][k];
+            for (&corner, &b) in face.iter().zip(&r.source_bary[fi]) {
                 assert!((b.iter().sum::<f32>() - 1.0).abs() < 1e-6);
                 assert!(b.iter().all(|&x| x >= 0.0));
                 let p = lerp(r.source_face[fi], b);
-                assert!(p.distance(Vec3::from(out.positions[face[k] as usize])) < 1e-5);
+                assert!(p.distance(Vec3::from(out.positions[corner as usize])) < 1e-5);
             }
         }
         // the refined faces of each input face tile it exactly
