@@ -4,6 +4,7 @@
 //! rotation used to carry patch orientations across edges and levels.
 
 use crate::hierarchy::{Hierarchy, Level};
+use crate::jobs::CancelToken;
 use crate::{Error, Result};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -384,6 +385,19 @@ impl FanSampler {
     /// weights are kept and normalised. Empty bins take the entries one ring inwards (the centre
     /// vertex for the first ring).
     pub fn new(level: &Level, frames: &Frames, radius: f32) -> FanSampler {
+        Self::new_cancellable(level, frames, radius, &CancelToken::new())
+            .expect("an un-cancelled token never stops the build")
+    }
+
+    /// [`FanSampler::new`] that stops within one chunk of vertices (1/64 of the level, at least
+    /// 256) once `cancel` is set, returning `Err(Cancelled)`: at a million vertices a level's
+    /// table takes seconds, longer than a user waits for Cancel.
+    pub fn new_cancellable(
+        level: &Level,
+        frames: &Frames,
+        radius: f32,
+        cancel: &CancelToken,
+    ) -> Result<FanSampler> {
         let n = level.len();
         let nb = FAN_RADII * FAN_ANGLES;
         let per = nb * FAN_TAPS;
@@ -407,6 +421,9 @@ impl FanSampler {
             .zip(wts.par_chunks_mut(per * chunk))
             .enumerate()
             .for_each(|(ci, (oi, ow))| {
+                if cancel.is_cancelled() {
+                    return;
+                }
                 let mut stamp = vec![u32::MAX; n];
                 let mut queue: Vec<u32> = Vec::with_capacity(256);
                 // Top taps per bin as (squared distance, vertex), nearest first: ranking by
@@ -506,7 +523,8 @@ impl FanSampler {
                     }
                 }
             });
-        FanSampler { idx, w: wts }
+        cancel.check()?;
+        Ok(FanSampler { idx, w: wts })
     }
 
     /// Fans of a signal with `channels` values per vertex, pre-filtered by one pass of 1-ring
@@ -599,6 +617,22 @@ mod tests {
             }
         }
         Level::new(p, f)
+    }
+
+    #[test]
+    fn fan_table_build_honours_cancel_and_matches_when_not_cancelled() {
+        let l = grid(40);
+        let frames = tangent_frames(&l.normals);
+        let stopped = CancelToken::new();
+        stopped.cancel();
+        assert!(matches!(
+            FanSampler::new_cancellable(&l, &frames, 2.5, &stopped),
+            Err(Error::Cancelled)
+        ));
+        let a = FanSampler::new(&l, &frames, 2.5);
+        let b = FanSampler::new_cancellable(&l, &frames, 2.5, &CancelToken::new()).unwrap();
+        assert_eq!(a.idx, b.idx);
+        assert_eq!(a.w, b.w);
     }
 
     #[test]

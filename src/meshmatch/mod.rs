@@ -340,7 +340,7 @@ pub fn prepare(
     let sw = Stopwatch::start();
     let table = |l: usize| {
         let lev = &hierarchy.levels[l];
-        FanSampler::new(lev, &frames[l], params.fan_radius * lev.mean_edge)
+        FanSampler::new_cancellable(lev, &frames[l], params.fan_radius * lev.mean_edge, cancel)
     };
     let mut samplers = Vec::new();
     let (signal, fans) = if let Some(s0) = signal0 {
@@ -362,14 +362,14 @@ pub fn prepare(
         let mut fans = Vec::with_capacity(sig.len());
         for (l, s) in sig.iter().enumerate() {
             cancel.check()?;
-            fans.push(table(l).fans(&hierarchy.levels[l], s.as_flattened(), C));
+            fans.push(table(l)?.fans(&hierarchy.levels[l], s.as_flattened(), C));
         }
         (Some(sig), Some(fans))
     } else {
         if working.num_vertices() <= KEEP_SAMPLERS_UP_TO {
             for l in 0..hierarchy.num_levels() {
                 cancel.check()?;
-                samplers.push(table(l));
+                samplers.push(table(l)?);
             }
         }
         (None, None)
@@ -786,7 +786,7 @@ pub fn solve_constrained(
         let sampler_t = if target.fan_radius == source.fan_radius && target.samplers.len() > l {
             &target.samplers[l]
         } else {
-            built = FanSampler::new(lt, &target.frames[l], fan_r);
+            built = FanSampler::new_cancellable(lt, &target.frames[l], fan_r, cancel)?;
             &built
         };
         t_fans += sw.secs();
