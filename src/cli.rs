@@ -124,6 +124,10 @@ pub struct TransferArgs {
     /// Weight of shape features against colour (1 = equal).
     #[arg(long, default_value_t = 1.0)]
     pub shape_weight: f32,
+    /// The finest level's shape weight as a fraction of --shape-weight (geometric in between);
+    /// below 1, fine levels follow the colour more (sharper patches, looser layout).
+    #[arg(long, default_value_t = crate::meshmatch::FINE_SHAPE_SCALE)]
+    pub fine_shape_scale: f32,
     /// Keep the filtered vote at the finest level instead of the nearest-neighbour copy.
     #[arg(long)]
     pub no_sharpen: bool,
@@ -708,6 +712,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         iterations: a.iterations,
         seed: a.seed,
         shape_weight: a.shape_weight,
+        fine_shape_scale: a.fine_shape_scale,
         sharpen: !a.no_sharpen,
         ..TransferParams::default()
     };

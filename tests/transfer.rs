@@ -267,3 +267,25 @@ fn a_seed_reproduces_the_transfer_on_any_core_count() {
     let differ = a.nnf.iter().zip(&c.nnf).filter(|(x, y)| x != y).count();
     assert!(differ > 0, "another seed gives another NNF");
 }
+
+/// Per-level shape weights: the coarsest level has `shape_weight`, the finest
+/// `shape_weight * fine_shape_scale`, geometric and monotone in between; the default is flat.
+#[test]
+fn shape_weight_per_level() {
+    use meshmatch::meshmatch::level_shape_weight;
+    let p = TransferParams {
+        shape_weight: 2.0,
+        fine_shape_scale: 0.25,
+        ..Default::default()
+    };
+    let nl = 5;
+    let w: Vec<f32> = (0..nl).map(|l| level_shape_weight(&p, l, nl)).collect();
+    assert!(
+        (w[nl - 1] - 2.0).abs() < 1e-6 && (w[0] - 0.5).abs() < 1e-6,
+        "{w:?}"
+    );
+    assert!(w.windows(2).all(|x| x[0] < x[1]), "{w:?}");
+    assert!((w[2] - 1.0).abs() < 1e-5, "geometric midpoint {w:?}");
+    let flat = TransferParams::default();
+    assert!((0..nl).all(|l| level_shape_weight(&flat, l, nl) == flat.shape_weight));
+}
