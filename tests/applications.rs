@@ -497,13 +497,28 @@ fn spot_texture_update_after_flank_edit() {
     assert!(de_cross <= 1.5 * de_kept.max(de_before), "border seam");
 }
 
+/// Area-weighted vertex normals (sum of the unnormalised face normals around each vertex),
+/// computed here independently of the library's normals.
+fn area_normals(m: &TriMesh) -> Vec<Vec3> {
+    let mut n = vec![Vec3::ZERO; m.positions.len()];
+    for f in &m.faces {
+        let p = f.map(|v| Vec3::from(m.positions[v as usize]));
+        let fnrm = (p[1] - p[0]).cross(p[2] - p[0]);
+        for &v in f {
+            n[v as usize] += fnrm;
+        }
+    }
+    n.iter().map(|x| x.normalize_or_zero()).collect()
+}
+
 fn detail_onto(target: &TriMesh, name: &str) {
     let igea = meshmatch::mesh::io::load(&data("igea/igea.ply")).expect("igea");
+    let strength = 1.0f32;
     let t0 = Instant::now();
     let r = transfer_detail(
         &igea,
         target,
-        1.0,
+        strength,
         &TransferParams {
             shape_weight: meshmatch::applications::DETAIL_SHAPE_WEIGHT,
             ..params(16_000)
@@ -520,20 +535,42 @@ fn detail_onto(target: &TriMesh, name: &str) {
         let mx = d.iter().map(|x| x.abs()).fold(0.0f32, f32::max);
         (m, s, mx)
     };
+    // Measure the result geometry, not the displacement the library reports: the signed offset
+    // of every displaced vertex from its undisplaced position along the undisplaced surface's
+    // normal (computed here), in the undisplaced target's mean edge lengths.
+    let (base, res) = (&r.undisplaced, &r.mesh);
+    assert_eq!(base.faces, res.faces);
+    assert_eq!(base.positions.len(), res.positions.len());
+    let me_t = meshmatch::geometry::mean_edge_length(&base.positions, &base.faces);
+    let offset: Vec<f32> = area_normals(base)
+        .iter()
+        .zip(&base.positions)
+        .zip(&res.positions)
+        .map(|((n, b), p)| (Vec3::from(*p) - Vec3::from(*b)).dot(*n) / me_t)
+        .collect();
+    let tangential = base
+        .positions
+        .iter()
+        .zip(&res.positions)
+        .zip(&offset)
+        .map(|((b, p), o)| {
+            let d = (Vec3::from(*p) - Vec3::from(*b)).length() / me_t;
+            (d * d - o * o).max(0.0).sqrt()
+        })
+        .fold(0.0f32, f32::max);
     let (ms, ss, xs) = stat(&r.source_displacement);
-    let (mt, st, xt) = stat(&r.target_displacement);
-    // The detail is really on the result: splitting the result again finds the applied
-    // displacement (correlated with it), not only the target's own shape.
-    let (_, d_res) = split_detail(&r.mesh.positions, &r.mesh.faces);
+    let (mt, st, xt) = stat(&offset);
+    // The detail is really on the result: splitting the result again finds the applied offset
+    // (correlated with it), not only the target's own shape.
+    let (_, d_res) = split_detail(&res.positions, &res.faces);
     let corr = {
-        let td = &r.target_displacement;
-        let n = td.len() as f64;
+        let n = offset.len() as f64;
         let (ma, mb) = (
-            td.iter().map(|&x| x as f64).sum::<f64>() / n,
+            offset.iter().map(|&x| x as f64).sum::<f64>() / n,
             d_res.iter().map(|&x| x as f64).sum::<f64>() / n,
         );
         let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-        for (a, b) in td.iter().zip(&d_res) {
+        for (a, b) in offset.iter().zip(&d_res) {
             let (a, b) = (*a as f64 - ma, *b as f64 - mb);
             sab += a * b;
             saa += a * a;
@@ -542,19 +579,23 @@ fn detail_onto(target: &TriMesh, name: &str) {
         sab / (saa * sbb).sqrt().max(1e-30)
     };
     println!(
-        "detail igea -> {name}: {} verts, {secs:.1}s; displacement in mean edge lengths: source mean {ms:.4} std {ss:.4} max {xs:.4}; transferred mean {mt:.4} std {st:.4} (ratio {:.2}) max {xt:.4}; correlation with the re-measured detail {corr:.2}",
-        r.mesh.num_vertices(),
+        "detail igea -> {name}: {} verts, {secs:.1}s; displacement in mean edge lengths: source mean {ms:.4} std {ss:.4} max {xs:.4}; result geometry offset mean {mt:.4} std {st:.4} (ratio {:.2}) max {xt:.4}, largest tangential drift {tangential:.2e}; correlation with the re-measured detail {corr:.2}",
+        res.num_vertices(),
         st / ss
     );
-    save_preview(
-        &format!("detail_{name}"),
-        &r.mesh.positions,
-        &r.mesh.faces,
-        None,
+    save_preview(&format!("detail_{name}"), &res.positions, &res.faces, None);
+    // Mean criterion: Taubin smoothing is nearly volume preserving, so the source displacement's
+    // mean is close to zero (Igea at 16K: -0.013 mean edge lengths against a std of 0.071) and
+    // "within 20% of the mean" would demand a tolerance far below the detail's own amplitude. The scale of the distribution is its std, so the means must
+    // agree within 20% of the source's std (or of |mean| if that were the larger one): the result
+    // is not shifted inwards or outwards by more than a fifth of the detail's amplitude.
+    let s = strength as f64;
+    assert!(
+        (mt - s * ms).abs() <= 0.2 * s * ss.max(ms.abs()),
+        "mean {mt} vs {ms}"
     );
-    assert!((mt - ms).abs() <= 0.2 * ss.max(ms.abs()), "mean");
-    assert!(st >= 0.8 * ss && st <= 1.2 * ss, "std");
-    assert!(xt <= xs * 1.0001, "spikes");
+    assert!(st >= 0.8 * s * ss && st <= 1.2 * s * ss, "std {st} vs {ss}");
+    assert!(xt <= xs * 1.0001 * strength, "spikes {xt} vs {xs}");
     assert!(corr > 0.2, "detail visible on the result");
 }
 
