@@ -129,9 +129,21 @@ fn lab_distance(
     selb: &[bool],
     areas: &[f64],
 ) -> f64 {
+    lab_distance_between(ca, sela, areas, cb, selb, areas)
+}
+
+/// [`lab_distance`] between colourings of two different meshes, each with its own vertex areas.
+fn lab_distance_between(
+    ca: &[[f32; 3]],
+    sela: &[bool],
+    areas_a: &[f64],
+    cb: &[[f32; 3]],
+    selb: &[bool],
+    areas_b: &[f64],
+) -> f64 {
     (0..3)
         .map(|k| {
-            let pick = |c: &[[f32; 3]], s: &[bool]| -> Vec<(f32, f64)> {
+            let pick = |c: &[[f32; 3]], s: &[bool], areas: &[f64]| -> Vec<(f32, f64)> {
                 c.iter()
                     .zip(s)
                     .zip(areas)
@@ -139,7 +151,7 @@ fn lab_distance(
                     .map(|((c, _), a)| (srgb_to_lab(*c)[k], *a))
                     .collect()
             };
-            w1(&pick(ca, sela), &pick(cb, selb))
+            w1(&pick(ca, sela, areas_a), &pick(cb, selb, areas_b))
         })
         .sum()
 }
@@ -495,6 +507,95 @@ fn spot_texture_update_after_flank_edit() {
         "spots"
     );
     assert!(de_cross <= 1.5 * de_kept.max(de_before), "border seam");
+}
+
+#[test]
+fn spot_texture_update_after_head_stretch_with_retriangulation() {
+    let n = 16_000;
+    let old = spot_colored(n);
+    let oc = old.colors.clone().unwrap();
+    // Stretch the head and neck (everything in front of the plane z = Z0; the head looks towards
+    // -z) by 1.5x along z. The map is continuous and leaves every vertex behind the plane at its
+    // exact position.
+    const Z0: f32 = -0.25;
+    let mut stretched = TriMesh::new(old.positions.clone(), old.faces.clone());
+    let mut edited = vec![false; n.min(old.positions.len())];
+    for (v, p) in stretched.positions.iter_mut().enumerate() {
+        if p[2] < Z0 {
+            p[2] = Z0 + 1.5 * (p[2] - Z0);
+            edited[v] = true;
+        }
+    }
+    let n_old = old.positions.len();
+    let n_edit = edited.iter().filter(|&&e| e).count();
+    // Re-triangulate: longest-edge bisection splits the stretched (now longest) edges first.
+    let new = refine_to_density(&stretched, n_old + n_edit * 3 / 5).mesh;
+    let new = TriMesh::new(new.positions, new.faces);
+    assert!(new.positions.len() > n_old, "the edit adds vertices");
+    assert_ne!(new.faces.len(), old.faces.len());
+    let t0 = Instant::now();
+    let res = update_texture(&old, &new, &params(n), &|_| {}, &CancelToken::new()).unwrap();
+    let secs = t0.elapsed().as_secs_f64();
+    save_preview("spot_stretch_old", &old.positions, &old.faces, Some(&oc));
+    save_preview(
+        "spot_stretch_updated",
+        &new.positions,
+        &new.faces,
+        Some(&res.colors),
+    );
+    // Outside the edit: every new vertex at an old vertex's exact position keeps that vertex's
+    // colour bit for bit (the first n_old vertices of the refinement are the old ones in order).
+    let mut kept_checked = 0;
+    for v in 0..n_old {
+        if !edited[v] {
+            assert_eq!(new.positions[v], old.positions[v]);
+            assert!(
+                !res.changed[v],
+                "vertex {v} outside the edit marked changed"
+            );
+            assert_eq!(
+                res.colors[v].map(f32::to_bits),
+                oc[v].map(f32::to_bits),
+                "vertex {v}"
+            );
+            kept_checked += 1;
+        }
+    }
+    let changed = &res.changed;
+    let nch = changed.iter().filter(|&&c| c).count();
+    // The edited region carries Spot-like colours: its Lab distribution is closer to that of the
+    // head before the edit than a fill with Spot's mean colour is (by at least half).
+    let (areas_old, areas_new) = (vertex_areas(&old), vertex_areas(&new));
+    let mut edited_old = edited.clone();
+    edited_old.resize(n_old, false);
+    let all = vec![true; n_old];
+    let mean = mean_color(&oc, &all, &areas_old);
+    let flat = vec![mean; new.positions.len()];
+    let d_ours = lab_distance_between(
+        &res.colors,
+        changed,
+        &areas_new,
+        &oc,
+        &edited_old,
+        &areas_old,
+    );
+    let d_mean = lab_distance_between(&flat, changed, &areas_new, &oc, &edited_old, &areas_old);
+    let d_global = lab_distance_between(&res.colors, changed, &areas_new, &oc, &all, &areas_old);
+    let d_global_mean = lab_distance_between(&flat, changed, &areas_new, &oc, &all, &areas_old);
+    // No seam: the colour step across the border of the changed region is no larger than 1.5x
+    // the step across edges of the unchanged region.
+    let unchanged: Vec<bool> = changed.iter().map(|&c| !c).collect();
+    let (de_cross, nc) = edge_de(&new, &res.colors, &unchanged, true, false);
+    let (de_kept, _) = edge_de(&new, &res.colors, &unchanged, true, true);
+    let (de_done, _) = edge_de(&new, &res.colors, &unchanged, false, false);
+    println!(
+        "spot head stretch: old {n_old} verts ({n_edit} moved), new {} verts, {nch} changed, {kept_checked} kept bit-identical, {secs:.1}s; Lab W1 to the head before ours {d_ours:.2} mean fill {d_mean:.2}, to all of Spot {d_global:.2} (mean fill {d_global_mean:.2}); edge dE cross {de_cross:.2} ({nc}) kept {de_kept:.2} changed {de_done:.2}",
+        new.positions.len()
+    );
+    assert!(nch > n_edit / 2, "the edit changed {nch} vertices");
+    assert!(d_ours < 0.5 * d_mean, "colour statistics of the head");
+    assert!(d_global < d_global_mean, "colour statistics of Spot");
+    assert!(nc > 0 && de_cross <= 1.5 * de_kept, "border seam");
 }
 
 /// Area-weighted vertex normals (sum of the unnormalised face normals around each vertex),
