@@ -564,7 +564,7 @@ fn spot_texture_update_after_head_stretch_with_retriangulation() {
     let changed = &res.changed;
     let nch = changed.iter().filter(|&&c| c).count();
     // The edited region carries Spot-like colours: its Lab distribution is closer to that of the
-    // head before the edit than a fill with Spot's mean colour is (by at least half).
+    // head before the edit than a fill with Spot's mean colour is, by at least a factor of two.
     let (areas_old, areas_new) = (vertex_areas(&old), vertex_areas(&new));
     let mut edited_old = edited.clone();
     edited_old.resize(n_old, false);
