@@ -1227,3 +1227,81 @@ fn a_single_click_in_paint_mode_paints_one_dab() {
     assert_eq!(h.state().state.history_len().0, undo_before + 1);
     assert!(h.state().state.corr.is_empty() && h.state().state.pending_source.is_none());
 }
+
+/// Standard deviation of the distance of the vertices from the origin.
+fn radial_std(m: &TriMesh) -> f64 {
+    let r: Vec<f64> = m
+        .positions
+        .iter()
+        .map(|p| glam::Vec3::from(*p).length() as f64)
+        .collect();
+    let mean = r.iter().sum::<f64>() / r.len() as f64;
+    (r.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / r.len() as f64).sqrt()
+}
+
+#[test]
+fn signal_detail_transfers_geometry_at_the_chosen_strength() {
+    // Source: a dense unit sphere with fine bumps (a wavelength of a few edges); target: a
+    // smooth unit sphere.
+    let mut bumpy = sphere(130, 250);
+    for p in &mut bumpy.positions {
+        let v = glam::Vec3::from(*p);
+        let b = 1.0 + 0.02 * (50.0 * v.x).sin() * (50.0 * v.y).sin() * (50.0 * v.z).sin();
+        *p = (v * b).to_array();
+    }
+    let s_src = radial_std(&bumpy);
+    let target = sphere(100, 200);
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, bumpy, false);
+    app.state.set_mesh(Side::Target, target.clone(), false);
+    let mut h = harness(app);
+    h.run_steps(3);
+    // The panel offers the detail transfer only once "detail" is the chosen signal.
+    assert!(h.query_by_label("Transfer detail").is_none());
+    h.get_by_label("detail").click();
+    h.run_steps(3);
+    assert_eq!(
+        h.state().signal.signal,
+        meshmatch::app::tools::Signal::Detail
+    );
+    h.state_mut().signal.strength = 2.0;
+    h.get_by_label("Transfer detail").click();
+    h.run_steps(3);
+    let outcome = {
+        let app = h.state();
+        let job = app.tool.as_ref().expect("detail transfer started");
+        assert_eq!(job.name, "detail transfer");
+        job.wait().expect("detail transfer succeeded")
+    };
+    let app = h.state_mut();
+    app.tool = None;
+    app.state.apply_tool_outcome(outcome);
+    assert!(
+        app.state.message.contains("strength 2"),
+        "{}",
+        app.state.message
+    );
+    let result = (*app.state.slot(Side::Target).unwrap().file).clone();
+    // The target was replaced by a refined, displaced copy: the same sphere (mean radius), now
+    // with a radial relief far beyond the refinement's own chord sag.
+    assert!(result.num_vertices() > target.num_vertices());
+    let refined = meshmatch::geometry::refine_to_density(&target, result.num_vertices()).mesh;
+    let (s_res, s_flat) = (radial_std(&result), radial_std(&refined));
+    let mean_r = result
+        .positions
+        .iter()
+        .map(|p| glam::Vec3::from(*p).length() as f64)
+        .sum::<f64>()
+        / result.num_vertices() as f64;
+    println!(
+        "detail from the app: {} vertices, radial std {s_res:.5} (undisplaced refinement {s_flat:.5}, source relief {s_src:.5}), mean radius {mean_r:.4}",
+        result.num_vertices()
+    );
+    assert!((mean_r - 1.0).abs() < 0.01, "mean radius {mean_r}");
+    assert!(s_res > 5.0 * s_flat, "relief {s_res} vs {s_flat}");
+    // Strength 2 doubles the relief: more than the source's own (strength 1 gives about that).
+    assert!(
+        s_res > 1.2 * s_src,
+        "strength: relief {s_res} vs source {s_src}"
+    );
+}

@@ -129,9 +129,21 @@ fn lab_distance(
     selb: &[bool],
     areas: &[f64],
 ) -> f64 {
+    lab_distance_between(ca, sela, areas, cb, selb, areas)
+}
+
+/// [`lab_distance`] between colourings of two different meshes, each with its own vertex areas.
+fn lab_distance_between(
+    ca: &[[f32; 3]],
+    sela: &[bool],
+    areas_a: &[f64],
+    cb: &[[f32; 3]],
+    selb: &[bool],
+    areas_b: &[f64],
+) -> f64 {
     (0..3)
         .map(|k| {
-            let pick = |c: &[[f32; 3]], s: &[bool]| -> Vec<(f32, f64)> {
+            let pick = |c: &[[f32; 3]], s: &[bool], areas: &[f64]| -> Vec<(f32, f64)> {
                 c.iter()
                     .zip(s)
                     .zip(areas)
@@ -139,7 +151,7 @@ fn lab_distance(
                     .map(|((c, _), a)| (srgb_to_lab(*c)[k], *a))
                     .collect()
             };
-            w1(&pick(ca, sela), &pick(cb, selb))
+            w1(&pick(ca, sela, areas_a), &pick(cb, selb, areas_b))
         })
         .sum()
 }
@@ -497,13 +509,117 @@ fn spot_texture_update_after_flank_edit() {
     assert!(de_cross <= 1.5 * de_kept.max(de_before), "border seam");
 }
 
+#[test]
+fn spot_texture_update_after_head_stretch_with_retriangulation() {
+    let n = 16_000;
+    let old = spot_colored(n);
+    let oc = old.colors.clone().unwrap();
+    // Stretch the head and neck (everything in front of the plane z = Z0; the head looks towards
+    // -z) by 1.5x along z. The map is continuous and leaves every vertex behind the plane at its
+    // exact position.
+    const Z0: f32 = -0.25;
+    let mut stretched = TriMesh::new(old.positions.clone(), old.faces.clone());
+    let mut edited = vec![false; n.min(old.positions.len())];
+    for (v, p) in stretched.positions.iter_mut().enumerate() {
+        if p[2] < Z0 {
+            p[2] = Z0 + 1.5 * (p[2] - Z0);
+            edited[v] = true;
+        }
+    }
+    let n_old = old.positions.len();
+    let n_edit = edited.iter().filter(|&&e| e).count();
+    // Re-triangulate: longest-edge bisection splits the stretched (now longest) edges first.
+    let new = refine_to_density(&stretched, n_old + n_edit * 3 / 5).mesh;
+    let new = TriMesh::new(new.positions, new.faces);
+    assert!(new.positions.len() > n_old, "the edit adds vertices");
+    assert_ne!(new.faces.len(), old.faces.len());
+    let t0 = Instant::now();
+    let res = update_texture(&old, &new, &params(n), &|_| {}, &CancelToken::new()).unwrap();
+    let secs = t0.elapsed().as_secs_f64();
+    save_preview("spot_stretch_old", &old.positions, &old.faces, Some(&oc));
+    save_preview(
+        "spot_stretch_updated",
+        &new.positions,
+        &new.faces,
+        Some(&res.colors),
+    );
+    // Outside the edit: every new vertex at an old vertex's exact position keeps that vertex's
+    // colour bit for bit (the first n_old vertices of the refinement are the old ones in order).
+    let mut kept_checked = 0;
+    for v in 0..n_old {
+        if !edited[v] {
+            assert_eq!(new.positions[v], old.positions[v]);
+            assert!(
+                !res.changed[v],
+                "vertex {v} outside the edit marked changed"
+            );
+            assert_eq!(
+                res.colors[v].map(f32::to_bits),
+                oc[v].map(f32::to_bits),
+                "vertex {v}"
+            );
+            kept_checked += 1;
+        }
+    }
+    let changed = &res.changed;
+    let nch = changed.iter().filter(|&&c| c).count();
+    // The edited region carries Spot-like colours: its Lab distribution is closer to that of the
+    // head before the edit than a fill with Spot's mean colour is, by at least a factor of two.
+    let (areas_old, areas_new) = (vertex_areas(&old), vertex_areas(&new));
+    let mut edited_old = edited.clone();
+    edited_old.resize(n_old, false);
+    let all = vec![true; n_old];
+    let mean = mean_color(&oc, &all, &areas_old);
+    let flat = vec![mean; new.positions.len()];
+    let d_ours = lab_distance_between(
+        &res.colors,
+        changed,
+        &areas_new,
+        &oc,
+        &edited_old,
+        &areas_old,
+    );
+    let d_mean = lab_distance_between(&flat, changed, &areas_new, &oc, &edited_old, &areas_old);
+    let d_global = lab_distance_between(&res.colors, changed, &areas_new, &oc, &all, &areas_old);
+    let d_global_mean = lab_distance_between(&flat, changed, &areas_new, &oc, &all, &areas_old);
+    // No seam: the colour step across the border of the changed region is no larger than 1.5x
+    // the step across edges of the unchanged region.
+    let unchanged: Vec<bool> = changed.iter().map(|&c| !c).collect();
+    let (de_cross, nc) = edge_de(&new, &res.colors, &unchanged, true, false);
+    let (de_kept, _) = edge_de(&new, &res.colors, &unchanged, true, true);
+    let (de_done, _) = edge_de(&new, &res.colors, &unchanged, false, false);
+    println!(
+        "spot head stretch: old {n_old} verts ({n_edit} moved), new {} verts, {nch} changed, {kept_checked} kept bit-identical, {secs:.1}s; Lab W1 to the head before ours {d_ours:.2} mean fill {d_mean:.2}, to all of Spot {d_global:.2} (mean fill {d_global_mean:.2}); edge dE cross {de_cross:.2} ({nc}) kept {de_kept:.2} changed {de_done:.2}",
+        new.positions.len()
+    );
+    assert!(nch > n_edit / 2, "the edit changed {nch} vertices");
+    assert!(d_ours < 0.5 * d_mean, "colour statistics of the head");
+    assert!(d_global < d_global_mean, "colour statistics of Spot");
+    assert!(nc > 0 && de_cross <= 1.5 * de_kept, "border seam");
+}
+
+/// Area-weighted vertex normals (sum of the unnormalised face normals around each vertex),
+/// computed here independently of the library's normals.
+fn area_normals(m: &TriMesh) -> Vec<Vec3> {
+    let mut n = vec![Vec3::ZERO; m.positions.len()];
+    for f in &m.faces {
+        let p = f.map(|v| Vec3::from(m.positions[v as usize]));
+        let fnrm = (p[1] - p[0]).cross(p[2] - p[0]);
+        for &v in f {
+            n[v as usize] += fnrm;
+        }
+    }
+    n.iter().map(|x| x.normalize_or_zero()).collect()
+}
+
 fn detail_onto(target: &TriMesh, name: &str) {
     let igea = meshmatch::mesh::io::load(&data("igea/igea.ply")).expect("igea");
+    let strength = 1.0f32;
     let t0 = Instant::now();
     let r = transfer_detail(
         &igea,
         target,
-        1.0,
+        strength,
         &TransferParams {
             shape_weight: meshmatch::applications::DETAIL_SHAPE_WEIGHT,
             ..params(16_000)
@@ -520,20 +636,42 @@ fn detail_onto(target: &TriMesh, name: &str) {
         let mx = d.iter().map(|x| x.abs()).fold(0.0f32, f32::max);
         (m, s, mx)
     };
+    // Measure the result geometry, not the displacement the library reports: the signed offset
+    // of every displaced vertex from its undisplaced position along the undisplaced surface's
+    // normal (computed here), in the undisplaced target's mean edge lengths.
+    let (base, res) = (&r.undisplaced, &r.mesh);
+    assert_eq!(base.faces, res.faces);
+    assert_eq!(base.positions.len(), res.positions.len());
+    let me_t = meshmatch::geometry::mean_edge_length(&base.positions, &base.faces);
+    let offset: Vec<f32> = area_normals(base)
+        .iter()
+        .zip(&base.positions)
+        .zip(&res.positions)
+        .map(|((n, b), p)| (Vec3::from(*p) - Vec3::from(*b)).dot(*n) / me_t)
+        .collect();
+    let tangential = base
+        .positions
+        .iter()
+        .zip(&res.positions)
+        .zip(&offset)
+        .map(|((b, p), o)| {
+            let d = (Vec3::from(*p) - Vec3::from(*b)).length() / me_t;
+            (d * d - o * o).max(0.0).sqrt()
+        })
+        .fold(0.0f32, f32::max);
     let (ms, ss, xs) = stat(&r.source_displacement);
-    let (mt, st, xt) = stat(&r.target_displacement);
-    // The detail is really on the result: splitting the result again finds the applied
-    // displacement (correlated with it), not only the target's own shape.
-    let (_, d_res) = split_detail(&r.mesh.positions, &r.mesh.faces);
+    let (mt, st, xt) = stat(&offset);
+    // The detail is really on the result: splitting the result again finds the applied offset
+    // (correlated with it), not only the target's own shape.
+    let (_, d_res) = split_detail(&res.positions, &res.faces);
     let corr = {
-        let td = &r.target_displacement;
-        let n = td.len() as f64;
+        let n = offset.len() as f64;
         let (ma, mb) = (
-            td.iter().map(|&x| x as f64).sum::<f64>() / n,
+            offset.iter().map(|&x| x as f64).sum::<f64>() / n,
             d_res.iter().map(|&x| x as f64).sum::<f64>() / n,
         );
         let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-        for (a, b) in td.iter().zip(&d_res) {
+        for (a, b) in offset.iter().zip(&d_res) {
             let (a, b) = (*a as f64 - ma, *b as f64 - mb);
             sab += a * b;
             saa += a * a;
@@ -542,19 +680,23 @@ fn detail_onto(target: &TriMesh, name: &str) {
         sab / (saa * sbb).sqrt().max(1e-30)
     };
     println!(
-        "detail igea -> {name}: {} verts, {secs:.1}s; displacement in mean edge lengths: source mean {ms:.4} std {ss:.4} max {xs:.4}; transferred mean {mt:.4} std {st:.4} (ratio {:.2}) max {xt:.4}; correlation with the re-measured detail {corr:.2}",
-        r.mesh.num_vertices(),
+        "detail igea -> {name}: {} verts, {secs:.1}s; displacement in mean edge lengths: source mean {ms:.4} std {ss:.4} max {xs:.4}; result geometry offset mean {mt:.4} std {st:.4} (ratio {:.2}) max {xt:.4}, largest tangential drift {tangential:.2e}; correlation with the re-measured detail {corr:.2}",
+        res.num_vertices(),
         st / ss
     );
-    save_preview(
-        &format!("detail_{name}"),
-        &r.mesh.positions,
-        &r.mesh.faces,
-        None,
+    save_preview(&format!("detail_{name}"), &res.positions, &res.faces, None);
+    // Mean criterion: Taubin smoothing is nearly volume preserving, so the source displacement's
+    // mean is close to zero (Igea at 16K: -0.013 mean edge lengths against a std of 0.071) and
+    // "within 20% of the mean" would demand a tolerance far below the detail's own amplitude. The scale of the distribution is its std, so the means must
+    // agree within 20% of the source's std (or of |mean| if that were the larger one): the result
+    // is not shifted inwards or outwards by more than a fifth of the detail's amplitude.
+    let s = strength as f64;
+    assert!(
+        (mt - s * ms).abs() <= 0.2 * s * ss.max(ms.abs()),
+        "mean {mt} vs {ms}"
     );
-    assert!((mt - ms).abs() <= 0.2 * ss.max(ms.abs()), "mean");
-    assert!(st >= 0.8 * ss && st <= 1.2 * ss, "std");
-    assert!(xt <= xs * 1.0001, "spikes");
+    assert!(st >= 0.8 * s * ss && st <= 1.2 * s * ss, "std {st} vs {ss}");
+    assert!(xt <= xs * 1.0001 * strength, "spikes {xt} vs {xs}");
     assert!(corr > 0.2, "detail visible on the result");
 }
 

@@ -83,6 +83,8 @@ where
     pub tool: Option<tools::ToolJob>,
     /// The "Paint with exemplar" window and its settings.
     pub exemplar: tools::ExemplarDialog,
+    /// What the transfer moves (colour or detail) and the detail strength.
+    pub signal: tools::SignalSettings,
     repaint: Option<egui::Context>,
 }
 
@@ -127,6 +129,7 @@ where
             last_frame_start: None,
             tool: None,
             exemplar: tools::ExemplarDialog::default(),
+            signal: tools::SignalSettings::default(),
             repaint: wake_ctx,
         }
     }
@@ -166,6 +169,7 @@ where
                 (Some(s), Some(t)) => Ok(tools::detail_job(
                     (*s.file).clone(),
                     (*t.file).clone(),
+                    self.signal.strength,
                     wake,
                 )),
                 _ => Err(Error::InvalidInput(
@@ -544,7 +548,7 @@ where
                     .add_enabled(!busy, egui::Button::new("Transfer detail source -> target"))
                     .on_hover_text(
                         "Move the source's fine geometric detail onto the target's surface \
-                         (MeshMatch §5.3)",
+                         (MeshMatch §5.3), with the strength set under Parameters > Signal: detail",
                     )
                     .clicked()
                 {
@@ -664,13 +668,25 @@ where
             }
             ui.separator();
             ui.heading("Parameters");
+            self.signal.ui(ui);
             let mut p = self.state.params.clone();
             if p.ui(ui) {
                 self.state.set_params(p, Instant::now());
             }
             ui.separator();
             ui.horizontal(|ui| {
-                if ui.button("Restart transfer").clicked() {
+                if self.signal.signal == tools::Signal::Detail {
+                    if ui
+                        .add_enabled(self.tool.is_none(), egui::Button::new("Transfer detail"))
+                        .on_hover_text(
+                            "Displace the target by the source's detail at the chosen strength \
+                             (replaces the target)",
+                        )
+                        .clicked()
+                    {
+                        self.start_tool("detail");
+                    }
+                } else if ui.button("Restart transfer").clicked() {
                     self.state.schedule_restart(Instant::now());
                 }
                 if ui

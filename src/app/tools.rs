@@ -173,10 +173,75 @@ pub fn update_job(old: TriMesh, new: TriMesh, wake: impl Fn() + Send + Sync + 's
     })
 }
 
-/// Detail transfer from the source's geometry onto the target's; the outcome replaces the target.
+/// What the app's transfer moves from the source onto the target.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Signal {
+    /// Colours (the live MeshMatch transfer, restarted on every parameter edit).
+    #[default]
+    Colour,
+    /// Geometric detail (MeshMatch §5.3): the source's displacement over its smoothed surface,
+    /// applied along the target's normals; run on demand, it replaces the target.
+    Detail,
+}
+
+/// Largest detail strength the parameters panel offers.
+pub const MAX_DETAIL_STRENGTH: f32 = 3.0;
+
+/// The signal choice of the parameters panel and the detail transfer's strength.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SignalSettings {
+    /// What the panel's transfer button moves.
+    pub signal: Signal,
+    /// Multiplier of the transferred displacement (1 = the source's amplitude, relative to
+    /// each mesh's mean edge length; 0 = none; negative engraves instead of embossing).
+    pub strength: f32,
+}
+
+impl Default for SignalSettings {
+    fn default() -> Self {
+        SignalSettings {
+            signal: Signal::Colour,
+            strength: 1.0,
+        }
+    }
+}
+
+impl SignalSettings {
+    /// Draw the signal selector and, for detail, the strength slider (with tooltips).
+    pub fn ui(&mut self, ui: &mut eframe::egui::Ui) {
+        use eframe::egui;
+        ui.horizontal(|ui| {
+            ui.label("Signal:");
+            ui.selectable_value(&mut self.signal, Signal::Colour, "colour")
+                .on_hover_text("Transfer the source's colours onto the target (live)");
+            ui.selectable_value(&mut self.signal, Signal::Detail, "detail")
+                .on_hover_text(
+                    "Transfer the source's fine geometric detail onto the target's surface \
+                     (MeshMatch §5.3); the displaced target replaces the target",
+                );
+        });
+        if self.signal == Signal::Detail {
+            ui.add(
+                egui::Slider::new(
+                    &mut self.strength,
+                    -MAX_DETAIL_STRENGTH..=MAX_DETAIL_STRENGTH,
+                )
+                .text("strength"),
+            )
+            .on_hover_text(
+                "Scale of the transferred displacement: 1 = the source's amplitude relative to \
+                 its edge length, 0 = none, negative values engrave instead of emboss",
+            );
+        }
+    }
+}
+
+/// Detail transfer from the source's geometry onto the target's, the displacement scaled by
+/// `strength`; the outcome replaces the target.
 pub fn detail_job(
     source: TriMesh,
     target: TriMesh,
+    strength: f32,
     wake: impl Fn() + Send + Sync + 'static,
 ) -> ToolJob {
     ToolJob::spawn("detail transfer", wake, move |sink, cancel| {
@@ -184,12 +249,12 @@ pub fn detail_job(
             shape_weight: DETAIL_SHAPE_WEIGHT,
             ..params(TOOL_VERTICES)
         };
-        let r = transfer_detail(&source, &target, 1.0, &p, sink, cancel)?;
+        let r = transfer_detail(&source, &target, strength, &p, sink, cancel)?;
         let n = r.mesh.num_vertices();
         Ok(ToolOutcome::Mesh(
             Side::Target,
             r.mesh,
-            format!("detail transferred onto the target ({n} vertices)"),
+            format!("detail transferred onto the target ({n} vertices, strength {strength})"),
         ))
     })
 }

@@ -25,6 +25,8 @@ pub const DETAIL_SHAPE_WEIGHT: f32 = 10.0;
 pub struct DetailResult {
     /// The target at the working density, displaced along its normals.
     pub mesh: TriMesh,
+    /// The target at the working density before displacement (same vertices and faces as `mesh`).
+    pub undisplaced: TriMesh,
     /// Source displacement per source working vertex, in source mean edge lengths.
     pub source_displacement: Vec<f32>,
     /// Applied displacement per result vertex, in target mean edge lengths (strength included).
@@ -221,6 +223,7 @@ pub fn transfer_detail(
     timings.extend(r.timings.iter().cloned());
     Ok(DetailResult {
         mesh: TriMesh::new(positions, wm.faces.clone()),
+        undisplaced: TriMesh::new(wm.positions.clone(), wm.faces.clone()),
         source_displacement: dn,
         target_displacement: td,
         energy: r.energy,
