@@ -132,6 +132,7 @@ impl Engine for TestEngine {
         Ok(Solved {
             working_signal: out.clone(),
             file_signal: out,
+            layout: None,
         })
     }
 }
@@ -1226,4 +1227,91 @@ fn a_single_click_in_paint_mode_paints_one_dab() {
     assert!(paint[v as usize][3] > 0.5, "{:?}", paint[v as usize]);
     assert_eq!(h.state().state.history_len().0, undo_before + 1);
     assert!(h.state().state.corr.is_empty() && h.state().state.pending_source.is_none());
+}
+
+/// A sphere with a spherical UV layout (u from the longitude, v from the latitude).
+fn mapped_sphere(rings: u32, segments: u32) -> TriMesh {
+    let mut m = sphere(rings, segments);
+    let uv = |p: [f32; 3]| {
+        [
+            0.5 + p[2].atan2(p[0]) / (2.0 * std::f32::consts::PI),
+            p[1].clamp(-1.0, 1.0).acos() / std::f32::consts::PI,
+        ]
+    };
+    m.uvs = Some(
+        m.faces
+            .iter()
+            .flat_map(|f| f.map(|v| uv(m.positions[v as usize])))
+            .collect(),
+    );
+    m
+}
+
+#[test]
+fn export_delivers_like_transfer_out_a_baked_texture_in_glb_and_the_dense_mesh_in_ply() {
+    use meshmatch::app::engine::MeshMatchEngine;
+    let mut app = MeshMatchApp::new(MeshMatchEngine, None);
+    app.state.params.vertices = 1500;
+    app.state.params.iterations = 1;
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state
+        .set_mesh(Side::Target, mapped_sphere(14, 20), false);
+    app.state
+        .set_correspondences(vec![Correspondence {
+            source_vertex: 0,
+            target_vertices: vec![0],
+        }])
+        .unwrap();
+    let t0 = Instant::now();
+    loop {
+        app.pump(Instant::now());
+        let s = &app.state;
+        if s.result.is_some() && !s.job.running && !s.restart_pending() {
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(120), "no result");
+        app.wait_events(Duration::from_millis(50));
+    }
+    let dir = temp_dir("export_delivery");
+    let target = app.state.meshes[1].as_ref().unwrap().file.clone();
+
+    let glb = dir.join("result.glb");
+    app.state.export_result(&glb).unwrap();
+    let m = meshmatch::mesh::io::load(&glb).unwrap();
+    let tex = m
+        .texture
+        .as_ref()
+        .expect("a .glb of a target with UVs has a texture");
+    assert_eq!(tex.image.dimensions(), (1024, 1024));
+    assert!(
+        m.colors.is_none(),
+        "the texture replaces vertex colours in .glb"
+    );
+    // The baked texture carries the result's colours, not a blank image.
+    let (mut red, mut blue) = (0usize, 0usize);
+    for p in tex.image.pixels() {
+        red += (p.0[0] > 128 && p.0[2] < 128) as usize;
+        blue += (p.0[2] > 128 && p.0[0] < 128) as usize;
+    }
+    assert!(red > 1000 && blue > 1000, "texture red {red} blue {blue}");
+
+    let ply = dir.join("result.ply");
+    app.state.export_result(&ply).unwrap();
+    let m = meshmatch::mesh::io::load(&ply).unwrap();
+    assert!(m.texture.is_none());
+    assert_eq!(m.colors.as_ref().map(Vec::len), Some(target.num_vertices()));
+
+    let dense = dir.join("dense.ply");
+    app.state.export_dense_result(&dense).unwrap();
+    let m = meshmatch::mesh::io::load(&dense).unwrap();
+    let working = app.state.meshes[1]
+        .as_ref()
+        .unwrap()
+        .working
+        .clone()
+        .unwrap();
+    assert_eq!(m.num_vertices(), working.num_vertices());
+    assert!(m.num_vertices() > target.num_vertices());
+    assert!(m.colors.is_some());
+    std::fs::remove_dir_all(&dir).ok();
 }
