@@ -1315,3 +1315,40 @@ fn export_delivers_like_transfer_out_a_baked_texture_in_glb_and_the_dense_mesh_i
     assert!(m.colors.is_some());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn cancel_during_preparation_stops_inside_the_hierarchy_build() {
+    use meshmatch::meshmatch::{TransferParams, prepare};
+    let mesh = sphere(40, 64);
+    let params = TransferParams {
+        vertices: 256_000,
+        ..TransferParams::default()
+    };
+    let cancel = CancelToken::new();
+    let events = std::sync::Mutex::new(Vec::new());
+    let sink = |e: Event| match e {
+        Event::Progress(p) => {
+            if p.stage == "hierarchy" {
+                // Asked from another thread, as the UI does; joined so the stop is set before
+                // the hierarchy build starts.
+                let c = cancel.clone();
+                std::thread::spawn(move || c.cancel()).join().unwrap();
+            }
+            events.lock().unwrap().push(p.stage.to_string());
+        }
+        Event::StageTime(name, _) => events.lock().unwrap().push(format!("time {name}")),
+        Event::Partial { .. } => {}
+    };
+    let r = prepare(&mesh, &params, &sink, &cancel);
+    assert!(
+        matches!(r, Err(meshmatch::Error::Cancelled)),
+        "prepare was not cancelled"
+    );
+    let events = events.into_inner().unwrap();
+    assert!(events.contains(&"time refine".to_string()), "{events:?}");
+    // The hierarchy was abandoned, not built to the end and then cancelled.
+    assert!(
+        !events.contains(&"time hierarchy".to_string()),
+        "{events:?}"
+    );
+}

@@ -304,13 +304,14 @@ pub fn prepare(
 
     sink(Event::Progress(progress("hierarchy", &watch, 0.2)));
     let sw = Stopwatch::start();
-    let hierarchy = Hierarchy::build(
+    let hierarchy = Hierarchy::build_cancellable(
         &working.positions,
         &working.faces,
         HierarchyOptions {
             min_vertices: 128,
             max_levels: params.levels,
         },
+        cancel,
     )?;
     let frames: Vec<Frames> = hierarchy
         .levels
