@@ -1352,3 +1352,60 @@ fn cancel_during_preparation_stops_inside_the_hierarchy_build() {
         "{events:?}"
     );
 }
+
+#[test]
+fn brush_cursor_lies_on_the_surface_and_hides_off_the_mesh() {
+    let mut app = app_with_spheres();
+    app.views.tool = meshmatch::app::Tool::Paint;
+    app.state.brush.radius = 0.05;
+    let mut h = harness(app);
+    h.step();
+    let side = Side::Target;
+    let ratio = |pts: &[Pos2]| {
+        let n = pts.len() as f32;
+        let c = pts.iter().fold(egui::Vec2::ZERO, |a, p| a + p.to_vec2()) / n;
+        let d: Vec<f32> = pts.iter().map(|p| (p.to_vec2() - c).length()).collect();
+        let max = d.iter().cloned().fold(0.0f32, f32::max);
+        let min = d.iter().cloned().fold(f32::INFINITY, f32::min);
+        (max / min, c.to_pos2())
+    };
+    let app = h.state();
+    let rect = app.views.rects[1];
+    // Off the mesh: no cursor.
+    let corner = rect.min + egui::Vec2::new(4.0, rect.height() - 4.0);
+    assert!(app.views.pick_at(&app.state, side, rect, corner).is_none());
+    assert!(
+        app.views
+            .brush_outline(&app.state, side, rect, corner)
+            .is_none()
+    );
+    // Facing the camera: a near-circle around the pointer.
+    let front = vertex_pos(&h, side, front_vertex(&h, side, 0));
+    let pts = app
+        .views
+        .brush_outline(&app.state, side, rect, front)
+        .expect("cursor on the mesh");
+    assert_eq!(pts.len(), 32);
+    let (r, c) = ratio(&pts);
+    assert!(r < 1.3, "front outline ratio {r}");
+    assert!(
+        c.distance(front) < 3.0,
+        "outline centre {c:?} pointer {front:?}"
+    );
+    // Near the silhouette the surface is seen edge-on: the outline is a flat ellipse.
+    let mut edge = front;
+    while app
+        .views
+        .pick_at(&app.state, side, rect, edge + egui::Vec2::X)
+        .is_some()
+    {
+        edge += egui::Vec2::X;
+    }
+    let oblique = front + 0.9 * (edge - front);
+    let pts = app
+        .views
+        .brush_outline(&app.state, side, rect, oblique)
+        .expect("cursor on the mesh");
+    let (r, _) = ratio(&pts);
+    assert!(r > 1.5, "oblique outline ratio {r}");
+}
