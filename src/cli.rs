@@ -760,37 +760,19 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     }
 
     // Deliver on the target's own vertices (file order), or baked into its UV layout.
-    let mut out_mesh = target.clone();
-    out_mesh.colors = Some(result.file_signal.clone());
-    out_mesh.texture = None;
-    let ext = a
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
-    if ext != "ply" && target.uvs.is_some() {
-        let img = mm::bake_texture(
-            &target,
-            &prepared_target,
-            &result.working_signal,
-            a.texture_size,
-        );
-        out_mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
-            image: img,
-            path: None,
-        }));
-        if ext == "glb" {
-            out_mesh.colors = None;
-        }
-    }
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let out_mesh = mm::deliver(
+        &target,
+        &mm::BakeLayout::of(&prepared_target),
+        &result.working_signal,
+        &result.file_signal,
+        ext,
+        a.texture_size,
+    );
     io::save(&out_mesh, &a.out)?;
     eprintln!("wrote {}", a.out.display());
     if let Some(dense) = &a.out_dense {
-        let mut d = prepared_target.working_mesh().clone();
-        d.colors = Some(result.working_signal.clone());
-        d.texture = None;
-        d.uvs = None;
+        let d = mm::deliver_dense(prepared_target.working_mesh(), &result.working_signal);
         io::save(&d, dense)?;
         eprintln!("wrote {}", dense.display());
     }

@@ -132,6 +132,7 @@ impl Engine for TestEngine {
         Ok(Solved {
             working_signal: out.clone(),
             file_signal: out,
+            layout: None,
         })
     }
 }
@@ -1304,4 +1305,185 @@ fn signal_detail_transfers_geometry_at_the_chosen_strength() {
         s_res > 1.2 * s_src,
         "strength: relief {s_res} vs source {s_src}"
     );
+}
+
+/// A sphere with a spherical UV layout (u from the longitude, v from the latitude).
+fn mapped_sphere(rings: u32, segments: u32) -> TriMesh {
+    let mut m = sphere(rings, segments);
+    let uv = |p: [f32; 3]| {
+        [
+            0.5 + p[2].atan2(p[0]) / (2.0 * std::f32::consts::PI),
+            p[1].clamp(-1.0, 1.0).acos() / std::f32::consts::PI,
+        ]
+    };
+    m.uvs = Some(
+        m.faces
+            .iter()
+            .flat_map(|f| f.map(|v| uv(m.positions[v as usize])))
+            .collect(),
+    );
+    m
+}
+
+#[test]
+fn export_delivers_like_transfer_out_a_baked_texture_in_glb_and_the_dense_mesh_in_ply() {
+    use meshmatch::app::engine::MeshMatchEngine;
+    let mut app = MeshMatchApp::new(MeshMatchEngine, None);
+    app.state.params.vertices = 1500;
+    app.state.params.iterations = 1;
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state
+        .set_mesh(Side::Target, mapped_sphere(14, 20), false);
+    app.state
+        .set_correspondences(vec![Correspondence {
+            source_vertex: 0,
+            target_vertices: vec![0],
+        }])
+        .unwrap();
+    let t0 = Instant::now();
+    loop {
+        app.pump(Instant::now());
+        let s = &app.state;
+        if s.result.is_some() && !s.job.running && !s.restart_pending() {
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(120), "no result");
+        app.wait_events(Duration::from_millis(50));
+    }
+    let dir = temp_dir("export_delivery");
+    let target = app.state.meshes[1].as_ref().unwrap().file.clone();
+
+    let glb = dir.join("result.glb");
+    app.state.export_result(&glb).unwrap();
+    let m = meshmatch::mesh::io::load(&glb).unwrap();
+    let tex = m
+        .texture
+        .as_ref()
+        .expect("a .glb of a target with UVs has a texture");
+    assert_eq!(tex.image.dimensions(), (1024, 1024));
+    assert!(
+        m.colors.is_none(),
+        "the texture replaces vertex colours in .glb"
+    );
+    // The baked texture carries the result's colours, not a blank image.
+    let (mut red, mut blue) = (0usize, 0usize);
+    for p in tex.image.pixels() {
+        red += (p.0[0] > 128 && p.0[2] < 128) as usize;
+        blue += (p.0[2] > 128 && p.0[0] < 128) as usize;
+    }
+    assert!(red > 1000 && blue > 1000, "texture red {red} blue {blue}");
+
+    let ply = dir.join("result.ply");
+    app.state.export_result(&ply).unwrap();
+    let m = meshmatch::mesh::io::load(&ply).unwrap();
+    assert!(m.texture.is_none());
+    assert_eq!(m.colors.as_ref().map(Vec::len), Some(target.num_vertices()));
+
+    let dense = dir.join("dense.ply");
+    app.state.export_dense_result(&dense).unwrap();
+    let m = meshmatch::mesh::io::load(&dense).unwrap();
+    let working = app.state.meshes[1]
+        .as_ref()
+        .unwrap()
+        .working
+        .clone()
+        .unwrap();
+    assert_eq!(m.num_vertices(), working.num_vertices());
+    assert!(m.num_vertices() > target.num_vertices());
+    assert!(m.colors.is_some());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn cancel_during_preparation_stops_inside_the_hierarchy_build() {
+    use meshmatch::meshmatch::{TransferParams, prepare};
+    let mesh = sphere(40, 64);
+    let params = TransferParams {
+        vertices: 256_000,
+        ..TransferParams::default()
+    };
+    let cancel = CancelToken::new();
+    let events = std::sync::Mutex::new(Vec::new());
+    let sink = |e: Event| match e {
+        Event::Progress(p) => {
+            if p.stage == "hierarchy" {
+                // Asked from another thread, as the UI does; joined so the stop is set before
+                // the hierarchy build starts.
+                let c = cancel.clone();
+                std::thread::spawn(move || c.cancel()).join().unwrap();
+            }
+            events.lock().unwrap().push(p.stage.to_string());
+        }
+        Event::StageTime(name, _) => events.lock().unwrap().push(format!("time {name}")),
+        Event::Partial { .. } => {}
+    };
+    let r = prepare(&mesh, &params, &sink, &cancel);
+    assert!(
+        matches!(r, Err(meshmatch::Error::Cancelled)),
+        "prepare was not cancelled"
+    );
+    let events = events.into_inner().unwrap();
+    assert!(events.contains(&"time refine".to_string()), "{events:?}");
+    // The hierarchy was abandoned, not built to the end and then cancelled.
+    assert!(
+        !events.contains(&"time hierarchy".to_string()),
+        "{events:?}"
+    );
+}
+
+#[test]
+fn brush_cursor_lies_on_the_surface_and_hides_off_the_mesh() {
+    let mut app = app_with_spheres();
+    app.views.tool = meshmatch::app::Tool::Paint;
+    app.state.brush.radius = 0.05;
+    let mut h = harness(app);
+    h.step();
+    let side = Side::Target;
+    let ratio = |pts: &[Pos2]| {
+        let n = pts.len() as f32;
+        let c = pts.iter().fold(egui::Vec2::ZERO, |a, p| a + p.to_vec2()) / n;
+        let d: Vec<f32> = pts.iter().map(|p| (p.to_vec2() - c).length()).collect();
+        let max = d.iter().cloned().fold(0.0f32, f32::max);
+        let min = d.iter().cloned().fold(f32::INFINITY, f32::min);
+        (max / min, c.to_pos2())
+    };
+    let app = h.state();
+    let rect = app.views.rects[1];
+    // Off the mesh: no cursor.
+    let corner = rect.min + egui::Vec2::new(4.0, rect.height() - 4.0);
+    assert!(app.views.pick_at(&app.state, side, rect, corner).is_none());
+    assert!(
+        app.views
+            .brush_outline(&app.state, side, rect, corner)
+            .is_none()
+    );
+    // Facing the camera: a near-circle around the pointer.
+    let front = vertex_pos(&h, side, front_vertex(&h, side, 0));
+    let pts = app
+        .views
+        .brush_outline(&app.state, side, rect, front)
+        .expect("cursor on the mesh");
+    assert_eq!(pts.len(), 32);
+    let (r, c) = ratio(&pts);
+    assert!(r < 1.3, "front outline ratio {r}");
+    assert!(
+        c.distance(front) < 3.0,
+        "outline centre {c:?} pointer {front:?}"
+    );
+    // Near the silhouette the surface is seen edge-on: the outline is a flat ellipse.
+    let mut edge = front;
+    while app
+        .views
+        .pick_at(&app.state, side, rect, edge + egui::Vec2::X)
+        .is_some()
+    {
+        edge += egui::Vec2::X;
+    }
+    let oblique = front + 0.9 * (edge - front);
+    let pts = app
+        .views
+        .brush_outline(&app.state, side, rect, oblique)
+        .expect("cursor on the mesh");
+    let (r, _) = ratio(&pts);
+    assert!(r > 1.5, "oblique outline ratio {r}");
 }

@@ -424,6 +424,16 @@ where
                 {
                     result = self.state.export_result(&p);
                 }
+                if ui
+                    .button("Export dense result...")
+                    .on_hover_text("The result on the working-resolution mesh (PLY vertex colours)")
+                    .clicked()
+                    && let Some(p) = rfd::FileDialog::new()
+                        .add_filter("ply", &["ply"])
+                        .save_file()
+                {
+                    result = self.state.export_dense_result(&p);
+                }
                 for side in [Side::Source, Side::Target] {
                     if ui.button(format!("Export painted {side:?}...")).clicked()
                         && let Some(p) = rfd::FileDialog::new()

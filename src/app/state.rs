@@ -13,6 +13,8 @@ use crate::{Error, Result, TriMesh};
 pub const DEBOUNCE: Duration = Duration::from_millis(150);
 /// Most undo steps kept.
 pub const UNDO_LIMIT: usize = 100;
+/// Size (pixels per side) of the texture baked on export, as `transfer --texture-size` defaults.
+pub const EXPORT_TEXTURE_SIZE: u32 = 1024;
 
 /// Parameters the app can edit, save and send to the worker.
 pub trait AppParams:
@@ -1164,7 +1166,8 @@ impl<P: AppParams> AppState<P> {
 
     // ----- export and sessions -----
 
-    /// Write the transfer result on the target file mesh (format by extension).
+    /// Write the transfer result on the target file mesh as `transfer --out` does (format by
+    /// extension; `.glb`/`.obj` of a target with UVs get a texture baked into its UV layout).
     pub fn export_result(&self, path: &Path) -> Result<()> {
         let slot = self
             .slot(Side::Target)
@@ -1173,15 +1176,51 @@ impl<P: AppParams> AppState<P> {
             .result
             .as_ref()
             .ok_or_else(|| Error::InvalidInput("no finished transfer to export yet".into()))?;
-        let mut m = (*slot.file).clone();
-        if res.file_signal.len() != m.positions.len() {
+        if res.file_signal.len() != slot.file.positions.len() {
             return Err(Error::InvalidInput(
                 "result does not match the target mesh".into(),
             ));
         }
-        m.colors = Some(res.file_signal.clone());
-        m.texture = None;
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        let m = match &res.layout {
+            Some(layout) => crate::meshmatch::deliver(
+                &slot.file,
+                layout,
+                &res.working_signal,
+                &res.file_signal,
+                ext,
+                EXPORT_TEXTURE_SIZE,
+            ),
+            None => {
+                let mut m = (*slot.file).clone();
+                m.colors = Some(res.file_signal.clone());
+                m.texture = None;
+                m
+            }
+        };
         crate::mesh::io::save(&m, path)
+    }
+
+    /// Write the transfer result on the dense working mesh (as `transfer --out-dense` does).
+    pub fn export_dense_result(&self, path: &Path) -> Result<()> {
+        let slot = self
+            .slot(Side::Target)
+            .ok_or_else(|| Error::InvalidInput("no target mesh".into()))?;
+        let res = self
+            .result
+            .as_ref()
+            .ok_or_else(|| Error::InvalidInput("no finished transfer to export yet".into()))?;
+        let working = slot
+            .working
+            .as_ref()
+            .filter(|w| w.positions.len() == res.working_signal.len())
+            .ok_or_else(|| {
+                Error::InvalidInput("result does not match the target's working mesh".into())
+            })?;
+        crate::mesh::io::save(
+            &crate::meshmatch::deliver_dense(working, &res.working_signal),
+            path,
+        )
     }
 
     /// Save the session as JSON at `path`. Meshes are named by file, or by built-in scene when

@@ -539,6 +539,36 @@ impl Views {
         }
     }
 
+    /// Screen outline of the brush on the surface under `pos`: a world-space circle of the brush
+    /// radius in the tangent plane at the picked point, projected at 32 points; `None` when the
+    /// pointer is off the mesh.
+    pub fn brush_outline(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+        rect: Rect,
+        pos: Pos2,
+    ) -> Option<Vec<Pos2>> {
+        let hit = self.pick_at(state, side, rect, pos)?;
+        let frame = self.frame_of(state, side)?;
+        let m = state.slot(side)?.displayed();
+        let [a, b, c] = m.faces[hit.face].map(|v| glam::Vec3::from(m.positions[v as usize]));
+        let n = (b - a).cross(c - a).try_normalize()?;
+        let (u, w) = n.any_orthonormal_pair();
+        // The same radius `paint_at` paints with.
+        let r = (state.brush.radius * frame.radius).max(1e-9);
+        let size = GVec2::new(rect.width(), rect.height());
+        let cam = &self.cameras[side_index(side)];
+        (0..32)
+            .map(|k| {
+                let t = k as f32 * std::f32::consts::TAU / 32.0;
+                let p = hit.point + r * (t.cos() * u + t.sin() * w);
+                let s = cam.project(&frame, p, size)?;
+                Some(Pos2::new(rect.min.x + s.x, rect.min.y + s.y))
+            })
+            .collect()
+    }
+
     fn draw_brush_cursor<P: AppParams>(
         &self,
         painter: &egui::Painter,
@@ -547,29 +577,16 @@ impl Views {
         side: Side,
         state: &AppState<P>,
     ) {
-        let Some(frame) = self.frame_of(state, side) else {
+        let Some(outline) = self.brush_outline(state, side, rect, pos) else {
             return;
         };
-        // Brush radius in pixels at the orbit distance.
-        let cam = &self.cameras[side_index(side)];
-        let (eye, target) = cam.eye_target(&frame);
-        let dist = (eye - target).length();
-        let px_per_world = rect.height()
-            / (2.0 * dist * (crate::render::camera::FOV_Y_DEG.to_radians() * 0.5).tan());
-        let r = state.brush.radius * frame.radius * px_per_world;
         let c = state.brush.color.map(|x| (x * 255.0) as u8);
-        painter.circle_stroke(
-            pos,
-            r,
-            Stroke::new(
-                1.5,
-                if state.brush.eraser {
-                    Color32::WHITE
-                } else {
-                    Color32::from_rgb(c[0], c[1], c[2])
-                },
-            ),
-        );
+        let color = if state.brush.eraser {
+            Color32::WHITE
+        } else {
+            Color32::from_rgb(c[0], c[1], c[2])
+        };
+        painter.add(egui::Shape::closed_line(outline, Stroke::new(1.5, color)));
     }
 }
 

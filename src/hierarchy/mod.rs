@@ -130,6 +130,17 @@ impl Hierarchy {
         faces: &[[u32; 3]],
         opts: HierarchyOptions,
     ) -> Result<Hierarchy> {
+        Self::build_cancellable(positions, faces, opts, &crate::jobs::CancelToken::new())
+    }
+
+    /// [`Hierarchy::build`] that checks `cancel` before every level and stops with
+    /// [`Error::Cancelled`] once it is set.
+    pub fn build_cancellable(
+        positions: &[[f32; 3]],
+        faces: &[[u32; 3]],
+        opts: HierarchyOptions,
+        cancel: &crate::jobs::CancelToken,
+    ) -> Result<Hierarchy> {
         if positions.is_empty() || faces.is_empty() {
             return Err(Error::InvalidMesh(
                 "hierarchy: the mesh has no vertices or no faces".into(),
@@ -148,6 +159,7 @@ impl Hierarchy {
         let max_levels = opts.max_levels.unwrap_or(usize::MAX).max(1);
         let min_v = opts.min_vertices.max(4);
         while h.levels.len() < max_levels {
+            cancel.check()?;
             let cur = h.levels.last().expect("one level");
             if cur.len() <= min_v {
                 break;

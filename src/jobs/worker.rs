@@ -31,6 +31,9 @@ pub struct Solved {
     pub working_signal: Vec<[f32; 3]>,
     /// Per-vertex colour on the target file's vertices.
     pub file_signal: Vec<[f32; 3]>,
+    /// Where the target's working faces lie in its file faces, to bake a texture into its UV
+    /// layout on export; `None` from an engine without one (export then writes vertex colours).
+    pub layout: Option<Arc<crate::meshmatch::BakeLayout>>,
 }
 
 /// The computation a worker runs: preparation of one mesh and the solve between two.

@@ -332,13 +332,14 @@ pub fn prepare(
 
     sink(Event::Progress(progress("hierarchy", &watch, 0.2)));
     let sw = Stopwatch::start();
-    let hierarchy = Hierarchy::build(
+    let hierarchy = Hierarchy::build_cancellable(
         &working.positions,
         &working.faces,
         HierarchyOptions {
             min_vertices: 128,
             max_levels: params.levels,
         },
+        cancel,
     )?;
     let frames: Vec<Frames> = hierarchy
         .levels
@@ -1091,21 +1092,135 @@ pub fn bake_texture(
     working_signal: &[[f32; 3]],
     size: u32,
 ) -> image::RgbImage {
+    let pm = prepared_target;
+    bake_layout(
+        target,
+        BakeLayoutRef {
+            working_faces: &pm.working.faces,
+            working_vertices: pm.working.positions.len(),
+            face_input: &pm.face_input,
+            face_bary: &pm.face_bary,
+            input_faces: pm.input_faces,
+        },
+        working_signal,
+        size,
+    )
+}
+
+/// Where a prepared mesh's working faces lie in its input faces (the refinement provenance): what
+/// baking a working signal into the input's UV layout needs, without the rest of the preparation.
+#[derive(Clone, Debug, Default)]
+pub struct BakeLayout {
+    working_faces: Vec<[u32; 3]>,
+    working_vertices: usize,
+    face_input: Vec<u32>,
+    face_bary: Vec<[[f32; 3]; 3]>,
+    input_faces: usize,
+}
+
+impl BakeLayout {
+    /// The layout of a prepared mesh.
+    pub fn of(prepared: &PreparedMesh) -> Self {
+        BakeLayout {
+            working_faces: prepared.working.faces.clone(),
+            working_vertices: prepared.working.positions.len(),
+            face_input: prepared.face_input.clone(),
+            face_bary: prepared.face_bary.clone(),
+            input_faces: prepared.input_faces,
+        }
+    }
+
+    /// [`bake_texture`] through this layout (`target` is the mesh it was prepared from).
+    pub fn bake(
+        &self,
+        target: &TriMesh,
+        working_signal: &[[f32; 3]],
+        size: u32,
+    ) -> image::RgbImage {
+        bake_layout(
+            target,
+            BakeLayoutRef {
+                working_faces: &self.working_faces,
+                working_vertices: self.working_vertices,
+                face_input: &self.face_input,
+                face_bary: &self.face_bary,
+                input_faces: self.input_faces,
+            },
+            working_signal,
+            size,
+        )
+    }
+}
+
+/// Borrowed [`BakeLayout`] fields (so that baking from a [`PreparedMesh`] copies nothing).
+#[derive(Clone, Copy)]
+struct BakeLayoutRef<'a> {
+    working_faces: &'a [[u32; 3]],
+    working_vertices: usize,
+    face_input: &'a [u32],
+    face_bary: &'a [[[f32; 3]; 3]],
+    input_faces: usize,
+}
+
+/// The result as `transfer --out` delivers it at a path with extension `ext` (case-insensitive):
+/// the target file mesh with the signal on its own vertices, and, for `.glb`/`.obj` when the
+/// target has UVs, a `baseColorTexture` of `texture_size` pixels baked into its UV layout (a
+/// `.glb` then carries the texture alone, without vertex colours).
+pub fn deliver(
+    target: &TriMesh,
+    layout: &BakeLayout,
+    working_signal: &[[f32; 3]],
+    file_signal: &[[f32; 3]],
+    ext: &str,
+    texture_size: u32,
+) -> TriMesh {
+    let ext = ext.to_ascii_lowercase();
+    let mut out = target.clone();
+    out.colors = Some(file_signal.to_vec());
+    out.texture = None;
+    if ext != "ply" && target.uvs.is_some() {
+        let image = layout.bake(target, working_signal, texture_size);
+        out.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
+            image,
+            path: None,
+        }));
+        if ext == "glb" {
+            out.colors = None;
+        }
+    }
+    out
+}
+
+/// The dense result (`transfer --out-dense`): the working mesh with the signal on its vertices.
+pub fn deliver_dense(working: &TriMesh, working_signal: &[[f32; 3]]) -> TriMesh {
+    let mut d = working.clone();
+    d.colors = Some(working_signal.to_vec());
+    d.texture = None;
+    d.uvs = None;
+    d
+}
+
+fn bake_layout(
+    target: &TriMesh,
+    pm: BakeLayoutRef<'_>,
+    working_signal: &[[f32; 3]],
+    size: u32,
+) -> image::RgbImage {
     let size = size.max(1);
     let (w, h) = (size as usize, size as usize);
     let mut acc = vec![[0.0f32; 3]; w * h];
     let mut have = vec![false; w * h];
-    let pm = prepared_target;
     let Some(uvs) = target.uvs.as_ref() else {
         return image::RgbImage::new(size, size);
     };
-    let same =
-        pm.input_faces == target.faces.len() && working_signal.len() == pm.working.positions.len();
+    let same = pm.input_faces == target.faces.len()
+        && working_signal.len() == pm.working_vertices
+        && pm.face_input.len() == pm.working_faces.len();
     // Input face -> working faces (CSR).
     let nf = target.faces.len();
     let mut off = vec![0usize; nf + 1];
     if same {
-        for &f in &pm.face_input {
+        for &f in pm.face_input {
             off[f as usize + 1] += 1;
         }
         for i in 0..nf {
@@ -1147,7 +1262,7 @@ pub fn bake_texture(
             }
         }
         let (_, wf, l) = best;
-        let face = pm.working.faces[wf];
+        let face = pm.working_faces[wf];
         let l = l.map(|x| x.max(0.0));
         let s = (l[0] + l[1] + l[2]).max(1e-12);
         let mut out = [0.0f32; 3];
