@@ -1,7 +1,8 @@
 //! End-to-end smoke test of the desktop app under a real X display (`.ci/run` starts Xvfb):
-//! start `meshmatch` on the default scene, take screenshots of the screen while the transfer
-//! runs, and check that both viewports drew a mesh and that the target's colours change between
-//! screenshots (the progressive preview is alive). Needs `DISPLAY` and ImageMagick's `import`.
+//! start `meshmatch` on the default scene and take screenshots a second apart from the start:
+//! both viewports draw a mesh, the giraffe is untextured at first sight, the zebra's stripes then
+//! appear on it (its near-black fraction grows) and it updates more than once (the progressive
+//! preview is alive). Needs `DISPLAY` and ImageMagick's `import`.
 
 #![cfg(feature = "gui")]
 
@@ -94,6 +95,32 @@ fn mean_abs_diff(a: &[[u8; 3]], b: &[[u8; 3]]) -> f32 {
     s as f32 / (a.len().max(1) * 3) as f32
 }
 
+/// Fraction of the mesh pixels of a region (those far from the background) that are near-black:
+/// the zebra's stripes on the target, absent while it is still untextured.
+fn dark_fraction(px: &[[u8; 3]]) -> f32 {
+    let mut counts = std::collections::HashMap::new();
+    for p in px {
+        *counts.entry(*p).or_insert(0usize) += 1;
+    }
+    let bg = counts
+        .into_iter()
+        .max_by_key(|(_, c)| *c)
+        .map(|(p, _)| p)
+        .unwrap_or([0; 3]);
+    let mesh: Vec<&[u8; 3]> = px
+        .iter()
+        .filter(|p| {
+            p.iter()
+                .zip(bg)
+                .map(|(a, b)| (*a as i32 - b as i32).abs())
+                .sum::<i32>()
+                > 40
+        })
+        .collect();
+    let dark = mesh.iter().filter(|p| p.iter().all(|&c| c < 32)).count();
+    dark as f32 / mesh.len().max(1) as f32
+}
+
 #[test]
 fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
     if std::env::var_os("DISPLAY").is_none() {
@@ -108,39 +135,58 @@ fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
             .unwrap(),
     );
     let start = Instant::now();
-    std::thread::sleep(Duration::from_secs(20));
     let (left, right) = ((0.05, 0.34), (0.44, 0.73));
     let rows = (0.1, 0.85);
-    let mut prev: Option<Vec<[u8; 3]>> = None;
     let mut drew_both = false;
-    let mut changed = false;
-    // Screenshots a few seconds apart until the target's colours change (preparing the 64K-vertex
-    // working meshes can take a while on two busy cores), for at most 4 minutes.
+    // The target's dark (striped) fraction when both views first show a mesh, and the most
+    // seen since: the stripes must appear on the untextured giraffe while the window lives.
+    let mut first_dark: Option<f32> = None;
+    let mut max_dark = 0.0f32;
+    let mut prev: Option<Vec<[u8; 3]>> = None;
+    let mut changes = 0;
+    // Screenshots a second apart from the start (a quiet machine finishes the default transfer
+    // in seconds; two busy cores can take minutes), for at most 4 minutes.
     while start.elapsed() < Duration::from_secs(240) {
+        std::thread::sleep(Duration::from_millis(800));
         assert!(app.0.try_wait().unwrap().is_none(), "the app exited early");
         let img = screenshot();
-        let b = window_box(&img).expect("the app window is on screen");
+        let Some(b) = window_box(&img) else {
+            continue;
+        };
         let (l, r) = (region(&img, b, left, rows), region(&img, b, right, rows));
         let (cl, cr) = (mesh_coverage(&l), mesh_coverage(&r));
+        if !(cl > 0.05 && cr > 0.05) {
+            continue;
+        }
+        drew_both = true;
+        let dark = dark_fraction(&r);
+        let d = prev.as_ref().map(|p| mean_abs_diff(p, &r)).unwrap_or(0.0);
         eprintln!(
-            "t = {:5.1} s: source coverage {cl:.3}, target coverage {cr:.3}",
+            "t = {:5.1} s: source coverage {cl:.3}, target coverage {cr:.3}, target dark {dark:.3}, change {d:.2}",
             start.elapsed().as_secs_f32()
         );
-        drew_both |= cl > 0.05 && cr > 0.05;
-        if let Some(p) = &prev {
-            let d = mean_abs_diff(p, &r);
-            eprintln!("          target change since the last screenshot: {d:.2}");
-            if d > 1.0 && drew_both {
-                changed = true;
-                break;
-            }
+        if d > 1.0 {
+            changes += 1;
         }
         prev = Some(r);
-        std::thread::sleep(Duration::from_secs(4));
+        let d0 = *first_dark.get_or_insert(dark);
+        max_dark = max_dark.max(dark);
+        if max_dark > d0 + 0.08 && changes >= 2 {
+            break;
+        }
     }
     assert!(drew_both, "both viewports should show a mesh");
+    let d0 = first_dark.unwrap_or(0.0);
     assert!(
-        changed,
-        "the target's colours should change while the transfer streams"
+        d0 < 0.05,
+        "the target should start untextured (dark fraction {d0:.3} at first sight)"
+    );
+    assert!(
+        max_dark > d0 + 0.08,
+        "the zebra's stripes should appear on the giraffe while the app runs (dark {d0:.3} -> {max_dark:.3})"
+    );
+    assert!(
+        changes >= 2,
+        "the target should update more than once (progressive preview), saw {changes} changes"
     );
 }
