@@ -61,8 +61,8 @@ fn region(
         .collect()
 }
 
-/// Fraction of pixels that differ from the region's most common colour (the viewport background).
-fn mesh_coverage(px: &[[u8; 3]]) -> f32 {
+/// The pixels of a region that differ from its most common colour (the viewport background).
+fn mesh_pixels(px: &[[u8; 3]]) -> Vec<[u8; 3]> {
     let mut counts = std::collections::HashMap::new();
     for p in px {
         *counts.entry(*p).or_insert(0usize) += 1;
@@ -72,14 +72,21 @@ fn mesh_coverage(px: &[[u8; 3]]) -> f32 {
         .max_by_key(|(_, c)| *c)
         .map(|(p, _)| p)
         .unwrap_or([0; 3]);
-    let far = |p: &[u8; 3]| {
-        p.iter()
-            .zip(bg)
-            .map(|(a, b)| (*a as i32 - b as i32).abs())
-            .sum::<i32>()
-            > 40
-    };
-    px.iter().filter(|p| far(p)).count() as f32 / px.len().max(1) as f32
+    px.iter()
+        .filter(|p| {
+            p.iter()
+                .zip(bg)
+                .map(|(a, b)| (*a as i32 - b as i32).abs())
+                .sum::<i32>()
+                > 40
+        })
+        .copied()
+        .collect()
+}
+
+/// Fraction of a region's pixels that show a mesh.
+fn mesh_coverage(px: &[[u8; 3]]) -> f32 {
+    mesh_pixels(px).len() as f32 / px.len().max(1) as f32
 }
 
 fn mean_abs_diff(a: &[[u8; 3]], b: &[[u8; 3]]) -> f32 {
@@ -95,28 +102,10 @@ fn mean_abs_diff(a: &[[u8; 3]], b: &[[u8; 3]]) -> f32 {
     s as f32 / (a.len().max(1) * 3) as f32
 }
 
-/// Fraction of the mesh pixels of a region (those far from the background) that are near-black:
-/// the zebra's stripes on the target, absent while it is still untextured.
+/// Fraction of the mesh pixels of a region that are near-black: the zebra's stripes on the
+/// target, absent while it is still untextured.
 fn dark_fraction(px: &[[u8; 3]]) -> f32 {
-    let mut counts = std::collections::HashMap::new();
-    for p in px {
-        *counts.entry(*p).or_insert(0usize) += 1;
-    }
-    let bg = counts
-        .into_iter()
-        .max_by_key(|(_, c)| *c)
-        .map(|(p, _)| p)
-        .unwrap_or([0; 3]);
-    let mesh: Vec<&[u8; 3]> = px
-        .iter()
-        .filter(|p| {
-            p.iter()
-                .zip(bg)
-                .map(|(a, b)| (*a as i32 - b as i32).abs())
-                .sum::<i32>()
-                > 40
-        })
-        .collect();
+    let mesh = mesh_pixels(px);
     let dark = mesh.iter().filter(|p| p.iter().all(|&c| c < 32)).count();
     dark as f32 / mesh.len().max(1) as f32
 }

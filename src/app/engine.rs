@@ -56,7 +56,7 @@ impl Engine for MeshMatchEngine {
         Ok(Solved {
             working_signal: r.working_signal,
             file_signal: r.file_signal,
-            layout: Some(Arc::new(meshmatch::BakeLayout::of(target))),
+            layout: Some(meshmatch::BakeLayout::of(target)),
         })
     }
 }

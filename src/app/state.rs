@@ -1166,9 +1166,8 @@ impl<P: AppParams> AppState<P> {
 
     // ----- export and sessions -----
 
-    /// Write the transfer result on the target file mesh as `transfer --out` does (format by
-    /// extension; `.glb`/`.obj` of a target with UVs get a texture baked into its UV layout).
-    pub fn export_result(&self, path: &Path) -> Result<()> {
+    /// The target slot and the finished transfer, or the error an export reports.
+    fn target_and_result(&self) -> Result<(&MeshSlot, &Solved)> {
         let slot = self
             .slot(Side::Target)
             .ok_or_else(|| Error::InvalidInput("no target mesh".into()))?;
@@ -1176,6 +1175,13 @@ impl<P: AppParams> AppState<P> {
             .result
             .as_ref()
             .ok_or_else(|| Error::InvalidInput("no finished transfer to export yet".into()))?;
+        Ok((slot, res))
+    }
+
+    /// Write the transfer result on the target file mesh as `transfer --out` does (format by
+    /// extension; `.glb`/`.obj` of a target with UVs get a texture baked into its UV layout).
+    pub fn export_result(&self, path: &Path) -> Result<()> {
+        let (slot, res) = self.target_and_result()?;
         if res.file_signal.len() != slot.file.positions.len() {
             return Err(Error::InvalidInput(
                 "result does not match the target mesh".into(),
@@ -1203,13 +1209,7 @@ impl<P: AppParams> AppState<P> {
 
     /// Write the transfer result on the dense working mesh (as `transfer --out-dense` does).
     pub fn export_dense_result(&self, path: &Path) -> Result<()> {
-        let slot = self
-            .slot(Side::Target)
-            .ok_or_else(|| Error::InvalidInput("no target mesh".into()))?;
-        let res = self
-            .result
-            .as_ref()
-            .ok_or_else(|| Error::InvalidInput("no finished transfer to export yet".into()))?;
+        let (slot, res) = self.target_and_result()?;
         let working = slot
             .working
             .as_ref()

@@ -102,11 +102,8 @@ pub struct PreparedMesh {
     working: TriMesh,
     working_to_file: Vec<u32>,
     file_to_working: Vec<u32>,
-    /// Input face (index into the prepared `TriMesh::faces`) of every working face.
-    face_input: Vec<u32>,
-    /// Barycentric coordinates of every working face's corners in its input face.
-    face_bary: Vec<[[f32; 3]; 3]>,
-    input_faces: usize,
+    /// Where the working faces lie in the input faces (built once, shared with every result).
+    layout: Arc<BakeLayout>,
     hierarchy: Hierarchy,
     frames: Vec<Frames>,
     edge_angles: Vec<Vec<f32>>,
@@ -405,13 +402,18 @@ pub fn prepare(
     };
     stage("fans", sw.secs(), &mut timings);
     sink(Event::Progress(progress("prepare", &watch, 1.0)));
+    let layout = Arc::new(BakeLayout {
+        working_faces: working.faces.clone(),
+        working_vertices: working.positions.len(),
+        face_input,
+        face_bary: r.source_bary,
+        input_faces: mesh.faces.len(),
+    });
     Ok(PreparedMesh {
         working,
         working_to_file,
         file_to_working,
-        face_input,
-        face_bary: r.source_bary,
-        input_faces: mesh.faces.len(),
+        layout,
         hierarchy,
         frames,
         edge_angles,
@@ -1092,19 +1094,7 @@ pub fn bake_texture(
     working_signal: &[[f32; 3]],
     size: u32,
 ) -> image::RgbImage {
-    let pm = prepared_target;
-    bake_layout(
-        target,
-        BakeLayoutRef {
-            working_faces: &pm.working.faces,
-            working_vertices: pm.working.positions.len(),
-            face_input: &pm.face_input,
-            face_bary: &pm.face_bary,
-            input_faces: pm.input_faces,
-        },
-        working_signal,
-        size,
-    )
+    prepared_target.layout.bake(target, working_signal, size)
 }
 
 /// Where a prepared mesh's working faces lie in its input faces (the refinement provenance): what
@@ -1113,21 +1103,17 @@ pub fn bake_texture(
 pub struct BakeLayout {
     working_faces: Vec<[u32; 3]>,
     working_vertices: usize,
+    /// Input face (index into the prepared `TriMesh::faces`) of every working face.
     face_input: Vec<u32>,
+    /// Barycentric coordinates of every working face's corners in its input face.
     face_bary: Vec<[[f32; 3]; 3]>,
     input_faces: usize,
 }
 
 impl BakeLayout {
-    /// The layout of a prepared mesh.
-    pub fn of(prepared: &PreparedMesh) -> Self {
-        BakeLayout {
-            working_faces: prepared.working.faces.clone(),
-            working_vertices: prepared.working.positions.len(),
-            face_input: prepared.face_input.clone(),
-            face_bary: prepared.face_bary.clone(),
-            input_faces: prepared.input_faces,
-        }
+    /// The layout of a prepared mesh (shared, not copied: built once by [`prepare`]).
+    pub fn of(prepared: &PreparedMesh) -> Arc<Self> {
+        prepared.layout.clone()
     }
 
     /// [`bake_texture`] through this layout (`target` is the mesh it was prepared from).
@@ -1137,29 +1123,8 @@ impl BakeLayout {
         working_signal: &[[f32; 3]],
         size: u32,
     ) -> image::RgbImage {
-        bake_layout(
-            target,
-            BakeLayoutRef {
-                working_faces: &self.working_faces,
-                working_vertices: self.working_vertices,
-                face_input: &self.face_input,
-                face_bary: &self.face_bary,
-                input_faces: self.input_faces,
-            },
-            working_signal,
-            size,
-        )
+        bake_layout(target, self, working_signal, size)
     }
-}
-
-/// Borrowed [`BakeLayout`] fields (so that baking from a [`PreparedMesh`] copies nothing).
-#[derive(Clone, Copy)]
-struct BakeLayoutRef<'a> {
-    working_faces: &'a [[u32; 3]],
-    working_vertices: usize,
-    face_input: &'a [u32],
-    face_bary: &'a [[[f32; 3]; 3]],
-    input_faces: usize,
 }
 
 /// The result as `transfer --out` delivers it at a path with extension `ext` (case-insensitive):
@@ -1202,7 +1167,7 @@ pub fn deliver_dense(working: &TriMesh, working_signal: &[[f32; 3]]) -> TriMesh 
 
 fn bake_layout(
     target: &TriMesh,
-    pm: BakeLayoutRef<'_>,
+    pm: &BakeLayout,
     working_signal: &[[f32; 3]],
     size: u32,
 ) -> image::RgbImage {
@@ -1220,7 +1185,7 @@ fn bake_layout(
     let nf = target.faces.len();
     let mut off = vec![0usize; nf + 1];
     if same {
-        for &f in pm.face_input {
+        for &f in &pm.face_input {
             off[f as usize + 1] += 1;
         }
         for i in 0..nf {
