@@ -84,3 +84,57 @@ fn vs_wire(
 fn fs_wire(in: VsOut) -> @location(0) vec4<f32> {
     return vec4<f32>(u.wire.rgb, 1.0);
 }
+
+// Correspondence markers: instanced unit spheres, shaded with the same headlight. A rim marks the
+// selected marker (white) or a source point waiting for its target (yellow).
+
+struct MarkerOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) color: vec3<f32>,
+    @location(3) rim: f32,
+};
+
+@vertex
+fn vs_marker(
+    @location(0) unit: vec3<f32>,
+    @location(1) center_radius: vec4<f32>,
+    @location(2) color_rim: vec4<f32>,
+) -> MarkerOut {
+    var out: MarkerOut;
+    let world = center_radius.xyz + unit * center_radius.w;
+    out.clip = u.view_proj * vec4<f32>(world, 1.0);
+    out.world = world;
+    out.normal = unit;
+    out.color = color_rim.rgb;
+    out.rim = color_rim.a;
+    return out;
+}
+
+fn marker_color(in: MarkerOut) -> vec3<f32> {
+    let v = normalize(u.eye.xyz - in.world);
+    let facing = abs(dot(normalize(in.normal), v));
+    var c = srgb_to_linear(in.color) * (0.35 + 0.65 * facing);
+    // Outline of the sphere's silhouette: dark, or the rim colour when selected / pending.
+    if (facing < 0.45) {
+        if (in.rim > 1.5) {
+            c = vec3<f32>(1.0, 0.85, 0.0);
+        } else if (in.rim > 0.5) {
+            c = vec3<f32>(1.0, 1.0, 1.0);
+        } else if (facing < 0.25) {
+            c = c * 0.25;
+        }
+    }
+    return linear_to_srgb(c);
+}
+
+@fragment
+fn fs_marker(in: MarkerOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(marker_color(in), 1.0);
+}
+
+@fragment
+fn fs_marker_ghost(in: MarkerOut) -> @location(0) vec4<f32> {
+    return vec4<f32>(marker_color(in), 0.3);
+}

@@ -82,7 +82,23 @@ pub enum Command {
         /// Draw the wireframe over the shading.
         #[arg(long)]
         wireframe: bool,
+        /// Correspondences JSON whose markers to draw: spheres in the app's marker colours
+        /// (hidden ones faint).
+        #[arg(long)]
+        correspondences: Option<PathBuf>,
+        /// Which side of the correspondences this mesh is.
+        #[arg(long, value_enum, default_value = "target")]
+        side: MarkerSide,
     },
+}
+
+/// Which side of a correspondence file a rendered mesh is.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MarkerSide {
+    /// The source mesh (`source_vertex`).
+    Source,
+    /// The target mesh (`target_vertices`).
+    Target,
 }
 
 /// Arguments of `meshmatch transfer`.
@@ -449,23 +465,64 @@ fn run(cli: Cli) -> Result<i32> {
             elevation,
             size,
             wireframe,
+            correspondences,
+            side,
         }) => {
             let (width, height) = parse_size(&size)?;
             let m = io::load(&mesh)?;
             m.check_usable()?;
             let colors = m.vertex_signal();
+            let markers = match &correspondences {
+                Some(p) => render_markers(&m, &CorrespondenceFile::load(p)?.correspondences, side)?,
+                None => Vec::new(),
+            };
             let opts = crate::render::RenderOptions {
                 azimuth_deg: azimuth,
                 elevation_deg: elevation,
                 width,
                 height,
                 wireframe,
+                markers,
             };
             crate::render::render_to_png(&m, colors.as_deref(), &opts, &out)?;
             eprintln!("wrote {}", out.display());
             Ok(0)
         }
     }
+}
+
+/// Marker spheres for `side` of `corr` on `mesh`: the app's colours, a radius of 2% of the
+/// mesh's bounding radius.
+#[cfg(feature = "gui")]
+fn render_markers(
+    mesh: &crate::TriMesh,
+    corr: &[crate::jobs::Correspondence],
+    side: MarkerSide,
+) -> Result<Vec<crate::render::MarkerInstance>> {
+    let radius = crate::render::Frame::of_points(&mesh.positions).radius * 0.02;
+    let mut out = Vec::new();
+    for (pair, c) in corr.iter().enumerate() {
+        let verts: &[u32] = match side {
+            MarkerSide::Source => std::slice::from_ref(&c.source_vertex),
+            MarkerSide::Target => &c.target_vertices,
+        };
+        for &v in verts {
+            let p = mesh.positions.get(v as usize).ok_or_else(|| {
+                Error::InvalidInput(format!(
+                    "correspondence {}: vertex {v} is out of range ({} vertices)",
+                    pair + 1,
+                    mesh.positions.len()
+                ))
+            })?;
+            out.push(crate::render::MarkerInstance {
+                center: *p,
+                radius,
+                color: crate::render::marker_color(pair).map(|x| x as f32 / 255.0),
+                rim: 0.0,
+            });
+        }
+    }
+    Ok(out)
 }
 
 #[cfg(feature = "gui")]

@@ -2,7 +2,9 @@
 #![cfg(feature = "gui")]
 
 use meshmatch::TriMesh;
-use meshmatch::render::{RenderOptions, render_image, render_to_png};
+use meshmatch::render::{
+    Camera, Frame, MarkerInstance, RenderOptions, render_image, render_to_png,
+};
 
 /// A UV sphere of radius 1 centred at the origin.
 fn sphere(rings: u32, segments: u32) -> TriMesh {
@@ -68,6 +70,7 @@ fn half_red_half_blue_sphere_renders_both_colours_on_background() {
         width: 160,
         height: 120,
         wireframe: false,
+        markers: Vec::new(),
     };
     render_to_png(&mesh, Some(&colors), &opts, &out).expect("render");
     let img = image::open(&out).expect("png").to_rgba8();
@@ -115,6 +118,7 @@ fn wireframe_draws_dark_edges_and_view_angle_changes_the_picture() {
         width: 128,
         height: 128,
         wireframe: false,
+        markers: Vec::new(),
     };
     let plain = render_image(&mesh, Some(&colors), &base).unwrap();
     let wire = render_image(
@@ -160,4 +164,74 @@ fn bad_inputs_are_errors_not_panics() {
     assert!(render_image(&empty, None, &opts).is_err());
     let zero = RenderOptions { width: 0, ..opts };
     assert!(render_image(&mesh, None, &zero).is_err());
+}
+
+#[test]
+fn marker_spheres_show_in_front_and_faintly_through_the_mesh() {
+    let mesh = sphere(32, 64);
+    let grey = vec![[0.5, 0.5, 0.5]; mesh.positions.len()];
+    let (s, c) = (30f32.to_radians().sin(), 30f32.to_radians().cos());
+    // One marker on the side facing the camera (+Z), one on the far side.
+    let front = [s, 0.0, c];
+    let back = [-s, 0.0, -c];
+    let marker = |center: [f32; 3], color: [f32; 3]| MarkerInstance {
+        center,
+        radius: 0.08,
+        color,
+        rim: 0.0,
+    };
+    let opts = RenderOptions {
+        azimuth_deg: 0.0,
+        elevation_deg: 0.0,
+        width: 200,
+        height: 160,
+        wireframe: false,
+        markers: vec![
+            marker(front, [0.0, 0.9, 0.0]),
+            marker(back, [0.9, 0.0, 0.0]),
+        ],
+    };
+    let with = render_image(&mesh, Some(&grey), &opts).expect("render");
+    let without = render_image(
+        &mesh,
+        Some(&grey),
+        &RenderOptions {
+            markers: Vec::new(),
+            ..opts.clone()
+        },
+    )
+    .expect("render");
+    // Where the app's camera puts those points on screen.
+    let cam = Camera {
+        azimuth_deg: 0.0,
+        elevation_deg: 0.0,
+        ..Camera::default()
+    };
+    let frame = Frame::of_points(&mesh.positions);
+    let size = glam::Vec2::new(200.0, 160.0);
+    let px = |p: [f32; 3]| {
+        let v = cam.project(&frame, glam::Vec3::from(p), size).unwrap();
+        (v.x.round() as u32, v.y.round() as u32)
+    };
+    let rgb = |img: &image::RgbaImage, (x, y): (u32, u32)| {
+        let p = img.get_pixel(x, y);
+        [p[0] as i32, p[1] as i32, p[2] as i32]
+    };
+    // The visible marker covers the surface in its own colour.
+    let f = rgb(&with, px(front));
+    assert!(
+        f[1] > f[0] + 80 && f[1] > f[2] + 80,
+        "front marker pixel {f:?}"
+    );
+    let f0 = rgb(&without, px(front));
+    assert!((f0[0] - f0[1]).abs() < 6, "grey surface {f0:?}");
+    // The hidden marker only tints the surface in front of it.
+    let b = rgb(&with, px(back));
+    let b0 = rgb(&without, px(back));
+    assert!((b0[0] - b0[1]).abs() < 6, "grey surface {b0:?}");
+    assert!(b[0] - b[1] > 20, "hidden marker should tint red: {b:?}");
+    assert!(
+        b[0] - b[1] < 120,
+        "hidden marker must not look unoccluded: {b:?}"
+    );
 }

@@ -1435,14 +1435,4 @@ pub fn mesh_usable(mesh: &TriMesh) -> Result<()> {
     Ok(())
 }
 
-/// Distinct marker colour for correspondence `i` (golden-angle hues).
-pub fn marker_color(i: usize) -> [u8; 3] {
-    let h = (i as f32 * 0.618_034).fract();
-    let s = 0.75f32;
-    let v = 0.95f32;
-    let k = |n: f32| {
-        let k = (n + h * 6.0) % 6.0;
-        v - v * s * k.min(4.0 - k).clamp(0.0, 1.0)
-    };
-    [k(5.0), k(3.0), k(1.0)].map(|x| (x * 255.0).round() as u8)
-}
+pub use crate::render::marker_color;

@@ -6,8 +6,11 @@ use eframe::wgpu;
 use glam::Vec2 as GVec2;
 
 use super::state::{AppParams, AppState, Selection, marker_color, side_index};
+use crate::geometry::TriangleBvh;
 use crate::jobs::worker::Side;
-use crate::render::{Camera, DrawStyle, GpuMesh, MeshRenderer, RenderTarget, pick};
+use crate::render::{
+    Camera, DrawStyle, FOV_Y_DEG, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, pick,
+};
 
 /// What a left-drag does in a viewport.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -26,6 +29,22 @@ struct ViewGpu {
     texture: Option<egui::TextureId>,
     /// Something changed since the last draw.
     dirty: bool,
+    /// The marker spheres last uploaded with the mesh.
+    markers: Vec<MarkerInstance>,
+    /// Ray-query tree of the uploaded mesh (marker occlusion), built on first use.
+    bvh: Option<TriangleBvh>,
+}
+
+/// A correspondence marker as one view sees it.
+#[derive(Clone, Copy, Debug)]
+struct MarkerView {
+    sel: Selection,
+    /// Screen position of the marked vertex.
+    screen: Pos2,
+    /// World position of the marked vertex.
+    world: glam::Vec3,
+    /// Not hidden behind the mesh.
+    visible: bool,
 }
 
 /// The viewports' state: cameras, GPU resources and interaction.
@@ -68,6 +87,7 @@ impl Default for Views {
     }
 }
 
+/// Marker sphere radius on screen, in points.
 const MARKER_RADIUS: f32 = 9.0;
 
 impl Views {
@@ -106,11 +126,15 @@ impl Views {
                     if g.mesh.take().is_some() {
                         g.dirty = true;
                     }
+                    g.bvh = None;
+                    g.markers.clear();
                 }
                 Some(slot) => {
                     if slot.geometry_dirty || g.mesh.is_none() {
                         let cols = slot.display_colors();
                         g.mesh = Some(GpuMesh::new(&rs.device, renderer, slot.displayed(), &cols));
+                        g.bvh = None;
+                        g.markers.clear();
                         slot.geometry_dirty = false;
                         slot.colors_dirty = false;
                         g.dirty = true;
@@ -215,6 +239,9 @@ impl Views {
                 (rect.width() * ppp).round().max(1.0) as u32,
                 (rect.height() * ppp).round().max(1.0) as u32,
             ];
+            if let Some(rs) = rs {
+                self.sync_markers(rs, state, side, rect);
+            }
             let tex = rs.and_then(|rs| self.draw_view(rs, i, size_px));
             let painter = ui.painter_at(rect);
             match tex {
@@ -243,7 +270,7 @@ impl Views {
                 Color32::from_gray(230),
             );
             self.handle_input(ui, &resp, rect, side, state);
-            self.draw_markers(&painter, rect, side, state);
+            self.draw_marker_labels(&painter, rect, side, state, tex.is_some());
             if self.tool == Tool::Paint
                 && let Some(p) = resp.hover_pos()
             {
@@ -316,50 +343,76 @@ impl Views {
         rect: Rect,
         file_vertex: u32,
     ) -> Option<Pos2> {
-        self.marker_pos_facing(state, side, rect, file_vertex)
-            .map(|(p, _)| p)
+        self.marker_view(state, side, rect, file_vertex)
+            .map(|(p, _, _)| p)
     }
 
-    /// Screen position of a file vertex's marker and whether its surface faces the camera.
-    fn marker_pos_facing(
+    /// Screen and world position of a file vertex's marker, and whether it is in view: not
+    /// hidden by the mesh (a ray query on the uploaded mesh), or, before the mesh is on the GPU,
+    /// on a surface facing the camera.
+    fn marker_view(
         &self,
         state: &AppState<impl AppParams>,
         side: Side,
         rect: Rect,
         file_vertex: u32,
-    ) -> Option<(Pos2, bool)> {
+    ) -> Option<(Pos2, glam::Vec3, bool)> {
         let slot = state.slot(side)?;
         let p = glam::Vec3::from(slot.file_vertex_position(file_vertex)?);
         let frame = self.frame_of(state, side)?;
         let size = GVec2::new(rect.width(), rect.height());
         let cam = &self.cameras[side_index(side)];
         let s = cam.project(&frame, p, size)?;
-        let facing = slot
-            .to_displayed(file_vertex)
-            .and_then(|d| slot.normals.get(d as usize))
-            .is_none_or(|n| {
-                let (eye, _) = cam.eye_target(&frame);
-                glam::Vec3::from(*n).dot(eye - p) >= 0.0
-            });
-        Some((Pos2::new(rect.min.x + s.x, rect.min.y + s.y), facing))
+        let (eye, _) = cam.eye_target(&frame);
+        let visible = match &self.gpu[side_index(side)].bvh {
+            Some(bvh) => {
+                let d = p - eye;
+                // The marked vertex lies on the surface: only hits clearly in front of it hide it.
+                let slack =
+                    (self.marker_world_radius(side, &frame, rect, p) / d.length()).clamp(1e-4, 0.5);
+                bvh.ray_hit(eye.to_array(), d.to_array())
+                    .is_none_or(|(_, _, t)| t >= 1.0 - slack)
+            }
+            None => slot
+                .to_displayed(file_vertex)
+                .and_then(|d| slot.normals.get(d as usize))
+                .is_none_or(|n| glam::Vec3::from(*n).dot(eye - p) >= 0.0),
+        };
+        Some((Pos2::new(rect.min.x + s.x, rect.min.y + s.y), p, visible))
     }
 
-    /// All markers of a side with their screen positions.
-    fn markers(
+    /// World radius that makes a marker at `p` [`MARKER_RADIUS`] points wide on screen.
+    fn marker_world_radius(
         &self,
-        state: &AppState<impl AppParams>,
         side: Side,
+        frame: &crate::render::Frame,
         rect: Rect,
-    ) -> Vec<(Selection, Pos2, bool)> {
+        p: glam::Vec3,
+    ) -> f32 {
+        let (eye, target) = self.cameras[side_index(side)].eye_target(frame);
+        let forward = (target - eye).normalize_or(glam::Vec3::NEG_Z);
+        let depth = (p - eye).dot(forward).max(1e-6);
+        let world_per_point =
+            2.0 * depth * (FOV_Y_DEG.to_radians() * 0.5).tan() / rect.height().max(1.0);
+        MARKER_RADIUS * world_per_point
+    }
+
+    /// All markers of a side as this view sees them.
+    fn markers(&self, state: &AppState<impl AppParams>, side: Side, rect: Rect) -> Vec<MarkerView> {
         let mut out = Vec::new();
         for (pair, c) in state.corr.iter().enumerate() {
-            let verts: Vec<u32> = match side {
-                Side::Source => vec![c.source_vertex],
-                Side::Target => c.target_vertices.clone(),
+            let verts: &[u32] = match side {
+                Side::Source => std::slice::from_ref(&c.source_vertex),
+                Side::Target => &c.target_vertices,
             };
-            for (k, v) in verts.into_iter().enumerate() {
-                if let Some((p, facing)) = self.marker_pos_facing(state, side, rect, v) {
-                    out.push((Selection { pair, side, k }, p, facing));
+            for (k, &v) in verts.iter().enumerate() {
+                if let Some((screen, world, visible)) = self.marker_view(state, side, rect, v) {
+                    out.push(MarkerView {
+                        sel: Selection { pair, side, k },
+                        screen,
+                        world,
+                        visible,
+                    });
                 }
             }
         }
@@ -375,14 +428,70 @@ impl Views {
     ) -> Option<Selection> {
         self.markers(state, side, rect)
             .into_iter()
-            .filter(|(_, p, _)| p.distance(pos) <= MARKER_RADIUS + 2.0)
+            .filter(|m| m.screen.distance(pos) <= MARKER_RADIUS + 2.0)
             .min_by(|a, b| {
-                // Prefer markers on the visible side, then the nearest.
-                (!a.2, a.1.distance(pos))
-                    .partial_cmp(&(!b.2, b.1.distance(pos)))
+                // Prefer markers in view, then the nearest.
+                (!a.visible, a.screen.distance(pos))
+                    .partial_cmp(&(!b.visible, b.screen.distance(pos)))
                     .unwrap_or(std::cmp::Ordering::Equal)
             })
-            .map(|(s, _, _)| s)
+            .map(|m| m.sel)
+    }
+
+    /// Upload the marker spheres of `side` when they changed (which marks the view for redraw).
+    fn sync_markers<P: AppParams>(
+        &mut self,
+        rs: &egui_wgpu::RenderState,
+        state: &AppState<P>,
+        side: Side,
+        rect: Rect,
+    ) {
+        let i = side_index(side);
+        let Some(mesh) = self.gpu[i].mesh.as_ref() else {
+            return;
+        };
+        let frame = mesh.frame;
+        if self.gpu[i].bvh.is_none()
+            && !state.corr.is_empty()
+            && let Some(slot) = state.slot(side)
+        {
+            let m = slot.displayed();
+            self.gpu[i].bvh = Some(TriangleBvh::new(&m.positions, &m.faces));
+        }
+        let selected_pair = state.selected.map(|s| s.pair);
+        let mut instances: Vec<MarkerInstance> = self
+            .markers(state, side, rect)
+            .into_iter()
+            .map(|m| MarkerInstance {
+                center: m.world.to_array(),
+                radius: self.marker_world_radius(side, &frame, rect, m.world),
+                color: marker_color(m.sel.pair).map(|x| x as f32 / 255.0),
+                rim: if selected_pair == Some(m.sel.pair) {
+                    1.0
+                } else {
+                    0.0
+                },
+            })
+            .collect();
+        if side == Side::Source
+            && let Some(v) = state.pending_source
+            && let Some((_, world, _)) = self.marker_view(state, side, rect, v)
+        {
+            instances.push(MarkerInstance {
+                center: world.to_array(),
+                radius: self.marker_world_radius(side, &frame, rect, world),
+                color: marker_color(state.corr.len()).map(|x| x as f32 / 255.0),
+                rim: 2.0,
+            });
+        }
+        let g = &mut self.gpu[i];
+        if g.markers != instances {
+            if let Some(mesh) = g.mesh.as_mut() {
+                mesh.set_markers(&rs.device, &rs.queue, &instances);
+            }
+            g.markers = instances;
+            g.dirty = true;
+        }
     }
 
     fn handle_input<P: AppParams>(
@@ -482,38 +591,42 @@ impl Views {
         }
     }
 
-    fn draw_markers<P: AppParams>(
+    /// Numbers on the marker spheres (faded on hidden ones). Without a GPU view the markers
+    /// themselves are drawn here as flat discs.
+    fn draw_marker_labels<P: AppParams>(
         &self,
         painter: &egui::Painter,
         rect: Rect,
         side: Side,
         state: &AppState<P>,
+        spheres_drawn: bool,
     ) {
         let mut markers = self.markers(state, side, rect);
-        // Hidden-side markers first (drawn faded), visible ones on top.
-        markers.sort_by_key(|m| m.2);
-        for (sel, p, facing) in markers {
-            let [r, g, b] = marker_color(sel.pair);
-            let alpha = if facing { 255 } else { 90 };
-            let selected =
-                state.selected == Some(sel) || (state.selected.is_some_and(|s| s.pair == sel.pair));
-            painter.circle(
-                p,
-                MARKER_RADIUS,
-                Color32::from_rgba_unmultiplied(r, g, b, alpha),
-                Stroke::new(
-                    if selected { 3.0 } else { 1.5 },
-                    if selected {
-                        Color32::WHITE
-                    } else {
-                        Color32::from_black_alpha(alpha)
-                    },
-                ),
-            );
+        // Hidden markers first, the ones in view on top.
+        markers.sort_by_key(|m| m.visible);
+        for m in markers {
+            let alpha = if m.visible { 255 } else { 110 };
+            if !spheres_drawn {
+                let [r, g, b] = marker_color(m.sel.pair);
+                let selected = state.selected.is_some_and(|s| s.pair == m.sel.pair);
+                painter.circle(
+                    m.screen,
+                    MARKER_RADIUS,
+                    Color32::from_rgba_unmultiplied(r, g, b, alpha),
+                    Stroke::new(
+                        if selected { 3.0 } else { 1.5 },
+                        if selected {
+                            Color32::WHITE
+                        } else {
+                            Color32::from_black_alpha(alpha)
+                        },
+                    ),
+                );
+            }
             painter.text(
-                p,
+                m.screen,
                 egui::Align2::CENTER_CENTER,
-                format!("{}", sel.pair + 1),
+                format!("{}", m.sel.pair + 1),
                 egui::FontId::proportional(11.0),
                 Color32::from_black_alpha(alpha),
             );
@@ -522,13 +635,15 @@ impl Views {
             && let Some(v) = state.pending_source
             && let Some(p) = self.marker_pos(state, side, rect, v)
         {
-            let [r, g, b] = marker_color(state.corr.len());
-            painter.circle(
-                p,
-                MARKER_RADIUS,
-                Color32::from_rgb(r, g, b),
-                Stroke::new(2.0, Color32::YELLOW),
-            );
+            if !spheres_drawn {
+                let [r, g, b] = marker_color(state.corr.len());
+                painter.circle(
+                    p,
+                    MARKER_RADIUS,
+                    Color32::from_rgb(r, g, b),
+                    Stroke::new(2.0, Color32::YELLOW),
+                );
+            }
             painter.text(
                 p,
                 egui::Align2::CENTER_CENTER,

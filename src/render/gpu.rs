@@ -28,6 +28,20 @@ struct Vertex {
     normal: [f32; 3],
 }
 
+/// One correspondence marker, drawn as a shaded sphere that the mesh can hide.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct MarkerInstance {
+    /// Sphere centre (world space).
+    pub center: [f32; 3],
+    /// Sphere radius (world units).
+    pub radius: f32,
+    /// Fill colour (sRGB).
+    pub color: [f32; 3],
+    /// Rim: 0 none, 1 selected (white), 2 waiting for its partner (yellow).
+    pub rim: f32,
+}
+
 /// How to draw one frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DrawStyle {
@@ -49,10 +63,17 @@ impl Default for DrawStyle {
     }
 }
 
-/// The mesh pipelines for one device (shaded triangles and wireframe lines).
+/// The mesh pipelines for one device (shaded triangles, wireframe lines, marker spheres).
 pub struct MeshRenderer {
     fill: wgpu::RenderPipeline,
     wire: wgpu::RenderPipeline,
+    /// Marker spheres where they are in front of the mesh (depth-tested).
+    marker: wgpu::RenderPipeline,
+    /// Faint marker spheres where the mesh hides them (depth test reversed, blended).
+    marker_ghost: wgpu::RenderPipeline,
+    sphere_vertices: wgpu::Buffer,
+    sphere_indices: wgpu::Buffer,
+    sphere_index_count: u32,
     layout: wgpu::BindGroupLayout,
     /// MSAA sample count used by targets made for this renderer.
     pub samples: u32,
@@ -110,14 +131,35 @@ impl MeshRenderer {
                 attributes: &wgpu::vertex_attr_array![2 => Float32x3],
             }),
         ];
-        let make = |vs: &str, fs: &str, topology: wgpu::PrimitiveTopology| {
+        let marker_buffers = [
+            Some(wgpu::VertexBufferLayout {
+                array_stride: 12,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: std::mem::size_of::<MarkerInstance>() as u64,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes: &wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4],
+            }),
+        ];
+        let opaque = (true, wgpu::CompareFunction::LessEqual, None);
+        let make = |vs: &str,
+                    fs: &str,
+                    topology: wgpu::PrimitiveTopology,
+                    buffers: &[Option<wgpu::VertexBufferLayout>],
+                    (depth_write, compare, blend): (
+            bool,
+            wgpu::CompareFunction,
+            Option<wgpu::BlendState>,
+        )| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(vs),
+                label: Some(fs),
                 layout: Some(&pipeline_layout),
                 vertex: wgpu::VertexState {
                     module: &module,
                     entry_point: Some(vs),
-                    buffers: &buffers,
+                    buffers,
                     compilation_options: Default::default(),
                 },
                 primitive: wgpu::PrimitiveState {
@@ -127,8 +169,8 @@ impl MeshRenderer {
                 },
                 depth_stencil: Some(wgpu::DepthStencilState {
                     format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                    depth_write_enabled: Some(depth_write),
+                    depth_compare: Some(compare),
                     stencil: Default::default(),
                     bias: Default::default(),
                 }),
@@ -142,7 +184,7 @@ impl MeshRenderer {
                     entry_point: Some(fs),
                     targets: &[Some(wgpu::ColorTargetState {
                         format: COLOR_FORMAT,
-                        blend: None,
+                        blend,
                         write_mask: wgpu::ColorWrites::ALL,
                     })],
                     compilation_options: Default::default(),
@@ -151,9 +193,40 @@ impl MeshRenderer {
                 cache: None,
             })
         };
+        let tri = wgpu::PrimitiveTopology::TriangleList;
+        let (sphere_positions, sphere_tris) = unit_sphere(12, 20);
         MeshRenderer {
-            fill: make("vs_main", "fs_main", wgpu::PrimitiveTopology::TriangleList),
-            wire: make("vs_wire", "fs_wire", wgpu::PrimitiveTopology::LineList),
+            fill: make("vs_main", "fs_main", tri, &buffers, opaque),
+            wire: make(
+                "vs_wire",
+                "fs_wire",
+                wgpu::PrimitiveTopology::LineList,
+                &buffers,
+                opaque,
+            ),
+            marker: make("vs_marker", "fs_marker", tri, &marker_buffers, opaque),
+            marker_ghost: make(
+                "vs_marker",
+                "fs_marker_ghost",
+                tri,
+                &marker_buffers,
+                (
+                    false,
+                    wgpu::CompareFunction::Greater,
+                    Some(wgpu::BlendState::ALPHA_BLENDING),
+                ),
+            ),
+            sphere_vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("marker sphere vertices"),
+                contents: bytemuck::cast_slice(&sphere_positions),
+                usage: wgpu::BufferUsages::VERTEX,
+            }),
+            sphere_indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("marker sphere triangles"),
+                contents: bytemuck::cast_slice(&sphere_tris),
+                usage: wgpu::BufferUsages::INDEX,
+            }),
+            sphere_index_count: sphere_tris.len() as u32,
             layout,
             samples,
         }
@@ -225,7 +298,46 @@ impl MeshRenderer {
             pass.set_index_buffer(mesh.edges.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..mesh.edge_count, 0, 0..1);
         }
+        if mesh.marker_count > 0
+            && let Some(instances) = &mesh.markers
+        {
+            // Hidden parts first, faint; then the visible spheres over them.
+            pass.set_vertex_buffer(0, self.sphere_vertices.slice(..));
+            pass.set_vertex_buffer(1, instances.slice(..));
+            pass.set_index_buffer(self.sphere_indices.slice(..), wgpu::IndexFormat::Uint32);
+            for pipeline in [&self.marker_ghost, &self.marker] {
+                pass.set_pipeline(pipeline);
+                pass.draw_indexed(0..self.sphere_index_count, 0, 0..mesh.marker_count);
+            }
+        }
     }
+}
+
+/// A unit UV sphere with `rings` latitude bands and `segments` longitude segments: positions
+/// (which are also the normals) and triangles.
+fn unit_sphere(rings: u32, segments: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let mut positions = Vec::with_capacity(((rings + 1) * (segments + 1)) as usize);
+    for r in 0..=rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..=segments {
+            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+            positions.push([
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                theta.sin() * phi.sin(),
+            ]);
+        }
+    }
+    let row = segments + 1;
+    let mut tris = Vec::with_capacity((rings * segments * 6) as usize);
+    for r in 0..rings {
+        for s in 0..segments {
+            let a = r * row + s;
+            let b = a + row;
+            tris.extend_from_slice(&[a, b, a + 1, a + 1, b, b + 1]);
+        }
+    }
+    (positions, tris)
 }
 
 /// Smooth per-vertex normals (area-weighted sum of face normals).
@@ -283,6 +395,9 @@ pub struct GpuMesh {
     index_count: u32,
     edge_count: u32,
     vertex_count: usize,
+    /// Marker instances (grown on demand) and how many to draw.
+    markers: Option<wgpu::Buffer>,
+    marker_count: u32,
     /// Bounding sphere of the mesh (the camera frames it).
     pub frame: Frame,
 }
@@ -386,7 +501,39 @@ impl GpuMesh {
             index_count: tris.len() as u32,
             edge_count: edges.len() as u32,
             vertex_count: mesh.positions.len(),
+            markers: None,
+            marker_count: 0,
             frame: Frame::of_points(&mesh.positions),
+        }
+    }
+
+    /// Replace the marker spheres drawn with this mesh (an empty slice draws none).
+    pub fn set_markers(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        markers: &[MarkerInstance],
+    ) {
+        self.marker_count = markers.len() as u32;
+        if markers.is_empty() {
+            return;
+        }
+        let bytes = bytemuck::cast_slice::<MarkerInstance, u8>(markers);
+        let fits = self
+            .markers
+            .as_ref()
+            .is_some_and(|b| b.size() >= bytes.len() as u64);
+        if !fits {
+            // Room for twice as many, so dragging in more markers rarely reallocates.
+            self.markers = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("marker instances"),
+                size: (bytes.len() as u64 * 2).max(256),
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
+        if let Some(b) = &self.markers {
+            queue.write_buffer(b, 0, bytes);
         }
     }
 

@@ -10,8 +10,8 @@ use std::sync::{Arc, OnceLock};
 
 use eframe::wgpu;
 
-pub use camera::{Camera, Frame, Hit, pick};
-pub use gpu::{DrawStyle, GpuMesh, MeshRenderer, RenderTarget, display_colors};
+pub use camera::{Camera, FOV_Y_DEG, Frame, Hit, pick};
+pub use gpu::{DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, display_colors};
 
 use crate::{Error, Result, TriMesh};
 
@@ -28,6 +28,8 @@ pub struct RenderOptions {
     pub height: u32,
     /// Draw triangle edges.
     pub wireframe: bool,
+    /// Marker spheres to draw with the mesh (hidden ones faint).
+    pub markers: Vec<MarkerInstance>,
 }
 
 impl Default for RenderOptions {
@@ -38,6 +40,7 @@ impl Default for RenderOptions {
             width: 800,
             height: 600,
             wireframe: false,
+            markers: Vec::new(),
         }
     }
 }
@@ -128,7 +131,8 @@ impl Headless {
             )));
         }
         let cols = display_colors(mesh, colors);
-        let gpu_mesh = GpuMesh::new(&self.device, &self.renderer, mesh, &cols);
+        let mut gpu_mesh = GpuMesh::new(&self.device, &self.renderer, mesh, &cols);
+        gpu_mesh.set_markers(&self.device, &self.queue, &opts.markers);
         let target = RenderTarget::new(&self.device, &self.renderer, opts.width, opts.height);
         let camera = Camera {
             azimuth_deg: opts.azimuth_deg,
@@ -186,4 +190,16 @@ pub fn render_to_png(
     )
     .map_err(|e| Error::format(out, format!("PNG encoding failed: {e}")))?;
     crate::mesh::io::write_atomic(out, &bytes)
+}
+
+/// Distinct marker colour for correspondence `i` (golden-angle hues), the same in the app and in `render`.
+pub fn marker_color(i: usize) -> [u8; 3] {
+    let h = (i as f32 * 0.618_034).fract();
+    let s = 0.75f32;
+    let v = 0.95f32;
+    let k = |n: f32| {
+        let k = (n + h * 6.0) % 6.0;
+        v - v * s * k.min(4.0 - k).clamp(0.0, 1.0)
+    };
+    [k(5.0), k(3.0), k(1.0)].map(|x| (x * 255.0).round() as u8)
 }
