@@ -211,8 +211,93 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
     })
 }
 
+/// One cancel probe: when the cancel was requested and how long the job took to return.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CancelProbe {
+    /// Seconds after the job's start that the cancel was requested.
+    pub at_s: f64,
+    /// The stage the job was in (the last progress event's stage and level).
+    pub stage: String,
+    /// From the cancel request to the job's return, milliseconds (0 when it had finished).
+    pub latency_ms: f64,
+    /// The job had already finished when the cancel came (the probe measures nothing).
+    pub finished: bool,
+}
+
+/// Cancel latency of a whole transfer (prepare both meshes, solve) at `n` working vertices, as
+/// the app runs it: `probes` runs, each cancelled at an evenly spaced point of a run of
+/// `end_to_end_s` seconds.
+pub fn cancel_probes(
+    source: &TriMesh,
+    target: &TriMesh,
+    n: usize,
+    end_to_end_s: f64,
+    probes: usize,
+) -> Result<Vec<CancelProbe>> {
+    let mut out = Vec::with_capacity(probes);
+    for k in 0..probes {
+        let at = end_to_end_s * (k as f64 + 0.5) / probes as f64;
+        let cancel = CancelToken::new();
+        let stage = std::sync::Arc::new(std::sync::Mutex::new(String::from("start")));
+        let (tx, rx) = crossbeam_channel::bounded(1);
+        let (s, t, c, st) = (
+            source.clone(),
+            target.clone(),
+            cancel.clone(),
+            stage.clone(),
+        );
+        let job = std::thread::spawn(move || {
+            let params_source = TransferParams {
+                vertices: n.min(MAX_SOURCE_VERTICES),
+                ..TransferParams::default()
+            };
+            let params = TransferParams {
+                vertices: n,
+                ..TransferParams::default()
+            };
+            let sink = |e: Event| {
+                if let Event::Progress(p) = e {
+                    let name = if p.stage == "solve" {
+                        format!("solve level {}", p.level)
+                    } else {
+                        p.stage.to_string()
+                    };
+                    *st.lock().expect("not poisoned") = name;
+                }
+            };
+            let r = (|| {
+                let ps = mm::prepare(&s, &params_source, &sink, &c)?;
+                let pt = mm::prepare(&t, &params, &sink, &c)?;
+                mm::solve(&ps, &pt, &[], &params, &sink, &c).map(|_| ())
+            })();
+            let _ = tx.send(Instant::now());
+            r
+        });
+        std::thread::sleep(std::time::Duration::from_secs_f64(at));
+        let stage_then = stage.lock().expect("not poisoned").clone();
+        let asked = Instant::now();
+        cancel.cancel();
+        let returned = rx
+            .recv()
+            .map_err(|_| crate::Error::InvalidInput("the probed job panicked".into()))?;
+        match job.join() {
+            Ok(Ok(())) | Ok(Err(crate::Error::Cancelled)) => {}
+            Ok(Err(e)) => return Err(e),
+            Err(_) => return Err(crate::Error::InvalidInput("the probed job panicked".into())),
+        }
+        out.push(CancelProbe {
+            at_s: at,
+            stage: stage_then,
+            latency_ms: returned.saturating_duration_since(asked).as_secs_f64() * 1000.0,
+            finished: returned <= asked,
+        });
+    }
+    Ok(out)
+}
+
 /// Run the benchmark at every size, printing a table (or JSON lines) as rows complete.
-pub fn run(sizes: &[usize], json: bool) -> Result<()> {
+/// With `probes > 0`, each size is followed by that many cancel probes ([`cancel_probes`]).
+pub fn run(sizes: &[usize], json: bool, probes: usize) -> Result<()> {
     let mut source = crate::mesh::io::load(&crate::testdata::data_path("spot/spot.obj"))?;
     source.repair()?;
     let mut target = crate::mesh::io::load(&crate::testdata::data_path("horse/horse.ply"))?;
@@ -260,6 +345,33 @@ pub fn run(sizes: &[usize], json: bool) -> Result<()> {
                 .map(|(n, t)| format!("{n} {t:.2}"))
                 .collect();
             eprintln!("  stages (s): {}", stages.join(", "));
+        }
+        if probes > 0 {
+            let p = cancel_probes(&source, &target, n, row.end_to_end_s, probes)?;
+            if json {
+                println!(
+                    "{}",
+                    serde_json::json!({"vertices": row.vertices, "cancel_probes": p})
+                );
+            } else {
+                let live: Vec<&CancelProbe> = p.iter().filter(|x| !x.finished).collect();
+                let mut ms: Vec<f64> = live.iter().map(|x| x.latency_ms).collect();
+                ms.sort_by(f64::total_cmp);
+                match live
+                    .iter()
+                    .max_by(|a, b| a.latency_ms.total_cmp(&b.latency_ms))
+                {
+                    Some(worst) => println!(
+                        "  cancel latency over {} probes: median {:.1} ms, max {:.1} ms (at {:.2} s, {})",
+                        live.len(),
+                        ms[ms.len() / 2],
+                        worst.latency_ms,
+                        worst.at_s,
+                        worst.stage
+                    ),
+                    None => println!("  cancel latency: every probed job had finished"),
+                }
+            }
         }
     }
     Ok(())

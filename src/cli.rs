@@ -61,6 +61,10 @@ pub enum Command {
         /// One JSON object per line per size.
         #[arg(long)]
         json: bool,
+        /// After each size, cancel that many whole transfers at evenly spaced moments and
+        /// report how long each took to stop.
+        #[arg(long, default_value_t = 0)]
+        cancel_probes: usize,
     },
     /// Render a mesh to a PNG offscreen (headlight Lambert shading, vertex colours or texture).
     #[cfg(feature = "gui")]
@@ -453,8 +457,12 @@ fn run(cli: Cli) -> Result<i32> {
         Some(Command::Complete(args)) => complete(&args),
         Some(Command::Update(args)) => update(&args),
         Some(Command::Detail(args)) => detail(&args),
-        Some(Command::Bench { sizes, json }) => {
-            crate::bench::run(&crate::bench::parse_sizes(&sizes)?, json)?;
+        Some(Command::Bench {
+            sizes,
+            json,
+            cancel_probes,
+        }) => {
+            crate::bench::run(&crate::bench::parse_sizes(&sizes)?, json, cancel_probes)?;
             Ok(0)
         }
         #[cfg(feature = "gui")]

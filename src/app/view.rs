@@ -452,7 +452,7 @@ impl Views {
         };
         let frame = mesh.frame;
         if self.gpu[i].bvh.is_none()
-            && !state.corr.is_empty()
+            && (!state.corr.is_empty() || state.pending_source.is_some())
             && let Some(slot) = state.slot(side)
         {
             let m = slot.displayed();

@@ -191,11 +191,23 @@ pub fn hks_scaled(positions: &[[f32; 3]], faces: &[[u32; 3]], k: usize) -> Resul
 /// passes of 1-ring averaging) and up it (mean of children), plus normal·up (up = +Y).
 /// Returns, per level, `len * SHAPE_DIM` raw (unnormalised) values.
 pub fn shape_features(h: &Hierarchy, hks_vertices: usize) -> Result<Vec<Vec<f32>>> {
+    shape_features_cancellable(h, hks_vertices, &CancelToken::new())
+}
+
+/// [`shape_features`] that returns `Err(Cancelled)` within about 10 ms of `cancel` being set:
+/// the eigen-solve (one dense factorisation, about 0.4 s at 2000 vertices) runs on its own thread
+/// (see [`crate::jobs::run_cancellable`]).
+pub fn shape_features_cancellable(
+    h: &Hierarchy,
+    hks_vertices: usize,
+    cancel: &CancelToken,
+) -> Result<Vec<Vec<f32>>> {
     // The finest level with at most `hks_vertices` vertices (or the coarsest).
     let lc = (0..h.num_levels())
         .find(|&l| h.levels[l].len() <= hks_vertices)
         .unwrap_or(h.top());
-    let base = hks_scaled(&h.levels[lc].positions, &h.levels[lc].faces, 120)?;
+    let (positions, faces) = (h.levels[lc].positions.clone(), h.levels[lc].faces.clone());
+    let base = crate::jobs::run_cancellable(cancel, move || hks_scaled(&positions, &faces, 120))??;
     let mut hks: Vec<Vec<f32>> = vec![Vec::new(); h.num_levels()];
     hks[lc] = base;
     for l in (0..lc).rev() {

@@ -37,6 +37,34 @@ impl CancelToken {
     }
 }
 
+/// Run `work` on its own thread and wait for it, returning `Err(Cancelled)` within about 10 ms
+/// of `cancel` being set even when `work` is one long uninterruptible call (a dense
+/// factorisation): the abandoned work then finishes in the background and its result is dropped.
+pub fn run_cancellable<T: Send + 'static>(
+    cancel: &CancelToken,
+    work: impl FnOnce() -> T + Send + 'static,
+) -> crate::Result<T> {
+    cancel.check()?;
+    let (tx, rx) = crossbeam_channel::bounded(1);
+    std::thread::Builder::new()
+        .name("meshmatch-detached".into())
+        .spawn(move || {
+            let _ = tx.send(work());
+        })
+        .map_err(|e| crate::Error::InvalidInput(format!("cannot start a thread: {e}")))?;
+    loop {
+        match rx.recv_timeout(std::time::Duration::from_millis(10)) {
+            Ok(v) => return Ok(v),
+            Err(crossbeam_channel::RecvTimeoutError::Timeout) => cancel.check()?,
+            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => {
+                return Err(crate::Error::InvalidInput(
+                    "a background computation panicked".into(),
+                ));
+            }
+        }
+    }
+}
+
 /// One correspondence: a source vertex and one or more target vertices (one-to-many), in the
 /// files' own vertex numbering.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -118,5 +146,34 @@ impl Stopwatch {
     /// Seconds since start.
     pub fn secs(&self) -> f64 {
         self.0.elapsed().as_secs_f64()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_cancellable_returns_on_cancel_without_waiting_for_the_work() {
+        let done = Arc::new(AtomicBool::new(false));
+        let (cancel, d) = (CancelToken::new(), done.clone());
+        let stopper = {
+            let c = cancel.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(std::time::Duration::from_millis(30));
+                c.cancel();
+            })
+        };
+        let r = run_cancellable(&cancel, move || {
+            std::thread::sleep(std::time::Duration::from_secs(3));
+            d.store(true, Ordering::SeqCst);
+            7
+        });
+        stopper.join().unwrap();
+        assert!(matches!(r, Err(crate::Error::Cancelled)), "{r:?}");
+        // It returned while the work was still running.
+        assert!(!done.load(Ordering::SeqCst));
+        // Without a cancel the work's result comes back.
+        assert_eq!(run_cancellable(&CancelToken::new(), || 7).unwrap(), 7);
     }
 }

@@ -354,7 +354,7 @@ pub fn prepare(
 
     sink(Event::Progress(progress("features", &watch, 0.5)));
     let sw = Stopwatch::start();
-    let shape = features::shape_features(&hierarchy, 2000)?;
+    let shape = features::shape_features_cancellable(&hierarchy, 2000, cancel)?;
     stage("features", sw.secs(), &mut timings);
     cancel.check()?;
 
