@@ -1,7 +1,8 @@
 // Mesh shader: per-vertex sRGB colour, headlight Lambert shading, optional wireframe pass.
 //
-// Colours arrive in sRGB [0,1]; shading happens in linear light and the result is encoded back
-// to sRGB because the render target is Rgba8Unorm (the format egui samples without conversion).
+// Colours arrive in sRGB [0,1] and are decoded per vertex; shading happens in linear light and
+// the render target (an sRGB view of the texture egui samples as Rgba8Unorm) encodes on store,
+// so no fragment pays for a `pow`.
 
 struct Uniforms {
     view_proj: mat4x4<f32>,
@@ -26,13 +27,6 @@ fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
     return select(hi, lo, c <= vec3<f32>(0.04045));
 }
 
-fn linear_to_srgb(c: vec3<f32>) -> vec3<f32> {
-    let cc = clamp(c, vec3<f32>(0.0), vec3<f32>(1.0));
-    let lo = cc * 12.92;
-    let hi = 1.055 * pow(cc, vec3<f32>(1.0 / 2.4)) - 0.055;
-    return select(hi, lo, cc <= vec3<f32>(0.0031308));
-}
-
 @vertex
 fn vs_main(
     @location(0) position: vec3<f32>,
@@ -43,7 +37,7 @@ fn vs_main(
     out.clip = u.view_proj * vec4<f32>(position, 1.0);
     out.world = position;
     out.normal = normal;
-    out.color = color;
+    out.color = srgb_to_linear(color);
     return out;
 }
 
@@ -59,8 +53,7 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         lambert = abs(dot(n, v));
     }
     let ambient = u.wire.a;
-    let lin = srgb_to_linear(in.color) * (ambient + (1.0 - ambient) * lambert);
-    return vec4<f32>(linear_to_srgb(lin), 1.0);
+    return vec4<f32>(in.color * (ambient + (1.0 - ambient) * lambert), 1.0);
 }
 
 @vertex
@@ -82,7 +75,7 @@ fn vs_wire(
 
 @fragment
 fn fs_wire(in: VsOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(u.wire.rgb, 1.0);
+    return vec4<f32>(srgb_to_linear(u.wire.rgb), 1.0);
 }
 
 // Correspondence markers: instanced unit spheres, shaded with the same headlight. A rim marks the
@@ -107,7 +100,7 @@ fn vs_marker(
     out.clip = u.view_proj * vec4<f32>(world, 1.0);
     out.world = world;
     out.normal = unit;
-    out.color = color_rim.rgb;
+    out.color = srgb_to_linear(color_rim.rgb);
     out.rim = color_rim.a;
     return out;
 }
@@ -115,7 +108,7 @@ fn vs_marker(
 fn marker_color(in: MarkerOut) -> vec3<f32> {
     let v = normalize(u.eye.xyz - in.world);
     let facing = abs(dot(normalize(in.normal), v));
-    var c = srgb_to_linear(in.color) * (0.35 + 0.65 * facing);
+    var c = in.color * (0.35 + 0.65 * facing);
     // Outline of the sphere's silhouette: dark, or the rim colour when selected / pending.
     if (facing < 0.45) {
         if (in.rim > 1.5) {
@@ -126,7 +119,7 @@ fn marker_color(in: MarkerOut) -> vec3<f32> {
             c = c * 0.25;
         }
     }
-    return linear_to_srgb(c);
+    return c;
 }
 
 @fragment

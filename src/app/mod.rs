@@ -88,6 +88,32 @@ where
     repaint: Option<egui::Context>,
 }
 
+/// Longest a worker event waits for the repaint that shows it (a cap on event-driven frames).
+const WAKE_DELAY: std::time::Duration = std::time::Duration::from_millis(30);
+
+/// A small rotating arc that says "working". Unlike `egui::Spinner`, which asks for a repaint
+/// every frame, it asks for one every 100 ms, so a running job does not keep the window (and a
+/// software renderer) drawing flat out.
+fn busy_indicator(ui: &mut egui::Ui) {
+    let size = ui.spacing().interact_size.y;
+    let (rect, _) = ui.allocate_exact_size(egui::vec2(size, size), egui::Sense::hover());
+    let t = ui.input(|i| i.time) as f32;
+    let r = rect.height() * 0.35;
+    let start = (t * 5.0) % std::f32::consts::TAU;
+    let points: Vec<egui::Pos2> = (0..=16)
+        .map(|k| {
+            let a = start + k as f32 / 16.0 * std::f32::consts::PI * 1.5;
+            rect.center() + r * egui::vec2(a.cos(), a.sin())
+        })
+        .collect();
+    ui.painter().add(egui::Shape::line(
+        points,
+        egui::Stroke::new(2.0, ui.visuals().strong_text_color()),
+    ));
+    ui.ctx()
+        .request_repaint_after(std::time::Duration::from_millis(100));
+}
+
 /// A Scene-menu entry: its name and the function that builds it.
 pub type SceneEntry = (String, fn() -> Result<DemoScene>);
 
@@ -110,7 +136,8 @@ where
         let wake_ctx = repaint.clone();
         let worker = Worker::spawn(engine, move || {
             if let Some(ctx) = &repaint {
-                ctx.request_repaint();
+                // Coalesce bursts of events into at most one repaint per WAKE_DELAY.
+                ctx.request_repaint_after(WAKE_DELAY);
             }
         });
         MeshMatchApp {
@@ -147,7 +174,7 @@ where
         let ctx = self.repaint.clone();
         let wake = move || {
             if let Some(c) = &ctx {
-                c.request_repaint();
+                c.request_repaint_after(WAKE_DELAY);
             }
         };
         let job = match which {
@@ -217,7 +244,7 @@ where
         let ctx = self.repaint.clone();
         let wake = move || {
             if let Some(c) = &ctx {
-                c.request_repaint();
+                c.request_repaint_after(WAKE_DELAY);
             }
         };
         match tools::exemplar_job(settings, mesh, &coverage, wake) {
@@ -244,7 +271,7 @@ where
         let ctx = self.repaint.clone();
         let j = tools::update_job(old, new, move || {
             if let Some(c) = &ctx {
-                c.request_repaint();
+                c.request_repaint_after(WAKE_DELAY);
             }
         });
         self.state.message = format!("{} running...", j.name);
@@ -714,7 +741,7 @@ where
             let j = &self.state.job;
             let p = &j.progress;
             if j.running {
-                ui.spinner();
+                busy_indicator(ui);
                 let mut text = p.stage.to_string();
                 if p.levels > 0 {
                     text += &format!(
@@ -735,7 +762,7 @@ where
             }
             if let Some(t) = &self.tool {
                 ui.separator();
-                ui.spinner();
+                busy_indicator(ui);
                 let f = t.fraction.lock().map(|f| *f).unwrap_or(0.0);
                 ui.label(format!(
                     "{} {:.1} s",
@@ -935,6 +962,13 @@ pub fn run_with<E: Engine>(engine: E, startup: Startup, demo_scenes: Vec<SceneEn
 where
     E::Params: AppParams,
 {
+    // Background work (the worker's and the tools' parallel loops) runs on rayon's global pool at
+    // a lower priority than the window, which uses no rayon itself: the UI and the software
+    // renderer stay smooth while a transfer fills every core, at no cost when the UI is idle.
+    // (Already built, e.g. by an embedding program: keep that pool.)
+    let _ = rayon::ThreadPoolBuilder::new()
+        .start_handler(|_| crate::jobs::lower_thread_priority())
+        .build_global();
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_inner_size([1400.0, 820.0])

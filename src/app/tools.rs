@@ -69,6 +69,7 @@ impl ToolJob {
         std::thread::Builder::new()
             .name(format!("meshmatch-{name}"))
             .spawn(move || {
+                crate::jobs::lower_thread_priority();
                 let sink = |e: Event| {
                     let p = match e {
                         Event::Progress(p) => p,

@@ -31,7 +31,7 @@ struct ViewGpu {
     dirty: bool,
     /// The marker spheres last uploaded with the mesh.
     markers: Vec<MarkerInstance>,
-    /// Ray-query tree of the uploaded mesh (marker occlusion), built on first use.
+    /// Ray-query tree of the uploaded mesh (picking and marker occlusion).
     bvh: Option<TriangleBvh>,
 }
 
@@ -116,7 +116,14 @@ impl Views {
     /// Upload changed meshes/colours (colour changes write only the colour buffer).
     fn sync_gpu<P: AppParams>(&mut self, rs: &egui_wgpu::RenderState, state: &mut AppState<P>) {
         if self.renderer.is_none() {
-            self.renderer = Some(MeshRenderer::new(&rs.device, Some(&rs.adapter), 4));
+            // 4x MSAA on a GPU; a software rasteriser (lavapipe) draws single-sampled, which is
+            // several times cheaper and keeps orbiting smooth while a job fills the cores.
+            let samples = if rs.adapter.get_info().device_type == wgpu::DeviceType::Cpu {
+                1
+            } else {
+                4
+            };
+            self.renderer = Some(MeshRenderer::new(&rs.device, Some(&rs.adapter), samples));
         }
         let renderer = self.renderer.as_ref().expect("created above");
         for i in 0..2 {
@@ -132,8 +139,9 @@ impl Views {
                 Some(slot) => {
                     if slot.geometry_dirty || g.mesh.is_none() {
                         let cols = slot.display_colors();
-                        g.mesh = Some(GpuMesh::new(&rs.device, renderer, slot.displayed(), &cols));
-                        g.bvh = None;
+                        let m = slot.displayed();
+                        g.mesh = Some(GpuMesh::new(&rs.device, renderer, m, &cols));
+                        g.bvh = Some(TriangleBvh::new(&m.positions, &m.faces));
                         g.markers.clear();
                         slot.geometry_dirty = false;
                         slot.colors_dirty = false;
@@ -332,7 +340,21 @@ impl Views {
         let size = GVec2::new(rect.width(), rect.height());
         let (o, d) = self.cameras[side_index(side)].ray(&frame, local, size);
         let m = slot.displayed();
-        pick(&m.positions, &m.faces, o, d)
+        match &self.gpu[side_index(side)].bvh {
+            // The tree of the uploaded mesh: microseconds, and no rayon on the UI thread.
+            Some(bvh) => {
+                let (face, bary, t) = bvh.ray_hit(o.to_array(), d.to_array())?;
+                let f = m.faces[face as usize];
+                let k = (0..3).max_by(|&a, &b| bary[a].total_cmp(&bary[b]))?;
+                Some(crate::render::Hit {
+                    face: face as usize,
+                    t,
+                    point: o + d * t,
+                    nearest_vertex: f[k],
+                })
+            }
+            None => pick(&m.positions, &m.faces, o, d),
+        }
     }
 
     /// Screen position of a file vertex's marker.
@@ -451,13 +473,6 @@ impl Views {
             return;
         };
         let frame = mesh.frame;
-        if self.gpu[i].bvh.is_none()
-            && (!state.corr.is_empty() || state.pending_source.is_some())
-            && let Some(slot) = state.slot(side)
-        {
-            let m = slot.displayed();
-            self.gpu[i].bvh = Some(TriangleBvh::new(&m.positions, &m.faces));
-        }
         let selected_pair = state.selected.map(|s| s.pair);
         let mut instances: Vec<MarkerInstance> = self
             .markers(state, side, rect)

@@ -37,6 +37,17 @@ impl CancelToken {
     }
 }
 
+/// Lower the calling thread's scheduling priority (Linux: nice 10; elsewhere nothing), so that
+/// background computation yields the CPU to the window and its renderer.
+pub fn lower_thread_priority() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: setpriority only reads its integer arguments; on Linux `who = 0` names the calling
+    // thread, whose nice value it raises (lowering priority needs no privilege).
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 10);
+    }
+}
+
 /// Run `work` on its own thread and wait for it, returning `Err(Cancelled)` within about 10 ms
 /// of `cancel` being set even when `work` is one long uninterruptible call (a dense
 /// factorisation): the abandoned work then finishes in the background and its result is dropped.

@@ -152,7 +152,10 @@ impl<P: Clone + Send + 'static> Worker<P> {
         let run2 = running.clone();
         let thread = std::thread::Builder::new()
             .name("meshmatch-worker".into())
-            .spawn(move || worker_loop(engine, rx, etx, run2, notify))
+            .spawn(move || {
+                super::lower_thread_priority();
+                worker_loop(engine, rx, etx, run2, notify)
+            })
             .expect("spawn worker thread");
         Worker {
             tx,

@@ -6,8 +6,11 @@ use eframe::wgpu::util::DeviceExt;
 use super::camera::{Camera, Frame};
 use crate::TriMesh;
 
-/// Colour format of every render target: gamma-encoded RGBA8, which egui samples as-is.
+/// Colour format of every render target's texture: gamma-encoded RGBA8, which egui samples as-is.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// Format the pipelines draw in: the same bytes seen as sRGB, so the shaders work in linear light
+/// and the store encodes (no per-fragment `pow`: cheap on software rasterisers).
+pub const DRAW_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 /// Depth format of every render target.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Colour of vertices that have no colour (light grey, sRGB).
@@ -84,7 +87,7 @@ impl MeshRenderer {
     pub fn new(device: &wgpu::Device, adapter: Option<&wgpu::Adapter>, samples: u32) -> Self {
         let samples = match adapter {
             Some(a) => {
-                let c = a.get_texture_format_features(COLOR_FORMAT).flags;
+                let c = a.get_texture_format_features(DRAW_FORMAT).flags;
                 let d = a.get_texture_format_features(DEPTH_FORMAT).flags;
                 if samples > 1
                     && c.sample_count_supported(samples)
@@ -183,7 +186,7 @@ impl MeshRenderer {
                     module: &module,
                     entry_point: Some(fs),
                     targets: &[Some(wgpu::ColorTargetState {
-                        format: COLOR_FORMAT,
+                        format: DRAW_FORMAT,
                         blend,
                         write_mask: wgpu::ColorWrites::ALL,
                     })],
@@ -255,8 +258,8 @@ impl MeshRenderer {
         }
         let bg = style.background;
         let (view, resolve) = match &target.msaa {
-            Some(m) => (m, Some(&target.view)),
-            None => (&target.view, None),
+            Some(m) => (m, Some(&target.draw_view)),
+            None => (&target.draw_view, None),
         };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("meshmatch pass"),
@@ -265,10 +268,11 @@ impl MeshRenderer {
                 depth_slice: None,
                 resolve_target: resolve,
                 ops: wgpu::Operations {
+                    // The view is sRGB: clear with the background's linear value.
                     load: wgpu::LoadOp::Clear(wgpu::Color {
-                        r: bg[0] as f64,
-                        g: bg[1] as f64,
-                        b: bg[2] as f64,
+                        r: crate::color::srgb_to_linear(bg[0]) as f64,
+                        g: crate::color::srgb_to_linear(bg[1]) as f64,
+                        b: crate::color::srgb_to_linear(bg[2]) as f64,
                         a: bg[3] as f64,
                     }),
                     store: wgpu::StoreOp::Store,
@@ -556,8 +560,10 @@ impl GpuMesh {
 pub struct RenderTarget {
     /// The resolved colour texture (Rgba8Unorm, sampleable, copyable).
     pub texture: wgpu::Texture,
-    /// View of [`Self::texture`].
+    /// View of [`Self::texture`] (what egui samples).
     pub view: wgpu::TextureView,
+    /// The same texture seen as sRGB: what the pipelines draw into.
+    draw_view: wgpu::TextureView,
     msaa: Option<wgpu::TextureView>,
     depth: wgpu::TextureView,
     /// Width in pixels.
@@ -576,7 +582,7 @@ impl RenderTarget {
             height,
             depth_or_array_layers: 1,
         };
-        let tex = |label, format, samples, usage| {
+        let tex = |label, format, samples, usage, view_formats: &[wgpu::TextureFormat]| {
             device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
                 size,
@@ -585,7 +591,7 @@ impl RenderTarget {
                 dimension: wgpu::TextureDimension::D2,
                 format,
                 usage,
-                view_formats: &[],
+                view_formats,
             })
         };
         let texture = tex(
@@ -595,13 +601,15 @@ impl RenderTarget {
             wgpu::TextureUsages::RENDER_ATTACHMENT
                 | wgpu::TextureUsages::TEXTURE_BINDING
                 | wgpu::TextureUsages::COPY_SRC,
+            &[DRAW_FORMAT],
         );
         let msaa = (renderer.samples > 1).then(|| {
             tex(
                 "target msaa",
-                COLOR_FORMAT,
+                DRAW_FORMAT,
                 renderer.samples,
                 wgpu::TextureUsages::RENDER_ATTACHMENT,
+                &[],
             )
             .create_view(&Default::default())
         });
@@ -610,12 +618,18 @@ impl RenderTarget {
             DEPTH_FORMAT,
             renderer.samples,
             wgpu::TextureUsages::RENDER_ATTACHMENT,
+            &[],
         )
         .create_view(&Default::default());
         let view = texture.create_view(&Default::default());
+        let draw_view = texture.create_view(&wgpu::TextureViewDescriptor {
+            format: Some(DRAW_FORMAT),
+            ..Default::default()
+        });
         RenderTarget {
             texture,
             view,
+            draw_view,
             msaa,
             depth,
             width,
