@@ -75,7 +75,7 @@ fn vs_wire(
 
 @fragment
 fn fs_wire(in: VsOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(srgb_to_linear(u.wire.rgb), 1.0);
+    return vec4<f32>(srgb_to_linear(u.wire.rgb), 0.45);
 }
 
 // Correspondence markers: instanced unit spheres, shaded with the same headlight. A rim marks the

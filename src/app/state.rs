@@ -848,22 +848,34 @@ impl<P: AppParams> AppState<P> {
     /// Undo the last edit (correspondence or paint stroke); false if there is none.
     pub fn undo(&mut self) -> bool {
         let Some(s) = self.undo.pop() else {
+            self.message = "nothing to undo".into();
             return false;
         };
         let cur = self.snapshot();
         self.redo.push(cur);
         self.restore(s);
+        self.message = format!(
+            "undone ({} more undo, {} redo)",
+            self.undo.len(),
+            self.redo.len()
+        );
         true
     }
 
     /// Redo the last undone edit; false if there is none.
     pub fn redo(&mut self) -> bool {
         let Some(s) = self.redo.pop() else {
+            self.message = "nothing to redo".into();
             return false;
         };
         let cur = self.snapshot();
         self.undo.push(cur);
         self.restore(s);
+        self.message = format!(
+            "redone ({} undo, {} more redo)",
+            self.undo.len(),
+            self.redo.len()
+        );
         true
     }
 

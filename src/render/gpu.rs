@@ -200,12 +200,17 @@ impl MeshRenderer {
         let (sphere_positions, sphere_tris) = unit_sphere(12, 20);
         MeshRenderer {
             fill: make("vs_main", "fs_main", tri, &buffers, opaque),
+            // Blended, so a dense mesh's wireframe darkens its surface instead of hiding it.
             wire: make(
                 "vs_wire",
                 "fs_wire",
                 wgpu::PrimitiveTopology::LineList,
                 &buffers,
-                opaque,
+                (
+                    true,
+                    wgpu::CompareFunction::LessEqual,
+                    Some(wgpu::BlendState::ALPHA_BLENDING),
+                ),
             ),
             marker: make("vs_marker", "fs_marker", tri, &marker_buffers, opaque),
             marker_ghost: make(
