@@ -131,8 +131,8 @@ fn wireframe_draws_dark_edges_and_view_angle_changes_the_picture() {
     )
     .unwrap();
     // The wireframe is blended over the shading (45% dark edges, antialiased): edge pixels are
-    // clearly darker than the same
-    // pixels without it, and the surface between edges keeps its shade.
+    // clearly darker than the same pixels without it, and the surface between edges keeps its
+    // shade.
     let inner = |x: u32, y: u32| (x as i32 - 64).pow(2) + (y as i32 - 64).pow(2) < 30 * 30;
     let (mut darker, mut same, mut total) = (0, 0, 0);
     for (x, y, p) in wire.enumerate_pixels() {
