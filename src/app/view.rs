@@ -67,6 +67,8 @@ pub struct Views {
     pub rects: [Rect; 2],
     /// The view the pointer was last over (where a drop with no pointer position goes).
     pub last_hovered: Option<Side>,
+    /// The views are drawn by a software rasteriser (lavapipe): frames are expensive.
+    pub software_renderer: bool,
 }
 
 impl Default for Views {
@@ -83,6 +85,7 @@ impl Default for Views {
             last_draw_ms: [0.0; 2],
             rects: [Rect::NOTHING; 2],
             last_hovered: None,
+            software_renderer: false,
         }
     }
 }
@@ -118,11 +121,8 @@ impl Views {
         if self.renderer.is_none() {
             // 4x MSAA on a GPU; a software rasteriser (lavapipe) draws single-sampled, which is
             // several times cheaper and keeps orbiting smooth while a job fills the cores.
-            let samples = if rs.adapter.get_info().device_type == wgpu::DeviceType::Cpu {
-                1
-            } else {
-                4
-            };
+            self.software_renderer = rs.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
+            let samples = if self.software_renderer { 1 } else { 4 };
             self.renderer = Some(MeshRenderer::new(&rs.device, Some(&rs.adapter), samples));
         }
         let renderer = self.renderer.as_ref().expect("created above");
