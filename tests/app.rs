@@ -1487,3 +1487,84 @@ fn brush_cursor_lies_on_the_surface_and_hides_off_the_mesh() {
     let (r, _) = ratio(&pts);
     assert!(r > 1.5, "oblique outline ratio {r}");
 }
+
+/// The app with real GPU viewports (lavapipe where there is no GPU): the views draw into
+/// textures that `Harness::render` shows.
+fn gpu_harness(app: App) -> Harness<'static, App> {
+    use egui_kittest::wgpu::{WgpuTestRenderer, create_render_state, default_wgpu_setup};
+    let rs = create_render_state(
+        default_wgpu_setup(),
+        eframe::egui_wgpu::RendererOptions::PREDICTABLE,
+    );
+    let ui_rs = rs.clone();
+    Harness::builder()
+        .with_size(egui::Vec2::new(1200.0, 700.0))
+        .with_max_steps(20)
+        .renderer(WgpuTestRenderer::from_render_state(rs))
+        .build_ui_state(move |ui, app: &mut App| app.frame_ui(ui, Some(&ui_rs)), app)
+}
+
+#[test]
+fn markers_are_spheres_in_the_views_that_the_mesh_hides() {
+    // Grey spheres (the test engine copies source colours, so the target stays grey too).
+    let grey = |mut m: TriMesh| {
+        m.colors = Some(vec![[0.6, 0.6, 0.6]; m.positions.len()]);
+        m
+    };
+    let mut app = App::new(TestEngine::default(), None);
+    app.state
+        .set_mesh(Side::Source, grey(sphere(12, 16)), false);
+    app.state
+        .set_mesh(Side::Target, grey(sphere(16, 24)), false);
+    let mut h = gpu_harness(app);
+    h.run_steps(3);
+    // A pair added by clicks (picking through the views' BVH).
+    let s0 = front_vertex(&h, Side::Source, 0);
+    let t0 = front_vertex(&h, Side::Target, 0);
+    let p = vertex_pos(&h, Side::Source, s0);
+    click(&mut h, p, egui::Modifiers::NONE);
+    let p = vertex_pos(&h, Side::Target, t0);
+    click(&mut h, p, egui::Modifiers::NONE);
+    assert_eq!(
+        h.state().state.corr,
+        vec![Correspondence {
+            source_vertex: s0,
+            target_vertices: vec![t0]
+        }]
+    );
+    h.state_mut().state.select(None);
+    h.run_steps(2);
+    let [r, g, b] = meshmatch::render::marker_color(0).map(i32::from);
+    assert!(r > g + 100 && r > b + 100, "pair 1 is red: {r} {g} {b}");
+    // Red minus green at a point on the sphere beside its number (the label sits on the centre).
+    let redness = |h: &mut Harness<'static, App>, side: Side, v: u32| {
+        let p = vertex_pos(h, side, v) + egui::vec2(-5.0, -3.0);
+        let img = h.render().expect("render");
+        let ppp = h.ctx.pixels_per_point();
+        let px = img.get_pixel((p.x * ppp) as u32, (p.y * ppp) as u32);
+        px[0] as i32 - px[1] as i32
+    };
+    let mut front = Vec::new();
+    for (side, v) in [(Side::Source, s0), (Side::Target, t0)] {
+        let f = redness(&mut h, side, v);
+        assert!(f > 100, "{side:?} marker in view: red - green = {f}");
+        front.push(f);
+    }
+    // Turn both (locked) cameras around: the markers are now behind the spheres, which hide them
+    // but for a faint tint.
+    for c in &mut h.state_mut().views.cameras {
+        c.azimuth_deg += 180.0;
+    }
+    h.state_mut().views.invalidate();
+    h.run_steps(2);
+    for ((side, v), f) in [(Side::Source, s0), (Side::Target, t0)]
+        .into_iter()
+        .zip(front)
+    {
+        let behind = redness(&mut h, side, v);
+        assert!(
+            behind > 5 && 2 * behind < f,
+            "{side:?} marker behind the mesh: red - green = {behind} (in view {f})"
+        );
+    }
+}
