@@ -1557,13 +1557,16 @@ fn markers_are_spheres_in_the_views_that_the_mesh_hides() {
     }
     h.state_mut().views.invalidate();
     h.run_steps(2);
+    // The hidden part is drawn at 30% opacity in linear light, which sRGB encoding lifts to about
+    // half the in-view tint; a marker the mesh did not hide would give the full tint.
     for ((side, v), f) in [(Side::Source, s0), (Side::Target, t0)]
         .into_iter()
         .zip(front)
     {
         let behind = redness(&mut h, side, v);
+        eprintln!("{side:?}: red - green in view {f}, behind the mesh {behind}");
         assert!(
-            behind > 5 && 2 * behind < f,
+            behind > 5 && 3 * behind < 2 * f,
             "{side:?} marker behind the mesh: red - green = {behind} (in view {f})"
         );
     }

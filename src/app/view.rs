@@ -266,8 +266,8 @@ impl Views {
                 }
             }
             let title = match (side, state.slot(side)) {
-                (Side::Source, Some(s)) => format!("Source: {}", mesh_name(&s.file)),
-                (Side::Target, Some(s)) => format!("Target: {}", mesh_name(&s.file)),
+                (Side::Source, Some(s)) => format!("Source: {}", mesh_name(s, side)),
+                (Side::Target, Some(s)) => format!("Target: {}", mesh_name(s, side)),
                 (_, None) => format!("{side:?}: drop a mesh file here or use File > Open"),
             };
             painter.text(
@@ -720,12 +720,24 @@ impl Views {
     }
 }
 
-fn mesh_name(m: &crate::TriMesh) -> String {
-    let name = m
-        .path
-        .as_ref()
-        .and_then(|p| p.file_name())
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "demo mesh".into());
+/// A view's title: the file name, or for a built-in scene's mesh its part of the scene's name
+/// ("zebra" of "Zebra -> giraffe"); then the vertex count.
+fn mesh_name(slot: &super::state::MeshSlot, side: Side) -> String {
+    let m = &slot.file;
+    let name = match (&m.path, &slot.scene) {
+        (Some(p), _) => p
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| p.display().to_string()),
+        (None, Some(scene)) => {
+            let part = match (scene.split_once("->"), side) {
+                (Some((a, _)), Side::Source) => a,
+                (Some((_, b)), Side::Target) => b,
+                (None, _) => scene.as_str(),
+            };
+            format!("{} (built-in)", part.trim().to_lowercase())
+        }
+        (None, None) => "unsaved mesh".into(),
+    };
     format!("{name} ({} vertices)", m.positions.len())
 }
