@@ -1571,3 +1571,49 @@ fn markers_are_spheres_in_the_views_that_the_mesh_hides() {
         );
     }
 }
+
+#[test]
+fn file_open_works_without_a_system_dialog_through_the_built_in_browser() {
+    let dir = std::env::temp_dir().join(format!("meshmatch_browser_{}", std::process::id()));
+    let sub = dir.join("meshes");
+    std::fs::create_dir_all(&sub).unwrap();
+    let mesh = sub.join("ball.ply");
+    meshmatch::mesh::io::save(&sphere(6, 8), &mesh).unwrap();
+    std::fs::write(sub.join("notes.txt"), "not a mesh").unwrap();
+    let mut app = app_with_spheres();
+    // As on a machine without a desktop portal (a bare Xvfb).
+    app.files.native = false;
+    let mut h = harness(app);
+    h.run_steps(2);
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Open target mesh...").click();
+    h.run_steps(3);
+    assert!(h.state().files.browsing(), "the built-in browser opened");
+    // Type the folder, then pick the mesh from the listing (the text file is not offered).
+    let folder = h
+        .get_all_by_role(egui::accesskit::Role::TextInput)
+        .next()
+        .unwrap();
+    folder.focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run_steps(1);
+    h.get_all_by_role(egui::accesskit::Role::TextInput)
+        .next()
+        .unwrap()
+        .type_text(&format!("{}", sub.display()));
+    h.run_steps(1);
+    h.key_press(egui::Key::Enter);
+    h.run_steps(3);
+    assert!(h.query_by_label("notes.txt").is_none());
+    h.get_by_label("ball.ply").click();
+    h.run_steps(2);
+    h.get_by_label("Open").click();
+    h.run_steps(3);
+    assert!(!h.state().files.browsing());
+    let target = h.state().state.slot(Side::Target).unwrap();
+    assert_eq!(target.file.path.as_deref(), Some(mesh.as_path()));
+    assert_eq!(target.file.positions.len(), sphere(6, 8).positions.len());
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -5,6 +5,7 @@
 //! with egui and forwards requests to the [`crate::jobs::worker::Worker`].
 
 pub mod engine;
+pub mod files;
 pub mod state;
 pub mod tools;
 pub mod view;
@@ -83,6 +84,8 @@ where
     pub tool: Option<tools::ToolJob>,
     /// The "Paint with exemplar" window and its settings.
     pub exemplar: tools::ExemplarDialog,
+    /// File dialogs (the system's, or the built-in browser where it cannot work).
+    pub files: files::FileDialogs,
     /// What the transfer moves (colour or detail) and the detail strength.
     pub signal: tools::SignalSettings,
     repaint: Option<egui::Context>,
@@ -163,6 +166,7 @@ where
             last_frame_start: None,
             tool: None,
             exemplar: tools::ExemplarDialog::default(),
+            files: files::FileDialogs::default(),
             signal: tools::SignalSettings::default(),
             repaint: wake_ctx,
         }
@@ -402,98 +406,89 @@ where
         }
     }
 
-    fn open_dialog(&mut self, what: &str) -> Option<PathBuf> {
-        let dlg = rfd::FileDialog::new().set_title(what);
-        let dlg = match what {
-            "Open texture" => dlg.add_filter("images", &["png", "jpg", "jpeg"]),
-            "Open session" => dlg.add_filter("session", &["json"]),
-            "Open correspondences" => dlg.add_filter("correspondences", &["json"]),
-            _ => dlg.add_filter("meshes", &["obj", "ply", "gltf", "glb"]),
+    /// Carry out a file action with the chosen path; errors go to the message window.
+    fn apply_file(&mut self, action: files::FileAction, p: PathBuf) {
+        use files::FileAction as A;
+        let result = match action {
+            A::OpenMesh(side) => {
+                let r = self.state.open_mesh(side, &p);
+                self.views.frame_all();
+                r
+            }
+            A::OpenTexture => self.state.open_texture(&p),
+            A::OpenCorrespondences => crate::jobs::CorrespondenceFile::load(&p)
+                .and_then(|f| self.state.set_correspondences(f.correspondences)),
+            A::SaveCorrespondences => crate::jobs::CorrespondenceFile {
+                correspondences: self.state.corr.clone(),
+            }
+            .save(&p),
+            A::ExportResult => self.state.export_result(&p),
+            A::ExportDense => self.state.export_dense_result(&p),
+            A::ExportPainted(side) => match self.state.painted_mesh(side) {
+                Some(m) => crate::mesh::io::save(&m, &p),
+                None => Err(Error::InvalidInput("no mesh".into())),
+            },
+            A::OpenSession => {
+                let r = self.state.open_session(&p);
+                self.views.frame_all();
+                r
+            }
+            A::SaveSession => self.state.save_session(&p),
+            A::ExemplarImage => {
+                self.exemplar.settings.image = Some(p);
+                Ok(())
+            }
+            A::EditedGeometry => crate::mesh::io::load(&p).map(|m| self.start_update(m)),
         };
-        dlg.pick_file()
+        if let Err(e) = result {
+            self.state.report(e);
+        }
     }
 
     fn menu_bar(&mut self, ui: &mut egui::Ui) {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
                 let mut result: Result<()> = Ok(());
-                if ui.button("Open source mesh...").clicked()
-                    && let Some(p) = self.open_dialog("Open source mesh")
-                {
-                    result = self.state.open_mesh(Side::Source, &p);
-                    self.views.frame_all();
-                }
-                if ui.button("Open target mesh...").clicked()
-                    && let Some(p) = self.open_dialog("Open target mesh")
-                {
-                    result = self.state.open_mesh(Side::Target, &p);
-                    self.views.frame_all();
-                }
-                if ui.button("Open source texture...").clicked()
-                    && let Some(p) = self.open_dialog("Open texture")
-                {
-                    result = self.state.open_texture(&p);
-                }
-                if ui.button("Open correspondences...").clicked()
-                    && let Some(p) = self.open_dialog("Open correspondences")
-                {
-                    result = crate::jobs::CorrespondenceFile::load(&p)
-                        .and_then(|f| self.state.set_correspondences(f.correspondences));
-                }
-                if ui.button("Save correspondences...").clicked()
-                    && let Some(p) = rfd::FileDialog::new()
-                        .add_filter("json", &["json"])
-                        .save_file()
-                {
-                    result = crate::jobs::CorrespondenceFile {
-                        correspondences: self.state.corr.clone(),
+                use files::FileAction as A;
+                let mut ask = |ui: &mut egui::Ui, label: &str, action: A, hover: Option<&str>| {
+                    let mut r = ui.button(label);
+                    if let Some(h) = hover {
+                        r = r.on_hover_text(h);
                     }
-                    .save(&p);
-                }
+                    if r.clicked() {
+                        self.files.request(action);
+                        ui.close();
+                    }
+                };
+                ask(ui, "Open source mesh...", A::OpenMesh(Side::Source), None);
+                ask(ui, "Open target mesh...", A::OpenMesh(Side::Target), None);
+                ask(ui, "Open source texture...", A::OpenTexture, None);
+                ask(ui, "Open correspondences...", A::OpenCorrespondences, None);
+                ask(ui, "Save correspondences...", A::SaveCorrespondences, None);
                 ui.separator();
-                if ui.button("Export result...").clicked()
-                    && let Some(p) = rfd::FileDialog::new()
-                        .add_filter("mesh", &["ply", "glb", "obj"])
-                        .save_file()
-                {
-                    result = self.state.export_result(&p);
-                }
-                if ui
-                    .button("Export dense result...")
-                    .on_hover_text("The result on the working-resolution mesh (PLY vertex colours)")
-                    .clicked()
-                    && let Some(p) = rfd::FileDialog::new()
-                        .add_filter("ply", &["ply"])
-                        .save_file()
-                {
-                    result = self.state.export_dense_result(&p);
-                }
+                ask(
+                    ui,
+                    "Export result...",
+                    A::ExportResult,
+                    Some("Format by extension, as `transfer --out` (a baked texture for .glb/.obj with UVs)"),
+                );
+                ask(
+                    ui,
+                    "Export dense result...",
+                    A::ExportDense,
+                    Some("The result on the working-resolution mesh (PLY vertex colours)"),
+                );
                 for side in [Side::Source, Side::Target] {
-                    if ui.button(format!("Export painted {side:?}...")).clicked()
-                        && let Some(p) = rfd::FileDialog::new()
-                            .add_filter("mesh", &["ply", "glb", "obj"])
-                            .save_file()
-                    {
-                        result = match self.state.painted_mesh(side) {
-                            Some(m) => crate::mesh::io::save(&m, &p),
-                            None => Err(Error::InvalidInput("no mesh".into())),
-                        };
-                    }
+                    ask(
+                        ui,
+                        &format!("Export painted {side:?}..."),
+                        A::ExportPainted(side),
+                        None,
+                    );
                 }
                 ui.separator();
-                if ui.button("Open session...").clicked()
-                    && let Some(p) = self.open_dialog("Open session")
-                {
-                    result = self.state.open_session(&p);
-                    self.views.frame_all();
-                }
-                if ui.button("Save session...").clicked()
-                    && let Some(p) = rfd::FileDialog::new()
-                        .add_filter("session", &["json"])
-                        .save_file()
-                {
-                    result = self.state.save_session(&p);
-                }
+                ask(ui, "Open session...", A::OpenSession, None);
+                ask(ui, "Save session...", A::SaveSession, None);
                 ui.separator();
                 ui.menu_button("Recent", |ui| {
                     if self.state.recent.is_empty() {
@@ -581,12 +576,7 @@ where
                     .clicked()
                 {
                     ui.close();
-                    if let Some(p) = self.open_dialog("Open edited geometry") {
-                        match crate::mesh::io::load(&p) {
-                            Ok(m) => self.start_update(m),
-                            Err(e) => self.state.report(e),
-                        }
-                    }
+                    self.files.request(files::FileAction::EditedGeometry);
                 }
                 if ui
                     .add_enabled(!busy, egui::Button::new("Transfer detail source -> target"))
@@ -831,6 +821,10 @@ where
             .collapsible(false)
             .resizable(false)
             .show(ctx, |ui| action = dialog.ui(ui, state, busy));
+        if action == tools::ExemplarAction::ChooseImage {
+            self.files.request(files::FileAction::ExemplarImage);
+            action = tools::ExemplarAction::None;
+        }
         self.exemplar.open = open && action == tools::ExemplarAction::None;
         if action == tools::ExemplarAction::Run {
             let settings = self.exemplar.settings.clone();
@@ -914,6 +908,10 @@ where
         }
         self.help_window(&ctx);
         self.exemplar_window(&ctx);
+        self.files.show(&ctx);
+        if let Some((action, path)) = self.files.take() {
+            self.apply_file(action, path);
+        }
         self.errors_window(&ctx);
         // Edits made this frame: send them now rather than next frame.
         self.pump(Instant::now());

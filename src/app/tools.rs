@@ -410,6 +410,8 @@ pub enum ExemplarAction {
     Run,
     /// Close the window.
     Close,
+    /// Ask for the exemplar image (the app's file dialog).
+    ChooseImage,
 }
 
 /// The "Paint with exemplar" window: its settings (kept between runs) and whether it is open.
@@ -446,12 +448,8 @@ impl ExemplarDialog {
                 .button("Choose image...")
                 .on_hover_text("A PNG or JPEG swatch: bricks, scales, fur, stripes...")
                 .clicked()
-                && let Some(p) = rfd::FileDialog::new()
-                    .set_title("Choose an exemplar image")
-                    .add_filter("image", &["png", "jpg", "jpeg"])
-                    .pick_file()
             {
-                s.image = Some(p);
+                action = ExemplarAction::ChooseImage;
             }
         });
         if let Some(p) = &s.image
