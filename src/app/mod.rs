@@ -435,13 +435,23 @@ where
             }
             A::SaveSession => self.state.save_session(&p),
             A::ExemplarImage => {
-                self.exemplar.settings.image = Some(p);
+                self.exemplar.settings.image = Some(p.clone());
                 Ok(())
             }
             A::EditedGeometry => crate::mesh::io::load(&p).map(|m| self.start_update(m)),
         };
-        if let Err(e) = result {
-            self.state.report(e);
+        match result {
+            Ok(()) => {
+                let verb = match action {
+                    A::SaveCorrespondences | A::SaveSession => "saved",
+                    A::ExportResult | A::ExportDense | A::ExportPainted(_) => "exported",
+                    A::ExemplarImage => "exemplar image",
+                    A::EditedGeometry => return,
+                    _ => "opened",
+                };
+                self.state.message = format!("{verb} {}", p.display());
+            }
+            Err(e) => self.state.report(e),
         }
     }
 
