@@ -86,6 +86,8 @@ where
     pub exemplar: tools::ExemplarDialog,
     /// File dialogs (the system's, or the built-in browser where it cannot work).
     pub files: files::FileDialogs,
+    /// The window was checked against the monitor's size.
+    fitted_to_monitor: bool,
     /// What the transfer moves (colour or detail) and the detail strength.
     pub signal: tools::SignalSettings,
     repaint: Option<egui::Context>,
@@ -167,6 +169,7 @@ where
             tool: None,
             exemplar: tools::ExemplarDialog::default(),
             files: files::FileDialogs::default(),
+            fitted_to_monitor: false,
             signal: tools::SignalSettings::default(),
             repaint: wake_ctx,
         }
@@ -968,7 +971,33 @@ where
 {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let rs = frame.wgpu_render_state().cloned();
+        self.fit_to_monitor(ui.ctx());
         self.frame_ui(ui, rs.as_ref());
+    }
+}
+
+impl<E: Engine> MeshMatchApp<E>
+where
+    E::Params: AppParams,
+{
+    /// Once the monitor's size is known: shrink a window that does not fit on it (the default
+    /// 1400x820 on a 1280x1024 Xvfb screen would hide the side panel's right edge).
+    fn fit_to_monitor(&mut self, ctx: &egui::Context) {
+        if self.fitted_to_monitor {
+            return;
+        }
+        let (monitor, inner) = ctx.input(|i| (i.viewport().monitor_size, i.viewport().inner_rect));
+        let (Some(m), Some(r)) = (monitor, inner) else {
+            return;
+        };
+        self.fitted_to_monitor = true;
+        // Room for a title bar and a panel or task bar.
+        let want = egui::vec2(r.width().min(m.x - 16.0), r.height().min(m.y - 64.0))
+            .max(egui::vec2(640.0, 400.0));
+        if want.x < r.width() || want.y < r.height() {
+            ctx.send_viewport_cmd(egui::ViewportCommand::InnerSize(want));
+            ctx.send_viewport_cmd(egui::ViewportCommand::OuterPosition(egui::pos2(0.0, 0.0)));
+        }
     }
 }
 

@@ -9,7 +9,7 @@ use super::state::{AppParams, AppState, Selection, marker_color, side_index};
 use crate::geometry::TriangleBvh;
 use crate::jobs::worker::Side;
 use crate::render::{
-    Camera, DrawStyle, FOV_Y_DEG, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, pick,
+    Camera, DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, fov_y, pick,
 };
 
 /// What a left-drag does in a viewport.
@@ -415,7 +415,7 @@ impl Views {
         let forward = (target - eye).normalize_or(glam::Vec3::NEG_Z);
         let depth = (p - eye).dot(forward).max(1e-6);
         let world_per_point =
-            2.0 * depth * (FOV_Y_DEG.to_radians() * 0.5).tan() / rect.height().max(1.0);
+            2.0 * depth * (fov_y(rect.aspect_ratio()) * 0.5).tan() / rect.height().max(1.0);
         MARKER_RADIUS * world_per_point
     }
 
@@ -570,7 +570,10 @@ impl Views {
                     state.paint_at(side, hit.point.to_array(), false);
                 }
             } else if middle || (primary && mods.shift) {
-                self.cameras[i].pan_by(GVec2::new(delta.x, delta.y), rect.height());
+                self.cameras[i].pan_by(
+                    GVec2::new(delta.x, delta.y),
+                    GVec2::new(rect.width(), rect.height()),
+                );
                 self.camera_changed(i);
             } else if primary {
                 self.cameras[i].orbit(GVec2::new(delta.x, delta.y));
@@ -721,7 +724,7 @@ impl Views {
 }
 
 /// A view's title: the file name, or for a built-in scene's mesh its part of the scene's name
-/// ("zebra" of "Zebra -> giraffe"); then the vertex count.
+/// ("zebra" of "Zebra -> giraffe"); then the vertex count, and the working mesh's once prepared.
 fn mesh_name(slot: &super::state::MeshSlot, side: Side) -> String {
     let m = &slot.file;
     let name = match (&m.path, &slot.scene) {
@@ -739,5 +742,12 @@ fn mesh_name(slot: &super::state::MeshSlot, side: Side) -> String {
         }
         (None, None) => "unsaved mesh".into(),
     };
-    format!("{name} ({} vertices)", m.positions.len())
+    match &slot.working {
+        Some(w) => format!(
+            "{name} ({} vertices, working {})",
+            m.positions.len(),
+            w.positions.len()
+        ),
+        None => format!("{name} ({} vertices)", m.positions.len()),
+    }
 }

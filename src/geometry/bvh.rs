@@ -4,6 +4,10 @@ use glam::Vec3;
 
 const LEAF_SIZE: usize = 4;
 
+/// Slack on the barycentric bounds of the ray-triangle test: a ray through a shared vertex or
+/// along a shared edge must not slip between the triangles by rounding (and hit the far side).
+pub(crate) const BARY_EPS: f32 = 1e-5;
+
 #[derive(Clone, Copy, Debug)]
 struct Node {
     lo: Vec3,
@@ -270,12 +274,12 @@ impl TriangleBvh {
                     let id = 1.0 / det;
                     let tv = o - a;
                     let u = tv.dot(pv) * id;
-                    if !(0.0..=1.0).contains(&u) {
+                    if !(-BARY_EPS..=1.0 + BARY_EPS).contains(&u) {
                         continue;
                     }
                     let qv = tv.cross(e1);
                     let v = d.dot(qv) * id;
-                    if v < 0.0 || u + v > 1.0 {
+                    if v < -BARY_EPS || u + v > 1.0 + BARY_EPS {
                         continue;
                     }
                     let t = e2.dot(qv) * id;

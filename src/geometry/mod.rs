@@ -20,6 +20,7 @@ mod laplacian;
 mod refine;
 
 pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, vertex_normals, weld};
+pub(crate) use bvh::BARY_EPS;
 pub use bvh::TriangleBvh;
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use frames::{parallel_transport_angle, tangent_frames};

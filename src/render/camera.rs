@@ -6,8 +6,23 @@
 
 use glam::{Mat4, Vec2, Vec3};
 
-/// Vertical field of view of every view, in degrees.
+use crate::geometry::BARY_EPS;
+
+/// Field of view of every view along its shorter side, in degrees.
 pub const FOV_Y_DEG: f32 = 35.0;
+
+/// Vertical field of view in radians for a viewport of `aspect` = width / height: [`FOV_Y_DEG`]
+/// when the view is wide, widened when it is tall so that the horizontal field is [`FOV_Y_DEG`]
+/// (the framed bounding sphere then fits across a narrow view as well as up a wide one).
+pub fn fov_y(aspect: f32) -> f32 {
+    let base = FOV_Y_DEG.to_radians();
+    let aspect = aspect.max(1e-3);
+    if aspect >= 1.0 {
+        base
+    } else {
+        2.0 * ((base * 0.5).tan() / aspect).atan()
+    }
+}
 
 /// An orbit camera relative to a mesh's bounding sphere.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -99,7 +114,7 @@ impl Camera {
         let dist = (eye - target).length();
         let near = (dist - frame.radius * 1.5).max(dist * 1e-3).max(1e-6);
         let far = dist + frame.radius * 1.5;
-        let proj = Mat4::perspective_rh(FOV_Y_DEG.to_radians(), aspect.max(1e-3), near, far);
+        let proj = Mat4::perspective_rh(fov_y(aspect), aspect.max(1e-3), near, far);
         (view, proj)
     }
 
@@ -115,10 +130,11 @@ impl Camera {
         self.elevation_deg = (self.elevation_deg + delta.y * 0.4).clamp(-89.0, 89.0);
     }
 
-    /// Pan by a screen-space drag of `delta` pixels in a view `height` pixels tall.
-    pub fn pan_by(&mut self, delta: Vec2, height: f32) {
+    /// Pan by a screen-space drag of `delta` pixels in a view of `size` pixels.
+    pub fn pan_by(&mut self, delta: Vec2, size: Vec2) {
         let dist = self.zoom / (FOV_Y_DEG.to_radians() * 0.5).sin();
-        let world_per_px = 2.0 * dist * (FOV_Y_DEG.to_radians() * 0.5).tan() / height.max(1.0);
+        let fov = fov_y(size.x / size.y.max(1.0));
+        let world_per_px = 2.0 * dist * (fov * 0.5).tan() / size.y.max(1.0);
         self.pan[0] -= delta.x * world_per_px;
         self.pan[1] += delta.y * world_per_px;
     }
@@ -190,12 +206,12 @@ pub fn pick(positions: &[[f32; 3]], faces: &[[u32; 3]], origin: Vec3, dir: Vec3)
             let inv = 1.0 / det;
             let s = origin - a;
             let u = s.dot(p) * inv;
-            if !(0.0..=1.0).contains(&u) {
+            if !(-BARY_EPS..=1.0 + BARY_EPS).contains(&u) {
                 return None;
             }
             let q = s.cross(e1);
             let v = dir.dot(q) * inv;
-            if v < 0.0 || u + v > 1.0 {
+            if v < -BARY_EPS || u + v > 1.0 + BARY_EPS {
                 return None;
             }
             let t = e2.dot(q) * inv;
@@ -248,5 +264,79 @@ mod tests {
         assert!(top.y < 50.0 && (top.x - 100.0).abs() < 1e-2);
         let (o, d) = cam.ray(&frame, top + Vec2::new(0.0, 3.0), size);
         assert_eq!(pick(&positions, &faces, o, d).unwrap().nearest_vertex, 2);
+    }
+
+    #[test]
+    fn picking_exactly_at_a_projected_vertex_hits_that_vertex_on_the_near_side() {
+        // A UV sphere; every vertex facing the camera, clicked exactly where it projects.
+        let (rings, segs) = (16u32, 24u32);
+        let mut positions = Vec::new();
+        for r in 0..=rings {
+            let th = std::f32::consts::PI * r as f32 / rings as f32;
+            for k in 0..segs {
+                let ph = std::f32::consts::TAU * k as f32 / segs as f32;
+                positions.push([th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()]);
+            }
+        }
+        let id = |r: u32, k: u32| r * segs + k % segs;
+        let mut faces = Vec::new();
+        for r in 0..rings {
+            for k in 0..segs {
+                faces.push([id(r, k), id(r + 1, k), id(r + 1, k + 1)]);
+                faces.push([id(r, k), id(r + 1, k + 1), id(r, k + 1)]);
+            }
+        }
+        let frame = Frame::of_points(&positions);
+        let cam = Camera::default();
+        let (eye, _) = cam.eye_target(&frame);
+        let bvh = crate::geometry::TriangleBvh::new(&positions, &faces);
+        let size = Vec2::new(450.0, 650.0);
+        let mut checked = 0;
+        for (v, p) in positions.iter().enumerate().skip(segs as usize) {
+            let p = Vec3::from(*p);
+            if r_is_pole(v, segs, rings) || p.dot(eye - p) < 0.3 * (eye - p).length() {
+                continue;
+            }
+            let s = cam.project(&frame, p, size).unwrap();
+            let (o, d) = cam.ray(&frame, s, size);
+            let hit = pick(&positions, &faces, o, d).expect("a ray through a vertex hits");
+            assert!(hit.point.distance(p) < 1e-3, "vertex {v}: hit {hit:?}");
+            assert_eq!(hit.nearest_vertex as usize, v);
+            let (_, _, t) = bvh.ray_hit(o.to_array(), d.to_array()).expect("bvh hit");
+            assert!((o + d * t).distance(p) < 1e-3, "vertex {v}: bvh t {t}");
+            checked += 1;
+        }
+        assert!(checked > 50, "{checked} vertices checked");
+    }
+
+    /// The duplicated pole rows of the test sphere (many coincident vertices).
+    fn r_is_pole(v: usize, segs: u32, rings: u32) -> bool {
+        let r = v as u32 / segs;
+        r == 0 || r == rings
+    }
+
+    #[test]
+    fn the_framed_bounding_sphere_fits_across_a_tall_view_too() {
+        // A long thin mesh along x, seen from +Z in a view twice as tall as wide.
+        let positions = vec![[-1.0, -0.1, 0.0], [1.0, -0.1, 0.0], [0.0, 0.1, 0.0]];
+        let frame = Frame::of_points(&positions);
+        let cam = Camera {
+            azimuth_deg: 0.0,
+            elevation_deg: 0.0,
+            ..Camera::default()
+        };
+        for size in [Vec2::new(300.0, 600.0), Vec2::new(600.0, 300.0)] {
+            for p in &positions {
+                let s = cam.project(&frame, Vec3::from(*p), size).unwrap();
+                assert!(
+                    s.x > 0.0 && s.x < size.x && s.y > 0.0 && s.y < size.y,
+                    "{p:?} at {s:?} in {size:?}"
+                );
+            }
+            // Rays and projection agree in both shapes.
+            let (o, d) = cam.ray(&frame, size * 0.5 + Vec2::new(10.0, 0.0), size);
+            let back = cam.project(&frame, o + d * 3.0, size).unwrap();
+            assert!((back - (size * 0.5 + Vec2::new(10.0, 0.0))).length() < 0.05);
+        }
     }
 }

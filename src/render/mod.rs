@@ -10,7 +10,7 @@ use std::sync::{Arc, OnceLock};
 
 use eframe::wgpu;
 
-pub use camera::{Camera, FOV_Y_DEG, Frame, Hit, pick};
+pub use camera::{Camera, FOV_Y_DEG, Frame, Hit, fov_y, pick};
 pub use gpu::{DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, display_colors};
 
 use crate::{Error, Result, TriMesh};
