@@ -125,17 +125,20 @@ fn extreme_pairs(source: &TriMesh, target: &TriMesh) -> Vec<crate::jobs::Corresp
         .collect()
 }
 
+/// Default parameters of a row at `n` working vertices: the source's (capped at
+/// [`MAX_SOURCE_VERTICES`]) and the target's.
+fn size_params(n: usize) -> (TransferParams, TransferParams) {
+    let with = |vertices| TransferParams {
+        vertices,
+        ..TransferParams::default()
+    };
+    (with(n.min(MAX_SOURCE_VERTICES)), with(n))
+}
+
 /// Run one size: prepare Spot (source) and the horse (target) at `n` working vertices, solve.
 pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchRow> {
-    let params_source = TransferParams {
-        vertices: n.min(MAX_SOURCE_VERTICES),
-        ..TransferParams::default()
-    };
-    let params = TransferParams {
-        vertices: n,
-        exact_samples: EXACT_SAMPLES,
-        ..TransferParams::default()
-    };
+    let (params_source, mut params) = size_params(n);
+    params.exact_samples = EXACT_SAMPLES;
     let cancel = CancelToken::new();
     let t0 = Instant::now();
     let ps = mm::prepare(source, &params_source, &crate::jobs::no_events, &cancel)?;
@@ -247,14 +250,7 @@ pub fn cancel_probes(
             stage.clone(),
         );
         let job = std::thread::spawn(move || {
-            let params_source = TransferParams {
-                vertices: n.min(MAX_SOURCE_VERTICES),
-                ..TransferParams::default()
-            };
-            let params = TransferParams {
-                vertices: n,
-                ..TransferParams::default()
-            };
+            let (params_source, params) = size_params(n);
             let sink = |e: Event| {
                 if let Event::Progress(p) = e {
                     let name = if p.stage == "solve" {

@@ -510,11 +510,11 @@ fn render_markers(
     let radius = crate::render::Frame::of_points(&mesh.positions).radius * 0.02;
     let mut out = Vec::new();
     for (pair, c) in corr.iter().enumerate() {
-        let verts: &[u32] = match side {
-            MarkerSide::Source => std::slice::from_ref(&c.source_vertex),
-            MarkerSide::Target => &c.target_vertices,
+        let side = match side {
+            MarkerSide::Source => crate::jobs::worker::Side::Source,
+            MarkerSide::Target => crate::jobs::worker::Side::Target,
         };
-        for &v in verts {
+        for &v in c.vertices(side) {
             let p = mesh.positions.get(v as usize).ok_or_else(|| {
                 Error::InvalidInput(format!(
                     "correspondence {}: vertex {v} is out of range ({} vertices)",

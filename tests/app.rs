@@ -224,6 +224,12 @@ fn click(h: &mut Harness<'static, App>, pos: Pos2, modifiers: egui::Modifiers) {
     h.step();
 }
 
+/// Click where file vertex `v` of `side` shows.
+fn click_vertex(h: &mut Harness<'static, App>, side: Side, v: u32, modifiers: egui::Modifiers) {
+    let p = vertex_pos(h, side, v);
+    click(h, p, modifiers);
+}
+
 /// A vertex facing the default camera (the one nearest to the eye).
 fn front_vertex(h: &Harness<'static, App>, side: Side, nth: usize) -> u32 {
     let app = h.state();
@@ -264,11 +270,9 @@ fn clicks_add_pairs_shift_click_adds_targets_delete_and_undo_redo() {
     let t0 = front_vertex(&h, Side::Target, 0);
     let t1 = front_vertex(&h, Side::Target, 3);
     // Source click, then target click: one pair with the clicked vertices.
-    let p = vertex_pos(&h, Side::Source, s0);
-    click(&mut h, p, egui::Modifiers::NONE);
+    click_vertex(&mut h, Side::Source, s0, egui::Modifiers::NONE);
     assert_eq!(h.state().state.pending_source, Some(s0));
-    let p = vertex_pos(&h, Side::Target, t0);
-    click(&mut h, p, egui::Modifiers::NONE);
+    click_vertex(&mut h, Side::Target, t0, egui::Modifiers::NONE);
     assert_eq!(
         h.state().state.corr,
         vec![Correspondence {
@@ -277,12 +281,10 @@ fn clicks_add_pairs_shift_click_adds_targets_delete_and_undo_redo() {
         }]
     );
     // Shift-click another target point: one-to-many.
-    let p = vertex_pos(&h, Side::Target, t1);
-    click(&mut h, p, egui::Modifiers::SHIFT);
+    click_vertex(&mut h, Side::Target, t1, egui::Modifiers::SHIFT);
     assert_eq!(h.state().state.corr[0].target_vertices, vec![t0, t1]);
     // Click the first target marker to select it, Delete removes that target only.
-    let p = vertex_pos(&h, Side::Target, t0);
-    click(&mut h, p, egui::Modifiers::NONE);
+    click_vertex(&mut h, Side::Target, t0, egui::Modifiers::NONE);
     assert_eq!(
         h.state().state.selected,
         Some(Selection {
@@ -305,8 +307,7 @@ fn clicks_add_pairs_shift_click_adds_targets_delete_and_undo_redo() {
     h.step();
     assert_eq!(h.state().state.corr[0].target_vertices, vec![t1]);
     // Selecting the source marker and deleting removes the whole pair.
-    let p = vertex_pos(&h, Side::Source, s0);
-    click(&mut h, p, egui::Modifiers::NONE);
+    click_vertex(&mut h, Side::Source, s0, egui::Modifiers::NONE);
     h.key_press(egui::Key::Delete);
     h.step();
     assert!(h.state().state.corr.is_empty());
@@ -324,10 +325,8 @@ fn dragging_a_marker_moves_it_and_one_undo_restores_it() {
     let s0 = front_vertex(&h, Side::Source, 0);
     let t0 = front_vertex(&h, Side::Target, 0);
     let t_new = front_vertex(&h, Side::Target, 6);
-    let p = vertex_pos(&h, Side::Source, s0);
-    click(&mut h, p, egui::Modifiers::NONE);
-    let p = vertex_pos(&h, Side::Target, t0);
-    click(&mut h, p, egui::Modifiers::NONE);
+    click_vertex(&mut h, Side::Source, s0, egui::Modifiers::NONE);
+    click_vertex(&mut h, Side::Target, t0, egui::Modifiers::NONE);
     let (undo_before, _) = h.state().state.history_len();
     // Press on the marker, move in steps to the new vertex, release.
     let from = vertex_pos(&h, Side::Target, t0);
@@ -1521,10 +1520,8 @@ fn markers_are_spheres_in_the_views_that_the_mesh_hides() {
     // A pair added by clicks (picking through the views' BVH).
     let s0 = front_vertex(&h, Side::Source, 0);
     let t0 = front_vertex(&h, Side::Target, 0);
-    let p = vertex_pos(&h, Side::Source, s0);
-    click(&mut h, p, egui::Modifiers::NONE);
-    let p = vertex_pos(&h, Side::Target, t0);
-    click(&mut h, p, egui::Modifiers::NONE);
+    click_vertex(&mut h, Side::Source, s0, egui::Modifiers::NONE);
+    click_vertex(&mut h, Side::Target, t0, egui::Modifiers::NONE);
     assert_eq!(
         h.state().state.corr,
         vec![Correspondence {

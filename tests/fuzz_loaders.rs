@@ -229,19 +229,7 @@ fn mutate_glb_json(glb: &[u8], picks: &[(f64, u64)]) -> Vec<u8> {
     for (s, e, v) in chosen {
         t.replace_range(s..e, &v.to_string());
     }
-    let mut js = t.into_bytes();
-    while !js.len().is_multiple_of(4) {
-        js.push(b' ');
-    }
-    let mut out = Vec::new();
-    out.extend(b"glTF");
-    out.extend(2u32.to_le_bytes());
-    out.extend(((12 + 8 + js.len() + bin.len()) as u32).to_le_bytes());
-    out.extend((js.len() as u32).to_le_bytes());
-    out.extend(b"JSON");
-    out.extend(&js);
-    out.extend(bin);
-    out
+    glb_bytes(t.into_bytes(), bin)
 }
 
 /// A structural change to a glTF document (the kind of input byte mutations rarely reach).
@@ -349,19 +337,7 @@ fn edit_glb(glb: &[u8], edits: &[GltfEdit]) -> Vec<u8> {
             }
         }
     }
-    let mut js = serde_json::to_vec(&doc).unwrap();
-    while !js.len().is_multiple_of(4) {
-        js.push(b' ');
-    }
-    let mut out = Vec::new();
-    out.extend(b"glTF");
-    out.extend(2u32.to_le_bytes());
-    out.extend(((12 + 8 + js.len() + bin.len()) as u32).to_le_bytes());
-    out.extend((js.len() as u32).to_le_bytes());
-    out.extend(b"JSON");
-    out.extend(&js);
-    out.extend(bin);
-    out
+    glb_bytes(serde_json::to_vec(&doc).unwrap(), bin)
 }
 
 /// Random ASCII PLY: header from a vocabulary of elements/properties/types, body of numbers
@@ -559,4 +535,21 @@ fn seeds_load_unmutated() {
         assert!(m.num_faces() > 0, "{n}");
         check_mesh(&m, n);
     }
+}
+
+/// A GLB container: the header and the JSON chunk (space-padded to 4 bytes), then `bin` as it
+/// is (already chunked, or whatever the mutation made of it).
+fn glb_bytes(mut js: Vec<u8>, bin: &[u8]) -> Vec<u8> {
+    while !js.len().is_multiple_of(4) {
+        js.push(b' ');
+    }
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend(((12 + 8 + js.len() + bin.len()) as u32).to_le_bytes());
+    out.extend((js.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&js);
+    out.extend(bin);
+    out
 }

@@ -423,11 +423,7 @@ impl Views {
     fn markers(&self, state: &AppState<impl AppParams>, side: Side, rect: Rect) -> Vec<MarkerView> {
         let mut out = Vec::new();
         for (pair, c) in state.corr.iter().enumerate() {
-            let verts: &[u32] = match side {
-                Side::Source => std::slice::from_ref(&c.source_vertex),
-                Side::Target => &c.target_vertices,
-            };
-            for (k, &v) in verts.iter().enumerate() {
+            for (k, &v) in c.vertices(side).iter().enumerate() {
                 if let Some((screen, world, visible)) = self.marker_view(state, side, rect, v) {
                     out.push(MarkerView {
                         sel: Selection { pair, side, k },

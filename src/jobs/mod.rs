@@ -86,6 +86,16 @@ pub struct Correspondence {
     pub target_vertices: Vec<u32>,
 }
 
+impl Correspondence {
+    /// The pair's vertices on `side`: the source vertex, or the target vertices.
+    pub fn vertices(&self, side: worker::Side) -> &[u32] {
+        match side {
+            worker::Side::Source => std::slice::from_ref(&self.source_vertex),
+            worker::Side::Target => &self.target_vertices,
+        }
+    }
+}
+
 /// The correspondences file: `{"correspondences": [...]}`.
 #[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct CorrespondenceFile {
