@@ -7,8 +7,8 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use meshmatch::features::{FanSampler, shape_features, tangent_frames};
 use meshmatch::hierarchy::{Hierarchy, HierarchyOptions};
-use meshmatch::jobs::{CancelToken, no_events};
 use meshmatch::meshmatch::{TransferParams, prepare, solve};
+use meshmatch::work::{CancelToken, no_events};
 use meshmatch::{TriMesh, mesh::io, testdata::data_path};
 use std::hint::black_box;
 

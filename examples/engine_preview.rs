@@ -5,8 +5,8 @@
 
 use glam::{Mat3, Vec3};
 use meshmatch::TriMesh;
-use meshmatch::jobs::{CancelToken, Event};
 use meshmatch::meshmatch::{TransferParams, prepare, solve};
+use meshmatch::work::{CancelToken, Event};
 use std::path::{Path, PathBuf};
 
 /// Render a vertex-coloured mesh orthographically, looking along `-dir` with `up`, Lambert-shaded.

@@ -8,8 +8,8 @@ use std::path::Path;
 
 use glam::{Mat3, Vec3};
 use meshmatch::TriMesh;
-use meshmatch::jobs::{CancelToken, no_events};
 use meshmatch::synthesis::{SynthParams, synthesize};
+use meshmatch::work::{CancelToken, no_events};
 
 /// Icosphere: icosahedron subdivided `n` times, projected to the unit sphere.
 fn icosphere(n: usize) -> TriMesh {

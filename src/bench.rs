@@ -1,9 +1,10 @@
 //! `meshmatch bench`: stage timings of a MeshMatch transfer at several working resolutions, on
 //! inputs built from the shared data (Spot textured as source, the horse as target).
 
-use crate::jobs::{CancelToken, Event};
+use crate::error::Result;
+use crate::mesh::TriMesh;
 use crate::meshmatch::{self as mm, TransferParams};
-use crate::{Result, TriMesh};
+use crate::work::{CancelToken, Event};
 use std::time::Instant;
 
 /// One row of the benchmark table.
@@ -81,7 +82,7 @@ pub fn parse_sizes(s: &str) -> Result<Vec<usize>> {
                 .filter(|v| *v > 0.0)
                 .map(|v| (v * mul) as usize)
                 .ok_or_else(|| {
-                    crate::Error::InvalidInput(format!(
+                    crate::error::Error::InvalidInput(format!(
                         "--sizes: cannot read '{t}' (use e.g. 16k,64k)"
                     ))
                 })
@@ -99,7 +100,7 @@ fn sum(timings: &[(String, f64)], pred: impl Fn(&str) -> bool) -> f64 {
 
 /// Six correspondences for the edit measurement: on each mesh, the vertices at both ends of the
 /// three bounding-box axes (file indices). What they mean does not matter for the timing.
-fn extreme_pairs(source: &TriMesh, target: &TriMesh) -> Vec<crate::jobs::Correspondence> {
+fn extreme_pairs(source: &TriMesh, target: &TriMesh) -> Vec<crate::correspondence::Correspondence> {
     let ends = |m: &TriMesh| -> Vec<u32> {
         let mut out = Vec::with_capacity(6);
         for axis in 0..3 {
@@ -118,7 +119,7 @@ fn extreme_pairs(source: &TriMesh, target: &TriMesh) -> Vec<crate::jobs::Corresp
     ends(source)
         .into_iter()
         .zip(ends(target))
-        .map(|(s, t)| crate::jobs::Correspondence {
+        .map(|(s, t)| crate::correspondence::Correspondence {
             source_vertex: s,
             target_vertices: vec![t],
         })
@@ -141,8 +142,8 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
     params.exact_samples = EXACT_SAMPLES;
     let cancel = CancelToken::new();
     let t0 = Instant::now();
-    let ps = mm::prepare(source, &params_source, &crate::jobs::no_events, &cancel)?;
-    let pt = mm::prepare(target, &params, &crate::jobs::no_events, &cancel)?;
+    let ps = mm::prepare(source, &params_source, &crate::work::no_events, &cancel)?;
+    let pt = mm::prepare(target, &params, &crate::work::no_events, &cancel)?;
     let solve_start = Instant::now();
     let first = std::sync::Mutex::new(None::<f64>);
     let sink = |e: Event| {
@@ -171,7 +172,7 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
         }
     };
     match mm::solve(&ps, &pt, &corr, &params, &edit_sink, &edit_cancel) {
-        Ok(_) | Err(crate::Error::Cancelled) => {}
+        Ok(_) | Err(crate::error::Error::Cancelled) => {}
         Err(e) => return Err(e),
     }
     let edit_preview = edit_first.into_inner().expect("not poisoned");
@@ -275,11 +276,15 @@ pub fn cancel_probes(
         cancel.cancel();
         let returned = rx
             .recv()
-            .map_err(|_| crate::Error::InvalidInput("the probed job panicked".into()))?;
+            .map_err(|_| crate::error::Error::InvalidInput("the probed job panicked".into()))?;
         match job.join() {
-            Ok(Ok(())) | Ok(Err(crate::Error::Cancelled)) => {}
+            Ok(Ok(())) | Ok(Err(crate::error::Error::Cancelled)) => {}
             Ok(Err(e)) => return Err(e),
-            Err(_) => return Err(crate::Error::InvalidInput("the probed job panicked".into())),
+            Err(_) => {
+                return Err(crate::error::Error::InvalidInput(
+                    "the probed job panicked".into(),
+                ));
+            }
         }
         out.push(CancelProbe {
             at_s: at,

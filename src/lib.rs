@@ -8,6 +8,7 @@ pub mod applications;
 pub mod bench;
 pub mod cli;
 pub mod color;
+pub mod correspondence;
 pub mod demo;
 pub mod error;
 pub mod features;
@@ -18,6 +19,7 @@ pub mod mesh;
 pub mod meshmatch;
 pub mod synthesis;
 pub mod testdata;
+pub mod work;
 
 #[cfg(feature = "gui")]
 pub mod app;

@@ -11,8 +11,10 @@ use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use meshmatch::TriMesh;
 use meshmatch::app::{AppParams, MeshMatchApp, Selection};
-use meshmatch::jobs::worker::{Engine, Side, Solved};
-use meshmatch::jobs::{CancelToken, Correspondence, Event, Progress};
+use meshmatch::correspondence::Correspondence;
+use meshmatch::correspondence::Side;
+use meshmatch::jobs::worker::{Engine, Solved};
+use meshmatch::work::{CancelToken, Event, Progress};
 
 /// Parameters of the test engine.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -680,13 +682,23 @@ fn paint_with_exemplar_streams_partials_resembles_the_exemplar_and_undo_restores
 
     // Drive the tool through its window: the image is already chosen, the user clicks Run.
     h.state_mut().open_exemplar_dialog(Some(image.clone()));
-    h.state_mut().exemplar.settings.scale = 0.5;
+    h.state_mut()
+        .system_mut::<meshmatch::app::tools::ExemplarDialog>()
+        .unwrap()
+        .settings
+        .scale = 0.5;
     h.run_steps(2);
     assert!(h.query_by_label_contains("Paint with exemplar").is_some());
     h.get_by_label("Run").click();
     h.step();
     assert!(h.state().tool.is_some(), "the tool started");
-    assert!(!h.state().exemplar.open, "the window closes on Run");
+    assert!(
+        !h.state()
+            .system::<meshmatch::app::tools::ExemplarDialog>()
+            .unwrap()
+            .open,
+        "the window closes on Run"
+    );
     // Partial results show in the view while the tool runs (no undo step for them).
     let mut previews = 0;
     let mut last_preview: Option<Vec<[f32; 3]>> = None;
@@ -1095,7 +1107,7 @@ fn dropped_files_open_by_kind_even_without_a_pointer_position() {
     let mesh = dir.join("big.ply");
     meshmatch::mesh::io::save(&uv_sphere(20, 30), &mesh).unwrap();
     let corr = dir.join("corr.json");
-    meshmatch::jobs::CorrespondenceFile {
+    meshmatch::correspondence::CorrespondenceFile {
         correspondences: vec![Correspondence {
             source_vertex: 2,
             target_vertices: vec![3],

@@ -10,8 +10,8 @@ use meshmatch::applications::{
 };
 use meshmatch::color::{delta_e76, srgb_to_lab};
 use meshmatch::geometry::{refine_to_density, taubin_smooth};
-use meshmatch::jobs::CancelToken;
 use meshmatch::meshmatch::TransferParams;
+use meshmatch::work::CancelToken;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::time::Instant;

@@ -330,7 +330,7 @@ fn default_correspondences_map_landmarks() {
         );
     }
     let json = serde_json::to_string(&zc).unwrap();
-    let back: meshmatch::jobs::CorrespondenceFile = serde_json::from_str(&json).unwrap();
+    let back: meshmatch::correspondence::CorrespondenceFile = serde_json::from_str(&json).unwrap();
     assert_eq!(back, zc);
 }
 

@@ -6,13 +6,13 @@ use std::cell::RefCell;
 
 use glam::Vec3;
 use meshmatch::TriMesh;
-use meshmatch::jobs::{CancelToken, Event, no_events};
 use meshmatch::synthesis::wei_levoy::{
     color_histogram, exemplar_loo_distance, histogram_l1, image_colors, neighbourhood_distance,
     orientation_energy,
 };
 use meshmatch::synthesis::{Orientation, Search, SynthParams, SynthResult, synthesize};
 use meshmatch::testdata::data_path;
+use meshmatch::work::{CancelToken, Event, no_events};
 
 /// Unit icosphere: icosahedron subdivided `n` times.
 fn icosphere(n: usize) -> TriMesh {

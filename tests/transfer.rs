@@ -4,8 +4,9 @@
 use glam::{Mat3, Vec3};
 use meshmatch::TriMesh;
 use meshmatch::color::delta_e76;
-use meshmatch::jobs::{CancelToken, Correspondence, Event};
+use meshmatch::correspondence::Correspondence;
 use meshmatch::meshmatch::{TransferParams, prepare, solve};
+use meshmatch::work::{CancelToken, Event};
 use std::time::Instant;
 
 fn data(rel: &str) -> std::path::PathBuf {

@@ -4,9 +4,10 @@
 //! the default correspondences; the cerberus's three heads share one-to-many pairs).
 
 use meshmatch::color::{delta_e76, srgb_to_lab};
+use meshmatch::correspondence::Correspondence;
 use meshmatch::geometry::mass_matrix_barycentric;
-use meshmatch::jobs::{CancelToken, Correspondence, no_events};
 use meshmatch::meshmatch::{PreparedMesh, TransferParams, TransferResult, prepare, solve};
+use meshmatch::work::{CancelToken, no_events};
 use meshmatch::{TriMesh, demo, mesh::io, testdata::data_path};
 
 /// Area-weighted Lab histogram (8 x 8 x 8 bins over L [0,100], a and b [-64,64]), normalised.

@@ -6,10 +6,12 @@ use eframe::egui;
 
 use super::DemoScene;
 use super::state::AppParams;
+use crate::correspondence::Correspondence;
+use crate::error::Result;
 use crate::jobs::worker::{Engine, Solved};
-use crate::jobs::{CancelToken, Correspondence, Event};
+use crate::mesh::TriMesh;
 use crate::meshmatch::{self, PreparedMesh, TransferParams};
-use crate::{Result, TriMesh};
+use crate::work::{CancelToken, Event};
 
 /// [`crate::meshmatch`] as a worker engine: `prepare` once per mesh and preparation parameters,
 /// `solve` per correspondence edit.

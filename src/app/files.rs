@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use eframe::egui;
 
-use crate::jobs::worker::Side;
+use crate::correspondence::Side;
 
 /// What a chosen file is for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -32,8 +32,8 @@ pub enum FileAction {
     OpenSession,
     /// Save the session.
     SaveSession,
-    /// Choose the exemplar image of Tools > Paint with exemplar.
-    ExemplarImage,
+    /// The input file of system tool `.0` (`app.systems`), as its prompt describes.
+    SystemFile(usize, super::systems::FilePrompt),
     /// The edited geometry for Tools > Update texture for new geometry.
     EditedGeometry,
 }
@@ -51,7 +51,7 @@ impl FileAction {
             FileAction::ExportPainted(s) => format!("Export painted {} mesh", side_name(s)),
             FileAction::OpenSession => "Open session".into(),
             FileAction::SaveSession => "Save session".into(),
-            FileAction::ExemplarImage => "Choose an exemplar image".into(),
+            FileAction::SystemFile(_, p) => p.0.into(),
             FileAction::EditedGeometry => "Open the edited geometry".into(),
         }
     }
@@ -74,9 +74,8 @@ impl FileAction {
             FileAction::OpenMesh(_) | FileAction::EditedGeometry => {
                 ("meshes", &["obj", "ply", "gltf", "glb"])
             }
-            FileAction::OpenTexture | FileAction::ExemplarImage => {
-                ("images", &["png", "jpg", "jpeg"])
-            }
+            FileAction::OpenTexture => ("images", &["png", "jpg", "jpeg"]),
+            FileAction::SystemFile(_, p) => (p.1, p.2),
             FileAction::OpenCorrespondences | FileAction::SaveCorrespondences => {
                 ("correspondences", &["json"])
             }

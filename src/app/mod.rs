@@ -7,6 +7,7 @@
 pub mod engine;
 pub mod files;
 pub mod state;
+pub mod systems;
 pub mod tools;
 pub mod view;
 
@@ -15,8 +16,9 @@ use std::time::Instant;
 
 use eframe::egui::{self, Color32};
 
-use crate::jobs::worker::{Command, Engine, Side, Worker};
-use crate::{Error, Result};
+use crate::correspondence::Side;
+use crate::error::{Error, Result};
+use crate::jobs::worker::{Command, Engine, Worker};
 pub use state::{AppParams, AppState, Brush, Request, Selection};
 pub use view::{Tool, Views};
 
@@ -82,8 +84,8 @@ where
     last_frame_start: Option<Instant>,
     /// The running application (completion, update, detail), if any.
     pub tool: Option<tools::ToolJob>,
-    /// The "Paint with exemplar" window and its settings.
-    pub exemplar: tools::ExemplarDialog,
+    /// The synthesis systems' tools ([`systems::registry`]): windows, settings, jobs.
+    pub systems: Vec<Box<dyn systems::SystemTool<E::Params>>>,
     /// File dialogs (the system's, or the built-in browser where it cannot work).
     pub files: files::FileDialogs,
     /// The window was checked against the monitor's size.
@@ -132,11 +134,11 @@ pub type SceneEntry = (String, fn() -> Result<DemoScene>);
 /// A demo scene: two meshes and their correspondences.
 pub struct DemoScene {
     /// Exemplar mesh.
-    pub source: crate::TriMesh,
+    pub source: crate::mesh::TriMesh,
     /// Mesh to texture.
-    pub target: crate::TriMesh,
+    pub target: crate::mesh::TriMesh,
     /// Correspondences in file indices.
-    pub correspondences: Vec<crate::jobs::Correspondence>,
+    pub correspondences: Vec<crate::correspondence::Correspondence>,
 }
 
 impl<E: Engine> MeshMatchApp<E>
@@ -167,7 +169,7 @@ where
             frame_log_at: Instant::now(),
             last_frame_start: None,
             tool: None,
-            exemplar: tools::ExemplarDialog::default(),
+            systems: systems::registry(),
             files: files::FileDialogs::default(),
             fitted_to_monitor: false,
             signal: tools::SignalSettings::default(),
@@ -228,17 +230,52 @@ where
         }
     }
 
+    /// The system tool of type `T`, if this build has it.
+    pub fn system<T: 'static>(&self) -> Option<&T> {
+        self.systems.iter().find_map(|t| {
+            let any: &dyn std::any::Any = t.as_ref();
+            any.downcast_ref::<T>()
+        })
+    }
+
+    /// The system tool of type `T`, mutable, if this build has it.
+    pub fn system_mut<T: 'static>(&mut self) -> Option<&mut T> {
+        self.systems
+            .iter_mut()
+            .find_map(|t| t.as_any_mut().downcast_mut::<T>())
+    }
+
     /// Open the "Paint with exemplar" window, with `image` already chosen when given.
     pub fn open_exemplar_dialog(&mut self, image: Option<PathBuf>) {
-        self.exemplar.open = true;
-        if image.is_some() {
-            self.exemplar.settings.image = image;
+        if let Some(d) = self.system_mut::<tools::ExemplarDialog>() {
+            d.open = true;
+            if image.is_some() {
+                d.settings.image = image;
+            }
         }
     }
 
-    /// Paint with exemplar: synthesize the image's texture on one side's displayed mesh (whole or
-    /// painted region) on its own thread; partial results show in the view; errors are messages.
+    /// Paint with exemplar with `settings` (see [`Self::start_system`]).
     pub fn start_exemplar(&mut self, settings: &tools::ExemplarSettings) {
+        let Some(i) = self
+            .systems
+            .iter_mut()
+            .position(|t| t.as_any_mut().is::<tools::ExemplarDialog>())
+        else {
+            return;
+        };
+        if let Some(d) = self.systems[i]
+            .as_any_mut()
+            .downcast_mut::<tools::ExemplarDialog>()
+        {
+            d.settings = settings.clone();
+        }
+        self.start_system(i);
+    }
+
+    /// Start system tool `i` with its current settings on its own thread; partial results show
+    /// in the view; errors are messages.
+    pub fn start_system(&mut self, i: usize) {
         if let Some(t) = &self.tool {
             self.state.report(format!(
                 "{} is still running: wait for it or cancel it",
@@ -246,22 +283,16 @@ where
             ));
             return;
         }
-        let side = settings.side;
-        let (Some(mesh), Some(coverage)) = (
-            self.state.painted_mesh(side),
-            self.state.paint_coverage(side),
-        ) else {
-            self.state
-                .report(format!("open a {side:?} mesh to paint first"));
-            return;
-        };
         let ctx = self.repaint.clone();
-        let wake = move || {
+        let wake: systems::Wake = Box::new(move || {
             if let Some(c) = &ctx {
                 c.request_repaint_after(WAKE_DELAY);
             }
+        });
+        let Some(tool) = self.systems.get_mut(i) else {
+            return;
         };
-        match tools::exemplar_job(settings, mesh, &coverage, wake) {
+        match tool.start(&self.state, wake) {
             Ok(j) => {
                 self.state.message = format!("{} running...", j.name);
                 self.tool = Some(j);
@@ -271,7 +302,7 @@ where
     }
 
     /// Start the texture update: the source (textured, old geometry) onto `new` geometry.
-    pub fn start_update(&mut self, new: crate::TriMesh) {
+    pub fn start_update(&mut self, new: crate::mesh::TriMesh) {
         if self.tool.is_some() {
             self.state
                 .report("an application is still running: wait for it or cancel it");
@@ -364,7 +395,7 @@ where
                     }
                 }
                 if let Some(c) = &s.correspondences {
-                    let r = crate::jobs::CorrespondenceFile::load(c)
+                    let r = crate::correspondence::CorrespondenceFile::load(c)
                         .and_then(|f| self.state.set_correspondences(f.correspondences));
                     if let Err(e) = r {
                         self.state.report(e);
@@ -419,9 +450,9 @@ where
                 r
             }
             A::OpenTexture => self.state.open_texture(&p),
-            A::OpenCorrespondences => crate::jobs::CorrespondenceFile::load(&p)
+            A::OpenCorrespondences => crate::correspondence::CorrespondenceFile::load(&p)
                 .and_then(|f| self.state.set_correspondences(f.correspondences)),
-            A::SaveCorrespondences => crate::jobs::CorrespondenceFile {
+            A::SaveCorrespondences => crate::correspondence::CorrespondenceFile {
                 correspondences: self.state.corr.clone(),
             }
             .save(&p),
@@ -437,8 +468,10 @@ where
                 r
             }
             A::SaveSession => self.state.save_session(&p),
-            A::ExemplarImage => {
-                self.exemplar.settings.image = Some(p.clone());
+            A::SystemFile(i, _) => {
+                if let Some(t) = self.systems.get_mut(i) {
+                    t.set_file(p.clone());
+                }
                 Ok(())
             }
             A::EditedGeometry => crate::mesh::io::load(&p).map(|m| self.start_update(m)),
@@ -448,7 +481,7 @@ where
                 let verb = match action {
                     A::SaveCorrespondences | A::SaveSession => "saved",
                     A::ExportResult | A::ExportDense | A::ExportPainted(_) => "exported",
-                    A::ExemplarImage => "exemplar image",
+                    A::SystemFile(_, prompt) => prompt.1,
                     A::EditedGeometry => return,
                     _ => "opened",
                 };
@@ -602,16 +635,19 @@ where
                     self.start_tool("detail");
                     ui.close();
                 }
-                if ui
-                    .add_enabled(!busy, egui::Button::new("Paint with exemplar..."))
-                    .on_hover_text(
-                        "Synthesize an image's texture over the whole mesh or its painted \
-                         region (Wei & Levoy 2001); the view updates after every pass",
-                    )
-                    .clicked()
-                {
-                    self.open_exemplar_dialog(None);
-                    ui.close();
+                let mut open = None;
+                for (i, t) in self.systems.iter().enumerate() {
+                    if ui
+                        .add_enabled(!busy, egui::Button::new(t.label()))
+                        .on_hover_text(t.hover())
+                        .clicked()
+                    {
+                        open = Some(i);
+                        ui.close();
+                    }
+                }
+                if let Some(i) = open {
+                    self.systems[i].set_open(true);
                 }
             });
             ui.menu_button("Scene", |ui| {
@@ -821,27 +857,29 @@ where
         self.show_help = open;
     }
 
-    fn exemplar_window(&mut self, ctx: &egui::Context) {
-        if !self.exemplar.open {
-            return;
-        }
-        let mut open = true;
-        let mut action = tools::ExemplarAction::None;
+    fn system_windows(&mut self, ctx: &egui::Context) {
         let busy = self.tool.is_some();
-        let (dialog, state) = (&mut self.exemplar, &self.state);
-        egui::Window::new("Paint with exemplar")
-            .open(&mut open)
-            .collapsible(false)
-            .resizable(false)
-            .show(ctx, |ui| action = dialog.ui(ui, state, busy));
-        if action == tools::ExemplarAction::ChooseImage {
-            self.files.request(files::FileAction::ExemplarImage);
-            action = tools::ExemplarAction::None;
-        }
-        self.exemplar.open = open && action == tools::ExemplarAction::None;
-        if action == tools::ExemplarAction::Run {
-            let settings = self.exemplar.settings.clone();
-            self.start_exemplar(&settings);
+        for i in 0..self.systems.len() {
+            if !self.systems[i].is_open() {
+                continue;
+            }
+            let mut open = true;
+            let mut action = systems::ToolAction::None;
+            let (tool, state) = (&mut self.systems[i], &self.state);
+            egui::Window::new(tool.label().trim_end_matches("..."))
+                .open(&mut open)
+                .collapsible(false)
+                .resizable(false)
+                .show(ctx, |ui| action = tool.ui(ui, state, busy));
+            if action == systems::ToolAction::ChooseFile {
+                let prompt = self.systems[i].file_prompt();
+                self.files.request(files::FileAction::SystemFile(i, prompt));
+                action = systems::ToolAction::None;
+            }
+            self.systems[i].set_open(open && action == systems::ToolAction::None);
+            if action == systems::ToolAction::Run {
+                self.start_system(i);
+            }
         }
     }
 
@@ -920,7 +958,7 @@ where
             self.views.frame_all();
         }
         self.help_window(&ctx);
-        self.exemplar_window(&ctx);
+        self.system_windows(&ctx);
         self.files.show(&ctx);
         if let Some((action, path)) = self.files.take() {
             self.apply_file(action, path);
@@ -1011,7 +1049,7 @@ where
     // renderer stay smooth while a transfer fills every core, at no cost when the UI is idle.
     // (Already built, e.g. by an embedding program: keep that pool.)
     let _ = rayon::ThreadPoolBuilder::new()
-        .start_handler(|_| crate::jobs::lower_thread_priority())
+        .start_handler(|_| crate::work::lower_thread_priority())
         .build_global();
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()

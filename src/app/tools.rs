@@ -10,11 +10,12 @@ use std::time::Instant;
 use crossbeam_channel::{Receiver, bounded};
 
 use crate::applications::{DETAIL_SHAPE_WEIGHT, complete, transfer_detail, update_texture};
-use crate::jobs::worker::Side;
-use crate::jobs::{CancelToken, Event};
+use crate::correspondence::Side;
+use crate::error::{Error, Result};
+use crate::mesh::TriMesh;
 use crate::meshmatch::TransferParams;
-use crate::synthesis::{Orientation, Search, SynthParams, synthesize};
-use crate::{Error, Result, TriMesh};
+use crate::synthesis::{Orientation, Search, SynthParams, wei_levoy};
+use crate::work::{CancelToken, Event};
 
 /// Working vertices of the applications started from the app (a responsive default; the CLI
 /// takes `--vertices`).
@@ -69,7 +70,7 @@ impl ToolJob {
         std::thread::Builder::new()
             .name(format!("meshmatch-{name}"))
             .spawn(move || {
-                crate::jobs::lower_thread_priority();
+                crate::work::lower_thread_priority();
                 let sink = |e: Event| {
                     let p = match e {
                         Event::Progress(p) => p,
@@ -379,7 +380,12 @@ pub fn exemplar_job(
     let n = mesh.num_vertices();
     let mut job = ToolJob::spawn("paint with exemplar", wake, move |sink, cancel| {
         let img = load_exemplar(&path, pixels)?;
-        let r = synthesize(&img, &mesh, mask.as_deref(), &params, sink, cancel)?;
+        let input = wei_levoy::Input {
+            exemplar: &img,
+            target: &mesh,
+            mask: mask.as_deref(),
+        };
+        let r = wei_levoy::run(&input, &params, sink, cancel)?;
         let colors = r
             .mesh
             .colors

@@ -6,8 +6,8 @@ use eframe::wgpu;
 use glam::Vec2 as GVec2;
 
 use super::state::{AppParams, AppState, Selection, marker_color, side_index};
+use crate::correspondence::Side;
 use crate::geometry::TriangleBvh;
-use crate::jobs::worker::Side;
 use crate::render::{
     Camera, DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, fov_y, pick,
 };

@@ -3,10 +3,11 @@
 //! their colours exactly.
 
 use super::fill_from_known;
+use crate::error::{Error, Result};
 use crate::geometry::refine_to_density;
-use crate::jobs::{CancelToken, Event};
+use crate::mesh::TriMesh;
 use crate::meshmatch::{Constraints, TransferParams, prepare, solve_constrained};
-use crate::{Error, Result, TriMesh};
+use crate::work::{CancelToken, Event};
 
 /// Result of [`complete`].
 #[derive(Clone, Debug)]

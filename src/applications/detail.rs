@@ -2,14 +2,15 @@
 //! smooth surface plus a scalar displacement along its normals; the displacement is transferred as
 //! a one-channel signal by MeshMatch guided by shape features, and applied to the target.
 
+use crate::error::{Error, Result};
 use crate::geometry::{
     mass_matrix_barycentric, mean_edge_length, refine_to_density, taubin_smooth, vertex_normals,
     weld,
 };
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
-use crate::jobs::{CancelToken, Event};
+use crate::mesh::TriMesh;
 use crate::meshmatch::{TransferParams, prepare, solve};
-use crate::{Error, Result, TriMesh};
+use crate::work::{CancelToken, Event};
 use glam::Vec3;
 
 /// Taubin λ|μ iterations (λ = 0.5, μ = -0.53) that define the smooth base surface.

@@ -2,11 +2,12 @@
 //! the old one the old colours are copied, only the changed region is synthesised, with the old
 //! textured mesh as the example and the unchanged border as constraint.
 
+use crate::error::{Error, Result};
 use crate::geometry::{TriangleBvh, mean_edge_length, refine_to_density};
-use crate::jobs::{CancelToken, Event};
+use crate::mesh::TriMesh;
 use crate::mesh::{SignalKind, sample_texture};
 use crate::meshmatch::{Constraints, TransferParams, prepare, solve_constrained};
-use crate::{Error, Result, TriMesh};
+use crate::work::{CancelToken, Event};
 use glam::Vec3;
 
 /// A new vertex coincides with the old surface when its closest-point distance to it is at most

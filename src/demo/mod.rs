@@ -13,8 +13,8 @@ mod animals;
 pub mod sdf;
 mod vase;
 
-use crate::TriMesh;
-use crate::jobs::{Correspondence, CorrespondenceFile};
+use crate::correspondence::{Correspondence, CorrespondenceFile};
+use crate::mesh::TriMesh;
 use glam::Vec3;
 
 /// Grid spacing for the animals (gives the zebra about 40K vertices).

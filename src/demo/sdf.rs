@@ -5,7 +5,7 @@
 //! exact capsule / sphere / round cone, the `k0 (k0 - 1) / k1` ellipsoid bound, and the
 //! quadratic polynomial smooth minimum `min(a, b) - h^2 k / 4`, `h = max(k - |a - b|, 0) / k`.
 
-use crate::TriMesh;
+use crate::mesh::TriMesh;
 use glam::{Quat, Vec3};
 use rayon::prelude::*;
 

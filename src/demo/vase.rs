@@ -1,7 +1,7 @@
 //! The demo vase: a closed lathe (surface of revolution) with a foot, a wall of finite
 //! thickness and a rounded lip, painted with a Greek-style band pattern on its upper part only.
 
-use crate::TriMesh;
+use crate::mesh::TriMesh;
 use std::f32::consts::TAU;
 
 /// Height of the vase.

@@ -3,9 +3,9 @@
 //! pre-filtered signal (Zelinka & Garland 2004), plus local tangent frames and the frame-to-frame
 //! rotation used to carry patch orientations across edges and levels.
 
+use crate::error::{Error, Result};
 use crate::hierarchy::{Hierarchy, Level};
-use crate::jobs::CancelToken;
-use crate::{Error, Result};
+use crate::work::CancelToken;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::cmp::Reverse;
@@ -196,7 +196,7 @@ pub fn shape_features(h: &Hierarchy, hks_vertices: usize) -> Result<Vec<Vec<f32>
 
 /// [`shape_features`] that returns `Err(Cancelled)` within about 10 ms of `cancel` being set:
 /// the eigen-solve (one dense factorisation, about 0.4 s at 2000 vertices) runs on its own thread
-/// (see [`crate::jobs::run_cancellable`]).
+/// (see [`crate::work::run_cancellable`]).
 pub fn shape_features_cancellable(
     h: &Hierarchy,
     hks_vertices: usize,
@@ -207,7 +207,7 @@ pub fn shape_features_cancellable(
         .find(|&l| h.levels[l].len() <= hks_vertices)
         .unwrap_or(h.top());
     let (positions, faces) = (h.levels[lc].positions.clone(), h.levels[lc].faces.clone());
-    let base = crate::jobs::run_cancellable(cancel, move || hks_scaled(&positions, &faces, 120))??;
+    let base = crate::work::run_cancellable(cancel, move || hks_scaled(&positions, &faces, 120))??;
     let mut hks: Vec<Vec<f32>> = vec![Vec::new(); h.num_levels()];
     hks[lc] = base;
     for l in (0..lc).rev() {

@@ -10,7 +10,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
 use super::laplacian::{LaplacePattern, check_faces, cotan_triplets, mass_matrix_voronoi};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Reduced systems up to this size are solved densely.
 const DENSE_MAX: usize = 400;

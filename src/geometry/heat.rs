@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::basic::{d3, mean_edge_length};
 use super::laplacian::{LaplacePattern, check_faces, mass_matrix_voronoi};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Geodesic distances by the heat method, prepared once per mesh and reusable for any number of
 /// source sets (queries take `&self`, so they can run in parallel).

@@ -4,7 +4,7 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
 use glam::DVec3;
 
 use super::basic::d3;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Cotangent of the angle between `a` and `b`: `cot θ = (a·b) / |a × b|` (0 when degenerate).
 #[inline]

@@ -11,8 +11,8 @@
 //! The vertex tree links levels: `parent(l, v)` is the vertex of level `l + 1` that vertex `v` of
 //! level `l` collapsed into, and `children(l + 1, p)` lists the level-`l` vertices under `p`.
 
+use crate::error::{Error, Result};
 use crate::mesh::{Csr, vertex_adjacency};
-use crate::{Error, Result};
 use glam::Vec3;
 use rand::Rng;
 
@@ -130,7 +130,7 @@ impl Hierarchy {
         faces: &[[u32; 3]],
         opts: HierarchyOptions,
     ) -> Result<Hierarchy> {
-        Self::build_cancellable(positions, faces, opts, &crate::jobs::CancelToken::new())
+        Self::build_cancellable(positions, faces, opts, &crate::work::CancelToken::new())
     }
 
     /// [`Hierarchy::build`] that checks `cancel` before every level and stops with
@@ -139,7 +139,7 @@ impl Hierarchy {
         positions: &[[f32; 3]],
         faces: &[[u32; 3]],
         opts: HierarchyOptions,
-        cancel: &crate::jobs::CancelToken,
+        cancel: &crate::work::CancelToken,
     ) -> Result<Hierarchy> {
         if positions.is_empty() || faces.is_empty() {
             return Err(Error::InvalidMesh(

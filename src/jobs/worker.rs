@@ -12,17 +12,11 @@ use std::time::Instant;
 
 use crossbeam_channel::{Receiver, Sender, unbounded};
 
-use super::{CancelToken, Correspondence, Event};
-use crate::{Error, Result, TriMesh};
-
-/// Which mesh of the pair.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-pub enum Side {
-    /// The exemplar (coloured) mesh.
-    Source,
-    /// The mesh to texture.
-    Target,
-}
+use crate::correspondence::Correspondence;
+use crate::correspondence::Side;
+use crate::error::{Error, Result};
+use crate::mesh::TriMesh;
+use crate::work::{CancelToken, Event};
 
 /// The result of a solve, as the worker reports it.
 #[derive(Clone, Debug)]
@@ -153,7 +147,7 @@ impl<P: Clone + Send + 'static> Worker<P> {
         let thread = std::thread::Builder::new()
             .name("meshmatch-worker".into())
             .spawn(move || {
-                super::lower_thread_priority();
+                crate::work::lower_thread_priority();
                 worker_loop(engine, rx, etx, run2, notify)
             })
             .expect("spawn worker thread");

@@ -1,7 +1,7 @@
 //! Validation report and safe repair.
 
 use super::TriMesh;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 use std::collections::{HashMap, HashSet};
 
 /// Largest vertex count accepted (memory budget: about 4 GB of working data at this size).

@@ -2,10 +2,10 @@
 //! rotation search, propagation in breadth-first order, random search through hierarchy hops,
 //! Gaussian voting and coarse-to-fine upsampling of the nearest-neighbour field.
 
+use crate::error::{Error, Result};
 use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, FAN_RADII, Frames, exp_neg, transport_angle};
 use crate::hierarchy::{Hierarchy, Level};
-use crate::jobs::CancelToken;
-use crate::{Error, Result};
+use crate::work::CancelToken;
 use glam::Vec3;
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};

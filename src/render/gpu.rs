@@ -4,7 +4,7 @@ use eframe::wgpu;
 use eframe::wgpu::util::DeviceExt;
 
 use super::camera::{Camera, Frame};
-use crate::TriMesh;
+use crate::mesh::TriMesh;
 
 /// Colour format of every render target's texture: gamma-encoded RGBA8, which egui samples as-is.
 pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
@@ -643,7 +643,11 @@ impl RenderTarget {
     }
 
     /// Copy the colour texture to the CPU as tightly packed RGBA8 rows (blocks until done).
-    pub fn read_rgba(&self, device: &wgpu::Device, queue: &wgpu::Queue) -> crate::Result<Vec<u8>> {
+    pub fn read_rgba(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> crate::error::Result<Vec<u8>> {
         let bpr = (self.width * 4).div_ceil(256) * 256;
         let buf = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
@@ -681,13 +685,13 @@ impl RenderTarget {
         });
         device
             .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| crate::Error::InvalidInput(format!("GPU readback failed: {e}")))?;
+            .map_err(|e| crate::error::Error::InvalidInput(format!("GPU readback failed: {e}")))?;
         rx.recv()
-            .map_err(|_| crate::Error::InvalidInput("GPU readback was dropped".into()))?
-            .map_err(|e| crate::Error::InvalidInput(format!("GPU readback failed: {e}")))?;
+            .map_err(|_| crate::error::Error::InvalidInput("GPU readback was dropped".into()))?
+            .map_err(|e| crate::error::Error::InvalidInput(format!("GPU readback failed: {e}")))?;
         let data = slice
             .get_mapped_range()
-            .map_err(|e| crate::Error::InvalidInput(format!("GPU readback failed: {e}")))?;
+            .map_err(|e| crate::error::Error::InvalidInput(format!("GPU readback failed: {e}")))?;
         let mut out = Vec::with_capacity((self.width * self.height * 4) as usize);
         for row in 0..self.height as usize {
             let start = row * bpr as usize;

@@ -13,7 +13,8 @@ use eframe::wgpu;
 pub use camera::{Camera, FOV_Y_DEG, Frame, Hit, fov_y, pick};
 pub use gpu::{DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, display_colors};
 
-use crate::{Error, Result, TriMesh};
+use crate::error::{Error, Result};
+use crate::mesh::TriMesh;
 
 /// Options of an offscreen render.
 #[derive(Clone, Debug, PartialEq)]

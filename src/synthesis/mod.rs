@@ -1,4 +1,13 @@
-//! Texture synthesis systems that reuse the shared geometry and hierarchy modules.
+//! The synthesis systems, one folder each, all of one shape:
+//!
+//! - a module doc naming the paper and the equations it implements;
+//! - `Params` (serde; `Default` = the paper's defaults);
+//! - `Input` (what it works on) and `Output` (what it returns);
+//! - one front door `run(&Input, &Params, sink, cancel) -> Result<Output>` that reports
+//!   [`crate::work::Event`]s (progress, partial results) and stops on the cancel token.
+//!
+//! They reuse `geometry`, `hierarchy` and `features`; the CLI reaches each through one file in
+//! `cli/` and the app through one entry in `app/systems.rs`.
 //!
 //! - [`wei_levoy`]: image-exemplar texture synthesis over arbitrary surfaces (Wei & Levoy 2001).
 

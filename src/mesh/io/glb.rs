@@ -2,9 +2,10 @@
 //! with bounds checks) and a hand-written GLB / glTF writer.
 
 use super::{base64, check_content, check_exportable, finish, warn, write_atomic};
+use crate::error::{Error, Result};
 use crate::mesh::Texture;
+use crate::mesh::TriMesh;
 use crate::mesh::validate::{MAX_FACES, MAX_VERTICES};
-use crate::{Error, Result, TriMesh};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::{Mode, Semantic};
 use std::borrow::Cow;

@@ -11,8 +11,9 @@ mod glb;
 mod obj;
 mod ply;
 
+use crate::error::{Error, Result};
 use crate::mesh::Texture;
-use crate::{Error, Result, TriMesh};
+use crate::mesh::TriMesh;
 use std::path::Path;
 use std::sync::Arc;
 

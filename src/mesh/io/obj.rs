@@ -1,7 +1,8 @@
 //! Wavefront OBJ reader/writer (hand-written) with MTL `map_Kd` textures.
 
 use super::{check_content, check_exportable, fan, finish, text_lines, warn, write_atomic};
-use crate::{Error, Result, TriMesh};
+use crate::error::{Error, Result};
+use crate::mesh::TriMesh;
 use std::collections::{HashMap, HashSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

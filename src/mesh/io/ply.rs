@@ -2,7 +2,8 @@
 //! little-endian writer.
 
 use super::{check_content, check_exportable, fan, finish, write_atomic};
-use crate::{Error, Result, TriMesh};
+use crate::error::{Error, Result};
+use crate::mesh::TriMesh;
 use std::path::Path;
 
 /// Options for `save_ply`.

@@ -7,8 +7,9 @@ use rayon::prelude::*;
 
 use super::neigh::{ExemplarLevel, Frame, Scratch, Stencils, build_stencil};
 use super::pyramid::{Img, Level, stage_rng};
+use crate::error::{Error, Result};
 use crate::geometry::vertex_normals;
-use crate::{Error, Result, TriMesh};
+use crate::mesh::TriMesh;
 
 /// The pixels of an image as sRGB colours in [0,1].
 pub fn image_colors(img: &image::RgbImage) -> Vec<[f32; 3]> {

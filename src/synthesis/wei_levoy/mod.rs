@@ -21,8 +21,9 @@ use std::sync::Arc;
 use glam::Vec3;
 use rand::{Rng, seq::SliceRandom};
 
-use crate::jobs::{CancelToken, Event, Progress, Stopwatch};
-use crate::{Error, Result, TriMesh};
+use crate::error::{Error, Result};
+use crate::mesh::TriMesh;
+use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
 pub use metrics::{
     color_histogram, exemplar_loo_distance, histogram_l1, image_colors, neighbourhood_distance,
@@ -109,6 +110,40 @@ impl std::str::FromStr for Search {
             ))),
         }
     }
+}
+
+/// The system's parameters (the paper's defaults): see [`SynthParams`].
+pub type Params = SynthParams;
+
+/// The system's output: see [`SynthResult`].
+pub type Output = SynthResult;
+
+/// What the system works on.
+#[derive(Clone, Copy, Debug)]
+pub struct Input<'a> {
+    /// The exemplar image (sRGB colours, or a grey displacement map with `displace`).
+    pub exemplar: &'a image::RgbImage,
+    /// The mesh to texture.
+    pub target: &'a TriMesh,
+    /// Per vertex of `target`: true = synthesise, false = keep its colour (`None`: every vertex).
+    pub mask: Option<&'a [bool]>,
+}
+
+/// The system's front door: [`synthesize`] on an [`Input`].
+pub fn run(
+    input: &Input,
+    params: &Params,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<Output> {
+    synthesize(
+        input.exemplar,
+        input.target,
+        input.mask,
+        params,
+        sink,
+        cancel,
+    )
 }
 
 /// Parameters of surface texture synthesis.

@@ -7,8 +7,8 @@ use std::collections::HashMap;
 use glam::Vec3;
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 
+use crate::error::{Error, Result};
 use crate::mesh::{Csr, vertex_adjacency};
-use crate::{Error, Result};
 
 /// One level of the mesh pyramid.
 #[derive(Clone, Debug)]

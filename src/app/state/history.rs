@@ -1,0 +1,260 @@
+//! Paint layers, tool previews and the undo history.
+
+use super::*;
+
+#[derive(Clone)]
+pub(super) struct Snapshot {
+    pub(super) corr: Vec<Correspondence>,
+    pub(super) pending_source: Option<u32>,
+    pub(super) paint: [Option<Vec<[f32; 4]>>; 2],
+}
+
+/// Brush settings for painting vertex colours.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Brush {
+    /// Radius as a fraction of the mesh's bounding radius.
+    pub radius: f32,
+    /// sRGB colour.
+    pub color: [f32; 3],
+    /// 1 = hard edge, 0 = fully soft falloff.
+    pub hardness: f32,
+    /// Remove paint instead of adding it.
+    pub eraser: bool,
+}
+
+impl Default for Brush {
+    fn default() -> Self {
+        Brush {
+            radius: 0.08,
+            color: [0.9, 0.1, 0.1],
+            hardness: 0.5,
+            eraser: false,
+        }
+    }
+}
+
+impl<P: AppParams> AppState<P> {
+    // ----- correspondences -----
+
+    pub(super) fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            corr: self.corr.clone(),
+            pending_source: self.pending_source,
+            // a tool preview is never an undo state: record the paint underneath it
+            paint: [0, 1].map(|i| match &self.preview_backup {
+                Some((side, _, p)) if side_index(*side) == i => p.clone(),
+                _ => self.meshes[i].as_ref().and_then(|s| s.paint.clone()),
+            }),
+        }
+    }
+
+    /// Record the current state for undo (call before an edit).
+    pub fn push_undo(&mut self) {
+        self.undo.push(self.snapshot());
+        if self.undo.len() > UNDO_LIMIT {
+            self.undo.remove(0);
+        }
+        self.redo.clear();
+    }
+
+    pub(super) fn restore(&mut self, s: Snapshot) {
+        let corr_changed = s.corr != self.corr;
+        self.corr = s.corr;
+        self.pending_source = s.pending_source;
+        for (i, p) in s.paint.into_iter().enumerate() {
+            if let Some(slot) = self.meshes[i].as_mut()
+                && slot.paint != p
+                // Never apply a layer painted on another version of the mesh.
+                && p.as_ref().is_none_or(|l| l.len() == slot.displayed().num_vertices())
+            {
+                slot.paint = p;
+                slot.colors_dirty = true;
+            }
+        }
+        if let Some(sel) = self.selected
+            && !self.marker_exists(sel)
+        {
+            self.selected = None;
+        }
+        if corr_changed {
+            self.schedule_restart_now();
+        }
+    }
+
+    /// Undo the last edit (correspondence or paint stroke); false if there is none.
+    pub fn undo(&mut self) -> bool {
+        let Some(s) = self.undo.pop() else {
+            self.message = "nothing to undo".into();
+            return false;
+        };
+        let cur = self.snapshot();
+        self.redo.push(cur);
+        self.restore(s);
+        self.message = format!(
+            "undone ({} more undo, {} redo)",
+            self.undo.len(),
+            self.redo.len()
+        );
+        true
+    }
+
+    /// Redo the last undone edit; false if there is none.
+    pub fn redo(&mut self) -> bool {
+        let Some(s) = self.redo.pop() else {
+            self.message = "nothing to redo".into();
+            return false;
+        };
+        let cur = self.snapshot();
+        self.undo.push(cur);
+        self.restore(s);
+        self.message = format!(
+            "redone ({} undo, {} more redo)",
+            self.undo.len(),
+            self.redo.len()
+        );
+        true
+    }
+
+    /// Number of undo and redo steps available.
+    pub fn history_len(&self) -> (usize, usize) {
+        (self.undo.len(), self.redo.len())
+    }
+
+    // ----- painting -----
+
+    /// Paint (or erase) around a point on one side's displayed mesh with the current brush.
+    /// `record` pushes an undo step (true at the start of a stroke). Returns painted vertex count.
+    pub fn paint_at(&mut self, side: Side, center: [f32; 3], record: bool) -> usize {
+        let brush = self.brush;
+        if record && self.slot(side).is_some() {
+            self.push_undo();
+        }
+        let Some(slot) = self.slot_mut(side) else {
+            return 0;
+        };
+        let mesh = slot.displayed();
+        let frame = crate::render::Frame::of_points(&mesh.positions);
+        let r = (brush.radius * frame.radius).max(1e-9);
+        let c = glam::Vec3::from(center);
+        let n = mesh.positions.len();
+        let positions = mesh.positions.clone();
+        let paint = slot.paint.get_or_insert_with(|| vec![[0.0; 4]; n]);
+        let mut count = 0;
+        for (p, dst) in positions.iter().zip(paint.iter_mut()) {
+            let d = glam::Vec3::from(*p).distance(c) / r;
+            if d >= 1.0 {
+                continue;
+            }
+            // Hardness h: full strength inside radius h, smooth falloff to 0 at the rim.
+            let h = brush.hardness.clamp(0.0, 0.999);
+            let t = ((d - h) / (1.0 - h)).clamp(0.0, 1.0);
+            let w = 1.0 - t * t * (3.0 - 2.0 * t);
+            if brush.eraser {
+                dst[3] *= 1.0 - w;
+            } else {
+                let a = dst[3] + w * (1.0 - dst[3]);
+                for k in 0..3 {
+                    dst[k] = if a > 0.0 {
+                        (dst[k] * dst[3] * (1.0 - w) + brush.color[k] * w) / a
+                    } else {
+                        brush.color[k]
+                    };
+                }
+                dst[3] = a;
+            }
+            count += 1;
+        }
+        slot.colors_dirty = true;
+        count
+    }
+
+    /// Paint coverage per displayed vertex of one side (0 where unpainted).
+    pub fn paint_coverage(&self, side: Side) -> Option<Vec<f32>> {
+        let slot = self.slot(side)?;
+        let n = slot.displayed().num_vertices();
+        Some(match &slot.paint {
+            Some(p) => p.iter().map(|x| x[3]).collect(),
+            None => vec![0.0; n],
+        })
+    }
+
+    /// Take a finished application's outcome: new colours become the side's paint layer (one
+    /// undo step), a new mesh replaces the side without starting a transfer on it.
+    pub fn apply_tool_outcome(&mut self, outcome: crate::app::tools::ToolOutcome) {
+        use crate::app::tools::ToolOutcome;
+        match outcome {
+            ToolOutcome::Colors(side, colors, message) => {
+                self.end_tool_preview();
+                let Some(n) = self.slot(side).map(|s| s.displayed().num_vertices()) else {
+                    return;
+                };
+                if colors.len() != n {
+                    self.report("the completed mesh no longer matches the view (it was re-prepared); run it again");
+                    return;
+                }
+                self.push_undo();
+                if let Some(slot) = self.meshes[side_index(side)].as_mut() {
+                    slot.paint = Some(colors.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect());
+                    slot.colors_dirty = true;
+                }
+                self.message = message;
+            }
+            ToolOutcome::Mesh(side, mesh, message) => {
+                self.set_mesh(side, mesh, false);
+                // The result is the answer: do not overwrite it with a transfer.
+                self.restart_at = None;
+                self.message = message;
+            }
+        }
+    }
+
+    /// Show a running tool's partial result on one side: `colors` (at least one per displayed
+    /// vertex; the first ones are used) replace the displayed colours until the tool ends. The
+    /// paint layer underneath is kept aside and comes back with [`AppState::end_tool_preview`];
+    /// previews are not undo steps. False when the side is gone or has fewer colours than vertices.
+    pub fn show_tool_preview(&mut self, side: Side, colors: &[[f32; 3]]) -> bool {
+        let Some(slot) = self.meshes[side_index(side)].as_mut() else {
+            return false;
+        };
+        let n = slot.displayed().num_vertices();
+        if colors.len() < n {
+            return false;
+        }
+        if self.preview_backup.is_none() {
+            self.preview_backup = Some((side, slot.id, slot.paint.clone()));
+        }
+        slot.paint = Some(
+            colors[..n]
+                .iter()
+                .map(|c| [c[0], c[1], c[2], 1.0])
+                .collect(),
+        );
+        slot.colors_dirty = true;
+        true
+    }
+
+    /// Take a tool preview down: the side's paint layer returns to what it was before.
+    pub fn end_tool_preview(&mut self) {
+        let Some((side, id, paint)) = self.preview_backup.take() else {
+            return;
+        };
+        if let Some(slot) = self.meshes[side_index(side)].as_mut()
+            && slot.id == id
+        {
+            let n = slot.displayed().num_vertices();
+            // a re-prepared mesh (other vertices) dropped its paint: keep it dropped
+            slot.paint = paint.filter(|p| p.len() == n);
+            slot.colors_dirty = true;
+        }
+    }
+
+    /// The displayed mesh of one side with its displayed colours (paint included), for export.
+    pub fn painted_mesh(&self, side: Side) -> Option<TriMesh> {
+        let slot = self.slot(side)?;
+        let mut m = slot.displayed().clone();
+        m.colors = Some(slot.display_colors());
+        m.texture = None;
+        m.uvs = None;
+        Some(m)
+    }
+}

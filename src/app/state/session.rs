@@ -1,0 +1,343 @@
+//! Sessions, the Recent list and exports.
+
+use std::path::{Path, PathBuf};
+
+use super::*;
+
+/// The session file: meshes, correspondences (file indices), parameters and paint sidecars.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Session<P> {
+    /// Source mesh path.
+    pub source: Option<PathBuf>,
+    /// Target mesh path.
+    pub target: Option<PathBuf>,
+    /// Correspondences in file vertex indices.
+    pub correspondences: CorrespondenceFile,
+    /// Transfer parameters.
+    pub params: P,
+    /// Painted source colours (PLY sidecar, relative to the session file), if any.
+    pub source_paint: Option<PathBuf>,
+    /// Painted target colours (PLY sidecar, relative to the session file), if any.
+    pub target_paint: Option<PathBuf>,
+    /// Paint coverage per sidecar vertex (0-255) of the source; absent = fully painted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_paint_coverage: Option<Vec<u8>>,
+    /// Paint coverage per sidecar vertex (0-255) of the target; absent = fully painted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_paint_coverage: Option<Vec<u8>>,
+    /// Built-in scene the source mesh comes from when it has no file (e.g. "Zebra -> giraffe").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_scene: Option<String>,
+    /// Built-in scene the target mesh comes from when it has no file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_scene: Option<String>,
+    /// Texture image opened for the source (File > Open texture), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_texture: Option<PathBuf>,
+}
+
+/// What a recently opened file was opened as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum RecentKind {
+    /// A mesh (offered as source or target).
+    Mesh,
+    /// A texture image for the source.
+    Texture,
+    /// A session JSON.
+    Session,
+}
+
+/// One entry of the Recent menu.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct RecentFile {
+    /// The file.
+    pub path: PathBuf,
+    /// What it was opened as.
+    pub kind: RecentKind,
+}
+
+/// Where the Recent list is kept between runs: `$XDG_CONFIG_HOME/meshmatch/recent.json`
+/// (or `~/.config/...`; `%APPDATA%\meshmatch\recent.json` on Windows).
+pub fn default_recent_store() -> Option<PathBuf> {
+    let base = std::env::var_os("XDG_CONFIG_HOME")
+        .filter(|v| !v.is_empty())
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("APPDATA").map(PathBuf::from))
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")))?;
+    Some(base.join("meshmatch").join("recent.json"))
+}
+
+impl<P: AppParams> AppState<P> {
+    /// Read the Recent list from `store` (missing or unreadable: empty) and keep it saved there.
+    pub fn load_recent(&mut self, store: PathBuf) {
+        self.recent = std::fs::read(&store)
+            .ok()
+            .and_then(|b| serde_json::from_slice::<Vec<RecentFile>>(&b).ok())
+            .unwrap_or_default();
+        self.recent.truncate(10);
+        self.recent_store = Some(store);
+    }
+
+    pub(super) fn push_recent(&mut self, path: &Path, kind: RecentKind) {
+        let path = abs(path);
+        self.recent.retain(|r| r.path != path);
+        self.recent.insert(0, RecentFile { path, kind });
+        self.recent.truncate(10);
+        if let Some(store) = &self.recent_store {
+            let r = store
+                .parent()
+                .map_or(Ok(()), std::fs::create_dir_all)
+                .map_err(|e| Error::io(store, e))
+                .and_then(|_| {
+                    let text = serde_json::to_vec_pretty(&self.recent).unwrap_or_default();
+                    crate::mesh::io::write_atomic(store, &text)
+                });
+            if let Err(e) = r {
+                self.message = format!("recent files not saved: {e}");
+            }
+        }
+    }
+
+    // ----- export and sessions -----
+
+    /// The target slot and the finished transfer, or the error an export reports.
+    pub(super) fn target_and_result(&self) -> Result<(&MeshSlot, &Solved)> {
+        let slot = self
+            .slot(Side::Target)
+            .ok_or_else(|| Error::InvalidInput("no target mesh".into()))?;
+        let res = self
+            .result
+            .as_ref()
+            .ok_or_else(|| Error::InvalidInput("no finished transfer to export yet".into()))?;
+        Ok((slot, res))
+    }
+
+    /// Write the transfer result on the target file mesh as `transfer --out` does (format by
+    /// extension; `.glb`/`.obj` of a target with UVs get a texture baked into its UV layout).
+    pub fn export_result(&self, path: &Path) -> Result<()> {
+        let (slot, res) = self.target_and_result()?;
+        if res.file_signal.len() != slot.file.positions.len() {
+            return Err(Error::InvalidInput(
+                "result does not match the target mesh".into(),
+            ));
+        }
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        let m = match &res.layout {
+            Some(layout) => crate::meshmatch::deliver(
+                &slot.file,
+                layout,
+                &res.working_signal,
+                &res.file_signal,
+                ext,
+                EXPORT_TEXTURE_SIZE,
+            ),
+            None => {
+                let mut m = (*slot.file).clone();
+                m.colors = Some(res.file_signal.clone());
+                m.texture = None;
+                m
+            }
+        };
+        crate::mesh::io::save(&m, path)
+    }
+
+    /// Write the transfer result on the dense working mesh (as `transfer --out-dense` does).
+    pub fn export_dense_result(&self, path: &Path) -> Result<()> {
+        let (slot, res) = self.target_and_result()?;
+        let working = slot
+            .working
+            .as_ref()
+            .filter(|w| w.positions.len() == res.working_signal.len())
+            .ok_or_else(|| {
+                Error::InvalidInput("result does not match the target's working mesh".into())
+            })?;
+        crate::mesh::io::save(
+            &crate::meshmatch::deliver_dense(working, &res.working_signal),
+            path,
+        )
+    }
+
+    /// Save the session as JSON at `path`. Meshes are named by file, or by built-in scene when
+    /// they have none; each paint layer goes to a PLY sidecar beside it (the displayed mesh with
+    /// the paint's colours) with its coverage in the JSON.
+    pub fn save_session(&self, path: &Path) -> Result<()> {
+        let mut names: [(Option<PathBuf>, Option<String>); 2] = [(None, None), (None, None)];
+        for side in [Side::Source, Side::Target] {
+            if let Some(slot) = self.slot(side) {
+                let file = slot.file.path.as_ref().map(|p| abs(p));
+                let name = (file, slot.scene.clone());
+                if name.0.is_none() && name.1.is_none() {
+                    return Err(Error::InvalidInput(format!(
+                        "the {side:?} mesh has no file (it was computed): export it and open \
+                         the file before saving the session"
+                    )));
+                }
+                names[side_index(side)] = name;
+            }
+        }
+        let mut paint: [(Option<PathBuf>, Option<Vec<u8>>); 2] = [(None, None), (None, None)];
+        for (side, suffix) in [
+            (Side::Source, "source_paint"),
+            (Side::Target, "target_paint"),
+        ] {
+            let Some(slot) = self.slot(side) else {
+                continue;
+            };
+            let Some(layer) = &slot.paint else { continue };
+            let p = path.with_extension(format!("{suffix}.ply"));
+            let mut m = slot.displayed().clone();
+            m.colors = Some(layer.iter().map(|c| [c[0], c[1], c[2]]).collect());
+            m.texture = None;
+            m.uvs = None;
+            m.normals = None;
+            crate::mesh::io::save(&m, &p)?;
+            let coverage = layer
+                .iter()
+                .map(|c| (c[3].clamp(0.0, 1.0) * 255.0).round() as u8)
+                .collect();
+            // Named relative to the session file, so the pair can move together.
+            let name = p.file_name().map_or_else(|| p.clone(), PathBuf::from);
+            paint[side_index(side)] = (Some(name), Some(coverage));
+        }
+        let [(src_paint, src_cov), (tgt_paint, tgt_cov)] = paint;
+        let [(source, source_scene), (target, target_scene)] = names;
+        let session = Session {
+            source,
+            target,
+            correspondences: CorrespondenceFile {
+                correspondences: self.corr.clone(),
+            },
+            params: self.params.clone(),
+            source_paint: src_paint,
+            target_paint: tgt_paint,
+            source_paint_coverage: src_cov,
+            target_paint_coverage: tgt_cov,
+            source_scene,
+            target_scene,
+            source_texture: self
+                .slot(Side::Source)
+                .and_then(|s| s.texture_file.as_ref().map(|p| abs(p))),
+        };
+        let text = serde_json::to_string_pretty(&session)
+            .map_err(|e| Error::InvalidInput(format!("cannot serialise session: {e}")))?;
+        crate::mesh::io::write_atomic(path, text.as_bytes())
+    }
+
+    /// Open a session JSON: both meshes (files or built-in scenes), the source texture,
+    /// correspondences, parameters and paint. Nothing changes when any part fails to load.
+    pub fn open_session(&mut self, path: &Path) -> Result<()> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let s: Session<P> = serde_json::from_str(&text)
+            .map_err(|e| Error::format(path, format!("invalid session JSON: {e}")))?;
+        // Relative paths in the session are relative to the session file.
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let resolve = |p: &PathBuf| dir.join(p);
+        let mut built: Vec<(String, crate::app::DemoScene)> = Vec::new();
+        let mut meshes = Vec::new();
+        for (side, file, scene) in [
+            (Side::Source, &s.source, &s.source_scene),
+            (Side::Target, &s.target, &s.target_scene),
+        ] {
+            let mesh = match (file, scene) {
+                (Some(f), _) => crate::mesh::io::load(&resolve(f))?,
+                (None, Some(name)) => {
+                    if !built.iter().any(|(n, _)| n == name) {
+                        let sc = self.build_scene(name)?;
+                        built.push((name.clone(), sc));
+                    }
+                    let sc = &built
+                        .iter()
+                        .find(|(n, _)| n == name)
+                        .expect("built above")
+                        .1;
+                    match side {
+                        Side::Source => sc.source.clone(),
+                        Side::Target => sc.target.clone(),
+                    }
+                }
+                (None, None) => {
+                    return Err(Error::format(
+                        path,
+                        format!("session names no {side:?} mesh (neither a file nor a scene)"),
+                    ));
+                }
+            };
+            mesh_usable(&mesh)?;
+            meshes.push((
+                side,
+                mesh,
+                if file.is_none() { scene.clone() } else { None },
+            ));
+        }
+        let texture = s.source_texture.as_ref().map(resolve);
+        if let Some(t) = &texture {
+            meshes[0].1 = with_texture(&meshes[0].1, t)?;
+        }
+        let mut samples = [None, None];
+        for (i, (sidecar, coverage)) in [
+            (&s.source_paint, &s.source_paint_coverage),
+            (&s.target_paint, &s.target_paint_coverage),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let Some(sidecar) = sidecar else { continue };
+            let m = crate::mesh::io::load(&resolve(sidecar))?;
+            let colors = m.colors.clone().ok_or_else(|| {
+                Error::format(resolve(sidecar), "paint sidecar has no vertex colours")
+            })?;
+            if coverage.as_ref().is_some_and(|c| c.len() != colors.len()) {
+                return Err(Error::format(
+                    path,
+                    "paint coverage does not match its sidecar's vertex count",
+                ));
+            }
+            let rgba = colors
+                .iter()
+                .enumerate()
+                .map(|(v, c)| {
+                    let a = coverage.as_ref().map_or(1.0, |cov| cov[v] as f32 / 255.0);
+                    [c[0], c[1], c[2], a]
+                })
+                .collect();
+            samples[i] = Some(slot::PaintSample {
+                positions: m.positions,
+                rgba,
+            });
+        }
+        let counts = [meshes[0].1.positions.len(), meshes[1].1.positions.len()];
+        for c in &s.correspondences.correspondences {
+            let bad_t = c.target_vertices.iter().any(|&t| t as usize >= counts[1]);
+            if c.source_vertex as usize >= counts[0] || bad_t {
+                return Err(Error::format(
+                    path,
+                    "a correspondence is out of range for the session's meshes",
+                ));
+            }
+        }
+        // Everything loaded: replace the state.
+        for (side, mesh, scene) in meshes {
+            self.set_mesh(side, mesh, false);
+            if let Some(slot) = self.slot_mut(side) {
+                slot.scene = scene;
+                if side == Side::Source {
+                    slot.texture_file = texture.clone();
+                }
+            }
+        }
+        for (i, sample) in samples.into_iter().enumerate() {
+            if let (Some(sample), Some(slot)) = (sample, self.meshes[i].as_mut()) {
+                let applied =
+                    remap_paint(&sample.positions, &sample.rgba, &slot.displayed().positions);
+                slot.paint = Some(applied.clone());
+                slot.restored_paint = Some((sample, applied));
+                slot.colors_dirty = true;
+            }
+        }
+        self.params = s.params;
+        self.set_correspondences(s.correspondences.correspondences)?;
+        self.undo.clear();
+        self.push_recent(path, RecentKind::Session);
+        Ok(())
+    }
+}

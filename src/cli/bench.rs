@@ -1,0 +1,30 @@
+//! `meshmatch bench`: stage timings at several working resolutions.
+
+use crate::error::Result;
+
+/// Arguments of `meshmatch bench`.
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Working resolutions, e.g. `16k,64k,256k,1m`.
+    #[arg(long, default_value = "16k,64k")]
+    pub sizes: String,
+    /// One JSON object per line per size.
+    #[arg(long)]
+    pub json: bool,
+    /// After each size, cancel that many whole transfers at evenly spaced moments and
+    /// report how long each took to stop.
+    #[arg(long, default_value_t = 0)]
+    pub cancel_probes: usize,
+}
+
+impl BenchArgs {
+    /// Run the subcommand; returns the exit code.
+    pub fn run(&self) -> Result<i32> {
+        crate::bench::run(
+            &crate::bench::parse_sizes(&self.sizes)?,
+            self.json,
+            self.cancel_probes,
+        )?;
+        Ok(0)
+    }
+}

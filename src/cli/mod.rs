@@ -1,0 +1,150 @@
+//! The command-line interface: `meshmatch [COMMAND]`. No command opens the app.
+//!
+//! One file per subcommand, each with an `Args` struct (clap) and `run(&self) -> Result<i32>`.
+//! A new subcommand is its file plus one line in the `commands!` list below.
+
+mod bench;
+mod common;
+mod complete;
+mod convert;
+mod demo;
+mod detail;
+mod info;
+#[cfg(feature = "gui")]
+mod render;
+mod synth;
+mod transfer;
+mod update;
+
+use std::io::Write;
+
+use clap::{Parser, Subcommand};
+
+use crate::error::Result;
+
+pub use common::{SolveArgs, read_mask};
+pub use info::info_json;
+#[cfg(feature = "gui")]
+pub use render::MarkerSide;
+
+/// Example-based texturing of 3D meshes.
+#[derive(Parser, Debug)]
+#[command(name = "meshmatch", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do; without a command the desktop app opens on the demo scene.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// Declares the subcommands: the `Command` enum (variant doc = the command's help) and its
+/// dispatch to each `Args::run`.
+macro_rules! commands {
+    ($( $(#[$meta:meta])* $name:ident($args:ty), )*) => {
+        /// The subcommands.
+        #[derive(Subcommand, Debug)]
+        pub enum Command {
+            $( $(#[$meta])* $name($args), )*
+        }
+
+        impl Command {
+            /// Run the subcommand; returns the exit code.
+            #[allow(unused_doc_comments)]
+            pub fn run(&self) -> Result<i32> {
+                match self {
+                    $( $(#[$meta])* Command::$name(a) => a.run(), )*
+                }
+            }
+        }
+    };
+}
+
+commands! {
+    /// Print counts, bounds, components, boundary loops, signal kind and repairs of mesh files.
+    Info(info::InfoArgs),
+    /// Convert a mesh between formats (by extension), keeping vertex order, UVs, colours, texture.
+    Convert(convert::ConvertArgs),
+    /// Write the procedural demo scene (zebra, giraffe, cerberus, vase) as GLB files.
+    Demo(demo::DemoArgs),
+    /// Transfer a texture from a source mesh to a target mesh (MeshMatch).
+    Transfer(transfer::TransferArgs),
+    /// Synthesize a texture over a mesh from a 2D exemplar image (Wei and Levoy 2001).
+    Synth(synth::SynthArgs),
+    /// Complete a partly painted mesh by example: the painted (or unmasked) vertices are the
+    /// example, the rest is synthesised; painted vertices keep their colours exactly.
+    Complete(complete::CompleteArgs),
+    /// Update the texture after a geometry edit: copy colours where the new surface coincides with
+    /// the old one, synthesise only the changed region.
+    Update(update::UpdateArgs),
+    /// Transfer geometric detail (displacement along the normal) from a detailed mesh to a smooth one.
+    Detail(detail::DetailArgs),
+    /// Time the transfer's stages at several working resolutions (Spot -> horse from the shared data).
+    Bench(bench::BenchArgs),
+    /// Render a mesh to a PNG offscreen (headlight Lambert shading, vertex colours or texture).
+    #[cfg(feature = "gui")]
+    Render(render::RenderArgs),
+}
+
+/// Run the CLI; returns the process exit code.
+pub fn main() -> i32 {
+    std::panic::set_hook(Box::new(|info| {
+        let msg = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown".into());
+        if is_broken_pipe(&msg) {
+            // stdout was closed by the reader (`| head`): not an error, nothing to say.
+            return;
+        }
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        // Never panic inside the hook (eprintln! would, if stderr is gone too).
+        let _ = writeln!(
+            std::io::stderr().lock(),
+            "meshmatch: internal error: {msg}{at}"
+        );
+    }));
+    let cli = Cli::parse();
+    let res = std::panic::catch_unwind(|| match &cli.command {
+        None => open_app(),
+        Some(c) => c.run(),
+    });
+    match res {
+        Ok(Ok(code)) => code,
+        Ok(Err(e)) => {
+            let _ = writeln!(std::io::stderr().lock(), "meshmatch: {e}");
+            2
+        }
+        Err(payload) => {
+            let msg = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            if is_broken_pipe(&msg) { 0 } else { 2 }
+        }
+    }
+}
+
+/// True for the panic of `print!`/`println!` when stdout is a closed pipe: the reader (e.g.
+/// `head`) has all it wants, so the program stops quietly with status 0, as Unix tools do.
+fn is_broken_pipe(panic_msg: &str) -> bool {
+    panic_msg.starts_with("failed printing to stdout") && panic_msg.contains("Broken pipe")
+}
+
+#[cfg(feature = "gui")]
+fn open_app() -> Result<i32> {
+    crate::app::run(crate::app::Startup::default())?;
+    Ok(0)
+}
+
+#[cfg(not(feature = "gui"))]
+fn open_app() -> Result<i32> {
+    eprintln!(
+        "meshmatch was built without the `gui` feature; run `meshmatch --help` for the commands"
+    );
+    Ok(2)
+}

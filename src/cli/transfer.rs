@@ -1,0 +1,193 @@
+//! `meshmatch transfer`: MeshMatch texture transfer from a source mesh to a target mesh.
+
+use std::path::PathBuf;
+
+use super::common::*;
+use crate::correspondence::CorrespondenceFile;
+use crate::error::{Error, Result};
+use crate::mesh::io;
+use crate::work::{CancelToken, Event};
+
+/// Arguments of `meshmatch transfer`.
+#[derive(clap::Args, Debug)]
+pub struct TransferArgs {
+    /// Source mesh carrying the texture or vertex colours.
+    #[arg(long)]
+    pub source: PathBuf,
+    /// Texture image for the source (overrides the one its material names; needs UVs).
+    #[arg(long)]
+    pub source_texture: Option<PathBuf>,
+    /// Target mesh to texture.
+    #[arg(long)]
+    pub target: PathBuf,
+    /// Correspondences JSON (`{"correspondences": [{"source_vertex": i, "target_vertices": [j, ..]}]}`).
+    #[arg(long)]
+    pub correspondences: Option<PathBuf>,
+    /// Output: .ply (vertex colours), .glb (baked texture if the target has UVs, else COLOR_0), .obj (+MTL+PNG).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write the dense working-resolution target with its colours (.ply/.glb/.obj).
+    #[arg(long)]
+    pub out_dense: Option<PathBuf>,
+    /// Write the nearest-neighbour field as CSV: target_vertex,source_vertex,rotation_deg.
+    #[arg(long)]
+    pub nnf_out: Option<PathBuf>,
+    /// Working resolution (vertices per mesh; denser meshes are used as they are).
+    #[arg(long, default_value_t = 64_000)]
+    pub vertices: usize,
+    /// Number of hierarchy levels (default: down to about 128 vertices, at most 7).
+    #[arg(long)]
+    pub levels: Option<usize>,
+    /// EM iterations per level.
+    #[arg(long, default_value_t = 5)]
+    pub iterations: usize,
+    /// Random seed (runs with the same seed are identical).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Weight of shape features against colour (1 = equal).
+    #[arg(long, default_value_t = 1.0)]
+    pub shape_weight: f32,
+    /// The finest level's shape weight as a fraction of --shape-weight (geometric in between);
+    /// below 1, fine levels follow the colour more (sharper patches, looser layout).
+    #[arg(long, default_value_t = crate::meshmatch::FINE_SHAPE_SCALE)]
+    pub fine_shape_scale: f32,
+    /// Keep the filtered vote at the finest level instead of the nearest-neighbour copy.
+    #[arg(long)]
+    pub no_sharpen: bool,
+    /// Size of the baked texture (pixels per side) when the target has UVs.
+    #[arg(long, default_value_t = 1024)]
+    pub texture_size: u32,
+}
+
+impl TransferArgs {
+    /// Run the subcommand; returns the exit code.
+    pub fn run(&self) -> Result<i32> {
+        transfer(self)
+    }
+}
+
+fn transfer(a: &TransferArgs) -> Result<i32> {
+    use crate::meshmatch::{self as mm, TransferParams};
+    for p in [Some(&a.out), a.out_dense.as_ref()].into_iter().flatten() {
+        let ext = p
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
+            return Err(Error::InvalidInput(format!(
+                "{}: output must end in .ply, .glb or .obj",
+                p.display()
+            )));
+        }
+    }
+    // Make sure every output can be written before spending minutes on the transfer.
+    for p in [Some(&a.out), a.out_dense.as_ref(), a.nnf_out.as_ref()]
+        .into_iter()
+        .flatten()
+    {
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        }
+    }
+    let mut source = load_usable(&a.source)?;
+    if let Some(tex) = &a.source_texture {
+        if source.uvs.is_none() {
+            return Err(Error::InvalidInput(format!(
+                "{}: --source-texture needs a source with UVs",
+                a.source.display()
+            )));
+        }
+        source.texture = Some(std::sync::Arc::new(io::load_texture(tex)?));
+        source.colors = None;
+    }
+    if source.vertex_signal().is_none() {
+        return Err(Error::InvalidInput(format!(
+            "{}: the source carries no texture or vertex colours to transfer (use --source-texture)",
+            a.source.display()
+        )));
+    }
+    let target = load_usable(&a.target)?;
+    let corr = match &a.correspondences {
+        Some(p) => CorrespondenceFile::load(p)?.correspondences,
+        None => Vec::new(),
+    };
+    let params = TransferParams {
+        vertices: a.vertices,
+        levels: a.levels,
+        iterations: a.iterations,
+        seed: a.seed,
+        shape_weight: a.shape_weight,
+        fine_shape_scale: a.fine_shape_scale,
+        sharpen: !a.no_sharpen,
+        ..TransferParams::default()
+    };
+    let bar = indicatif::ProgressBar::new(1000);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}",
+        )
+        .expect("valid template"),
+    );
+    let sink = |e: Event| match e {
+        Event::Progress(p) | Event::Partial { progress: p, .. } => {
+            bar.set_position((p.fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+            if p.iteration > 0 {
+                bar.set_message(format!(
+                    "{} level {}/{} iteration {} energy {:.4}",
+                    p.stage, p.level, p.levels, p.iteration, p.energy
+                ));
+            } else {
+                bar.set_message(p.stage.to_string());
+            }
+        }
+        Event::StageTime(name, s) => bar.println(format!("  {name:<12} {s:8.3} s")),
+    };
+    let cancel = CancelToken::new();
+    let t = std::time::Instant::now();
+    let prepared_source = mm::prepare(&source, &params, &sink, &cancel)?;
+    let prepared_target = mm::prepare(&target, &params, &sink, &cancel)?;
+    let result = mm::solve(
+        &prepared_source,
+        &prepared_target,
+        &corr,
+        &params,
+        &sink,
+        &cancel,
+    )?;
+    bar.finish_and_clear();
+    eprintln!(
+        "transfer finished in {:.2} s (energy {:.4})",
+        t.elapsed().as_secs_f64(),
+        result.energy
+    );
+    for (name, s) in &result.timings {
+        eprintln!("  {name:<12} {s:8.3} s");
+    }
+
+    // Deliver on the target's own vertices (file order), or baked into its UV layout.
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let out_mesh = mm::deliver(
+        &target,
+        &mm::BakeLayout::of(&prepared_target),
+        &result.working_signal,
+        &result.file_signal,
+        ext,
+        a.texture_size,
+    );
+    io::save(&out_mesh, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
+    if let Some(dense) = &a.out_dense {
+        let d = mm::deliver_dense(prepared_target.working_mesh(), &result.working_signal);
+        io::save(&d, dense)?;
+        eprintln!("wrote {}", dense.display());
+    }
+    if let Some(nnf) = &a.nnf_out {
+        let mut csv = String::from("target_vertex,source_vertex,rotation_deg\n");
+        for (t, (s, r)) in result.file_nnf.iter().enumerate() {
+            csv.push_str(&format!("{t},{s},{r}\n"));
+        }
+        io::write_atomic(nnf, csv.as_bytes())?;
+        eprintln!("wrote {}", nnf.display());
+    }
+    Ok(0)
+}

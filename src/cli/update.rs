@@ -1,0 +1,67 @@
+//! `meshmatch update`.
+
+use std::path::PathBuf;
+
+use super::common::*;
+use crate::error::{Error, Result};
+use crate::mesh::io;
+use crate::work::{CancelToken, Event};
+
+/// Arguments of `meshmatch update`.
+#[derive(clap::Args, Debug)]
+pub struct UpdateArgs {
+    /// The mesh before the edit, with its texture or vertex colours.
+    #[arg(long)]
+    pub old: PathBuf,
+    /// The edited mesh.
+    #[arg(long)]
+    pub new: PathBuf,
+    /// Output: the edited mesh with vertex colours (.ply, .glb, .obj).
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub solve: SolveArgs,
+}
+
+impl UpdateArgs {
+    /// Run the subcommand; returns the exit code.
+    pub fn run(&self) -> Result<i32> {
+        update(self)
+    }
+}
+
+fn update(a: &UpdateArgs) -> Result<i32> {
+    prepare_output(&a.out)?;
+    let old = load_usable(&a.old)?;
+    if old.vertex_signal().is_none() {
+        return Err(Error::InvalidInput(format!(
+            "{}: the old mesh carries no texture or vertex colours",
+            a.old.display()
+        )));
+    }
+    let new = load_usable(&a.new)?;
+    let params = a.solve.params(1.0);
+    let bar = progress_bar();
+    let sink = |e: Event| bar_sink(&bar, e);
+    let t = std::time::Instant::now();
+    let r = crate::applications::update_texture(&old, &new, &params, &sink, &CancelToken::new())?;
+    bar.finish_and_clear();
+    eprintln!(
+        "updated: {} of {} vertices changed, {:.2} s (energy {:.4})",
+        r.changed.iter().filter(|&&c| c).count(),
+        r.changed.len(),
+        t.elapsed().as_secs_f64(),
+        r.energy
+    );
+    let mut out = new.clone();
+    out.colors = Some(
+        new.file_index
+            .iter()
+            .map(|&f| r.colors[f as usize])
+            .collect(),
+    );
+    out.texture = None;
+    io::save(&out, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
+    Ok(0)
+}

@@ -1,0 +1,307 @@
+//! Prepare: a mesh made ready for MeshMatch once, reused by every solve on it.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use super::TransferParams;
+use super::deliver::BakeLayout;
+use super::em::C;
+use crate::error::{Error, Result};
+use crate::features::{self, FanSampler, Frames, edge_transport_angles, tangent_frames};
+use crate::hierarchy::{Hierarchy, HierarchyOptions};
+use crate::mesh::{SignalKind, TriMesh, sample_texture};
+use crate::work::{CancelToken, Event, Progress, Stopwatch};
+
+/// Working vertex count up to which a target keeps its fan sampling tables between solves.
+const KEEP_SAMPLERS_UP_TO: usize = 300_000;
+
+/// A mesh made ready for MeshMatch: the working mesh (welded + refined), its hierarchy, frames,
+/// shape features and, when it carries a signal, per-level signals and colour fans. Reusable
+/// across correspondence edits.
+#[derive(Clone, Debug)]
+pub struct PreparedMesh {
+    pub(super) working: TriMesh,
+    pub(super) working_to_file: Vec<u32>,
+    pub(super) file_to_working: Vec<u32>,
+    /// Where the working faces lie in the input faces (built once, shared with every result).
+    pub(super) layout: Arc<BakeLayout>,
+    pub(super) hierarchy: Hierarchy,
+    pub(super) frames: Vec<Frames>,
+    pub(super) edge_angles: Vec<Vec<f32>>,
+    pub(super) shape: Vec<Vec<f32>>,
+    pub(super) signal: Option<Vec<Vec<[f32; 3]>>>,
+    pub(super) fans: Option<Vec<Vec<f32>>>,
+    /// Fan sampling tables per level (built once; reused by every solve on this mesh).
+    pub(super) samplers: Vec<FanSampler>,
+    pub(super) fan_radius: f32,
+    pub(super) timings: Vec<(String, f64)>,
+}
+
+impl PreparedMesh {
+    /// The working mesh (welded and refined; per-vertex colours when it has a signal).
+    pub fn working_mesh(&self) -> &TriMesh {
+        &self.working
+    }
+    /// Nearest file vertex of every working vertex.
+    pub fn working_to_file(&self) -> &[u32] {
+        &self.working_to_file
+    }
+    /// Working vertex of every file vertex (length = the file's vertex count).
+    pub fn file_to_working(&self) -> &[u32] {
+        &self.file_to_working
+    }
+    /// The multiresolution hierarchy (level 0 = working mesh).
+    pub fn hierarchy(&self) -> &Hierarchy {
+        &self.hierarchy
+    }
+    /// Per-vertex signal of the working mesh, if the mesh carries one.
+    pub fn signal(&self) -> Option<&[[f32; 3]]> {
+        self.signal.as_ref().map(|s| s[0].as_slice())
+    }
+    /// Stage timings of the preparation (seconds).
+    pub fn timings(&self) -> &[(String, f64)] {
+        &self.timings
+    }
+}
+
+fn progress(stage: &'static str, watch: &Stopwatch, fraction: f32) -> Progress {
+    Progress {
+        stage,
+        elapsed: watch.secs(),
+        fraction,
+        ..Default::default()
+    }
+}
+
+/// Prepare a mesh for MeshMatch: weld, refine to `params.vertices` by longest-edge bisection
+/// (signal sampled from the texture/colours at every new vertex), build the hierarchy (§3), tangent
+/// frames, HKS + normal·up shape features and, with a signal, per-level signals (children means)
+/// and geodesic colour fans.
+pub fn prepare(
+    mesh: &TriMesh,
+    params: &TransferParams,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<PreparedMesh> {
+    if mesh.positions.is_empty() || mesh.faces.is_empty() {
+        return Err(Error::InvalidMesh(
+            "mesh has no vertices or no faces".into(),
+        ));
+    }
+    if params.fan_radius.is_nan() || params.fan_radius <= 0.0 {
+        return Err(Error::InvalidInput("fan_radius must be positive".into()));
+    }
+    let watch = Stopwatch::start();
+    let mut timings = Vec::new();
+    let stage = |name: &'static str, t: f64, timings: &mut Vec<(String, f64)>| {
+        sink(Event::StageTime(name, t));
+        timings.push((name.to_string(), t));
+    };
+    sink(Event::Progress(progress("refine", &watch, 0.0)));
+    let sw = Stopwatch::start();
+    let (welded, map) = crate::geometry::weld(mesh);
+    if welded.faces.is_empty() {
+        return Err(Error::InvalidMesh(
+            "mesh has no non-degenerate faces".into(),
+        ));
+    }
+    // Input face of every welded face (weld drops out-of-range and degenerate faces in order).
+    let nin = mesh.positions.len();
+    let welded_to_input: Vec<u32> = mesh
+        .faces
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| {
+            if f.iter().any(|&v| v as usize >= nin) {
+                return false;
+            }
+            let w = f.map(|v| map[v as usize]);
+            w[0] != w[1] && w[1] != w[2] && w[0] != w[2]
+        })
+        .map(|(i, _)| i as u32)
+        .collect();
+    // Refine the bare welded surface (the signal is sampled below from the input itself).
+    let bare = TriMesh::new(welded.positions.clone(), welded.faces.clone());
+    let r = crate::geometry::refine_to_density(&bare, params.vertices);
+    drop(bare);
+    let vert_src: Vec<(u32, [f32; 3])> = r
+        .vertex_sources()
+        .into_iter()
+        .map(|(f, b)| if f == u32::MAX { (0, b) } else { (f, b) })
+        .collect();
+    cancel.check()?;
+    let nw = welded.positions.len();
+    // Per working vertex signal.
+    let signal0: Option<Vec<[f32; 3]>> = match mesh.signal_kind() {
+        SignalKind::None => None,
+        kind => {
+            let base = mesh.vertex_signal();
+            let mut sig = vec![[0.0f32; 3]; r.mesh.positions.len()];
+            if let Some(base) = base {
+                for (i, &w) in map.iter().enumerate() {
+                    sig[w as usize] = base[i];
+                }
+            }
+            for (v, slot) in sig.iter_mut().enumerate().skip(nw) {
+                let (wf, b) = vert_src[v];
+                let f = welded_to_input[wf as usize] as usize;
+                *slot = match kind {
+                    SignalKind::Texture => {
+                        let (tex, uvs) = (
+                            mesh.texture.as_ref().expect("texture"),
+                            mesh.uvs.as_ref().expect("uvs"),
+                        );
+                        let uv = (0..3).fold([0.0f32; 2], |a, k| {
+                            let u = uvs[3 * f + k];
+                            [a[0] + b[k] * u[0], a[1] + b[k] * u[1]]
+                        });
+                        sample_texture(tex, uv)
+                    }
+                    _ => {
+                        let cols = mesh.colors.as_ref().expect("colours");
+                        let fc = mesh.faces[f];
+                        (0..3).fold([0.0f32; 3], |a, k| {
+                            let c = cols[fc[k] as usize];
+                            [a[0] + b[k] * c[0], a[1] + b[k] * c[1], a[2] + b[k] * c[2]]
+                        })
+                    }
+                };
+            }
+            Some(sig)
+        }
+    };
+    // File maps. Welded vertex -> one input vertex; working vertex -> nearest input corner.
+    let mut welded_first = vec![u32::MAX; nw];
+    for (i, &w) in map.iter().enumerate() {
+        if welded_first[w as usize] == u32::MAX {
+            welded_first[w as usize] = i as u32;
+        }
+    }
+    let file_of_input = |i: u32| mesh.file_index.get(i as usize).copied().unwrap_or(i);
+    let working_to_file: Vec<u32> = (0..r.mesh.positions.len())
+        .map(|v| {
+            let wv = if v < nw {
+                v as u32
+            } else {
+                let (wf, b) = vert_src[v];
+                let k = (0..3).max_by(|&a, &c| b[a].total_cmp(&b[c])).unwrap_or(0);
+                welded.faces[wf as usize][k]
+            };
+            file_of_input(welded_first[wv as usize])
+        })
+        .collect();
+    let mut file_to_working = vec![0u32; mesh.file_vertex_count.max(mesh.positions.len())];
+    file_to_working.truncate(mesh.file_vertex_count.max(1));
+    for (i, &w) in map.iter().enumerate() {
+        if let Some(slot) = file_to_working.get_mut(file_of_input(i as u32) as usize) {
+            *slot = w;
+        }
+    }
+    let face_input: Vec<u32> = r
+        .source_face
+        .iter()
+        .map(|&f| welded_to_input[f as usize])
+        .collect();
+    let mut working = TriMesh::new(r.mesh.positions, r.mesh.faces);
+    working.colors = signal0.clone();
+    stage("refine", sw.secs(), &mut timings);
+
+    sink(Event::Progress(progress("hierarchy", &watch, 0.2)));
+    let sw = Stopwatch::start();
+    let hierarchy = Hierarchy::build_cancellable(
+        &working.positions,
+        &working.faces,
+        HierarchyOptions {
+            min_vertices: 128,
+            max_levels: params.levels,
+        },
+        cancel,
+    )?;
+    let frames: Vec<Frames> = hierarchy
+        .levels
+        .iter()
+        .map(|l| tangent_frames(&l.normals))
+        .collect();
+    let edge_angles: Vec<Vec<f32>> = hierarchy
+        .levels
+        .iter()
+        .zip(&frames)
+        .map(|(l, f)| edge_transport_angles(l, f))
+        .collect();
+    stage("hierarchy", sw.secs(), &mut timings);
+    cancel.check()?;
+
+    sink(Event::Progress(progress("features", &watch, 0.5)));
+    let sw = Stopwatch::start();
+    let shape = features::shape_features_cancellable(&hierarchy, 2000, cancel)?;
+    stage("features", sw.secs(), &mut timings);
+    cancel.check()?;
+
+    // Fan sampling tables of every level. A mesh with a signal builds each level's table, takes
+    // its fans and drops it. A mesh without one (a target) keeps them, so a correspondence edit
+    // only re-runs the solve; very large targets rebuild them level by level in the solve
+    // instead of holding ~2 KB per vertex.
+    sink(Event::Progress(progress("fans", &watch, 0.6)));
+    let sw = Stopwatch::start();
+    let table = |l: usize| {
+        let lev = &hierarchy.levels[l];
+        FanSampler::new_cancellable(lev, &frames[l], params.fan_radius * lev.mean_edge, cancel)
+    };
+    let mut samplers = Vec::new();
+    let (signal, fans) = if let Some(s0) = signal0 {
+        let mut sig = vec![s0];
+        for l in 1..hierarchy.num_levels() {
+            let prev = &sig[l - 1];
+            let cur: Vec<[f32; 3]> = (0..hierarchy.levels[l].len())
+                .map(|p| {
+                    let ch = hierarchy.children(l, p as u32);
+                    let mut a = Vec3::ZERO;
+                    for &c in ch {
+                        a += Vec3::from(prev[c as usize]);
+                    }
+                    (a / ch.len().max(1) as f32).to_array()
+                })
+                .collect();
+            sig.push(cur);
+        }
+        let mut fans = Vec::with_capacity(sig.len());
+        for (l, s) in sig.iter().enumerate() {
+            cancel.check()?;
+            fans.push(table(l)?.fans(&hierarchy.levels[l], s.as_flattened(), C));
+        }
+        (Some(sig), Some(fans))
+    } else {
+        if working.num_vertices() <= KEEP_SAMPLERS_UP_TO {
+            for l in 0..hierarchy.num_levels() {
+                cancel.check()?;
+                samplers.push(table(l)?);
+            }
+        }
+        (None, None)
+    };
+    stage("fans", sw.secs(), &mut timings);
+    sink(Event::Progress(progress("prepare", &watch, 1.0)));
+    let layout = Arc::new(BakeLayout {
+        working_faces: working.faces.clone(),
+        working_vertices: working.positions.len(),
+        face_input,
+        face_bary: r.source_bary,
+        input_faces: mesh.faces.len(),
+    });
+    Ok(PreparedMesh {
+        working,
+        working_to_file,
+        file_to_working,
+        layout,
+        hierarchy,
+        frames,
+        edge_angles,
+        shape,
+        signal,
+        fans,
+        samplers,
+        fan_radius: params.fan_radius,
+        timings,
+    })
+}

@@ -1,0 +1,157 @@
+//! The ground floor for long work: how a computation reports progress and how it is stopped.
+//!
+//! Every solver takes a `&dyn Fn(Event)` sink and a [`CancelToken`]. The CLI turns events into a
+//! progress bar; the app runs work on its own threads and streams events over channels. This
+//! module imports nothing of the engine: every layer above may use it.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+/// A cheap, cloneable cancel flag checked by solvers between small units of work.
+#[derive(Clone, Debug, Default)]
+pub struct CancelToken(Arc<AtomicBool>);
+
+impl CancelToken {
+    /// A fresh, un-cancelled token.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// Ask the job to stop.
+    pub fn cancel(&self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+    /// Has a stop been requested?
+    pub fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+    /// `Err(Error::Cancelled)` once a stop was requested.
+    pub fn check(&self) -> crate::error::Result<()> {
+        if self.is_cancelled() {
+            Err(crate::error::Error::Cancelled)
+        } else {
+            Ok(())
+        }
+    }
+}
+
+/// Lower the calling thread's scheduling priority (Linux: nice 10; elsewhere nothing), so that
+/// background computation yields the CPU to the window and its renderer.
+pub fn lower_thread_priority() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: setpriority only reads its integer arguments; on Linux `who = 0` names the calling
+    // thread, whose nice value it raises (lowering priority needs no privilege).
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 10);
+    }
+}
+
+/// Run `work` on its own thread and wait for it, returning `Err(Cancelled)` within about 10 ms
+/// of `cancel` being set even when `work` is one long uninterruptible call (a dense
+/// factorisation): the abandoned work then finishes in the background and its result is dropped.
+pub fn run_cancellable<T: Send + 'static>(
+    cancel: &CancelToken,
+    work: impl FnOnce() -> T + Send + 'static,
+) -> crate::error::Result<T> {
+    cancel.check()?;
+    let (tx, rx) = crossbeam_channel::bounded(1);
+    std::thread::Builder::new()
+        .name("meshmatch-detached".into())
+        .spawn(move || {
+            let _ = tx.send(work());
+        })
+        .map_err(|e| crate::error::Error::InvalidInput(format!("cannot start a thread: {e}")))?;
+    loop {
+        match rx.recv_timeout(std::time::Duration::from_millis(10)) {
+            Ok(v) => return Ok(v),
+            Err(crossbeam_channel::RecvTimeoutError::Timeout) => cancel.check()?,
+            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => {
+                return Err(crate::error::Error::InvalidInput(
+                    "a background computation panicked".into(),
+                ));
+            }
+        }
+    }
+}
+
+/// A progress report from a running job.
+#[derive(Clone, Debug, Default)]
+pub struct Progress {
+    /// Stage name ("refine", "hierarchy", "features", "fans", "solve", "deliver").
+    pub stage: &'static str,
+    /// Current level (0 = finest) while solving.
+    pub level: usize,
+    /// Number of levels.
+    pub levels: usize,
+    /// EM iteration within the level (1-based), 0 outside the solve.
+    pub iteration: usize,
+    /// Mean patch distance of the current NNF (lower is better), 0 when not known.
+    pub energy: f64,
+    /// Seconds since the job started.
+    pub elapsed: f64,
+    /// Overall fraction done, in [0, 1].
+    pub fraction: f32,
+}
+
+/// What a job reports.
+#[derive(Clone, Debug)]
+pub enum Event {
+    /// Progress through the stages.
+    Progress(Progress),
+    /// A partial result: per-vertex signal on the displayed (working-resolution) target mesh,
+    /// sent after every level and EM iteration.
+    Partial {
+        /// The progress at the time of the result.
+        progress: Progress,
+        /// Per-vertex sRGB colour (or signal) on the working target mesh.
+        signal: Arc<[[f32; 3]]>,
+    },
+    /// A stage finished, with its wall time in seconds (for per-stage timings).
+    StageTime(&'static str, f64),
+}
+
+/// A sink that drops every event.
+pub fn no_events(_: Event) {}
+
+/// Wall-clock helper for stage timings.
+pub struct Stopwatch(Instant);
+
+impl Stopwatch {
+    /// Start now.
+    pub fn start() -> Self {
+        Stopwatch(Instant::now())
+    }
+    /// Seconds since start.
+    pub fn secs(&self) -> f64 {
+        self.0.elapsed().as_secs_f64()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_cancellable_returns_on_cancel_without_waiting_for_the_work() {
+        let done = Arc::new(AtomicBool::new(false));
+        let (cancel, d) = (CancelToken::new(), done.clone());
+        let stopper = {
+            let c = cancel.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(std::time::Duration::from_millis(30));
+                c.cancel();
+            })
+        };
+        let r = run_cancellable(&cancel, move || {
+            std::thread::sleep(std::time::Duration::from_secs(3));
+            d.store(true, Ordering::SeqCst);
+            7
+        });
+        stopper.join().unwrap();
+        assert!(matches!(r, Err(crate::error::Error::Cancelled)), "{r:?}");
+        // It returned while the work was still running.
+        assert!(!done.load(Ordering::SeqCst));
+        // Without a cancel the work's result comes back.
+        assert_eq!(run_cancellable(&CancelToken::new(), || 7).unwrap(), 7);
+    }
+}
