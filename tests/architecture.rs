@@ -2,12 +2,12 @@
 //! a strictly lower layer (or the importing module itself). Layers, bottom up, as drawn in
 //! docs/ARCHITECTURE.md:
 //!
-//! 0 ground: `error`, `color`, `work` (progress, cancel), `testdata`
-//! 1 `mesh`
-//! 2 `geometry`, `stats`, `correspondence`
-//! 3 `hierarchy`; 4 `features`; 5 `meshmatch`
-//! 6 systems: `synthesis`, `applications`, `demo`
-//! 7 clients of the engine: `jobs`, `bench`; 8 `render`; 9 `app`; 10 `cli`, `main`, `lib`
+//! 0 `error`, `testdata`; 1 `color`, `work` (progress, cancel): the ground floor
+//! 2 `mesh`
+//! 3 `geometry`, `stats`, `correspondence`
+//! 4 `hierarchy`; 5 `features`; 6 `meshmatch`
+//! 7 systems: `synthesis`, `applications`, `demo`
+//! 8 clients of the engine: `jobs`, `bench`; 9 `render`; 10 `app`; 11 `cli`, `main`, `lib`
 //!
 //! A new top-level module must be given a layer here, so the picture stays true.
 
@@ -16,26 +16,26 @@ use std::path::{Path, PathBuf};
 
 const LAYERS: &[(&str, u32)] = &[
     ("error", 0),
-    ("color", 0),
-    ("work", 0),
     ("testdata", 0),
-    ("mesh", 1),
-    ("geometry", 2),
-    ("stats", 2),
-    ("correspondence", 2),
-    ("hierarchy", 3),
-    ("features", 4),
-    ("meshmatch", 5),
-    ("synthesis", 6),
-    ("applications", 6),
-    ("demo", 6),
-    ("jobs", 7),
-    ("bench", 7),
-    ("render", 8),
-    ("app", 9),
-    ("cli", 10),
-    ("main", 10),
-    ("lib", 10),
+    ("color", 1),
+    ("work", 1),
+    ("mesh", 2),
+    ("geometry", 3),
+    ("stats", 3),
+    ("correspondence", 3),
+    ("hierarchy", 4),
+    ("features", 5),
+    ("meshmatch", 6),
+    ("synthesis", 7),
+    ("applications", 7),
+    ("demo", 7),
+    ("jobs", 8),
+    ("bench", 8),
+    ("render", 9),
+    ("app", 10),
+    ("cli", 11),
+    ("main", 11),
+    ("lib", 11),
 ];
 
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
