@@ -228,3 +228,93 @@ fn bad_inputs_are_one_line_errors() {
     );
     assert!(matches!(r, Err(meshmatch::Error::Cancelled)));
 }
+
+/// Timings on real meshes (run with `--ignored --nocapture`): occlusion rays/s and curvature on
+/// the horse (~97K triangles), and an end-to-end transfer of crevice dirt from the horse to the
+/// bunny at 30K working vertices, with PLYs written to the temp directory.
+#[test]
+#[ignore]
+fn timings_on_real_meshes() {
+    use meshmatch::geometry::solid_angle_curvature;
+    use meshmatch::testdata::data_path;
+    let horse = meshmatch::mesh::io::load(&data_path("horse/horse.ply")).unwrap();
+    let (pos, faces) = (&horse.positions, &horse.faces);
+    let nrm = vertex_normals(pos, faces);
+    let t = std::time::Instant::now();
+    let occ = directional_occlusion(pos, faces, &nrm, 64, 1);
+    let s = t.elapsed().as_secs_f64();
+    let rays = 64.0 * pos.len() as f64;
+    eprintln!(
+        "occlusion: {} vertices, {} triangles, 64 rays: {s:.2} s, {:.2} M rays/s (threads {})",
+        pos.len(),
+        faces.len(),
+        rays / s / 1e6,
+        rayon::current_num_threads()
+    );
+    assert_eq!(occ.len(), pos.len());
+    let (lo, hi) = horse.bounds().unwrap();
+    let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo));
+    let radii: Vec<f32> = [0.01, 0.03, 0.1, 0.3].iter().map(|r| r * diag).collect();
+    let t = std::time::Instant::now();
+    let k = solid_angle_curvature(pos, faces, &radii);
+    eprintln!("curvature 4 radii: {:.2} s", t.elapsed().as_secs_f64());
+    let mean: Vec<f32> = (0..4)
+        .map(|j| k.iter().skip(j).step_by(4).sum::<f32>() / pos.len() as f32)
+        .collect();
+    eprintln!("mean curvature per radius {mean:?}");
+
+    // dirt in crevices: lightness from 128-ray ambient occlusion
+    let dirt = |m: &TriMesh| -> Vec<[f32; 3]> {
+        let nrm = vertex_normals(&m.positions, &m.faces);
+        directional_occlusion(&m.positions, &m.faces, &nrm, 128, 99)
+            .iter()
+            .map(|o| {
+                let a = ((o[0] - 0.4) / 0.6).clamp(0.0, 1.0);
+                [0.2 + 0.7 * a, 0.15 + 0.65 * a, 0.1 + 0.55 * a]
+            })
+            .collect()
+    };
+    let mut src = horse.clone();
+    src.colors = Some(dirt(&src));
+    let bunny = meshmatch::mesh::io::load(&data_path("bunny/bunny.obj")).unwrap();
+    let params = Params {
+        working_vertices: 30_000,
+        ..Params::default()
+    };
+    let t = std::time::Instant::now();
+    let out = run(
+        &Input {
+            source: &src,
+            target: &bunny,
+            source_mask: None,
+        },
+        &params,
+        &no_events,
+        &CancelToken::new(),
+    )
+    .unwrap();
+    let secs = t.elapsed().as_secs_f64();
+    let want: Vec<f32> = dirt(&out.target.mesh)
+        .iter()
+        .map(|c| srgb_to_lab(*c)[0])
+        .collect();
+    let got: Vec<f32> = out.colors.iter().map(|c| srgb_to_lab(*c)[0]).collect();
+    eprintln!(
+        "horse ({} v) -> bunny ({} v): {secs:.2} s, lightness correlation {:.3}\n{}{:?}",
+        out.source_vertices,
+        out.colors.len(),
+        pearson(&got, &want),
+        out.report.to_text(),
+        out.timings
+    );
+    let dir = std::env::temp_dir();
+    let mut m = out.target.mesh.clone();
+    m.colors = Some(out.colors.clone());
+    m.uvs = None;
+    m.texture = None;
+    meshmatch::mesh::io::save(&m, &dir.join("mertens_bunny.ply")).unwrap();
+    let mut w = out.target.mesh.clone();
+    w.colors = Some(dirt(&out.target.mesh));
+    meshmatch::mesh::io::save(&w, &dir.join("mertens_bunny_truth.ply")).unwrap();
+    meshmatch::mesh::io::save(&src, &dir.join("mertens_horse_source.ply")).unwrap();
+}

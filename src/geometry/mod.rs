@@ -30,7 +30,7 @@ pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use frames::{parallel_transport_angle, tangent_frames};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
-pub use occlusion::{directional_occlusion, directional_occlusion_with};
+pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
 pub use refine::{Refined, nearest_original, refine_to_density};
 pub use solid_angle_curvature::{
     SolidAngleTree, solid_angle_curvature, solid_angle_curvature_cancellable,

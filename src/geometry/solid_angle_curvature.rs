@@ -18,7 +18,9 @@
 //! numbers"): a node entirely inside the ball and far from `p` relative to its size contributes
 //! its dipole `N·(c - p) / |c - p|³` (`N` = sum of area vectors, `c` = area centroid); leaves
 //! are evaluated exactly, a triangle cut by the sphere counts with the fraction of its area
-//! inside. Cost per query grows with the length of the cut (`r / edge`), not with the patch area.
+//! inside, and so does a node cut by the sphere that is small against it (`< 0.03 r`, dipole ×
+//! fraction, the sphere taken as planar across the node). Cost per query is then about
+//! independent of both the radius and the mesh resolution.
 //!
 //! Vertices: on a polyhedral surface the tangent cone at a vertex is not a half-space, so the
 //! `2π` above becomes the cone's interior solid angle `4π - Ω_out`, where `Ω_out` (the solid
@@ -35,6 +37,8 @@ use crate::jobs::CancelToken;
 const LEAF: usize = 8;
 /// Opening criterion: a node is summarised when `|c - p| > BETA * radius`.
 const BETA: f32 = 2.5;
+/// Nodes cut by the sphere and smaller than this fraction of the radius are summarised too.
+const SMALL: f32 = 0.03;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -226,11 +230,18 @@ impl SolidAngleTree {
             }
             let far = (node.lo - p).abs().max((node.hi - p).abs());
             let inside = far.length_squared() <= r2;
-            if inside {
-                let d = node.c - p;
-                let dl = d.length();
-                if dl > BETA * node.rad {
+            let d = node.c - p;
+            let dl = d.length();
+            if dl > BETA * node.rad {
+                if inside {
                     omega += node.n.dot(d) / (dl * dl * dl);
+                    continue;
+                }
+                if node.rad < SMALL * r {
+                    // a node small against the ball, cut by its sphere: its dipole times the
+                    // fraction inside, the sphere taken as planar across the node
+                    let f = ((r - dl) / (2.0 * node.rad) + 0.5).clamp(0.0, 1.0);
+                    omega += f * node.n.dot(d) / (dl * dl * dl);
                     continue;
                 }
             }

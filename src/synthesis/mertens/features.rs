@@ -5,7 +5,9 @@
 use glam::Vec3;
 
 use super::{Params, Up};
-use crate::geometry::{TriangleBvh, directional_occlusion_with, solid_angle_curvature_cancellable};
+use crate::geometry::{
+    OcclusionBvh, directional_occlusion_with, solid_angle_curvature_cancellable,
+};
 use crate::jobs::{CancelToken, Stopwatch};
 use crate::{Error, Result};
 
@@ -23,6 +25,8 @@ pub struct FeatureSet {
     pub radii: Vec<f32>,
     /// Seconds spent on: normals+height, curvature, occlusion.
     pub seconds: [f64; 3],
+    /// The faces were wound inwards (negative signed volume) and were flipped for the features.
+    pub flipped: bool,
 }
 
 impl FeatureSet {
@@ -101,7 +105,9 @@ pub fn normalised_height(positions: &[[f32; 3]], up: Up) -> Vec<f32> {
 /// The features of Mertens et al. §3.1 for every vertex (see [`FeatureSet`]): curvature radii are
 /// `params.curvature_radii × bbox diagonal`, occlusion uses `params.rays` rays per vertex.
 /// Normals are area-weighted vertex normals; the up axis only affects `height` (normals and
-/// occlusion stay in object space, so a gravity direction can matter).
+/// occlusion stay in object space, so a gravity direction can matter). A mesh wound inwards
+/// (negative signed volume) is evaluated with its faces flipped, so that source and target agree
+/// on what "outside" means (`FeatureSet::flipped` tells).
 pub fn features(
     positions: &[[f32; 3]],
     faces: &[[u32; 3]],
@@ -124,6 +130,25 @@ pub fn features(
             "mesh has zero or non-finite extent".into(),
         ));
     }
+    // Consistent orientation: every feature assumes outward normals; a mesh wound inwards
+    // (negative signed volume about its box centre) is flipped.
+    let centre = (lo + hi) * 0.5;
+    let volume: f64 = faces
+        .iter()
+        .filter(|f| f.iter().all(|&v| (v as usize) < n))
+        .map(|f| {
+            let [a, b, c] = f.map(|v| (Vec3::from(positions[v as usize]) - centre).as_dvec3());
+            a.dot(b.cross(c))
+        })
+        .sum();
+    let flipped = volume < 0.0;
+    let flipped_faces: Vec<[u32; 3]>;
+    let faces: &[[u32; 3]] = if flipped {
+        flipped_faces = faces.iter().map(|f| [f[0], f[2], f[1]]).collect();
+        &flipped_faces
+    } else {
+        faces
+    };
     let normals = crate::geometry::vertex_normals(positions, faces);
     let height = normalised_height(positions, params.up);
     let t0 = sw.secs();
@@ -133,7 +158,7 @@ pub fn features(
     let curv = solid_angle_curvature_cancellable(positions, faces, &radii, cancel)?;
     let t1 = sw.secs();
     let sw = Stopwatch::start();
-    let bvh = TriangleBvh::new(positions, faces);
+    let bvh = OcclusionBvh::new(positions, faces);
     let occ =
         directional_occlusion_with(&bvh, positions, &normals, params.rays, params.seed, cancel)?;
     let t2 = sw.secs();
@@ -152,5 +177,6 @@ pub fn features(
         values,
         radii,
         seconds: [t0, t1, t2],
+        flipped,
     })
 }
