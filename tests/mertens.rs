@@ -237,7 +237,20 @@ fn bad_inputs_are_one_line_errors() {
 fn timings_on_real_meshes() {
     use meshmatch::geometry::solid_angle_curvature;
     use meshmatch::testdata::data_path;
-    let horse = meshmatch::mesh::io::load(&data_path("horse/horse.ply")).unwrap();
+    let mut horse = meshmatch::mesh::io::load(&data_path("horse/horse.ply")).unwrap();
+    // the horse file is wound inwards: flip it so the "truth" below sees outward normals
+    let vol: f64 = horse
+        .faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.map(|v| glam::Vec3::from(horse.positions[v as usize]).as_dvec3());
+            a.dot(b.cross(c))
+        })
+        .sum();
+    if vol < 0.0 {
+        horse.faces.iter_mut().for_each(|f| f.swap(1, 2));
+    }
+    eprintln!("horse signed volume {vol:.4} (flipped: {})", vol < 0.0);
     let (pos, faces) = (&horse.positions, &horse.faces);
     let nrm = vertex_normals(pos, faces);
     let t = std::time::Instant::now();
