@@ -330,4 +330,73 @@ fn timings_on_real_meshes() {
     w.colors = Some(dirt(&out.target.mesh));
     meshmatch::mesh::io::save(&w, &dir.join("mertens_bunny_truth.ply")).unwrap();
     meshmatch::mesh::io::save(&src, &dir.join("mertens_horse_source.ply")).unwrap();
+    // a quick look: orthographic renders (view along -Z, Y up) of source, truth and result
+    let views = [
+        render(&src, src.colors.as_ref().unwrap(), 320),
+        render(&w, w.colors.as_ref().unwrap(), 320),
+        render(&m, &out.colors, 320),
+    ];
+    let mut img = image::RgbImage::new(960, 320);
+    for (k, v) in views.iter().enumerate() {
+        image::imageops::replace(&mut img, v, 320 * k as i64, 0);
+    }
+    img.save(dir.join("mertens_horse_bunny.png")).unwrap();
+}
+
+/// Orthographic z-buffered render of a vertex-coloured mesh (view along -Z, Y up), lit by
+/// nothing: what you see is the colour signal.
+fn render(m: &TriMesh, col: &[[f32; 3]], size: u32) -> image::RgbImage {
+    let (lo, hi) = m.bounds().unwrap();
+    let s = (size as f32 * 0.9) / (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let (cx, cy) = ((lo[0] + hi[0]) * 0.5, (lo[1] + hi[1]) * 0.5);
+    let proj = |p: [f32; 3]| {
+        [
+            size as f32 * 0.5 + (p[0] - cx) * s,
+            size as f32 * 0.5 - (p[1] - cy) * s,
+            p[2],
+        ]
+    };
+    let mut img = image::RgbImage::from_pixel(size, size, image::Rgb([40, 40, 60]));
+    let mut z = vec![f32::NEG_INFINITY; (size * size) as usize];
+    for f in &m.faces {
+        let q = f.map(|v| proj(m.positions[v as usize]));
+        let (x0, x1) = (
+            q.iter().map(|p| p[0]).fold(f32::INFINITY, f32::min),
+            q.iter().map(|p| p[0]).fold(f32::NEG_INFINITY, f32::max),
+        );
+        let (y0, y1) = (
+            q.iter().map(|p| p[1]).fold(f32::INFINITY, f32::min),
+            q.iter().map(|p| p[1]).fold(f32::NEG_INFINITY, f32::max),
+        );
+        let area =
+            (q[1][0] - q[0][0]) * (q[2][1] - q[0][1]) - (q[2][0] - q[0][0]) * (q[1][1] - q[0][1]);
+        if area.abs() < 1e-12 {
+            continue;
+        }
+        for y in (y0.floor().max(0.0) as u32)..=(y1.ceil().min(size as f32 - 1.0) as u32) {
+            for x in (x0.floor().max(0.0) as u32)..=(x1.ceil().min(size as f32 - 1.0) as u32) {
+                let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
+                let e = |a: [f32; 3], b: [f32; 3]| {
+                    (b[0] - a[0]) * (py - a[1]) - (px - a[0]) * (b[1] - a[1])
+                };
+                let w = [
+                    e(q[1], q[2]) / area,
+                    e(q[2], q[0]) / area,
+                    e(q[0], q[1]) / area,
+                ];
+                if w.iter().any(|&t| t < 0.0) {
+                    continue;
+                }
+                let depth = w[0] * q[0][2] + w[1] * q[1][2] + w[2] * q[2][2];
+                let i = (y * size + x) as usize;
+                if depth > z[i] {
+                    z[i] = depth;
+                    let c = [0, 1, 2]
+                        .map(|k| (0..3).map(|j| w[j] * col[f[j] as usize][k]).sum::<f32>());
+                    img.put_pixel(x, y, image::Rgb(meshmatch::color::to_u8(c)));
+                }
+            }
+        }
+    }
+    img
 }
