@@ -400,3 +400,31 @@ fn render(m: &TriMesh, col: &[[f32; 3]], size: u32) -> image::RgbImage {
     }
     img
 }
+
+#[test]
+fn self_transfer_keeps_the_colours() {
+    let mut src = terrain(70, 0);
+    src.colors = Some(truth_colours(&src));
+    let out = run(
+        &Input {
+            source: &src,
+            target: &src,
+            source_mask: None,
+        },
+        &params_small(),
+        &no_events,
+        &CancelToken::new(),
+    )
+    .unwrap();
+    let sc = src.colors.as_ref().unwrap();
+    let mean = |c: &[[f32; 3]]| -> [f32; 3] {
+        let n = c.len() as f32;
+        [0, 1, 2].map(|k| c.iter().map(|x| x[k]).sum::<f32>() / n)
+    };
+    let (a, b) = (mean(sc), mean(&out.colors));
+    let l = |c: &[[f32; 3]]| -> Vec<f32> { c.iter().map(|x| srgb_to_lab(*x)[0]).collect() };
+    let r = pearson(&l(sc), &l(&out.colors));
+    eprintln!("self-transfer: mean {a:?} -> {b:?}, lightness correlation {r:.3}");
+    assert!((0..3).all(|k| (a[k] - b[k]).abs() < 0.02), "{a:?} vs {b:?}");
+    assert!(r > 0.85, "{r}");
+}

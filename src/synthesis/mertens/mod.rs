@@ -12,7 +12,8 @@
 //!    (§3.2, eq. 1: `sqrt(Λ) W_xᵀ x^s ≈ W_yᵀ y^s`) gives the guidance fields
 //!    `x* = W_xᵀ (x - x̄^s)` on both meshes (3-D; `W_y` is discarded).
 //! 4. Feature matching (§4.1): the target guidance distribution is moved onto the source's by
-//!    the n-D PDF transfer of Pitié et al. 2005.
+//!    the n-D PDF transfer of Pitié et al. 2005, and (`Params::multiscale_matching`) so are the
+//!    Laplacian bands of the guidance fields over the mesh, Heeger-Bergen style.
 //! 5. Parametric synthesis (§4.2, [`parametric`]): k-means segments of the guidance, per-cluster
 //!    affine initialisation `Y = A X + b` plus noise, per-cluster Heeger-Bergen matching of the
 //!    decorrelated colour channels and of their Laplacian bands on the mesh, feathered blending.
@@ -26,7 +27,6 @@ pub mod pyramid;
 use std::sync::Arc;
 
 use faer::{Mat, Side};
-use glam::Vec3;
 
 use crate::geometry::{Refined, refine_to_density};
 use crate::jobs::{CancelToken, Event, Progress, Stopwatch};
@@ -123,6 +123,9 @@ pub struct Params {
     pub neighbours: usize,
     /// Initial noise as a multiple of the pooled regression residual's standard deviation.
     pub noise: f32,
+    /// Multi-scale feature matching (§4.2 of the guide): also match the Laplacian bands of the
+    /// guidance fields, not only their values (3 levels, 3 passes).
+    pub multiscale_matching: bool,
 }
 
 impl Default for Params {
@@ -141,6 +144,7 @@ impl Default for Params {
             levels: 3,
             neighbours: 4,
             noise: 1.0,
+            multiscale_matching: true,
         }
     }
 }
@@ -274,6 +278,77 @@ fn colour_basis(c: &[[f32; 3]]) -> Result<([f64; 3], [f64; 9])> {
         }
     }
     Ok((m, b))
+}
+
+/// Laplacian pyramid (3 levels) of a `n × d` field, per component: `levels[l]` is `n × d`.
+fn field_pyramid(adj: &crate::mesh::Csr, f: &[f32], d: usize, levels: usize) -> Vec<Vec<f32>> {
+    let n = f.len() / d;
+    let mut out = vec![vec![0.0f32; n * d]; levels];
+    for c in 0..d {
+        let comp: Vec<f32> = f.iter().skip(c).step_by(d).copied().collect();
+        for (l, band) in pyramid::decompose(adj, &comp, levels)
+            .into_iter()
+            .enumerate()
+        {
+            for (i, v) in band.into_iter().enumerate() {
+                out[l][i * d + c] = v;
+            }
+        }
+    }
+    out
+}
+
+/// Multi-scale feature matching (Mertens et al. §4.1, after Heeger & Bergen): 3 passes of
+/// {PDF-transfer every Laplacian band of the target guidance onto the source's band (3-D),
+/// collapse, PDF-transfer the values}. Source statistics use the training vertices only.
+#[allow(clippy::too_many_arguments)]
+fn match_multiscale(
+    gt: &mut Vec<f32>,
+    tgt_adj: &crate::mesh::Csr,
+    gs_all: &[f32],
+    src_adj: &crate::mesh::Csr,
+    train: &[u32],
+    d: usize,
+    pdf: &PdfTransferParams,
+    cancel: &CancelToken,
+) -> Result<()> {
+    const LEVELS: usize = 3;
+    const PASSES: usize = 3;
+    let pick = |f: &[f32]| -> Vec<f32> {
+        train
+            .iter()
+            .flat_map(|&v| f[v as usize * d..(v as usize + 1) * d].iter().copied())
+            .collect()
+    };
+    let src_levels: Vec<Vec<f32>> = field_pyramid(src_adj, gs_all, d, LEVELS)
+        .iter()
+        .map(|l| pick(l))
+        .collect();
+    let src_values = pick(gs_all);
+    for pass in 0..PASSES {
+        cancel.check()?;
+        let mut lv = field_pyramid(tgt_adj, gt, d, LEVELS);
+        for b in 0..LEVELS - 1 {
+            let p = PdfTransferParams {
+                seed: pdf.seed ^ ((pass * 16 + b + 1) as u64),
+                ..*pdf
+            };
+            pdf_transfer(&mut lv[b], &src_levels[b], d, &p);
+        }
+        let mut g = lv.pop().unwrap_or_default();
+        for band in &lv {
+            for (x, y) in g.iter_mut().zip(band) {
+                *x += y;
+            }
+        }
+        let p = PdfTransferParams {
+            seed: pdf.seed ^ ((pass * 16) as u64),
+            ..*pdf
+        };
+        pdf_transfer(&mut g, &src_values, d, &p);
+        *gt = g;
+    }
+    Ok(())
 }
 
 /// Transfer the source's colour onto the target (see the module doc). Emits `Event::Progress`
@@ -443,16 +518,26 @@ pub fn run(
     // ---- feature matching (PDF transfer of the target guidance onto the source's)
     progress("match", 0.68);
     let sw = Stopwatch::start();
-    pdf_transfer(
-        &mut gt,
-        &gs_train,
-        d,
-        &PdfTransferParams {
-            iterations: params.pdf_iterations,
-            tolerance: 0.01,
-            seed: params.seed ^ 0x7064_66,
-        },
-    );
+    let pdf = PdfTransferParams {
+        iterations: params.pdf_iterations,
+        tolerance: 0.01,
+        seed: params.seed ^ 0x7064_66,
+    };
+    if params.multiscale_matching {
+        let gs_all = model.project_x(&fs.values);
+        match_multiscale(
+            &mut gt,
+            &rt.mesh.adjacency(),
+            &gs_all,
+            &rs.mesh.adjacency(),
+            &train,
+            d,
+            &pdf,
+            cancel,
+        )?;
+    } else {
+        pdf_transfer(&mut gt, &gs_train, d, &pdf);
+    }
     timings.push(("match", sw.secs()));
     sink(Event::StageTime("match", sw.secs()));
     cancel.check()?;
@@ -525,7 +610,6 @@ pub fn run(
     let file_colors = tgt.to_file_order(&colors[..nv], [0.5; 3]);
     timings.push(("total", total.secs()));
     progress("done", 1.0);
-    let _ = Vec3::ZERO;
     Ok(Output {
         target: rt,
         colors,
