@@ -17,6 +17,7 @@ pub mod hierarchy;
 pub mod jobs;
 pub mod mesh;
 pub mod meshmatch;
+pub mod stats;
 pub mod synthesis;
 pub mod testdata;
 pub mod work;

@@ -10,6 +10,8 @@
 //! - [`TriangleBvh`] (closest point, ray hit)
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
 //! - [`taubin_smooth`]
+//! - [`solid_angle_curvature`] (Connolly / Mertens multi-scale curvature, Barnes-Hut tree)
+//! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1)
 
 mod basic;
 mod bvh;
@@ -17,7 +19,9 @@ mod eigen;
 mod frames;
 mod heat;
 mod laplacian;
+mod occlusion;
 mod refine;
+mod solid_angle_curvature;
 
 pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, vertex_normals, weld};
 pub(crate) use bvh::BARY_EPS;
@@ -26,4 +30,8 @@ pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use frames::{parallel_transport_angle, tangent_frames};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
+pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
 pub use refine::{Refined, nearest_original, refine_to_density};
+pub use solid_angle_curvature::{
+    SolidAngleTree, solid_angle_curvature, solid_angle_curvature_cancellable,
+};

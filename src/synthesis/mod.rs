@@ -9,8 +9,10 @@
 //! They reuse `geometry`, `hierarchy` and `features`; the CLI reaches each through one file in
 //! `cli/` and the app through one entry in `app/systems.rs`.
 //!
+//! - [`mertens`]: geometry-correlated texture transfer (Mertens et al. 2006).
 //! - [`wei_levoy`]: image-exemplar texture synthesis over arbitrary surfaces (Wei & Levoy 2001).
 
+pub mod mertens;
 pub mod wei_levoy;
 
 pub use wei_levoy::{Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize};

@@ -1,0 +1,19 @@
+//! Statistics shared by the synthesis systems, as free functions on flat row-major arrays:
+//!
+//! - [`cca`] / [`Cca`]: canonical correlation analysis (whitening + SVD, ridge-regularised)
+//! - [`pdf_transfer`]: Pitié et al. 2005 n-D PDF transfer by random rotations
+//! - [`kmeans`] / [`KMeans`]: k-means++ seeding and Lloyd iterations
+//! - [`histogram`]: quantile functions, Heeger-Bergen histogram matching, KS distance
+
+pub mod cca;
+pub mod histogram;
+pub mod kmeans;
+pub mod pdf_transfer;
+
+pub use cca::{Cca, cca};
+pub use histogram::{
+    blend_quantiles, ks_distance, match_histogram, match_to_quantiles, quantile_function,
+    quantile_sorted,
+};
+pub use kmeans::{KMeans, kmeans};
+pub use pdf_transfer::{PdfTransferParams, pdf_transfer, random_rotation};

@@ -1,0 +1,624 @@
+//! Geometry-correlated texture transfer, after Mertens, Kautz, Chen, Bekaert & Durand 2006,
+//! "Texture Transfer Using Geometry Correlation" (EGSR 2006).
+//!
+//! The colour of a textured source mesh (weathering, dirt, patina, moss) is transferred to a
+//! target mesh so that it follows the target's geometry the way it follows the source's:
+//!
+//! 1. Both meshes are refined to the working density (`Params::working_vertices`); the vertices
+//!    are the paper's points.
+//! 2. Features per vertex (§3.1, [`features`]): normalised height, normal (3), solid-angle
+//!    curvature at 4 radii, directional occlusion on SH bands 0 and 1 (4): 12 numbers.
+//! 3. Canonical correlation analysis between the source features `x^s` and colours `y^s`
+//!    (§3.2, eq. 1: `sqrt(Λ) W_xᵀ x^s ≈ W_yᵀ y^s`) gives the guidance fields
+//!    `x* = W_xᵀ (x - x̄^s)` on both meshes (3-D; `W_y` is discarded).
+//! 4. Feature matching (§4.1): the target guidance distribution is moved onto the source's by
+//!    the n-D PDF transfer of Pitié et al. 2005, and (`Params::multiscale_matching`) so are the
+//!    Laplacian bands of the guidance fields over the mesh, Heeger-Bergen style.
+//! 5. Parametric synthesis (§4.2, [`parametric`]): k-means segments of the guidance, per-cluster
+//!    affine initialisation `Y = A X + b` plus noise, per-cluster Heeger-Bergen matching of the
+//!    decorrelated colour channels and of their Laplacian bands on the mesh, feathered blending.
+//!
+//! Colours are handled in a decorrelated basis: the PCA of the source's sRGB colours.
+
+mod features;
+pub mod parametric;
+pub mod pyramid;
+
+use std::sync::Arc;
+
+use faer::{Mat, Side};
+
+use crate::geometry::{Refined, refine_to_density};
+use crate::jobs::{CancelToken, Event, Progress, Stopwatch};
+use crate::stats::{Cca, PdfTransferParams, cca, pdf_transfer};
+use crate::{Error, Result, TriMesh};
+
+pub use features::{FeatureSet, feature_field, feature_names, features, normalised_height};
+
+/// The vertical axis (for the normalised-height feature).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Up {
+    /// +Y up (glTF, most scans).
+    #[default]
+    Y,
+    /// +Z up (CAD, some scanners).
+    Z,
+}
+
+impl Up {
+    /// Coordinate index of the axis.
+    pub fn axis(self) -> usize {
+        match self {
+            Up::Y => 1,
+            Up::Z => 2,
+        }
+    }
+}
+
+impl std::str::FromStr for Up {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "y" | "+y" => Ok(Up::Y),
+            "z" | "+z" => Ok(Up::Z),
+            _ => Err(Error::InvalidInput(format!(
+                "unknown up axis '{s}' (expected y or z)"
+            ))),
+        }
+    }
+}
+
+/// Synthesis method (§4).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Constrained Heeger-Bergen (§4.2), for unstructured textures: the paper's default.
+    #[default]
+    Parametric,
+    /// Image analogies on the surface (§4.1); not implemented yet.
+    NonParametric,
+}
+
+impl std::str::FromStr for Method {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "parametric" => Ok(Method::Parametric),
+            "nonparametric" | "non-parametric" => Ok(Method::NonParametric),
+            _ => Err(Error::InvalidInput(format!(
+                "unknown method '{s}' (expected parametric or nonparametric)"
+            ))),
+        }
+    }
+}
+
+/// Parameters of the transfer; `Default` gives the paper's settings.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct Params {
+    /// Both meshes are refined to about this many vertices (meshes already denser are kept).
+    pub working_vertices: usize,
+    /// Vertical axis for the height feature.
+    pub up: Up,
+    /// Solid-angle curvature radii, as fractions of the bounding-box diagonal.
+    pub curvature_radii: Vec<f32>,
+    /// Occlusion rays per vertex.
+    pub rays: usize,
+    /// Guidance dimensions kept from the CCA (at most 3 with RGB).
+    pub cca_dims: usize,
+    /// Clusters per mesh (the paper's `K`, its only parameter).
+    pub clusters: usize,
+    /// Synthesis method.
+    pub method: Method,
+    /// Random seed (occlusion rays, rotations, k-means, noise).
+    pub seed: u64,
+    /// Maximum PDF-transfer rotations.
+    pub pdf_iterations: usize,
+    /// Heeger-Bergen iterations.
+    pub hb_iterations: usize,
+    /// Laplacian pyramid levels of the colour (1 = colour histograms only).
+    pub levels: usize,
+    /// Source clusters interpolated per target cluster.
+    pub neighbours: usize,
+    /// Initial noise as a multiple of the pooled regression residual's standard deviation.
+    pub noise: f32,
+    /// Multi-scale feature matching (§4.2 of the guide): also match the Laplacian bands of the
+    /// guidance fields, not only their values (3 levels, 3 passes).
+    pub multiscale_matching: bool,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            working_vertices: 100_000,
+            up: Up::Y,
+            curvature_radii: vec![0.01, 0.03, 0.1, 0.3],
+            rays: 64,
+            cca_dims: 3,
+            clusters: 50,
+            method: Method::Parametric,
+            seed: 0,
+            pdf_iterations: 20,
+            hb_iterations: 3,
+            levels: 3,
+            neighbours: 4,
+            noise: 1.0,
+            multiscale_matching: true,
+        }
+    }
+}
+
+/// What to transfer from and to.
+#[derive(Clone, Copy, Debug)]
+pub struct Input<'a> {
+    /// Textured source (vertex colours or a UV texture).
+    pub source: &'a TriMesh,
+    /// Target shape.
+    pub target: &'a TriMesh,
+    /// Optional, indexed by source file vertex: `true` = leave out of training.
+    pub source_mask: Option<&'a [bool]>,
+}
+
+/// The CCA, in words and numbers, for printing.
+#[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
+pub struct CcaReport {
+    /// Feature names (rows of `weights`).
+    pub feature_names: Vec<String>,
+    /// Per feature, its weight in each canonical direction, in standardised units (weight ×
+    /// the feature's standard deviation on the source), so magnitudes compare.
+    pub weights: Vec<Vec<f64>>,
+    /// Canonical correlations `ρ_1 ≥ ρ_2 ≥ …`.
+    pub correlations: Vec<f64>,
+    /// Source vertices used for training (after the mask).
+    pub training_vertices: usize,
+}
+
+impl CcaReport {
+    /// A small table: one line per feature, one column per canonical direction, then the
+    /// correlations.
+    pub fn to_text(&self) -> String {
+        let d = self.correlations.len();
+        let mut s = format!("{:<14}", "feature");
+        for k in 0..d {
+            s += &format!(" {:>8}", format!("dir{}", k + 1));
+        }
+        s.push('\n');
+        for (name, w) in self.feature_names.iter().zip(&self.weights) {
+            s += &format!("{name:<14}");
+            for x in w {
+                s += &format!(" {x:>8.3}");
+            }
+            s.push('\n');
+        }
+        s += &format!("{:<14}", "correlation");
+        for r in &self.correlations {
+            s += &format!(" {r:>8.3}");
+        }
+        s.push('\n');
+        s
+    }
+}
+
+/// The result of [`run`].
+#[derive(Clone, Debug)]
+pub struct Output {
+    /// The refined target (working mesh; its first vertices are the target's own, with
+    /// `source_face` / `source_bary` to bake or map back).
+    pub target: Refined,
+    /// sRGB colour in [0, 1] per vertex of `target.mesh`.
+    pub colors: Vec<[f32; 3]>,
+    /// Colours on the target's own vertices, in the file's vertex order.
+    pub file_colors: Vec<[f32; 3]>,
+    /// The CCA report.
+    pub report: CcaReport,
+    /// Target features (on `target.mesh`), for display.
+    pub target_features: FeatureSet,
+    /// Target guidance after feature matching, `n × d` (on `target.mesh`).
+    pub target_guidance: Vec<f32>,
+    /// Guidance dimension `d`.
+    pub guidance_dim: usize,
+    /// Source vertices after refinement.
+    pub source_vertices: usize,
+    /// Wall seconds per stage.
+    pub timings: Vec<(&'static str, f64)>,
+}
+
+fn validate(m: &TriMesh, what: &str) -> Result<()> {
+    if m.faces.is_empty() || m.positions.is_empty() {
+        return Err(Error::InvalidInput(format!("{what} mesh has no faces")));
+    }
+    if m.positions.iter().flatten().any(|x| !x.is_finite()) {
+        return Err(Error::InvalidInput(format!(
+            "{what} mesh has non-finite coordinates"
+        )));
+    }
+    let n = m.num_vertices();
+    if m.faces.iter().flatten().any(|&i| i as usize >= n) {
+        return Err(Error::InvalidInput(format!(
+            "{what} face refers to a missing vertex"
+        )));
+    }
+    if !(m.area() > 0.0) {
+        return Err(Error::InvalidInput(format!("{what} mesh has zero area")));
+    }
+    Ok(())
+}
+
+/// PCA basis of colours (rows of `c`): mean and orthonormal axes (columns of a 3×3, row-major
+/// `b[i * 3 + k]` = component `i` of axis `k`), largest variance first.
+fn colour_basis(c: &[[f32; 3]]) -> Result<([f64; 3], [f64; 9])> {
+    let n = c.len().max(1) as f64;
+    let mut m = [0.0f64; 3];
+    for x in c {
+        for k in 0..3 {
+            m[k] += x[k] as f64 / n;
+        }
+    }
+    let mut cov = Mat::<f64>::zeros(3, 3);
+    for x in c {
+        for i in 0..3 {
+            for j in 0..3 {
+                cov[(i, j)] += (x[i] as f64 - m[i]) * (x[j] as f64 - m[j]) / n;
+            }
+        }
+    }
+    let evd = cov
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| Error::InvalidInput(format!("colour PCA failed: {e:?}")))?;
+    let u = evd.U();
+    let mut b = [0.0f64; 9];
+    for k in 0..3 {
+        // eigenvalues ascend: axis k = eigenvector 2 - k; sign: positive sum (towards white)
+        let col = 2 - k;
+        let s: f64 = (0..3).map(|i| u[(i, col)]).sum();
+        let sgn = if s < 0.0 { -1.0 } else { 1.0 };
+        for i in 0..3 {
+            b[i * 3 + k] = sgn * u[(i, col)];
+        }
+    }
+    Ok((m, b))
+}
+
+/// Laplacian pyramid (3 levels) of a `n × d` field, per component: `levels[l]` is `n × d`.
+fn field_pyramid(adj: &crate::mesh::Csr, f: &[f32], d: usize, levels: usize) -> Vec<Vec<f32>> {
+    let n = f.len() / d;
+    let mut out = vec![vec![0.0f32; n * d]; levels];
+    for c in 0..d {
+        let comp: Vec<f32> = f.iter().skip(c).step_by(d).copied().collect();
+        for (l, band) in pyramid::decompose(adj, &comp, levels)
+            .into_iter()
+            .enumerate()
+        {
+            for (i, v) in band.into_iter().enumerate() {
+                out[l][i * d + c] = v;
+            }
+        }
+    }
+    out
+}
+
+/// Multi-scale feature matching (Mertens et al. §4.1, after Heeger & Bergen): 3 passes of
+/// {PDF-transfer every Laplacian band of the target guidance onto the source's band (3-D),
+/// collapse, PDF-transfer the values}. Source statistics use the training vertices only.
+#[allow(clippy::too_many_arguments)]
+fn match_multiscale(
+    gt: &mut Vec<f32>,
+    tgt_adj: &crate::mesh::Csr,
+    gs_all: &[f32],
+    src_adj: &crate::mesh::Csr,
+    train: &[u32],
+    d: usize,
+    pdf: &PdfTransferParams,
+    cancel: &CancelToken,
+) -> Result<()> {
+    const LEVELS: usize = 3;
+    const PASSES: usize = 3;
+    let pick = |f: &[f32]| -> Vec<f32> {
+        train
+            .iter()
+            .flat_map(|&v| f[v as usize * d..(v as usize + 1) * d].iter().copied())
+            .collect()
+    };
+    let src_levels: Vec<Vec<f32>> = field_pyramid(src_adj, gs_all, d, LEVELS)
+        .iter()
+        .map(|l| pick(l))
+        .collect();
+    let src_values = pick(gs_all);
+    for pass in 0..PASSES {
+        cancel.check()?;
+        let mut lv = field_pyramid(tgt_adj, gt, d, LEVELS);
+        for b in 0..LEVELS - 1 {
+            let p = PdfTransferParams {
+                seed: pdf.seed ^ ((pass * 16 + b + 1) as u64),
+                ..*pdf
+            };
+            pdf_transfer(&mut lv[b], &src_levels[b], d, &p);
+        }
+        let mut g = lv.pop().unwrap_or_default();
+        for band in &lv {
+            for (x, y) in g.iter_mut().zip(band) {
+                *x += y;
+            }
+        }
+        let p = PdfTransferParams {
+            seed: pdf.seed ^ ((pass * 16) as u64),
+            ..*pdf
+        };
+        pdf_transfer(&mut g, &src_values, d, &p);
+        *gt = g;
+    }
+    Ok(())
+}
+
+/// Transfer the source's colour onto the target (see the module doc). Emits `Event::Progress`
+/// per stage, `Event::StageTime`, and `Event::Partial` (colours on the refined target) after the
+/// initialisation and every Heeger-Bergen iteration; checks `cancel` between stages and batches.
+pub fn run(
+    input: &Input,
+    params: &Params,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<Output> {
+    let total = Stopwatch::start();
+    let mut timings: Vec<(&'static str, f64)> = Vec::new();
+    let progress = |stage: &'static str, fraction: f32| {
+        sink(Event::Progress(Progress {
+            stage,
+            elapsed: total.secs(),
+            fraction,
+            ..Default::default()
+        }))
+    };
+    let (src, tgt) = (input.source, input.target);
+    validate(src, "source")?;
+    validate(tgt, "target")?;
+    if params.method == Method::NonParametric {
+        return Err(Error::InvalidInput(
+            "non-parametric synthesis is not implemented yet (use parametric)".into(),
+        ));
+    }
+    if src.vertex_signal().is_none() {
+        return Err(Error::InvalidInput(
+            "source mesh has no colours or texture to transfer".into(),
+        ));
+    }
+    if let Some(m) = input.source_mask {
+        if m.len() != src.file_vertex_count {
+            return Err(Error::InvalidInput(format!(
+                "source mask has {} entries, the source file has {} vertices",
+                m.len(),
+                src.file_vertex_count
+            )));
+        }
+        if m.iter().all(|&x| x) {
+            return Err(Error::InvalidInput(
+                "source mask excludes every vertex: nothing to learn from".into(),
+            ));
+        }
+    }
+    if params
+        .curvature_radii
+        .iter()
+        .any(|r| !(r.is_finite() && *r > 0.0))
+    {
+        return Err(Error::InvalidInput(
+            "curvature radii must be positive".into(),
+        ));
+    }
+    if params.clusters == 0 || params.cca_dims == 0 {
+        return Err(Error::InvalidInput(
+            "clusters and cca_dims must be at least 1".into(),
+        ));
+    }
+
+    // ---- refine
+    progress("refine", 0.0);
+    let sw = Stopwatch::start();
+    let (rs, rt) = rayon::join(
+        || refine_to_density(src, params.working_vertices),
+        || refine_to_density(tgt, params.working_vertices),
+    );
+    let src_colors: Vec<[f32; 3]> = match rs.mesh.colors.clone() {
+        Some(c) if c.len() == rs.mesh.num_vertices() => c,
+        _ => rs.mesh.vertex_signal().ok_or_else(|| {
+            Error::InvalidInput("source mesh has no colours or texture to transfer".into())
+        })?,
+    };
+    timings.push(("refine", sw.secs()));
+    sink(Event::StageTime("refine", sw.secs()));
+    cancel.check()?;
+
+    // ---- training vertices (mask)
+    let ns_all = rs.mesh.num_vertices();
+    let train: Vec<u32> = match input.source_mask {
+        None => (0..ns_all as u32).collect(),
+        Some(mask) => rs
+            .vertex_sources()
+            .iter()
+            .enumerate()
+            .filter(|(_, (f, b))| {
+                if *f == u32::MAX {
+                    return false;
+                }
+                let face = src.faces[*f as usize];
+                let k = (0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0);
+                let fi = src
+                    .file_index
+                    .get(face[k] as usize)
+                    .copied()
+                    .unwrap_or(u32::MAX);
+                !mask.get(fi as usize).copied().unwrap_or(true)
+            })
+            .map(|(v, _)| v as u32)
+            .collect(),
+    };
+    if train.len() < 16 {
+        return Err(Error::InvalidInput(format!(
+            "the source mask leaves only {} vertices to learn from",
+            train.len()
+        )));
+    }
+
+    // ---- features
+    progress("features", 0.05);
+    let sw = Stopwatch::start();
+    let fs = features(&rs.mesh.positions, &rs.mesh.faces, params, cancel)?;
+    progress("features", 0.35);
+    let ft = features(&rt.mesh.positions, &rt.mesh.faces, params, cancel)?;
+    timings.push(("features", sw.secs()));
+    sink(Event::StageTime("features", sw.secs()));
+    cancel.check()?;
+
+    // ---- colour basis and CCA
+    progress("cca", 0.65);
+    let sw = Stopwatch::start();
+    let p = fs.dim;
+    let train_cols: Vec<[f32; 3]> = train.iter().map(|&v| src_colors[v as usize]).collect();
+    let (cmean, cb) = colour_basis(&train_cols)?;
+    let to_dec = |c: [f32; 3]| -> [f32; 3] {
+        let d = [0, 1, 2].map(|i| c[i] as f64 - cmean[i]);
+        [0, 1, 2].map(|k| (0..3).map(|i| cb[i * 3 + k] * d[i]).sum::<f64>() as f32)
+    };
+    let from_dec = |y: [f32; 3]| -> [f32; 3] {
+        [0, 1, 2].map(|i| {
+            let v = cmean[i] + (0..3).map(|k| cb[i * 3 + k] * y[k] as f64).sum::<f64>();
+            (v as f32).clamp(0.0, 1.0)
+        })
+    };
+    let src_dec: Vec<[f32; 3]> = src_colors.iter().map(|&c| to_dec(c)).collect();
+    let xs_train: Vec<f32> = train
+        .iter()
+        .flat_map(|&v| fs.row(v as usize).iter().copied())
+        .collect();
+    let ys_train: Vec<f32> = train.iter().flat_map(|&v| src_dec[v as usize]).collect();
+    let model: Cca =
+        cca(&xs_train, p, &ys_train, 3, params.cca_dims, 1e-6).map_err(|e| match e {
+            Error::InvalidInput(m) if m.contains("colour is constant") => Error::InvalidInput(
+                "source colour is constant: there is no texture to transfer".into(),
+            ),
+            other => other,
+        })?;
+    let d = model.d;
+    let sw_std = model.standardised_wx();
+    let report = CcaReport {
+        feature_names: fs.names.clone(),
+        weights: (0..p)
+            .map(|i| sw_std[i * d..(i + 1) * d].to_vec())
+            .collect(),
+        correlations: model.correlations.clone(),
+        training_vertices: train.len(),
+    };
+    let gs_train = model.project_x(&xs_train);
+    let mut gt = model.project_x(&ft.values);
+    timings.push(("cca", sw.secs()));
+    sink(Event::StageTime("cca", sw.secs()));
+    cancel.check()?;
+
+    // ---- feature matching (PDF transfer of the target guidance onto the source's)
+    progress("match", 0.68);
+    let sw = Stopwatch::start();
+    let pdf = PdfTransferParams {
+        iterations: params.pdf_iterations,
+        tolerance: 0.01,
+        seed: params.seed ^ 0x7064_66,
+    };
+    if params.multiscale_matching {
+        let gs_all = model.project_x(&fs.values);
+        match_multiscale(
+            &mut gt,
+            &rt.mesh.adjacency(),
+            &gs_all,
+            &rs.mesh.adjacency(),
+            &train,
+            d,
+            &pdf,
+            cancel,
+        )?;
+    } else {
+        pdf_transfer(&mut gt, &gs_train, d, &pdf);
+    }
+    timings.push(("match", sw.secs()));
+    sink(Event::StageTime("match", sw.secs()));
+    cancel.check()?;
+
+    // ---- parametric synthesis
+    progress("synthesis", 0.72);
+    let sw = Stopwatch::start();
+    let src_adj = rs.mesh.adjacency();
+    let levels = params.levels.max(1);
+    let channels: [Vec<f32>; 3] =
+        [0, 1, 2].map(|c| src_dec.iter().map(|y| y[c]).collect::<Vec<f32>>());
+    let pick = |v: &[f32]| -> Vec<f32> { train.iter().map(|&i| v[i as usize]).collect() };
+    let src_levels: [Vec<Vec<f32>>; 3] = [0, 1, 2].map(|c| {
+        pyramid::decompose(&src_adj, &channels[c], levels)
+            .iter()
+            .map(|l| pick(l))
+            .collect()
+    });
+    let src_channels: [Vec<f32>; 3] = [0, 1, 2].map(|c| pick(&channels[c]));
+    drop(src_adj);
+    let tgt_adj = rt.mesh.adjacency();
+    let knobs = parametric::SynthKnobs {
+        clusters: params.clusters,
+        neighbours: params.neighbours,
+        iterations: params.hb_iterations,
+        levels,
+        noise: params.noise,
+        seed: params.seed,
+    };
+    let to_srgb = |y: &[Vec<f32>; 3]| -> Vec<[f32; 3]> {
+        (0..y[0].len())
+            .map(|i| from_dec([y[0][i], y[1][i], y[2][i]]))
+            .collect()
+    };
+    let iters = params.hb_iterations;
+    let mut partial = |it: usize, y: &[Vec<f32>; 3]| -> Result<()> {
+        cancel.check()?;
+        let prog = Progress {
+            stage: "synthesis",
+            level: 0,
+            levels: 1,
+            iteration: it,
+            energy: 0.0,
+            elapsed: total.secs(),
+            fraction: 0.72 + 0.28 * it as f32 / (iters + 1) as f32,
+        };
+        let signal: Arc<[[f32; 3]]> = to_srgb(y).into();
+        sink(Event::Partial {
+            progress: prog,
+            signal,
+        });
+        Ok(())
+    };
+    let y = parametric::synthesize(
+        &parametric::SourceData {
+            guidance: &gs_train,
+            colour: &src_channels,
+            levels: &src_levels,
+        },
+        &gt,
+        &tgt_adj,
+        d,
+        &knobs,
+        &mut partial,
+    )?;
+    let colors = to_srgb(&y);
+    timings.push(("synthesis", sw.secs()));
+    sink(Event::StageTime("synthesis", sw.secs()));
+    let nv = tgt.num_vertices();
+    let file_colors = tgt.to_file_order(&colors[..nv], [0.5; 3]);
+    timings.push(("total", total.secs()));
+    progress("done", 1.0);
+    Ok(Output {
+        target: rt,
+        colors,
+        file_colors,
+        report,
+        target_features: ft,
+        target_guidance: gt,
+        guidance_dim: d,
+        source_vertices: ns_all,
+        timings,
+    })
+}
