@@ -3,8 +3,8 @@
 use meshmatch::TriMesh;
 use meshmatch::color::srgb_to_lab;
 use meshmatch::geometry::{directional_occlusion, vertex_normals};
-use meshmatch::jobs::{CancelToken, Event, no_events};
 use meshmatch::synthesis::mertens::{Input, Params, Up, feature_field, features, run};
+use meshmatch::work::{CancelToken, Event, no_events};
 
 /// A height field over `[0, 1]²` (Z up) sampled on an `m × m` grid: rolling hills plus sharp
 /// crevices (|sin| valleys) whose directions and frequencies depend on `variant`.

@@ -10,6 +10,7 @@ pub mod state;
 pub mod systems;
 pub mod tools;
 pub mod view;
+pub mod weather;
 
 use std::path::PathBuf;
 use std::time::Instant;

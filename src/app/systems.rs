@@ -54,7 +54,11 @@ pub trait SystemTool<P: AppParams>: Any {
 
 /// The systems of this build, in Tools menu order.
 pub fn registry<P: AppParams>() -> Vec<Box<dyn SystemTool<P>>> {
-    vec![Box::new(ExemplarDialog::default())]
+    vec![
+        Box::new(ExemplarDialog::default()),
+        Box::new(super::weather::WeatherDialog::default()),
+        Box::new(super::weather::FeatureDialog::default()),
+    ]
 }
 
 /// Wei & Levoy 2001: "Paint with exemplar".

@@ -127,3 +127,45 @@ impl SolveArgs {
         }
     }
 }
+
+/// Refuse an output path that is not .ply, .glb or .obj, and create its directory, before any
+/// long work starts.
+pub fn check_mesh_output(p: &Path) -> Result<()> {
+    let ext = p
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
+        return Err(Error::InvalidInput(format!(
+            "{}: output must end in .ply, .glb or .obj",
+            p.display()
+        )));
+    }
+    if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    Ok(())
+}
+
+/// Load a source that must carry a signal: its own texture or vertex colours, or `texture`
+/// (which needs UVs) in their place.
+pub fn load_signal_source(path: &Path, texture: Option<&Path>) -> Result<TriMesh> {
+    let mut source = load_usable(path)?;
+    if let Some(tex) = texture {
+        if source.uvs.is_none() {
+            return Err(Error::InvalidInput(format!(
+                "{}: --source-texture needs a source with UVs",
+                path.display()
+            )));
+        }
+        source.texture = Some(std::sync::Arc::new(io::load_texture(tex)?));
+        source.colors = None;
+    }
+    if source.vertex_signal().is_none() {
+        return Err(Error::InvalidInput(format!(
+            "{}: the source carries no texture or vertex colours to transfer (use --source-texture)",
+            path.display()
+        )));
+    }
+    Ok(source)
+}

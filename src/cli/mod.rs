@@ -9,12 +9,14 @@ mod complete;
 mod convert;
 mod demo;
 mod detail;
+mod features;
 mod info;
 #[cfg(feature = "gui")]
 mod render;
 mod synth;
 mod transfer;
 mod update;
+mod weather;
 
 use std::io::Write;
 
@@ -77,6 +79,11 @@ commands! {
     Update(update::UpdateArgs),
     /// Transfer geometric detail (displacement along the normal) from a detailed mesh to a smooth one.
     Detail(detail::DetailArgs),
+    /// Geometry-correlated transfer (Mertens et al. 2006): weathering, dirt, moss learned from a
+    /// textured model and applied to any shape by its geometry, without correspondences.
+    Weather(weather::WeatherArgs),
+    /// Bake one geometric feature as vertex colours: ambient occlusion, curvature, height...
+    Features(features::FeaturesArgs),
     /// Time the transfer's stages at several working resolutions (Spot -> horse from the shared data).
     Bench(bench::BenchArgs),
     /// Render a mesh to a PNG offscreen (headlight Lambert shading, vertex colours or texture).

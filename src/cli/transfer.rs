@@ -69,43 +69,18 @@ impl TransferArgs {
 fn transfer(a: &TransferArgs) -> Result<i32> {
     use crate::meshmatch::{self as mm, TransferParams};
     for p in [Some(&a.out), a.out_dense.as_ref()].into_iter().flatten() {
-        let ext = p
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase());
-        if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
-            return Err(Error::InvalidInput(format!(
-                "{}: output must end in .ply, .glb or .obj",
-                p.display()
-            )));
-        }
+        check_mesh_output(p)?;
     }
     // Make sure every output can be written before spending minutes on the transfer.
-    for p in [Some(&a.out), a.out_dense.as_ref(), a.nnf_out.as_ref()]
-        .into_iter()
-        .flatten()
+    if let Some(dir) = a
+        .nnf_out
+        .as_ref()
+        .and_then(|p| p.parent())
+        .filter(|d| !d.as_os_str().is_empty())
     {
-        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-        }
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     }
-    let mut source = load_usable(&a.source)?;
-    if let Some(tex) = &a.source_texture {
-        if source.uvs.is_none() {
-            return Err(Error::InvalidInput(format!(
-                "{}: --source-texture needs a source with UVs",
-                a.source.display()
-            )));
-        }
-        source.texture = Some(std::sync::Arc::new(io::load_texture(tex)?));
-        source.colors = None;
-    }
-    if source.vertex_signal().is_none() {
-        return Err(Error::InvalidInput(format!(
-            "{}: the source carries no texture or vertex colours to transfer (use --source-texture)",
-            a.source.display()
-        )));
-    }
+    let source = load_signal_source(&a.source, a.source_texture.as_deref())?;
     let target = load_usable(&a.target)?;
     let corr = match &a.correspondences {
         Some(p) => CorrespondenceFile::load(p)?.correspondences,

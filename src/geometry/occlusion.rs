@@ -19,8 +19,8 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
-use crate::Result;
-use crate::jobs::CancelToken;
+use crate::error::Result;
+use crate::work::CancelToken;
 
 const LEAF: usize = 4;
 

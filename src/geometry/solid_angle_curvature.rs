@@ -31,8 +31,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::Result;
-use crate::jobs::CancelToken;
+use crate::error::Result;
+use crate::work::CancelToken;
 
 const LEAF: usize = 8;
 /// Opening criterion: a node is summarised when `|c - p| > BETA * radius`.

@@ -40,6 +40,18 @@ impl BakeLayout {
         prepared.layout.clone()
     }
 
+    /// The layout of `r`, a refinement of `input` made without welding (systems that refine the
+    /// loaded mesh directly): every refined face lies in its `source_face`.
+    pub fn of_refined(input: &TriMesh, r: &crate::geometry::Refined) -> Self {
+        BakeLayout {
+            working_faces: r.mesh.faces.clone(),
+            working_vertices: r.mesh.positions.len(),
+            face_input: r.source_face.clone(),
+            face_bary: r.source_bary.clone(),
+            input_faces: input.faces.len(),
+        }
+    }
+
     /// [`bake_texture`] through this layout (`target` is the mesh it was prepared from).
     pub fn bake(
         &self,

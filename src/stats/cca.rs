@@ -9,7 +9,7 @@
 
 use faer::{Mat, Side};
 
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// A fitted CCA.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]

@@ -5,11 +5,11 @@
 use glam::Vec3;
 
 use super::{Params, Up};
+use crate::error::{Error, Result};
 use crate::geometry::{
     OcclusionBvh, directional_occlusion_with, solid_angle_curvature_cancellable,
 };
-use crate::jobs::{CancelToken, Stopwatch};
-use crate::{Error, Result};
+use crate::work::{CancelToken, Stopwatch};
 
 /// Features of every vertex of one mesh.
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]

@@ -28,10 +28,11 @@ use std::sync::Arc;
 
 use faer::{Mat, Side};
 
+use crate::error::{Error, Result};
 use crate::geometry::{Refined, refine_to_density};
-use crate::jobs::{CancelToken, Event, Progress, Stopwatch};
+use crate::mesh::TriMesh;
 use crate::stats::{Cca, PdfTransferParams, cca, pdf_transfer};
-use crate::{Error, Result, TriMesh};
+use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
 pub use features::{FeatureSet, feature_field, feature_names, features, normalised_height};
 

@@ -18,10 +18,10 @@ use rand::rngs::SmallRng;
 use rayon::prelude::*;
 
 use super::pyramid::{collapse, decompose};
+use crate::error::{Error, Result};
 use crate::mesh::Csr;
 use crate::stats::pdf_transfer::gaussian;
 use crate::stats::{KMeans, blend_quantiles, kmeans, match_to_quantiles, quantile_function};
-use crate::{Error, Result};
 
 /// Points of the quantile functions.
 pub const QUANTILES: usize = 256;

@@ -1,0 +1,332 @@
+//! Geometry-correlated transfer in the app (Mertens et al. 2006): Tools > "Weather target from
+//! source..." and Tools > "Show geometric feature..." (ambient occlusion, curvature, height as
+//! a grey paint layer), each a [`SystemTool`].
+
+use std::any::Any;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+
+use eframe::egui;
+
+use super::state::{AppParams, AppState};
+use super::systems::{FilePrompt, SystemTool, ToolAction, Wake};
+use super::tools::{ToolJob, ToolOutcome};
+use crate::correspondence::Side;
+use crate::error::{Error, Result};
+use crate::synthesis::mertens::{self, CcaReport, Method, Params, Up};
+
+/// Working vertices of an app run (responsive; the CLI's default is the paper's density).
+pub const APP_VERTICES: usize = 32_000;
+
+/// Settings of "Weather target from source".
+#[derive(Clone, Debug)]
+pub struct WeatherSettings {
+    /// Vertical axis of both objects.
+    pub up: Up,
+    /// Synthesis method.
+    pub method: Method,
+    /// Working vertices per mesh.
+    pub vertices: usize,
+    /// Occlusion rays per vertex.
+    pub rays: usize,
+    /// Guidance clusters.
+    pub clusters: usize,
+    /// Random seed.
+    pub seed: u64,
+}
+
+impl Default for WeatherSettings {
+    fn default() -> Self {
+        let p = Params::default();
+        WeatherSettings {
+            up: p.up,
+            method: p.method,
+            vertices: APP_VERTICES,
+            rays: p.rays,
+            clusters: p.clusters,
+            seed: 0,
+        }
+    }
+}
+
+/// The "Weather target from source" window.
+#[derive(Clone, Debug, Default)]
+pub struct WeatherDialog {
+    /// Shown this frame.
+    pub open: bool,
+    /// The next run's settings.
+    pub settings: WeatherSettings,
+    /// The last run's CCA: which features matter.
+    pub report: Arc<Mutex<Option<CcaReport>>>,
+}
+
+fn up_ui(ui: &mut egui::Ui, up: &mut Up) {
+    ui.horizontal(|ui| {
+        ui.label("Up axis:")
+            .on_hover_text("The objects' vertical axis, for the height feature");
+        ui.selectable_value(up, Up::Y, "Y");
+        ui.selectable_value(up, Up::Z, "Z");
+    });
+}
+
+impl<P: AppParams> SystemTool<P> for WeatherDialog {
+    fn label(&self) -> &'static str {
+        "Weather target from source..."
+    }
+    fn hover(&self) -> &'static str {
+        "Geometry-correlated transfer (Mertens et al. 2006): learn how the source's colour follows \
+         its geometry (crevices, exposed tops, edges) and apply it to the target by its geometry; \
+         no correspondences needed"
+    }
+    fn is_open(&self) -> bool {
+        self.open
+    }
+    fn set_open(&mut self, open: bool) {
+        self.open = open;
+    }
+    fn file_prompt(&self) -> FilePrompt {
+        ("", "", &[])
+    }
+    fn set_file(&mut self, _path: PathBuf) {}
+    fn ui(&mut self, ui: &mut egui::Ui, state: &AppState<P>, busy: bool) -> ToolAction {
+        let s = &mut self.settings;
+        let mut action = ToolAction::None;
+        ui.label("Source: the textured model (its colours are the example)");
+        ui.label("Target: the shape to weather");
+        up_ui(ui, &mut s.up);
+        ui.horizontal(|ui| {
+            ui.label("Method:");
+            ui.selectable_value(&mut s.method, Method::Parametric, "parametric")
+                .on_hover_text("Per-cluster histogram matching of colour and its detail bands");
+            ui.selectable_value(&mut s.method, Method::NonParametric, "non-parametric")
+                .on_hover_text("Copies source colour by guidance and neighbourhood");
+        });
+        ui.add(egui::Slider::new(&mut s.vertices, 4_000..=200_000).text("working vertices"))
+            .on_hover_text("Both meshes are refined to about this many vertices");
+        ui.add(egui::Slider::new(&mut s.rays, 16..=256).text("occlusion rays"));
+        ui.add(egui::Slider::new(&mut s.clusters, 2..=100).text("clusters"))
+            .on_hover_text("Segments of the guidance field (the paper's only parameter)");
+        ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));
+        if let Some(r) = self.report.lock().ok().and_then(|r| r.clone()) {
+            ui.separator();
+            ui.label("Which features mattered (last run, CCA weights):");
+            ui.monospace(r.to_text());
+        }
+        let ready = state.slot(Side::Source).is_some() && state.slot(Side::Target).is_some();
+        ui.horizontal(|ui| {
+            if ui
+                .add_enabled(ready && !busy, egui::Button::new("Run"))
+                .on_hover_text("Runs on its own thread; one undo step")
+                .clicked()
+            {
+                action = ToolAction::Run;
+            }
+            if ui.button("Close").clicked() {
+                action = ToolAction::Close;
+            }
+        });
+        if !ready {
+            ui.label("open a textured source and a target first");
+        }
+        action
+    }
+    fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob> {
+        let (Some(source), Some(target)) = (
+            state.painted_mesh(Side::Source),
+            state.painted_mesh(Side::Target),
+        ) else {
+            return Err(Error::InvalidInput(
+                "open a textured source and a target first".into(),
+            ));
+        };
+        let s = &self.settings;
+        let params = Params {
+            working_vertices: s.vertices,
+            up: s.up,
+            method: s.method,
+            rays: s.rays,
+            clusters: s.clusters,
+            seed: s.seed,
+            ..Params::default()
+        };
+        let n = target.num_vertices();
+        let report = self.report.clone();
+        let mut job = ToolJob::spawn("weather", wake, move |sink, cancel| {
+            let input = mertens::Input {
+                source: &source,
+                target: &target,
+                source_mask: None,
+            };
+            let out = mertens::run(&input, &params, sink, cancel)?;
+            let top = top_features(&out.report);
+            if let Ok(mut r) = report.lock() {
+                *r = Some(out.report.clone());
+            }
+            Ok(ToolOutcome::Colors(
+                Side::Target,
+                out.colors[..n].to_vec(),
+                format!(
+                    "target weathered from the source; features that matter most: {top} (Ctrl+Z undoes)"
+                ),
+            ))
+        });
+        job.preview = Some(Side::Target);
+        Ok(job)
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}
+
+/// The three features with the largest weight in the first canonical direction.
+fn top_features(r: &CcaReport) -> String {
+    let mut w: Vec<(f64, &str)> = r
+        .feature_names
+        .iter()
+        .zip(&r.weights)
+        .map(|(n, w)| (w.first().copied().unwrap_or(0.0).abs(), n.as_str()))
+        .collect();
+    w.sort_by(|a, b| b.0.total_cmp(&a.0));
+    w.iter()
+        .take(3)
+        .map(|(x, n)| format!("{n} {x:.2}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The "Show geometric feature" window: one feature of one side as a grey paint layer.
+#[derive(Clone, Debug)]
+pub struct FeatureDialog {
+    /// Shown this frame.
+    pub open: bool,
+    /// Which mesh.
+    pub side: Side,
+    /// Feature name (`ao`, `height`, `curvature-0` .. `curvature-3`, `normal-y`, ...).
+    pub feature: String,
+    /// Vertical axis.
+    pub up: Up,
+    /// Occlusion rays per vertex.
+    pub rays: usize,
+}
+
+impl Default for FeatureDialog {
+    fn default() -> Self {
+        FeatureDialog {
+            open: false,
+            side: Side::Target,
+            feature: "ao".into(),
+            up: Up::Y,
+            rays: Params::default().rays,
+        }
+    }
+}
+
+/// The features offered, with what they show.
+const FEATURES: &[(&str, &str)] = &[
+    ("ao", "ambient occlusion: dark in crevices"),
+    ("height", "normalised height along the up axis"),
+    (
+        "curvature-0",
+        "curvature, smallest radius (1% of the diagonal)",
+    ),
+    ("curvature-1", "curvature, 3% of the diagonal"),
+    ("curvature-2", "curvature, 10% of the diagonal"),
+    (
+        "curvature-3",
+        "curvature, largest radius (30% of the diagonal)",
+    ),
+    ("occlusion-y", "directional occlusion towards +Y"),
+    ("normal-y", "normal's up component"),
+];
+
+impl<P: AppParams> SystemTool<P> for FeatureDialog {
+    fn label(&self) -> &'static str {
+        "Show geometric feature..."
+    }
+    fn hover(&self) -> &'static str {
+        "Ambient occlusion, curvature at four scales or height as a grey paint layer: the \
+         features the geometry-correlated transfer learns from"
+    }
+    fn is_open(&self) -> bool {
+        self.open
+    }
+    fn set_open(&mut self, open: bool) {
+        self.open = open;
+    }
+    fn file_prompt(&self) -> FilePrompt {
+        ("", "", &[])
+    }
+    fn set_file(&mut self, _path: PathBuf) {}
+    fn ui(&mut self, ui: &mut egui::Ui, state: &AppState<P>, busy: bool) -> ToolAction {
+        let mut action = ToolAction::None;
+        ui.horizontal(|ui| {
+            ui.label("Mesh:");
+            ui.selectable_value(&mut self.side, Side::Source, "source");
+            ui.selectable_value(&mut self.side, Side::Target, "target");
+        });
+        for (name, what) in FEATURES {
+            ui.radio_value(&mut self.feature, name.to_string(), *name)
+                .on_hover_text(*what);
+        }
+        up_ui(ui, &mut self.up);
+        ui.add(egui::Slider::new(&mut self.rays, 16..=256).text("occlusion rays"));
+        let ready = state.slot(self.side).is_some();
+        ui.horizontal(|ui| {
+            if ui
+                .add_enabled(ready && !busy, egui::Button::new("Show"))
+                .on_hover_text("Computes it on its own thread; one undo step")
+                .clicked()
+            {
+                action = ToolAction::Run;
+            }
+            if ui.button("Close").clicked() {
+                action = ToolAction::Close;
+            }
+        });
+        action
+    }
+    fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob> {
+        let side = self.side;
+        let Some(mesh) = state.painted_mesh(side) else {
+            return Err(Error::InvalidInput(format!("open a {side:?} mesh first")));
+        };
+        let params = Params {
+            up: self.up,
+            rays: self.rays,
+            ..Params::default()
+        };
+        let feature = self.feature.clone();
+        Ok(ToolJob::spawn("feature", wake, move |_sink, cancel| {
+            let fs = mertens::features(&mesh.positions, &mesh.faces, &params, cancel)?;
+            let f = mertens::feature_field(&fs, &feature)?;
+            let (lo, hi) = f
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            let (lo, hi) = if feature == "ao" || feature == "height" {
+                (0.0, 1.0)
+            } else {
+                (lo, hi)
+            };
+            let span = (hi - lo).max(1e-12);
+            let grey = f
+                .iter()
+                .map(|&x| {
+                    let g = ((x - lo) / span).clamp(0.0, 1.0);
+                    [g, g, g]
+                })
+                .collect();
+            Ok(ToolOutcome::Colors(
+                side,
+                grey,
+                format!(
+                    "{side:?}: {feature} as grey, {lo:.3} (black) .. {hi:.3} (white); Ctrl+Z undoes"
+                ),
+            ))
+        }))
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}

@@ -1,0 +1,129 @@
+//! `meshmatch weather`: geometry-correlated texture transfer (Mertens et al. 2006): weathering,
+//! dirt and moss learned from one textured model and applied to another by its geometry.
+
+use std::path::PathBuf;
+
+use super::common::*;
+use crate::error::{Error, Result};
+use crate::mesh::io;
+use crate::synthesis::mertens::{self, Method, Params, Up};
+use crate::work::CancelToken;
+
+/// Arguments of `meshmatch weather`.
+#[derive(clap::Args, Debug)]
+pub struct WeatherArgs {
+    /// Textured source (vertex colours or a UV texture): the look to learn.
+    #[arg(long)]
+    pub source: PathBuf,
+    /// Texture image for the source (overrides the one its material names; needs UVs).
+    #[arg(long)]
+    pub source_texture: Option<PathBuf>,
+    /// The shape to texture (no correspondences needed).
+    #[arg(long)]
+    pub target: PathBuf,
+    /// Output: .ply (vertex colours), .glb (baked texture if the target has UVs, else COLOR_0),
+    /// .obj (+MTL+PNG), exactly as `transfer`.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Also write the dense working-resolution target with its colours.
+    #[arg(long)]
+    pub out_dense: Option<PathBuf>,
+    /// parametric (histogram matching per cluster; the default) or nonparametric.
+    #[arg(long, default_value = "parametric")]
+    pub method: String,
+    /// Source vertices (file numbering, one per line) to leave out of training.
+    #[arg(long)]
+    pub mask: Option<PathBuf>,
+    /// The objects' up axis, for the height feature: y or z.
+    #[arg(long, default_value = "y")]
+    pub up: String,
+    /// Working vertices per mesh (meshes are refined to about this many).
+    #[arg(long, default_value_t = Params::default().working_vertices)]
+    pub vertices: usize,
+    /// Occlusion rays per vertex.
+    #[arg(long, default_value_t = Params::default().rays)]
+    pub rays: usize,
+    /// Clusters of the guidance field (the paper's only parameter).
+    #[arg(long, default_value_t = Params::default().clusters)]
+    pub clusters: usize,
+    /// Random seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Size of the baked texture (pixels per side) when the target has UVs.
+    #[arg(long, default_value_t = 1024)]
+    pub texture_size: u32,
+}
+
+impl WeatherArgs {
+    /// Run the subcommand; returns the exit code.
+    pub fn run(&self) -> Result<i32> {
+        let a = self;
+        let method: Method = a.method.parse()?;
+        let up: Up = a.up.parse()?;
+        check_mesh_output(&a.out)?;
+        if let Some(d) = &a.out_dense {
+            check_mesh_output(d)?;
+        }
+        if !(1..=8192).contains(&a.texture_size) {
+            return Err(Error::InvalidInput(format!(
+                "--texture-size {}: use 1 to 8192",
+                a.texture_size
+            )));
+        }
+        let source = load_signal_source(&a.source, a.source_texture.as_deref())?;
+        let target = load_usable(&a.target)?;
+        let mask = match &a.mask {
+            Some(p) => Some(read_mask(p, source.file_vertex_count)?),
+            None => None,
+        };
+        let params = Params {
+            working_vertices: a.vertices,
+            up,
+            rays: a.rays,
+            clusters: a.clusters,
+            method,
+            seed: a.seed,
+            ..Params::default()
+        };
+        let bar = progress_bar();
+        let sink = |e| bar_sink(&bar, e);
+        let t = std::time::Instant::now();
+        let input = mertens::Input {
+            source: &source,
+            target: &target,
+            source_mask: mask.as_deref(),
+        };
+        let out = mertens::run(&input, &params, &sink, &CancelToken::new())?;
+        bar.finish_and_clear();
+        eprintln!(
+            "weather finished in {:.2} s ({} source and {} target vertices, {} training)",
+            t.elapsed().as_secs_f64(),
+            out.source_vertices,
+            out.target.mesh.num_vertices(),
+            out.report.training_vertices
+        );
+        eprintln!("which features matter (CCA weights, standardised):");
+        eprint!("{}", out.report.to_text());
+        for (name, s) in &out.timings {
+            eprintln!("  {name:<12} {s:8.3} s");
+        }
+        let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+        let layout = crate::meshmatch::BakeLayout::of_refined(&target, &out.target);
+        let out_mesh = crate::meshmatch::deliver(
+            &target,
+            &layout,
+            &out.colors,
+            &out.file_colors,
+            ext,
+            a.texture_size,
+        );
+        io::save(&out_mesh, &a.out)?;
+        eprintln!("wrote {}", a.out.display());
+        if let Some(dense) = &a.out_dense {
+            let d = crate::meshmatch::deliver_dense(&out.target.mesh, &out.colors);
+            io::save(&d, dense)?;
+            eprintln!("wrote {}", dense.display());
+        }
+        Ok(0)
+    }
+}
