@@ -10,10 +10,12 @@
 //! - [`TriangleBvh`] (closest point, ray hit)
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
 //! - [`taubin_smooth`]
+//! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
 
 mod basic;
 mod bvh;
 mod eigen;
+mod expmap;
 mod frames;
 mod heat;
 mod laplacian;
@@ -23,6 +25,7 @@ pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, verte
 pub(crate) use bvh::BARY_EPS;
 pub use bvh::TriangleBvh;
 pub use eigen::{hks, hks_times, laplacian_eigen};
+pub use expmap::{ExpMap, exp_map, tangent_direction};
 pub use frames::{parallel_transport_angle, tangent_frames};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
