@@ -158,7 +158,11 @@ fn coverage(base: &TriMesh, out: &QuiltOutput, r: f32) -> f32 {
     let areas = meshmatch::geometry::face_areas(&base.positions, &base.faces);
     let (mut hit, mut all) = (0.0, 0.0);
     for (f, a) in base.faces.iter().zip(&areas) {
-        let c = f.iter().map(|&v| Vec3::from(base.positions[v as usize])).sum::<Vec3>() / 3.0;
+        let c = f
+            .iter()
+            .map(|&v| Vec3::from(base.positions[v as usize]))
+            .sum::<Vec3>()
+            / 3.0;
         let k = key(c);
         let mut near = false;
         'o: for dz in -1..=1 {
@@ -208,7 +212,10 @@ fn plane_reproduces_a_periodic_swatch() {
         let ph = [d.x.rem_euclid(1.0), d.y.rem_euclid(1.0)];
         let p0 = *phase.get_or_insert(ph);
         let wrap = |a: f32, b: f32| ((a - b + 0.5).rem_euclid(1.0) - 0.5).abs();
-        assert!(wrap(ph[0], p0[0]) < 0.02 && wrap(ph[1], p0[1]) < 0.02, "off the lattice");
+        assert!(
+            wrap(ph[0], p0[0]) < 0.02 && wrap(ph[1], p0[1]) < 0.02,
+            "off the lattice"
+        );
         v0 += sp.len();
     }
     assert!(coverage(&base, &out, 1.0) > 0.97);
@@ -233,7 +240,10 @@ fn chain_mail_on_a_sphere_is_whole_covering_in_shell_and_clear() {
     let chord = 0.01;
     for p in &out.elements.positions {
         let d = Vec3::from(*p).length() - r;
-        assert!(d >= -chord && d <= h * 1.05 + chord, "outside the shell: {d} (H = {h})");
+        assert!(
+            d >= -chord && d <= h * 1.05 + chord,
+            "outside the shell: {d} (H = {h})"
+        );
     }
     let cov = coverage(&base, &out, l / 2.0);
     assert!(cov > 0.95, "coverage {cov}");
@@ -265,7 +275,10 @@ fn every_swatch_quilts_a_sphere_deterministically() {
         assert!(a.num_elements() > 20, "{kind:?}: {}", a.num_elements());
         assert!(coverage(&base, &a, 0.6) > 0.9, "{kind:?}");
         let b = quilt(&base, &sw, &params);
-        assert_eq!(a.elements.positions, b.elements.positions, "{kind:?} not deterministic");
+        assert_eq!(
+            a.elements.positions, b.elements.positions,
+            "{kind:?} not deterministic"
+        );
     }
 }
 
@@ -298,7 +311,8 @@ fn bunny_chain_mail() {
     );
     assert!(cov > 0.9, "coverage {cov}");
     let tau = 0.5 * sw.clearance() * l / sw.extent[0];
-    assert!(min_inter_element_distance(&out, tau) >= 0.99 * tau);
+    let dmin = min_inter_element_distance(&out, tau);
+    assert!(dmin >= 0.99 * tau, "elements {dmin} apart, tau {tau}");
 }
 
 #[test]
@@ -321,10 +335,18 @@ fn measure_bunny_chain_default_scale() {
         secs,
         out.stats
     );
-    quilting::save_quilt_obj(&out, Some(&base), std::path::Path::new("/tmp/quilt_bunny_chain.obj"))
-        .unwrap();
-    quilting::save_quilt_obj(&out, None, std::path::Path::new("/tmp/quilt_bunny_chain_only.obj"))
-        .unwrap();
+    quilting::save_quilt_obj(
+        &out,
+        Some(&base),
+        std::path::Path::new("/tmp/quilt_bunny_chain.obj"),
+    )
+    .unwrap();
+    quilting::save_quilt_obj(
+        &out,
+        None,
+        std::path::Path::new("/tmp/quilt_bunny_chain_only.obj"),
+    )
+    .unwrap();
 }
 
 #[test]
@@ -337,21 +359,33 @@ fn bad_inputs_give_one_line_errors() {
     let e = one_line(load_swatch(TriMesh::new(vec![], vec![]), Axis::Z).unwrap_err());
     assert!(e.contains("no elements"));
     let studs = swatch(SwatchKind::Studs, 0);
-    let single = TriMesh::new(
-        studs.element_positions(0).to_vec(),
-        studs.element_faces(0),
-    );
+    let single = TriMesh::new(studs.element_positions(0).to_vec(), studs.element_faces(0));
     let e = one_line(load_swatch(single, Axis::Z).unwrap_err());
-    assert!(e.contains("one element covers the swatch; quilting needs several"), "{e}");
+    assert!(
+        e.contains("one element covers the swatch; quilting needs several"),
+        "{e}"
+    );
     // rotated so the up axis is y: loading with Axis::Z puts elements below the ground
-    let lying: Vec<[f32; 3]> = studs.mesh.positions.iter().map(|p| [p[0], -p[2], p[1]]).collect();
-    let e = one_line(load_swatch(TriMesh::new(lying, studs.mesh.faces.clone()), Axis::Z).unwrap_err());
+    let lying: Vec<[f32; 3]> = studs
+        .mesh
+        .positions
+        .iter()
+        .map(|p| [p[0], p[2], -p[1]])
+        .collect();
+    let lying = TriMesh::new(lying, studs.mesh.faces.clone());
+    let e = one_line(load_swatch(lying.clone(), Axis::Z).unwrap_err());
     assert!(e.contains("below the ground"), "{e}");
+    assert_eq!(load_swatch(lying, Axis::Y).unwrap().num_elements(), 16);
     // a plate under all studs makes one element span the swatch
     let mut pos = studs.mesh.positions.clone();
     let mut faces = studs.mesh.faces.clone();
     let k = pos.len() as u32;
-    pos.extend([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [4.0, 4.0, 0.0], [0.0, 4.0, 0.0]]);
+    pos.extend([
+        [0.0, 0.0, 0.0],
+        [4.0, 0.0, 0.0],
+        [4.0, 4.0, 0.0],
+        [0.0, 4.0, 0.0],
+    ]);
     faces.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
     let e = one_line(load_swatch(TriMesh::new(pos, faces), Axis::Z).unwrap_err());
     assert!(e.contains("covers the whole swatch"), "{e}");

@@ -95,7 +95,11 @@ pub fn exp_map(
             let e2 = n0.cross(e10);
             let dv = pv - p0;
             let t = dv - n0 * n0.dot(dv);
-            let t = if t.length_squared() > 1e-20 { t * (dv.length() / t.length()) } else { t };
+            let t = if t.length_squared() > 1e-20 {
+                t * (dv.length() / t.length())
+            } else {
+                t
+            };
             let e = tangent_direction(nv, rotate_onto(n0, nv, e10));
             ([t.dot(e10), t.dot(e2)], e)
         } else {
@@ -105,7 +109,11 @@ pub fn exp_map(
             let e2p = np.cross(e1p);
             let dv = pv - Vec3::from(positions[p]);
             let t = dv - np * np.dot(dv);
-            let t = if t.length_squared() > 1e-20 { t * (dv.length() / t.length()) } else { t };
+            let t = if t.length_squared() > 1e-20 {
+                t * (dv.length() / t.length())
+            } else {
+                t
+            };
             let e = tangent_direction(nv, rotate_onto(np, nv, e1p));
             ([uvp[0] + t.dot(e1p), uvp[1] + t.dot(e2p)], e)
         };
@@ -156,7 +164,16 @@ mod tests {
         let adj = vertex_adjacency(pos.len(), &faces);
         let f = faces[2 * (6 * m + 6)];
         let c = [0.63, 0.61, 0.0];
-        let e = exp_map(&pos, &nrm, &adj, f, c, [0.0, 0.0, 1.0], [1.0, 0.0, 0.0], 0.4);
+        let e = exp_map(
+            &pos,
+            &nrm,
+            &adj,
+            f,
+            c,
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 0.0],
+            0.4,
+        );
         assert!(e.vertices.len() > 20);
         for (k, &v) in e.vertices.iter().enumerate() {
             let p = pos[v as usize];

@@ -42,7 +42,13 @@ pub fn save_quilt_obj(out: &QuiltOutput, base: Option<&TriMesh>, path: &Path) ->
         }
         s.push_str("g base\n");
         for f in &b.faces {
-            let _ = writeln!(s, "f {} {} {}", f[0] + off + 1, f[1] + off + 1, f[2] + off + 1);
+            let _ = writeln!(
+                s,
+                "f {} {} {}",
+                f[0] + off + 1,
+                f[1] + off + 1,
+                f[2] + off + 1
+            );
         }
     }
     write_atomic(path, s.as_bytes())

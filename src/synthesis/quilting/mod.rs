@@ -271,12 +271,17 @@ impl Flat {
             }
         }
         let ext = (hi - lo).max(Vec2::splat(1e-12));
-        let cell = ((ext.x * ext.y) / faces.len().max(1) as f32).sqrt().max(1e-12) * 1.5;
+        let cell = ((ext.x * ext.y) / faces.len().max(1) as f32)
+            .sqrt()
+            .max(1e-12)
+            * 1.5;
         let dims = [
             ((ext.x / cell) as usize + 1).min(512),
             ((ext.y / cell) as usize + 1).min(512),
         ];
-        let cell = (ext.x / dims[0] as f32).max(ext.y / dims[1] as f32).max(1e-12);
+        let cell = (ext.x / dims[0] as f32)
+            .max(ext.y / dims[1] as f32)
+            .max(1e-12);
         let mut grid = vec![Vec::new(); dims[0] * dims[1]];
         for (k, (_, t)) in faces.iter().enumerate() {
             let mut a = Vec2::splat(f32::INFINITY);
@@ -319,7 +324,10 @@ impl Flat {
         }
         let inside_box = {
             let q = (p - self.lo) / self.cell;
-            q.x >= 0.0 && q.y >= 0.0 && (q.x as usize) < self.dims[0] && (q.y as usize) < self.dims[1]
+            q.x >= 0.0
+                && q.y >= 0.0
+                && (q.x as usize) < self.dims[0]
+                && (q.y as usize) < self.dims[1]
         };
         if inside_box {
             let (i, j) = Self::cell_of(self.lo, self.cell, self.dims, p);
@@ -491,7 +499,11 @@ fn validate_base(base: &TriMesh) -> Result<()> {
             "base mesh has a face with an out-of-range vertex index".into(),
         ));
     }
-    if base.positions.iter().any(|p| p.iter().any(|x| !x.is_finite())) {
+    if base
+        .positions
+        .iter()
+        .any(|p| p.iter().any(|x| !x.is_finite()))
+    {
         return Err(Error::InvalidInput(
             "base mesh has non-finite vertex coordinates".into(),
         ));
@@ -570,7 +582,10 @@ pub fn run(
             let (pi, ni) = (Vec3::from(mesh.positions[i]), Vec3::from(vn[i]));
             let mut kappa = 0.0f32;
             for &j in adj.row(i) {
-                let (pj, nj) = (Vec3::from(mesh.positions[j as usize]), Vec3::from(vn[j as usize]));
+                let (pj, nj) = (
+                    Vec3::from(mesh.positions[j as usize]),
+                    Vec3::from(vn[j as usize]),
+                );
                 let (dp, dn) = (pj - pi, nj - ni);
                 if dp.dot(dn) < 0.0 && dp.length() > 0.0 {
                     kappa = kappa.max(dn.length() / dp.length());
@@ -613,7 +628,8 @@ pub fn run(
 
     // ---- swatch preparation
     let swatch_faces: usize = sw.mesh.num_faces();
-    let est_faces = total_area / ((sw.extent[0] * sw.extent[1] * s * s) as f64) * swatch_faces as f64;
+    let est_faces =
+        total_area / ((sw.extent[0] * sw.extent[1] * s * s) as f64) * swatch_faces as f64;
     if est_faces > params.max_faces as f64 {
         return Err(Error::InvalidInput(format!(
             "the quilt would have about {:.0} faces, above the limit of {}; use a larger swatch size",
@@ -630,11 +646,7 @@ pub fn run(
     let (nc, spacing) = sw.class_spacing();
     let conflict_dist = |a: u32, b: u32| -> f32 {
         let c = spacing[a as usize * nc + b as usize];
-        if c.is_finite() {
-            0.7 * c * s
-        } else {
-            0.0
-        }
+        if c.is_finite() { 0.7 * c * s } else { 0.0 }
     };
     let min_spacing = spacing.iter().cloned().fold(f32::INFINITY, f32::min);
     let r_elem = sw.elements.iter().map(|e| e.radius).fold(0.0f32, f32::max) * s;
@@ -650,6 +662,28 @@ pub fn run(
     let mut covered_area = 0.0f64;
     let mut placed: Vec<Placed> = Vec::new();
     let mut anchored: Vec<Vec<u32>> = vec![Vec::new(); nf];
+    // all placed elements by centre, for conflicts with elements outside the flattened disc
+    let r3 = sw
+        .elements
+        .iter()
+        .enumerate()
+        .map(|(e, el)| {
+            let c = Vec3::from(el.centre);
+            sw.element_positions(e)
+                .iter()
+                .map(|p| {
+                    let d = Vec3::from(*p) - c;
+                    (d.x * d.x + d.y * d.y).sqrt() * s + d.z.abs() * hscale
+                })
+                .fold(0.0f32, f32::max)
+        })
+        .fold(0.0f32, f32::max);
+    let max_conflict = spacing
+        .iter()
+        .filter(|x| x.is_finite())
+        .fold(0.0f32, |a, &b| a.max(0.7 * b * s));
+    let mut centres = VertexHash::new((4.0 * r3 + 2.0 * tau).max(max_conflict).max(1e-6 * l));
+    let mut max_radius = 0.0f32;
     let mut stats = QuiltStats {
         swatch_size: l,
         thickness: h,
@@ -657,7 +691,13 @@ pub fn run(
         ..Default::default()
     };
     let mut out_faces = 0usize;
-    let rp_min = (0.15 * l).max(if min_spacing.is_finite() { min_spacing * s } else { 0.0 }).min(params.patch_radius * l);
+    let rp_min = (0.15 * l)
+        .max(if min_spacing.is_finite() {
+            min_spacing * s
+        } else {
+            0.0
+        })
+        .min(params.patch_radius * l);
     let mut first = rng.random_range(0..nf);
 
     loop {
@@ -684,10 +724,7 @@ pub fn run(
             .sum::<Vec3>()
             / 3.0;
         let n0 = Vec3::from(base.fnrm[seed]).normalize_or(Vec3::from(base.vn[sc[0] as usize]));
-        let e1 = tangent_direction(
-            n0,
-            sc.iter().map(|&v| base.field[v as usize]).sum::<Vec3>(),
-        );
+        let e1 = tangent_direction(n0, sc.iter().map(|&v| base.field[v as usize]).sum::<Vec3>());
 
         // ---- flatten, shrinking while distorted
         let mut rp = params.patch_radius * l;
@@ -741,7 +778,10 @@ pub fn run(
                 let mut r = [(0, 0); 2];
                 for a in 0..2 {
                     let p = sw.extent[a];
-                    r[a] = (((-rs - c[a]) / p).ceil() as i64, ((rs - c[a]) / p).floor() as i64);
+                    r[a] = (
+                        ((-rs - c[a]) / p).ceil() as i64,
+                        ((rs - c[a]) / p).floor() as i64,
+                    );
                 }
                 r
             } else {
@@ -789,7 +829,25 @@ pub fn run(
             }
         }
 
-        // ---- conflicts between old and new, then the cut
+        // ---- conflicts between old and new, then the cut: every alive element whose centre
+        // is near a candidate's (3D hash), not only those anchored in the disc
+        let mut near_old: Vec<u32> = Vec::new();
+        for c in &cands {
+            near_old.extend(
+                centres
+                    .near(
+                        &[c.centre.to_array()],
+                        (c.radius + max_radius + tau)
+                            .max(max_conflict)
+                            .min(centres.cell),
+                    )
+                    .into_iter()
+                    .filter(|&e| placed[e as usize].alive),
+            );
+        }
+        near_old.sort_unstable();
+        near_old.dedup();
+        let old: Vec<(u32, ())> = near_old.into_iter().map(|e| (e, ())).collect();
         let mut hash = VertexHash::new(tau);
         for (k, (e, _)) in old.iter().enumerate() {
             hash.insert(k as u32, &placed[*e as usize].positions);
@@ -809,11 +867,8 @@ pub fn run(
             near.dedup();
             conflicts.extend(near.into_iter().map(|k| (k as usize, j)));
         }
-        let (keep_old, keep_new) = maxflow::keep_by_cut(
-            &vec![1.1; old.len()],
-            &vec![1.0; cands.len()],
-            &conflicts,
-        );
+        let (keep_old, keep_new) =
+            maxflow::keep_by_cut(&vec![1.1; old.len()], &vec![1.0; cands.len()], &conflicts);
         for (k, (e, _)) in old.iter().enumerate() {
             if !keep_old[k] {
                 let pe = &mut placed[*e as usize];
@@ -825,7 +880,12 @@ pub fn run(
         // greedy: new elements conflicting with each other, nearest to the seed first
         let mut order: Vec<usize> = (0..cands.len()).filter(|&j| keep_new[j]).collect();
         stats.dropped_conflict += cands.len() - order.len();
-        order.sort_by(|&a, &b| cands[a].seed_dist.total_cmp(&cands[b].seed_dist).then(a.cmp(&b)));
+        order.sort_by(|&a, &b| {
+            cands[a]
+                .seed_dist
+                .total_cmp(&cands[b].seed_dist)
+                .then(a.cmp(&b))
+        });
         let mut accepted_hash = VertexHash::new(tau);
         let mut accepted: Vec<usize> = Vec::new();
         for j in order {
@@ -859,6 +919,8 @@ pub fn run(
             );
             out_faces += sw.elements[c.source as usize].faces.len();
             anchored[c.anchor.0 as usize].push(placed.len() as u32);
+            centres.insert(placed.len() as u32, &[c.centre.to_array()]);
+            max_radius = max_radius.max(c.radius);
             placed.push(Placed {
                 source: c.source,
                 positions: c.positions,
@@ -964,8 +1026,16 @@ fn choose_translation(
     let (rx, ry) = (range(ex), range(ey));
     if old.is_empty() {
         return Vec2::new(
-            if rx.1 > rx.0 { rng.random_range(rx.0..rx.1) } else { rx.0 },
-            if ry.1 > ry.0 { rng.random_range(ry.0..ry.1) } else { ry.0 },
+            if rx.1 > rx.0 {
+                rng.random_range(rx.0..rx.1)
+            } else {
+                rx.0
+            },
+            if ry.1 > ry.0 {
+                rng.random_range(ry.0..ry.1)
+            } else {
+                ry.0
+            },
         );
     }
     let cost = |t: Vec2, x: Vec2, cl: u32| -> (f32, Vec2) {

@@ -113,7 +113,9 @@ impl Swatch {
         let n = mesh.num_vertices();
         let (label, count) = connected_components(n, &mesh.faces);
         if mesh.faces.is_empty() || count == 0 {
-            return Err(Error::InvalidInput("swatch has no elements (no faces)".into()));
+            return Err(Error::InvalidInput(
+                "swatch has no elements (no faces)".into(),
+            ));
         }
         // order elements by the lowest face index that uses them (deterministic)
         let mut order: Vec<u32> = Vec::new();
@@ -318,14 +320,25 @@ impl Swatch {
 /// small tolerance); non-finite coordinates.
 pub fn load_swatch(mesh: TriMesh, up: Axis) -> Result<Swatch> {
     if mesh.faces.is_empty() {
-        return Err(Error::InvalidInput("swatch has no elements (no faces)".into()));
+        return Err(Error::InvalidInput(
+            "swatch has no elements (no faces)".into(),
+        ));
     }
-    if mesh.positions.iter().any(|p| p.iter().any(|x| !x.is_finite())) {
+    if mesh
+        .positions
+        .iter()
+        .any(|p| p.iter().any(|x| !x.is_finite()))
+    {
         return Err(Error::InvalidInput(
             "swatch has non-finite vertex coordinates".into(),
         ));
     }
-    if mesh.faces.iter().flatten().any(|&v| v as usize >= mesh.num_vertices()) {
+    if mesh
+        .faces
+        .iter()
+        .flatten()
+        .any(|&v| v as usize >= mesh.num_vertices())
+    {
         return Err(Error::InvalidInput(
             "swatch has a face with an out-of-range vertex index".into(),
         ));
@@ -374,7 +387,12 @@ pub fn load_swatch(mesh: TriMesh, up: Axis) -> Result<Swatch> {
     }
     for (i, e) in s.elements.iter().enumerate() {
         let ps = s.element_positions(i);
-        let (mut x0, mut x1, mut y0, mut y1) = (f32::INFINITY, f32::NEG_INFINITY, f32::INFINITY, f32::NEG_INFINITY);
+        let (mut x0, mut x1, mut y0, mut y1) = (
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        );
         for p in ps {
             x0 = x0.min(p[0]);
             x1 = x1.max(p[0]);
@@ -406,7 +424,13 @@ impl Builder {
     /// A closed profile gives a torus-like surface; an open profile must start and end on the
     /// axis (`r = 0`) and gives a sphere-like surface with one pole vertex at each end. The
     /// profile runs so that the outward normal is on its right when going along it in (r, z).
-    fn revolve(&mut self, profile: &[(f32, f32)], closed: bool, n: usize, f: impl Fn(Vec3) -> Vec3) {
+    fn revolve(
+        &mut self,
+        profile: &[(f32, f32)],
+        closed: bool,
+        n: usize,
+        f: impl Fn(Vec3) -> Vec3,
+    ) {
         let base = self.positions.len() as u32;
         let ring = |i: usize, k: usize| -> [f32; 3] {
             let a = std::f32::consts::TAU * k as f32 / n as f32;
@@ -431,13 +455,15 @@ impl Builder {
         } else {
             let m = profile.len();
             assert!(m >= 3);
-            self.positions.push(f(Vec3::new(0.0, 0.0, profile[0].1)).to_array());
+            self.positions
+                .push(f(Vec3::new(0.0, 0.0, profile[0].1)).to_array());
             for i in 1..m - 1 {
                 for k in 0..n {
                     self.positions.push(ring(i, k));
                 }
             }
-            self.positions.push(f(Vec3::new(0.0, 0.0, profile[m - 1].1)).to_array());
+            self.positions
+                .push(f(Vec3::new(0.0, 0.0, profile[m - 1].1)).to_array());
             let top = self.positions.len() as u32 - 1;
             let id = |i: usize, k: usize| base + 1 + ((i - 1) * n + (k % n)) as u32;
             for k in 0..n {
@@ -555,7 +581,11 @@ pub fn swatch(kind: SwatchKind, seed: u64) -> Swatch {
             let len = nx as f32;
             let samples = 32usize;
             for j in 0..ny {
-                let phase = if j % 2 == 0 { 0.0 } else { std::f32::consts::PI };
+                let phase = if j % 2 == 0 {
+                    0.0
+                } else {
+                    std::f32::consts::PI
+                };
                 let path: Vec<Vec3> = (0..=samples)
                     .map(|s| {
                         let x = gap / 2.0 + (len - gap) * s as f32 / samples as f32;
@@ -567,7 +597,11 @@ pub fn swatch(kind: SwatchKind, seed: u64) -> Swatch {
                 b.strand(&path, rw, rh, 8, |p| Vec3::new(p.x, y + p.y, p.z));
             }
             for i in 0..nx {
-                let phase = if i % 2 == 0 { std::f32::consts::PI } else { 0.0 };
+                let phase = if i % 2 == 0 {
+                    std::f32::consts::PI
+                } else {
+                    0.0
+                };
                 let path: Vec<Vec3> = (0..=samples)
                     .map(|s| {
                         let t = gap / 2.0 + (len - gap) * s as f32 / samples as f32;
@@ -665,7 +699,10 @@ mod tests {
             let s = swatch(kind, 7);
             assert!(s.num_elements() >= 8, "{kind:?}");
             assert!(s.height > 0.0);
-            assert!(s.mesh.positions.iter().all(|p| p[2] >= -1e-5), "{kind:?} below ground");
+            assert!(
+                s.mesh.positions.iter().all(|p| p[2] >= -1e-5),
+                "{kind:?} below ground"
+            );
             let c = s.clearance();
             assert!(c > 0.005, "{kind:?} elements touch: clearance {c}");
             // closed and outward: signed volume of each element positive
@@ -705,7 +742,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("one element covers the swatch"), "{e}");
-        let below: Vec<[f32; 3]> = one.mesh.positions.iter().map(|p| [p[0], p[1], p[2] - 0.1]).collect();
+        let below: Vec<[f32; 3]> = one
+            .mesh
+            .positions
+            .iter()
+            .map(|p| [p[0], p[1], p[2] - 0.1])
+            .collect();
         let e = load_swatch(TriMesh::new(below, one.mesh.faces.clone()), Axis::Z)
             .unwrap_err()
             .to_string();
