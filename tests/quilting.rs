@@ -486,3 +486,156 @@ fn field_orients_the_swatch_and_writers_round_trip() {
     assert_eq!(back.num_faces(), out.elements.num_faces());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A tiny orthographic z-buffer rasteriser (view along -z after rotating by `yaw` about y),
+/// Lambert-shaded, for eyeballing outputs in measurement runs.
+fn render_png(
+    meshes: &[(&TriMesh, [u8; 3])],
+    yaw: f32,
+    zoom: f32,
+    centre_frac: [f32; 2],
+    size: usize,
+    path: &str,
+) {
+    let rot = glam::Mat3::from_rotation_y(yaw);
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for (m, _) in meshes {
+        for p in &m.positions {
+            let q = rot * Vec3::from(*p);
+            lo = lo.min(q);
+            hi = hi.max(q);
+        }
+    }
+    let ext = (hi - lo).x.max((hi - lo).y) / zoom;
+    let c = glam::Vec2::new(
+        lo.x + (hi.x - lo.x) * centre_frac[0],
+        lo.y + (hi.y - lo.y) * centre_frac[1],
+    );
+    let mut depth = vec![f32::NEG_INFINITY; size * size];
+    let mut img =
+        image::RgbImage::from_pixel(size as u32, size as u32, image::Rgb([255, 255, 255]));
+    let light = Vec3::new(0.3, 0.5, 1.0).normalize();
+    for (m, col) in meshes {
+        for f in &m.faces {
+            let [a, b, cc] = f.map(|v| rot * Vec3::from(m.positions[v as usize]));
+            let n = (b - a).cross(cc - a).normalize_or_zero();
+            let shade = 0.25 + 0.75 * n.dot(light).abs();
+            let px = |p: Vec3| {
+                glam::Vec2::new(
+                    ((p.x - c.x) / ext + 0.5) * size as f32,
+                    (0.5 - (p.y - c.y) / ext) * size as f32,
+                )
+            };
+            let (pa, pb, pc) = (px(a), px(b), px(cc));
+            let x0 = pa.x.min(pb.x).min(pc.x).floor().max(0.0) as i64;
+            let x1 = pa.x.max(pb.x).max(pc.x).ceil().min(size as f32 - 1.0) as i64;
+            let y0 = pa.y.min(pb.y).min(pc.y).floor().max(0.0) as i64;
+            let y1 = pa.y.max(pb.y).max(pc.y).ceil().min(size as f32 - 1.0) as i64;
+            let d = (pb - pa).perp_dot(pc - pa);
+            if d.abs() < 1e-12 {
+                continue;
+            }
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let p = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                    let l1 = (p - pa).perp_dot(pc - pa) / d;
+                    let l2 = (pb - pa).perp_dot(p - pa) / d;
+                    let l0 = 1.0 - l1 - l2;
+                    if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
+                        continue;
+                    }
+                    let z = a.z * l0 + b.z * l1 + cc.z * l2;
+                    let k = y as usize * size + x as usize;
+                    if z > depth[k] {
+                        depth[k] = z;
+                        img.put_pixel(
+                            x as u32,
+                            y as u32,
+                            image::Rgb(col.map(|c| (c as f32 * shade) as u8)),
+                        );
+                    }
+                }
+            }
+        }
+    }
+    img.save(path).unwrap();
+}
+
+#[test]
+#[ignore = "measurement: renders PNG previews of quilts to /tmp"]
+fn render_previews() {
+    let path = meshmatch::testdata::data_path("bunny/bunny.obj");
+    let base = meshmatch::mesh::io::load(&path).unwrap();
+    for kind in SwatchKind::ALL {
+        let sw = swatch(kind, 1);
+        let out = quilt(&base, &sw, &Params::default());
+        let name = kind.as_str();
+        render_png(
+            &[(&base, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+            0.0,
+            1.0,
+            [0.5, 0.5],
+            900,
+            &format!("/tmp/quilt_bunny_{name}.png"),
+        );
+        render_png(
+            &[(&base, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+            0.0,
+            4.0,
+            [0.45, 0.45],
+            900,
+            &format!("/tmp/quilt_bunny_{name}_zoom.png"),
+        );
+        eprintln!(
+            "{name}: {} elements, {} faces, {:.2} s",
+            out.num_elements(),
+            out.elements.num_faces(),
+            out.stats.seconds
+        );
+    }
+    let sw = swatch(SwatchKind::Chain, 1);
+    let sphere = icosphere(1.0, 4);
+    let out = quilt(
+        &sphere,
+        &sw,
+        &Params {
+            swatch_size: Some(0.8),
+            ..Default::default()
+        },
+    );
+    render_png(
+        &[(&sphere, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+        0.0,
+        1.0,
+        [0.5, 0.5],
+        900,
+        "/tmp/quilt_sphere_chain.png",
+    );
+    render_png(
+        &[(&sphere, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+        0.0,
+        4.0,
+        [0.5, 0.5],
+        900,
+        "/tmp/quilt_sphere_chain_zoom.png",
+    );
+    let sw = swatch(SwatchKind::Chain, 1);
+    let pl = plane(8.0, 8.0, 16, 16);
+    let out = quilt(
+        &pl,
+        &sw,
+        &Params {
+            swatch_size: Some(4.0),
+            ..Default::default()
+        },
+    );
+    render_png(
+        &[(&pl, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+        0.0,
+        2.0,
+        [0.5, 0.5],
+        900,
+        "/tmp/quilt_plane_chain.png",
+    );
+}

@@ -86,6 +86,10 @@ pub struct Params {
     pub patch_radius: f32,
     /// Limit offsets in concave regions by the local radius of curvature.
     pub concave_guard: bool,
+    /// Orient each patch like the elements already placed in it (keeps the lattice continuous
+    /// across seams); the field only orients patches with no placed neighbours. Off: every
+    /// patch follows the field at its seed.
+    pub follow_neighbours: bool,
 }
 
 impl Default for Params {
@@ -98,6 +102,7 @@ impl Default for Params {
             max_distortion: 2.0,
             patch_radius: 0.5,
             concave_guard: true,
+            follow_neighbours: true,
         }
     }
 }
@@ -216,6 +221,8 @@ impl Base<'_> {
 
 /// A flattened patch with a point-location grid.
 struct Flat {
+    /// Base face -> index into `faces`.
+    index: HashMap<u32, u32>,
     /// Base faces whose three corners are flattened, with their 2D corners.
     faces: Vec<(u32, [Vec2; 3])>,
     lo: Vec2,
@@ -233,6 +240,34 @@ fn bary2(p: Vec2, t: &[Vec2; 3]) -> Option<[f32; 3]> {
     let l1 = (p - a).perp_dot(c - a) / d;
     let l2 = (b - a).perp_dot(p - a) / d;
     Some([1.0 - l1 - l2, l1, l2])
+}
+
+/// The 3D direction of the 2D direction `w` through the affine map from flattened triangle
+/// `q` to base triangle `p`.
+fn uv_to_3d(q: &[Vec2; 3], p: [Vec3; 3], w: Vec2) -> Vec3 {
+    let (e1, e2) = (q[1] - q[0], q[2] - q[0]);
+    let d = e1.perp_dot(e2);
+    if d.abs() < 1e-20 {
+        return Vec3::ZERO;
+    }
+    let l1 = w.perp_dot(e2) / d;
+    let l2 = e1.perp_dot(w) / d;
+    (p[1] - p[0]) * l1 + (p[2] - p[0]) * l2
+}
+
+/// The 2D direction of the 3D direction `d` (projected onto the triangle's plane, least
+/// squares) through the affine map from base triangle `p` to flattened triangle `q`.
+fn dir_to_uv(q: &[Vec2; 3], p: [Vec3; 3], d: Vec3) -> Vec2 {
+    let (a, b) = (p[1] - p[0], p[2] - p[0]);
+    let (aa, ab, bb) = (a.dot(a), a.dot(b), b.dot(b));
+    let det = aa * bb - ab * ab;
+    if det.abs() < 1e-30 {
+        return Vec2::ZERO;
+    }
+    let (ra, rb) = (a.dot(d), b.dot(d));
+    let l1 = (bb * ra - ab * rb) / det;
+    let l2 = (aa * rb - ab * ra) / det;
+    (q[1] - q[0]) * l1 + (q[2] - q[0]) * l2
 }
 
 fn seg_dist(p: Vec2, a: Vec2, b: Vec2) -> f32 {
@@ -298,7 +333,13 @@ impl Flat {
                 }
             }
         }
+        let index = faces
+            .iter()
+            .enumerate()
+            .map(|(k, (f, _))| (*f, k as u32))
+            .collect();
         Flat {
+            index,
             faces,
             lo,
             cell,
@@ -411,6 +452,8 @@ struct Placed {
     positions: Vec<[f32; 3]>,
     centre: Vec3,
     anchor: (u32, [f32; 3]),
+    /// Unit 3D tangent of the swatch +x axis at the element.
+    dir: Vec3,
     alive: bool,
 }
 
@@ -421,6 +464,7 @@ struct Candidate {
     centre: Vec3,
     radius: f32,
     anchor: (u32, [f32; 3]),
+    dir: Vec3,
     seed_dist: f32,
 }
 
@@ -753,7 +797,9 @@ pub fn run(
         };
 
         // ---- old elements in the patch, in swatch coordinates
+        let corners = |f: u32| faces[f as usize].map(|v| Vec3::from(mesh.positions[v as usize]));
         let mut old: Vec<(u32, Vec2)> = Vec::new();
+        let mut turn = Vec2::ZERO;
         for (f, t) in &flat.faces {
             for &e in &anchored[*f as usize] {
                 let pe = &placed[e as usize];
@@ -762,8 +808,20 @@ pub fn run(
                 }
                 let b = pe.anchor.1;
                 let uv = t[0] * b[0] + t[1] * b[1] + t[2] * b[2];
-                old.push((e, uv / s));
+                old.push((e, uv));
+                turn += dir_to_uv(t, corners(*f), pe.dir).normalize_or_zero();
             }
+        }
+        // orientation: continue the neighbours' lattice (circular mean of their +x axes in
+        // the patch frame) when they agree, else the field at the seed (+u)
+        let rot = if params.follow_neighbours && turn.length() > 0.5 * old.len() as f32 {
+            turn.normalize()
+        } else {
+            Vec2::X
+        };
+        let inv = Vec2::new(rot.x, -rot.y);
+        for o in &mut old {
+            o.1 = inv.rotate(o.1) / s;
         }
 
         // ---- matching: the translation t (swatch units) with uv = s (x + t)
@@ -790,7 +848,7 @@ pub fn run(
             for jy in ranges[1].0..=ranges[1].1 {
                 for jx in ranges[0].0..=ranges[0].1 {
                     let off = Vec2::new(jx as f32 * sw.extent[0], jy as f32 * sw.extent[1]);
-                    let uvc = (c + off) * s;
+                    let uvc = rot.rotate((c + off) * s);
                     if uvc.length() > rp {
                         continue;
                     }
@@ -801,7 +859,7 @@ pub fn run(
                     let mut ps = Vec::with_capacity(el.vertices.len());
                     let mut ok = true;
                     for q in sw.element_positions(e) {
-                        let uv = (Vec2::new(q[0], q[1]) + shift) * s;
+                        let uv = rot.rotate((Vec2::new(q[0], q[1]) + shift) * s);
                         match flat.locate(uv, r_elem + tau) {
                             Some((f, b, _)) => {
                                 ps.push(base.shell_point(f, b, q[2] * hscale).to_array())
@@ -817,12 +875,15 @@ pub fn run(
                         continue;
                     }
                     let (centre, radius) = centre_and_radius(&ps);
+                    let k = flat.index[&af] as usize;
+                    let dir = uv_to_3d(&flat.faces[k].1, corners(af), rot).normalize_or_zero();
                     cands.push(Candidate {
                         source: e as u32,
                         positions: ps,
                         centre,
                         radius,
                         anchor: (af, ab),
+                        dir,
                         seed_dist: uvc.length(),
                     });
                 }
@@ -914,6 +975,7 @@ pub fn run(
                     centre: Vec3::ZERO,
                     radius: 0.0,
                     anchor: (0, [0.0; 3]),
+                    dir: Vec3::ZERO,
                     seed_dist: 0.0,
                 },
             );
@@ -926,6 +988,7 @@ pub fn run(
                 positions: c.positions,
                 centre: c.centre,
                 anchor: c.anchor,
+                dir: c.dir,
                 alive: true,
             });
         }
