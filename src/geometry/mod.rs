@@ -12,10 +12,12 @@
 //! - [`taubin_smooth`]
 //! - [`solid_angle_curvature`] (Connolly / Mertens multi-scale curvature, Barnes-Hut tree)
 //! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1)
+//! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
 
 mod basic;
 mod bvh;
 mod eigen;
+mod expmap;
 mod frames;
 mod heat;
 mod laplacian;
@@ -27,6 +29,7 @@ pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, verte
 pub(crate) use bvh::BARY_EPS;
 pub use bvh::TriangleBvh;
 pub use eigen::{hks, hks_times, laplacian_eigen};
+pub use expmap::{ExpMap, exp_map, tangent_direction};
 pub use frames::{parallel_transport_angle, tangent_frames};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};

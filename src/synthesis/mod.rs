@@ -10,9 +10,11 @@
 //! `cli/` and the app through one entry in `app/systems.rs`.
 //!
 //! - [`mertens`]: geometry-correlated texture transfer (Mertens et al. 2006).
+//! - [`quilting`]: geometric texture synthesis by mesh quilting (Zhou et al. 2006).
 //! - [`wei_levoy`]: image-exemplar texture synthesis over arbitrary surfaces (Wei & Levoy 2001).
 
 pub mod mertens;
+pub mod quilting;
 pub mod wei_levoy;
 
 pub use wei_levoy::{Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize};

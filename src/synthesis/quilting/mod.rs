@@ -1,0 +1,1174 @@
+//! Mesh quilting: geometric textures (chain mail, weaves, nuts, studs, scales) stitched over a
+//! surface from a swatch of separate elements (Zhou, Huang, Wang, Guo & Shum 2006, "Mesh
+//! Quilting for Geometric Texture Synthesis"; guide in `shared/docs/ZHOU.md`).
+//!
+//! What runs, in order, and where it departs from the paper:
+//!
+//! 1. **Scale.** `L` = swatch x extent in base units (default a tenth of the base's bounding-box
+//!    diagonal), `s = L / l_in`; shell thickness `H` (default `s h_in`).
+//! 2. **Patch growing (§3.1).** Seed = the uncovered base triangle with the most covered
+//!    triangles around its corners (the first at random under the seed). The patch is the
+//!    geodesic disc of radius `R_place = patch_radius L` around its centroid, grown by Dijkstra
+//!    and flattened by the discrete exponential map ([`crate::geometry::exp_map`]) instead of
+//!    DCM/LSCM: it is isometric on developable bases and needs no solve. The disc is flattened
+//!    out to `R_place + 2 r_elem + ...` so that every element centred inside `R_place` lands on
+//!    flattened triangles. The orientation field at the seed becomes the swatch +x axis (ZHOU
+//!    proposal 8). Area distortion `max(rho, 1/rho)` over the triangles of the placement disc
+//!    (proposal 7) above `max_distortion` (default 2, the paper uses 4) shrinks the disc by
+//!    0.75 and retries, down to a minimum.
+//! 3. **Matching (§2.4, simplified).** Eq. (1)-(3) are taken at the element level: the
+//!    already-placed elements whose centres fall in the patch are brought into swatch
+//!    coordinates and every swatch translation `t` on a grid of `l_in / 16` (one period for
+//!    periodic swatches; keeping the disc inside the swatch otherwise) is scored by
+//!    `E(t) = sum_old min_j (|c_old - (c_j + t)| / cell + [class_j != class_old])`, capped per
+//!    element at 4 (class = elements with equal vertex and face counts). The best `t` is then
+//!    refined continuously by the mean residual of matched same-class pairs, so a periodic
+//!    swatch re-registers exactly with what is already there.
+//! 4. **Element correspondences and graph cut (§2.5, §2.7, simplified).** Elements are never
+//!    cut and stitched; instead a new element *conflicts* with an old one when their centres
+//!    are closer than 0.7 of the smallest centre spacing of their two classes in the swatch, or
+//!    any two of their vertices are closer than half the swatch's own clearance between
+//!    elements. Which elements survive is a maximum-weight independent set of this bipartite
+//!    conflict graph, solved exactly as an s-t min cut (Dinic max-flow, [`maxflow`]): SOURCE ->
+//!    old (weight 1.1), old -> new (infinite) per conflict, new -> SINK (weight 1). Then new
+//!    elements that conflict with each other (flattening distortion) are dropped greedily,
+//!    nearest to the seed first. So two survivors never overlap and elements stay whole.
+//! 5. **Shell map (§3.2, simplified).** A swatch point `(x, y, z)` goes to `uv = s (x + t)` in
+//!    the flattened patch, to the base triangle and barycentric coordinates `b` containing it
+//!    (affine extrapolation from the nearest triangle for points just past a base boundary),
+//!    and to `p(b) + z (H / h_in) g(b) n(b)` with `n` the interpolated area-weighted vertex
+//!    normal. Low-distortion correction: instead of the stretch-minimising shell (eq. 8-9),
+//!    `g` = `min(1, 0.9 / (kappa H))` per base vertex, `kappa` the largest concave normal
+//!    curvature `|n_j - n_i| / |p_j - p_i|` over its edges, so offsets in concave regions stay
+//!    below the local radius of curvature and frames do not fold.
+//! 6. **Not done:** Laplacian-coordinate deformation (eq. 4-6) and stitching of elements that
+//!    cross patch seams (eq. 7, Yu et al. 2004 merging); the stretch-optimised tetrahedral shell
+//!    map. Elements are placed rigidly in (u, v, h) and bent only by the shell map.
+//!
+//! Output: all kept elements merged in one [`TriMesh`], with a per-vertex element id and a
+//! per-element source (swatch element index). Planar quilting is the same code on a flat base
+//! ([`plane`]).
+
+mod io;
+pub mod maxflow;
+mod swatch;
+
+pub use io::{save_quilt_obj, save_quilt_ply};
+pub use swatch::{Axis, Element, Swatch, SwatchKind, load_swatch, swatch};
+
+use std::collections::HashMap;
+
+use glam::{Vec2, Vec3};
+use rand::{Rng, SeedableRng, rngs::SmallRng};
+
+use crate::error::{Error, Result};
+use crate::geometry::{exp_map, face_areas, face_normals, tangent_direction, vertex_normals};
+use crate::mesh::{Csr, TriMesh, vertex_adjacency};
+use crate::work::{CancelToken, Event, Progress, Stopwatch};
+
+/// Parameters of [`run`].
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct Params {
+    /// Swatch x extent in base units (`L`); `None`: a tenth of the base's bbox diagonal.
+    pub swatch_size: Option<f32>,
+    /// Shell thickness `H` in base units; `None`: the swatch height scaled like its extent.
+    pub thickness: Option<f32>,
+    /// Random seed (first placement, first seed triangle).
+    pub seed: u64,
+    /// Refuse runs whose output would exceed this many faces (estimated up front and checked
+    /// while running).
+    pub max_faces: usize,
+    /// Largest accepted flattening area distortion `max(rho, 1/rho)` of a patch before it is
+    /// shrunk (paper: 4).
+    pub max_distortion: f32,
+    /// Radius of the placement disc in units of `L`.
+    pub patch_radius: f32,
+    /// Limit offsets in concave regions by the local radius of curvature.
+    pub concave_guard: bool,
+    /// Orient each patch like the elements already placed in it (keeps the lattice continuous
+    /// across seams); the field only orients patches with no placed neighbours. Off: every
+    /// patch follows the field at its seed.
+    pub follow_neighbours: bool,
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            swatch_size: None,
+            thickness: None,
+            seed: 1,
+            max_faces: 5_000_000,
+            max_distortion: 2.0,
+            patch_radius: 0.5,
+            concave_guard: true,
+            follow_neighbours: true,
+        }
+    }
+}
+
+/// What to quilt: a base surface, a swatch and an optional per-vertex orientation field (the
+/// swatch +x axis follows it; tangent to the base or not, it is projected).
+#[derive(Clone, Copy, Debug)]
+pub struct Input<'a> {
+    /// The base surface.
+    pub base: &'a TriMesh,
+    /// The swatch.
+    pub swatch: &'a Swatch,
+    /// Optional per-vertex direction field, one per base vertex.
+    pub field: Option<&'a [[f32; 3]]>,
+}
+
+/// Counters and measured values of one run.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct QuiltStats {
+    /// Patches placed.
+    pub patches: usize,
+    /// Elements in the output.
+    pub elements: usize,
+    /// New elements dropped by the cut or the greedy overlap check.
+    pub dropped_conflict: usize,
+    /// Already placed elements replaced by new ones in a cut.
+    pub replaced_old: usize,
+    /// Candidates dropped because part of them fell off the flattened base.
+    pub dropped_unmapped: usize,
+    /// Patch retries with a smaller disc because of area distortion.
+    pub shrunk_patches: usize,
+    /// Largest flattening distortion accepted.
+    pub max_distortion: f32,
+    /// Fraction of base area covered by patches.
+    pub covered_fraction: f32,
+    /// `L` used.
+    pub swatch_size: f32,
+    /// `H` used.
+    pub thickness: f32,
+    /// Wall time in seconds.
+    pub seconds: f64,
+}
+
+/// The quilted geometry.
+#[derive(Clone, Debug)]
+pub struct QuiltOutput {
+    /// All elements merged, each a contiguous vertex and face range.
+    pub elements: TriMesh,
+    /// Output element index per vertex.
+    pub element_id: Vec<u32>,
+    /// Swatch element index per output element.
+    pub element_source: Vec<u32>,
+    /// Counters.
+    pub stats: QuiltStats,
+}
+
+impl QuiltOutput {
+    /// Number of output elements.
+    pub fn num_elements(&self) -> usize {
+        self.element_source.len()
+    }
+}
+
+/// A flat `w x h` rectangle in the z = 0 plane (normal +z), corner at the origin, split into
+/// `nx x ny` quads of two triangles: the base of planar quilting.
+pub fn plane(w: f32, h: f32, nx: usize, ny: usize) -> TriMesh {
+    let (nx, ny) = (nx.max(1), ny.max(1));
+    let mut pos = Vec::with_capacity((nx + 1) * (ny + 1));
+    for j in 0..=ny {
+        for i in 0..=nx {
+            pos.push([w * i as f32 / nx as f32, h * j as f32 / ny as f32, 0.0]);
+        }
+    }
+    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
+    let mut faces = Vec::with_capacity(2 * nx * ny);
+    for j in 0..ny {
+        for i in 0..nx {
+            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriMesh::new(pos, faces)
+}
+
+/// The base surface with what the shell map needs.
+struct Base<'a> {
+    p: &'a [[f32; 3]],
+    faces: &'a [[u32; 3]],
+    vn: Vec<[f32; 3]>,
+    fnrm: Vec<[f32; 3]>,
+    area: Vec<f64>,
+    adj: Csr,
+    vf: Csr,
+    guard: Vec<f32>,
+    field: Vec<Vec3>,
+}
+
+impl Base<'_> {
+    /// The shell map: base point at barycentric `b` of face `f`, offset by `h` along the
+    /// interpolated normal, scaled by the concave guard.
+    fn shell_point(&self, f: u32, b: [f32; 3], h: f32) -> Vec3 {
+        let c = self.faces[f as usize];
+        let mut p = Vec3::ZERO;
+        let mut n = Vec3::ZERO;
+        let mut g = 0.0;
+        for k in 0..3 {
+            let v = c[k] as usize;
+            p += Vec3::from(self.p[v]) * b[k];
+            n += Vec3::from(self.vn[v]) * b[k];
+            g += self.guard[v] * b[k];
+        }
+        let n = n.normalize_or(Vec3::from(self.fnrm[f as usize]));
+        p + n * (h * g.clamp(0.05, 1.0))
+    }
+}
+
+/// A flattened patch with a point-location grid.
+struct Flat {
+    /// Base face -> index into `faces`.
+    index: HashMap<u32, u32>,
+    /// Base faces whose three corners are flattened, with their 2D corners.
+    faces: Vec<(u32, [Vec2; 3])>,
+    lo: Vec2,
+    cell: f32,
+    dims: [usize; 2],
+    grid: Vec<Vec<u32>>,
+}
+
+fn bary2(p: Vec2, t: &[Vec2; 3]) -> Option<[f32; 3]> {
+    let (a, b, c) = (t[0], t[1], t[2]);
+    let d = (b - a).perp_dot(c - a);
+    if d.abs() < 1e-20 {
+        return None;
+    }
+    let l1 = (p - a).perp_dot(c - a) / d;
+    let l2 = (b - a).perp_dot(p - a) / d;
+    Some([1.0 - l1 - l2, l1, l2])
+}
+
+/// The 3D direction of the 2D direction `w` through the affine map from flattened triangle
+/// `q` to base triangle `p`.
+fn uv_to_3d(q: &[Vec2; 3], p: [Vec3; 3], w: Vec2) -> Vec3 {
+    let (e1, e2) = (q[1] - q[0], q[2] - q[0]);
+    let d = e1.perp_dot(e2);
+    if d.abs() < 1e-20 {
+        return Vec3::ZERO;
+    }
+    let l1 = w.perp_dot(e2) / d;
+    let l2 = e1.perp_dot(w) / d;
+    (p[1] - p[0]) * l1 + (p[2] - p[0]) * l2
+}
+
+/// The 2D direction of the 3D direction `d` (projected onto the triangle's plane, least
+/// squares) through the affine map from base triangle `p` to flattened triangle `q`.
+fn dir_to_uv(q: &[Vec2; 3], p: [Vec3; 3], d: Vec3) -> Vec2 {
+    let (a, b) = (p[1] - p[0], p[2] - p[0]);
+    let (aa, ab, bb) = (a.dot(a), a.dot(b), b.dot(b));
+    let det = aa * bb - ab * ab;
+    if det.abs() < 1e-30 {
+        return Vec2::ZERO;
+    }
+    let (ra, rb) = (a.dot(d), b.dot(d));
+    let l1 = (bb * ra - ab * rb) / det;
+    let l2 = (aa * rb - ab * ra) / det;
+    (q[1] - q[0]) * l1 + (q[2] - q[0]) * l2
+}
+
+fn seg_dist(p: Vec2, a: Vec2, b: Vec2) -> f32 {
+    let ab = b - a;
+    let t = ((p - a).dot(ab) / ab.length_squared().max(1e-30)).clamp(0.0, 1.0);
+    p.distance(a + ab * t)
+}
+
+impl Flat {
+    fn new(base: &Base, verts: &[u32], uvs: &[[f32; 2]]) -> Flat {
+        let uv: HashMap<u32, Vec2> = verts
+            .iter()
+            .zip(uvs)
+            .map(|(&v, &u)| (v, Vec2::from(u)))
+            .collect();
+        let mut faces = Vec::new();
+        for &v in verts {
+            for &f in base.vf.row(v as usize) {
+                let c = base.faces[f as usize];
+                // count each face once: at its largest corner index present
+                if c.iter().max() != Some(&v) {
+                    continue;
+                }
+                if let (Some(a), Some(b), Some(d)) = (uv.get(&c[0]), uv.get(&c[1]), uv.get(&c[2])) {
+                    faces.push((f, [*a, *b, *d]));
+                }
+            }
+        }
+        faces.sort_unstable_by_key(|x| x.0);
+        let mut lo = Vec2::splat(f32::INFINITY);
+        let mut hi = Vec2::splat(f32::NEG_INFINITY);
+        for (_, t) in &faces {
+            for q in t {
+                lo = lo.min(*q);
+                hi = hi.max(*q);
+            }
+        }
+        let ext = (hi - lo).max(Vec2::splat(1e-12));
+        let cell = ((ext.x * ext.y) / faces.len().max(1) as f32)
+            .sqrt()
+            .max(1e-12)
+            * 1.5;
+        let dims = [
+            ((ext.x / cell) as usize + 1).min(512),
+            ((ext.y / cell) as usize + 1).min(512),
+        ];
+        let cell = (ext.x / dims[0] as f32)
+            .max(ext.y / dims[1] as f32)
+            .max(1e-12);
+        let mut grid = vec![Vec::new(); dims[0] * dims[1]];
+        for (k, (_, t)) in faces.iter().enumerate() {
+            let mut a = Vec2::splat(f32::INFINITY);
+            let mut b = Vec2::splat(f32::NEG_INFINITY);
+            for q in t {
+                a = a.min(*q);
+                b = b.max(*q);
+            }
+            let (i0, j0) = Self::cell_of(lo, cell, dims, a);
+            let (i1, j1) = Self::cell_of(lo, cell, dims, b);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    grid[j * dims[0] + i].push(k as u32);
+                }
+            }
+        }
+        let index = faces
+            .iter()
+            .enumerate()
+            .map(|(k, (f, _))| (*f, k as u32))
+            .collect();
+        Flat {
+            index,
+            faces,
+            lo,
+            cell,
+            dims,
+            grid,
+        }
+    }
+
+    fn cell_of(lo: Vec2, cell: f32, dims: [usize; 2], p: Vec2) -> (usize, usize) {
+        let q = (p - lo) / cell;
+        (
+            (q.x.max(0.0) as usize).min(dims[0] - 1),
+            (q.y.max(0.0) as usize).min(dims[1] - 1),
+        )
+    }
+
+    /// Locate `p`: the face containing it (largest smallest barycentric coordinate), or with
+    /// `extrapolate > 0` the nearest face within that distance, with affine (possibly
+    /// negative) barycentric coordinates. Returns `(face, b, inside)`.
+    fn locate(&self, p: Vec2, extrapolate: f32) -> Option<(u32, [f32; 3], bool)> {
+        if self.faces.is_empty() || !p.is_finite() {
+            return None;
+        }
+        let inside_box = {
+            let q = (p - self.lo) / self.cell;
+            q.x >= 0.0
+                && q.y >= 0.0
+                && (q.x as usize) < self.dims[0]
+                && (q.y as usize) < self.dims[1]
+        };
+        if inside_box {
+            let (i, j) = Self::cell_of(self.lo, self.cell, self.dims, p);
+            let mut best: Option<(u32, [f32; 3], f32)> = None;
+            for &k in &self.grid[j * self.dims[0] + i] {
+                let (f, t) = &self.faces[k as usize];
+                if let Some(b) = bary2(p, t) {
+                    let m = b[0].min(b[1]).min(b[2]);
+                    if m >= -1e-5 && best.is_none_or(|x| m > x.2) {
+                        best = Some((*f, b, m));
+                    }
+                }
+            }
+            if let Some((f, b, _)) = best {
+                return Some((f, b, true));
+            }
+        }
+        if extrapolate <= 0.0 {
+            return None;
+        }
+        let r = (extrapolate / self.cell).ceil() as i64 + 1;
+        let q = ((p - self.lo) / self.cell).floor();
+        let (ci, cj) = (q.x as i64, q.y as i64);
+        let mut best: Option<(u32, [f32; 3], f32)> = None;
+        for j in (cj - r).max(0)..=(cj + r).min(self.dims[1] as i64 - 1) {
+            for i in (ci - r).max(0)..=(ci + r).min(self.dims[0] as i64 - 1) {
+                for &k in &self.grid[j as usize * self.dims[0] + i as usize] {
+                    let (f, t) = &self.faces[k as usize];
+                    let d = seg_dist(p, t[0], t[1])
+                        .min(seg_dist(p, t[1], t[2]))
+                        .min(seg_dist(p, t[2], t[0]));
+                    if d <= extrapolate && best.is_none_or(|x| d < x.2) {
+                        if let Some(b) = bary2(p, t) {
+                            best = Some((*f, b, d));
+                        }
+                    }
+                }
+            }
+        }
+        best.map(|(f, b, _)| (f, b, false))
+    }
+
+    /// Flattening area distortion over faces whose corners lie within `r` of the origin:
+    /// `max(rho, 1/rho)`, `rho = (A_2D / A_3D) / (sum A_2D / sum A_3D)`; infinite for a flipped
+    /// face.
+    fn distortion(&self, base: &Base, r: f32) -> f32 {
+        let mut sel = Vec::new();
+        let (mut s2, mut s3) = (0.0f64, 0.0f64);
+        for (f, t) in &self.faces {
+            if t.iter().any(|q| q.length() > r) {
+                continue;
+            }
+            let a2 = 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]) as f64;
+            let a3 = base.area[*f as usize];
+            if a3 <= 1e-30 {
+                continue;
+            }
+            if a2 <= 0.0 {
+                return f32::INFINITY;
+            }
+            s2 += a2;
+            s3 += a3;
+            sel.push(a2 / a3);
+        }
+        if sel.is_empty() || s2 <= 0.0 {
+            return 1.0;
+        }
+        let mean = s2 / s3;
+        sel.iter()
+            .map(|&x| {
+                let rho = x / mean;
+                rho.max(1.0 / rho)
+            })
+            .fold(1.0f64, f64::max) as f32
+    }
+}
+
+/// One placed element.
+struct Placed {
+    source: u32,
+    positions: Vec<[f32; 3]>,
+    centre: Vec3,
+    anchor: (u32, [f32; 3]),
+    /// Unit 3D tangent of the swatch +x axis at the element.
+    dir: Vec3,
+    alive: bool,
+}
+
+/// A candidate element of the current patch.
+struct Candidate {
+    source: u32,
+    positions: Vec<[f32; 3]>,
+    centre: Vec3,
+    radius: f32,
+    anchor: (u32, [f32; 3]),
+    dir: Vec3,
+    seed_dist: f32,
+}
+
+fn centre_and_radius(ps: &[[f32; 3]]) -> (Vec3, f32) {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for p in ps {
+        lo = lo.min(Vec3::from(*p));
+        hi = hi.max(Vec3::from(*p));
+    }
+    let c = (lo + hi) * 0.5;
+    let r = ps
+        .iter()
+        .map(|p| Vec3::from(*p).distance(c))
+        .fold(0.0f32, f32::max);
+    (c, r)
+}
+
+/// Vertex hash for the "vertices closer than tau" overlap test.
+struct VertexHash {
+    cell: f32,
+    map: HashMap<[i32; 3], Vec<(u32, Vec3)>>,
+}
+
+impl VertexHash {
+    fn new(cell: f32) -> Self {
+        VertexHash {
+            cell,
+            map: HashMap::new(),
+        }
+    }
+    fn key(&self, p: Vec3) -> [i32; 3] {
+        let q = (p / self.cell).floor();
+        [q.x as i32, q.y as i32, q.z as i32]
+    }
+    fn insert(&mut self, id: u32, ps: &[[f32; 3]]) {
+        for p in ps {
+            let p = Vec3::from(*p);
+            let k = self.key(p);
+            self.map.entry(k).or_default().push((id, p));
+        }
+    }
+    /// Ids with a vertex closer than `tau` (<= cell) to one of `ps`, sorted, deduplicated.
+    fn near(&self, ps: &[[f32; 3]], tau: f32) -> Vec<u32> {
+        let mut out = Vec::new();
+        for p in ps {
+            let p = Vec3::from(*p);
+            let k = self.key(p);
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        if let Some(list) = self.map.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) {
+                            for &(id, q) in list {
+                                if q.distance_squared(p) < tau * tau {
+                                    out.push(id);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+}
+
+fn validate_base(base: &TriMesh) -> Result<()> {
+    if base.faces.is_empty() {
+        return Err(Error::InvalidInput("base mesh has no faces".into()));
+    }
+    let n = base.num_vertices();
+    if base.faces.iter().flatten().any(|&v| v as usize >= n) {
+        return Err(Error::InvalidInput(
+            "base mesh has a face with an out-of-range vertex index".into(),
+        ));
+    }
+    if base
+        .positions
+        .iter()
+        .any(|p| p.iter().any(|x| !x.is_finite()))
+    {
+        return Err(Error::InvalidInput(
+            "base mesh has non-finite vertex coordinates".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Quilt `input.swatch` over `input.base` (see the module documentation for the method).
+/// Reports `Event::Progress` (stage `"quilt"`, fraction = covered base area) after every patch
+/// and checks `cancel` as often. Errors: empty or invalid base, bad parameters, a field of the
+/// wrong length, an output estimated above `params.max_faces` faces.
+pub fn run(
+    input: &Input,
+    params: &Params,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<QuiltOutput> {
+    let clock = Stopwatch::start();
+    let mesh = input.base;
+    let sw = input.swatch;
+    validate_base(mesh)?;
+    if sw.elements.is_empty() {
+        return Err(Error::InvalidInput("swatch has no elements".into()));
+    }
+    if let Some(f) = input.field
+        && f.len() != mesh.num_vertices()
+    {
+        return Err(Error::InvalidInput(format!(
+            "orientation field has {} vectors for {} base vertices",
+            f.len(),
+            mesh.num_vertices()
+        )));
+    }
+    if !(params.max_distortion >= 1.0) || !(params.patch_radius > 0.0) {
+        return Err(Error::InvalidInput(
+            "max_distortion must be >= 1 and patch_radius > 0".into(),
+        ));
+    }
+    let (lo, hi) = mesh.bounds().expect("validated");
+    let diag = Vec3::from(hi).distance(Vec3::from(lo));
+    let l = params.swatch_size.unwrap_or(diag / 10.0);
+    if !(l.is_finite() && l > 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "swatch size must be positive (got {l})"
+        )));
+    }
+    let s = l / sw.extent[0];
+    let h = params.thickness.unwrap_or(sw.height * s);
+    if !(h.is_finite() && h >= 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "thickness must be non-negative (got {h})"
+        )));
+    }
+    let hscale = if sw.height > 0.0 { h / sw.height } else { 0.0 };
+
+    // ---- base preparation
+    let n = mesh.num_vertices();
+    let faces = &mesh.faces;
+    let vn = vertex_normals(&mesh.positions, faces);
+    let fnrm = face_normals(&mesh.positions, faces);
+    let area = face_areas(&mesh.positions, faces);
+    let total_area: f64 = area.iter().sum();
+    let adj = vertex_adjacency(n, faces);
+    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(faces.len() * 3);
+    for (f, c) in faces.iter().enumerate() {
+        for &v in c {
+            pairs.push((v, f as u32));
+        }
+    }
+    let vf = Csr::from_pairs(n, &mut pairs);
+    let guard: Vec<f32> = (0..n)
+        .map(|i| {
+            if !params.concave_guard || h <= 0.0 {
+                return 1.0;
+            }
+            let (pi, ni) = (Vec3::from(mesh.positions[i]), Vec3::from(vn[i]));
+            let mut kappa = 0.0f32;
+            for &j in adj.row(i) {
+                let (pj, nj) = (
+                    Vec3::from(mesh.positions[j as usize]),
+                    Vec3::from(vn[j as usize]),
+                );
+                let (dp, dn) = (pj - pi, nj - ni);
+                if dp.dot(dn) < 0.0 && dp.length() > 0.0 {
+                    kappa = kappa.max(dn.length() / dp.length());
+                }
+            }
+            if kappa > 0.0 {
+                (0.9 / (kappa * h)).min(1.0)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let field: Vec<Vec3> = (0..n)
+        .map(|i| {
+            let nv = Vec3::from(vn[i]);
+            match input.field {
+                Some(f) => tangent_direction(nv, Vec3::from(f[i])),
+                None => {
+                    let t = Vec3::X - nv * nv.x;
+                    if t.length() > 0.3 {
+                        t.normalize()
+                    } else {
+                        tangent_direction(nv, Vec3::Y)
+                    }
+                }
+            }
+        })
+        .collect();
+    let base = Base {
+        p: &mesh.positions,
+        faces,
+        vn,
+        fnrm,
+        area,
+        adj,
+        vf,
+        guard,
+        field,
+    };
+
+    // ---- swatch preparation
+    let swatch_faces: usize = sw.mesh.num_faces();
+    let est_faces =
+        total_area / ((sw.extent[0] * sw.extent[1] * s * s) as f64) * swatch_faces as f64;
+    if est_faces > params.max_faces as f64 {
+        return Err(Error::InvalidInput(format!(
+            "the quilt would have about {:.0} faces, above the limit of {}; use a larger swatch size",
+            est_faces, params.max_faces
+        )));
+    }
+    let clearance = sw.clearance();
+    let tau = if clearance.is_finite() {
+        0.5 * clearance * s
+    } else {
+        0.05 * l
+    }
+    .max(1e-7 * l);
+    let (nc, spacing) = sw.class_spacing();
+    let conflict_dist = |a: u32, b: u32| -> f32 {
+        let c = spacing[a as usize * nc + b as usize];
+        if c.is_finite() { 0.7 * c * s } else { 0.0 }
+    };
+    let min_spacing = spacing.iter().cloned().fold(f32::INFINITY, f32::min);
+    let r_elem = sw.elements.iter().map(|e| e.radius).fold(0.0f32, f32::max) * s;
+    let cell = sw.extent[0].min(sw.extent[1]) / 16.0;
+    let classes: Vec<u32> = sw.elements.iter().map(|e| e.class).collect();
+    let images = sw.images();
+    let mean_edge = crate::geometry::mean_edge_length(&mesh.positions, faces);
+
+    let mut rng = SmallRng::seed_from_u64(params.seed);
+    let nf = faces.len();
+    let mut covered = vec![false; nf];
+    let mut score = vec![0u32; nf];
+    let mut covered_area = 0.0f64;
+    let mut placed: Vec<Placed> = Vec::new();
+    let mut anchored: Vec<Vec<u32>> = vec![Vec::new(); nf];
+    // all placed elements by centre, for conflicts with elements outside the flattened disc
+    let r3 = sw
+        .elements
+        .iter()
+        .enumerate()
+        .map(|(e, el)| {
+            let c = Vec3::from(el.centre);
+            sw.element_positions(e)
+                .iter()
+                .map(|p| {
+                    let d = Vec3::from(*p) - c;
+                    (d.x * d.x + d.y * d.y).sqrt() * s + d.z.abs() * hscale
+                })
+                .fold(0.0f32, f32::max)
+        })
+        .fold(0.0f32, f32::max);
+    let max_conflict = spacing
+        .iter()
+        .filter(|x| x.is_finite())
+        .fold(0.0f32, |a, &b| a.max(0.7 * b * s));
+    let mut centres = VertexHash::new((4.0 * r3 + 2.0 * tau).max(max_conflict).max(1e-6 * l));
+    let mut max_radius = 0.0f32;
+    let mut stats = QuiltStats {
+        swatch_size: l,
+        thickness: h,
+        max_distortion: 1.0,
+        ..Default::default()
+    };
+    let mut out_faces = 0usize;
+    let rp_min = (0.15 * l)
+        .max(if min_spacing.is_finite() {
+            min_spacing * s
+        } else {
+            0.0
+        })
+        .min(params.patch_radius * l);
+    let mut first = rng.random_range(0..nf);
+
+    loop {
+        cancel.check()?;
+        // ---- seed: the uncovered face with most covered faces around its corners
+        let seed = if placed.is_empty() && stats.patches == 0 {
+            Some(first)
+        } else {
+            let mut best: Option<(u32, usize)> = None;
+            for f in 0..nf {
+                if !covered[f] && best.is_none_or(|b| score[f] > b.0) {
+                    best = Some((score[f], f));
+                }
+            }
+            best.map(|b| b.1)
+        };
+        let Some(seed) = seed else { break };
+        first = usize::MAX;
+        let _ = first;
+        let sc = faces[seed];
+        let centroid = sc
+            .iter()
+            .map(|&v| Vec3::from(mesh.positions[v as usize]))
+            .sum::<Vec3>()
+            / 3.0;
+        let n0 = Vec3::from(base.fnrm[seed]).normalize_or(Vec3::from(base.vn[sc[0] as usize]));
+        let e1 = tangent_direction(n0, sc.iter().map(|&v| base.field[v as usize]).sum::<Vec3>());
+
+        // ---- flatten, shrinking while distorted
+        let mut rp = params.patch_radius * l;
+        let flat = loop {
+            let r_flat = rp + 2.0 * r_elem + 2.0 * mean_edge + tau;
+            let em = exp_map(
+                &mesh.positions,
+                &base.vn,
+                &base.adj,
+                sc,
+                centroid.to_array(),
+                n0.to_array(),
+                e1.to_array(),
+                r_flat,
+            );
+            let flat = Flat::new(&base, &em.vertices, &em.uv);
+            let d = flat.distortion(&base, rp);
+            if d <= params.max_distortion || rp <= rp_min * 1.0001 {
+                if d.is_finite() {
+                    stats.max_distortion = stats.max_distortion.max(d);
+                }
+                break flat;
+            }
+            stats.shrunk_patches += 1;
+            rp = (rp * 0.75).max(rp_min);
+        };
+
+        // ---- old elements in the patch, in swatch coordinates
+        let corners = |f: u32| faces[f as usize].map(|v| Vec3::from(mesh.positions[v as usize]));
+        let mut old: Vec<(u32, Vec2)> = Vec::new();
+        let mut turn = Vec2::ZERO;
+        for (f, t) in &flat.faces {
+            for &e in &anchored[*f as usize] {
+                let pe = &placed[e as usize];
+                if !pe.alive {
+                    continue;
+                }
+                let b = pe.anchor.1;
+                let uv = t[0] * b[0] + t[1] * b[1] + t[2] * b[2];
+                old.push((e, uv));
+                turn += dir_to_uv(t, corners(*f), pe.dir).normalize_or_zero();
+            }
+        }
+        // orientation: continue the neighbours' lattice (circular mean of their +x axes in
+        // the patch frame) when they agree, else the field at the seed (+u)
+        let rot = if params.follow_neighbours && turn.length() > 0.5 * old.len() as f32 {
+            turn.normalize()
+        } else {
+            Vec2::X
+        };
+        let inv = Vec2::new(rot.x, -rot.y);
+        for o in &mut old {
+            o.1 = inv.rotate(o.1) / s;
+        }
+
+        // ---- matching: the translation t (swatch units) with uv = s (x + t)
+        let t = choose_translation(sw, &classes, &images, &placed, &old, cell, rp / s, &mut rng);
+
+        // ---- candidates
+        let mut cands: Vec<Candidate> = Vec::new();
+        let rs = rp / s;
+        for (e, el) in sw.elements.iter().enumerate() {
+            let c = Vec2::new(el.centre[0], el.centre[1]) + t;
+            let ranges: [(i64, i64); 2] = if sw.periodic {
+                let mut r = [(0, 0); 2];
+                for a in 0..2 {
+                    let p = sw.extent[a];
+                    r[a] = (
+                        ((-rs - c[a]) / p).ceil() as i64,
+                        ((rs - c[a]) / p).floor() as i64,
+                    );
+                }
+                r
+            } else {
+                [(0, 0), (0, 0)]
+            };
+            for jy in ranges[1].0..=ranges[1].1 {
+                for jx in ranges[0].0..=ranges[0].1 {
+                    let off = Vec2::new(jx as f32 * sw.extent[0], jy as f32 * sw.extent[1]);
+                    let uvc = rot.rotate((c + off) * s);
+                    if uvc.length() > rp {
+                        continue;
+                    }
+                    let Some((af, ab, true)) = flat.locate(uvc, 0.0) else {
+                        continue;
+                    };
+                    let shift = t + off;
+                    let mut ps = Vec::with_capacity(el.vertices.len());
+                    let mut ok = true;
+                    for q in sw.element_positions(e) {
+                        let uv = rot.rotate((Vec2::new(q[0], q[1]) + shift) * s);
+                        match flat.locate(uv, r_elem + tau) {
+                            Some((f, b, _)) => {
+                                ps.push(base.shell_point(f, b, q[2] * hscale).to_array())
+                            }
+                            None => {
+                                ok = false;
+                                break;
+                            }
+                        }
+                    }
+                    if !ok {
+                        stats.dropped_unmapped += 1;
+                        continue;
+                    }
+                    let (centre, radius) = centre_and_radius(&ps);
+                    let k = flat.index[&af] as usize;
+                    let dir = uv_to_3d(&flat.faces[k].1, corners(af), rot).normalize_or_zero();
+                    cands.push(Candidate {
+                        source: e as u32,
+                        positions: ps,
+                        centre,
+                        radius,
+                        anchor: (af, ab),
+                        dir,
+                        seed_dist: uvc.length(),
+                    });
+                }
+            }
+        }
+
+        // ---- conflicts between old and new, then the cut: every alive element whose centre
+        // is near a candidate's (3D hash), not only those anchored in the disc
+        let mut near_old: Vec<u32> = Vec::new();
+        for c in &cands {
+            near_old.extend(
+                centres
+                    .near(
+                        &[c.centre.to_array()],
+                        (c.radius + max_radius + tau)
+                            .max(max_conflict)
+                            .min(centres.cell),
+                    )
+                    .into_iter()
+                    .filter(|&e| placed[e as usize].alive),
+            );
+        }
+        near_old.sort_unstable();
+        near_old.dedup();
+        let old: Vec<(u32, ())> = near_old.into_iter().map(|e| (e, ())).collect();
+        let mut hash = VertexHash::new(tau);
+        for (k, (e, _)) in old.iter().enumerate() {
+            hash.insert(k as u32, &placed[*e as usize].positions);
+        }
+        let mut conflicts: Vec<(usize, usize)> = Vec::new();
+        for (j, c) in cands.iter().enumerate() {
+            let cl = sw.elements[c.source as usize].class;
+            let mut near = hash.near(&c.positions, tau);
+            for (k, (e, _)) in old.iter().enumerate() {
+                let pe = &placed[*e as usize];
+                let pcl = sw.elements[pe.source as usize].class;
+                if pe.centre.distance(c.centre) < conflict_dist(pcl, cl) {
+                    near.push(k as u32);
+                }
+            }
+            near.sort_unstable();
+            near.dedup();
+            conflicts.extend(near.into_iter().map(|k| (k as usize, j)));
+        }
+        let (keep_old, keep_new) =
+            maxflow::keep_by_cut(&vec![1.1; old.len()], &vec![1.0; cands.len()], &conflicts);
+        for (k, (e, _)) in old.iter().enumerate() {
+            if !keep_old[k] {
+                let pe = &mut placed[*e as usize];
+                pe.alive = false;
+                out_faces -= sw.elements[pe.source as usize].faces.len();
+                stats.replaced_old += 1;
+            }
+        }
+        // greedy: new elements conflicting with each other, nearest to the seed first
+        let mut order: Vec<usize> = (0..cands.len()).filter(|&j| keep_new[j]).collect();
+        stats.dropped_conflict += cands.len() - order.len();
+        order.sort_by(|&a, &b| {
+            cands[a]
+                .seed_dist
+                .total_cmp(&cands[b].seed_dist)
+                .then(a.cmp(&b))
+        });
+        let mut accepted_hash = VertexHash::new(tau);
+        let mut accepted: Vec<usize> = Vec::new();
+        for j in order {
+            let c = &cands[j];
+            let cl = sw.elements[c.source as usize].class;
+            let clash = !accepted_hash.near(&c.positions, tau).is_empty()
+                || accepted.iter().any(|&a| {
+                    let o = &cands[a];
+                    o.centre.distance(c.centre)
+                        < conflict_dist(sw.elements[o.source as usize].class, cl)
+                            .min(0.9 * (o.radius + c.radius))
+                });
+            if clash {
+                stats.dropped_conflict += 1;
+                continue;
+            }
+            accepted_hash.insert(accepted.len() as u32, &c.positions);
+            accepted.push(j);
+        }
+        for j in accepted {
+            let c = std::mem::replace(
+                &mut cands[j],
+                Candidate {
+                    source: 0,
+                    positions: Vec::new(),
+                    centre: Vec3::ZERO,
+                    radius: 0.0,
+                    anchor: (0, [0.0; 3]),
+                    dir: Vec3::ZERO,
+                    seed_dist: 0.0,
+                },
+            );
+            out_faces += sw.elements[c.source as usize].faces.len();
+            anchored[c.anchor.0 as usize].push(placed.len() as u32);
+            centres.insert(placed.len() as u32, &[c.centre.to_array()]);
+            max_radius = max_radius.max(c.radius);
+            placed.push(Placed {
+                source: c.source,
+                positions: c.positions,
+                centre: c.centre,
+                anchor: c.anchor,
+                dir: c.dir,
+                alive: true,
+            });
+        }
+        if out_faces > params.max_faces {
+            return Err(Error::InvalidInput(format!(
+                "the quilt exceeded the limit of {} faces; use a larger swatch size",
+                params.max_faces
+            )));
+        }
+
+        // ---- coverage
+        let mut mark = |f: usize, covered: &mut Vec<bool>, score: &mut Vec<u32>| {
+            if covered[f] {
+                return;
+            }
+            covered[f] = true;
+            covered_area += base.area[f];
+            for &v in &faces[f] {
+                for &g in base.vf.row(v as usize) {
+                    score[g as usize] += 1;
+                }
+            }
+        };
+        mark(seed, &mut covered, &mut score);
+        for (f, tri) in &flat.faces {
+            if tri.iter().all(|q| q.length() <= rp) {
+                mark(*f as usize, &mut covered, &mut score);
+            }
+        }
+        stats.patches += 1;
+        let fraction = if total_area > 0.0 {
+            (covered_area / total_area) as f32
+        } else {
+            1.0
+        };
+        stats.covered_fraction = fraction;
+        sink(Event::Progress(Progress {
+            stage: "quilt",
+            iteration: stats.patches,
+            elapsed: clock.secs(),
+            fraction,
+            ..Default::default()
+        }));
+    }
+
+    // ---- output
+    let mut positions = Vec::new();
+    let mut out_f = Vec::new();
+    let mut element_id = Vec::new();
+    let mut element_source = Vec::new();
+    for pe in placed.iter().filter(|p| p.alive) {
+        let id = element_source.len() as u32;
+        let v0 = positions.len() as u32;
+        positions.extend_from_slice(&pe.positions);
+        element_id.extend(std::iter::repeat_n(id, pe.positions.len()));
+        out_f.extend(
+            sw.element_faces(pe.source as usize)
+                .into_iter()
+                .map(|f| f.map(|v| v + v0)),
+        );
+        element_source.push(pe.source);
+    }
+    stats.elements = element_source.len();
+    stats.seconds = clock.secs();
+    sink(Event::StageTime("quilt", stats.seconds));
+    Ok(QuiltOutput {
+        elements: TriMesh::new(positions, out_f),
+        element_id,
+        element_source,
+        stats,
+    })
+}
+
+/// Eq. (1)-(3) at the element level: the swatch translation (swatch units) that best explains
+/// the old elements `old` (id, position in swatch coordinates of the patch frame).
+#[allow(clippy::too_many_arguments)]
+fn choose_translation(
+    sw: &Swatch,
+    classes: &[u32],
+    images: &[[f32; 2]],
+    placed: &[Placed],
+    old: &[(u32, Vec2)],
+    cell: f32,
+    rs: f32,
+    rng: &mut SmallRng,
+) -> Vec2 {
+    let (ex, ey) = (sw.extent[0], sw.extent[1]);
+    // translations: t with the seed at swatch point -t
+    let range = |e: f32| -> (f32, f32) {
+        if sw.periodic {
+            (0.0, e)
+        } else if e > 2.0 * rs {
+            (-(e - rs), -rs)
+        } else {
+            (-e / 2.0, -e / 2.0)
+        }
+    };
+    let (rx, ry) = (range(ex), range(ey));
+    if old.is_empty() {
+        return Vec2::new(
+            if rx.1 > rx.0 {
+                rng.random_range(rx.0..rx.1)
+            } else {
+                rx.0
+            },
+            if ry.1 > ry.0 {
+                rng.random_range(ry.0..ry.1)
+            } else {
+                ry.0
+            },
+        );
+    }
+    let cost = |t: Vec2, x: Vec2, cl: u32| -> (f32, Vec2) {
+        // (cost, residual to the nearest same-class centre)
+        let mut best = 4.0f32;
+        let mut res = Vec2::splat(f32::INFINITY);
+        for (j, el) in sw.elements.iter().enumerate() {
+            let c = Vec2::new(el.centre[0], el.centre[1]) + t;
+            for im in images {
+                let mut d = x - c - Vec2::from(*im);
+                if sw.periodic {
+                    d.x -= (d.x / ex).round() * ex;
+                    d.y -= (d.y / ey).round() * ey;
+                }
+                let penalty = if classes[j] == cl { 0.0 } else { 1.0 };
+                let e = d.length() / cell + penalty;
+                if e < best {
+                    best = e;
+                    if penalty == 0.0 {
+                        res = d;
+                    }
+                }
+                if sw.periodic {
+                    break; // wrapped distance already covers the images
+                }
+            }
+        }
+        (best, res)
+    };
+    let steps = |r: (f32, f32)| -> Vec<f32> {
+        if r.1 <= r.0 {
+            return vec![r.0];
+        }
+        let k = ((r.1 - r.0) / cell).ceil() as usize;
+        (0..k.max(1)).map(|i| r.0 + i as f32 * cell).collect()
+    };
+    let mut best = (f32::INFINITY, Vec2::ZERO);
+    for &ty in &steps(ry) {
+        for &tx in &steps(rx) {
+            let t = Vec2::new(tx, ty);
+            let mut e = 0.0;
+            for (id, x) in old {
+                let cl = sw.elements[placed[*id as usize].source as usize].class;
+                e += cost(t, *x, cl).0;
+                if e >= best.0 {
+                    break;
+                }
+            }
+            if e < best.0 {
+                best = (e, t);
+            }
+        }
+    }
+    // continuous refinement by the mean residual of matched same-class pairs
+    let mut t = best.1;
+    for _ in 0..2 {
+        let mut acc = Vec2::ZERO;
+        let mut k = 0;
+        for (id, x) in old {
+            let cl = sw.elements[placed[*id as usize].source as usize].class;
+            let (_, r) = cost(t, *x, cl);
+            if r.length() < cell {
+                acc += r;
+                k += 1;
+            }
+        }
+        if k == 0 {
+            break;
+        }
+        t += acc / k as f32;
+    }
+    t
+}

@@ -1,0 +1,641 @@
+//! Mesh quilting (Zhou et al. 2006): integrity, coverage, shell, non-overlap, planar
+//! reproduction, errors, writers.
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+use meshmatch::TriMesh;
+use meshmatch::mesh::connected_components;
+use meshmatch::synthesis::quilting::{
+    self, Axis, Input, Params, QuiltOutput, Swatch, SwatchKind, load_swatch, plane, swatch,
+};
+use meshmatch::work::{CancelToken, no_events};
+
+/// Icosphere of radius `r`, `k` subdivisions.
+fn icosphere(r: f32, k: usize) -> TriMesh {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut p: Vec<Vec3> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|a| Vec3::from(*a).normalize())
+    .collect();
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..k {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut nf = Vec::new();
+        let mut m = |a: u32, b: u32, p: &mut Vec<Vec3>| -> u32 {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                p.push(((p[a as usize] + p[b as usize]) * 0.5).normalize());
+                p.len() as u32 - 1
+            })
+        };
+        for [a, b, c] in f {
+            let ab = m(a, b, &mut p);
+            let bc = m(b, c, &mut p);
+            let ca = m(c, a, &mut p);
+            nf.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = nf;
+    }
+    TriMesh::new(p.iter().map(|v| (*v * r).to_array()).collect(), f)
+}
+
+fn quilt(base: &TriMesh, sw: &Swatch, params: &Params) -> QuiltOutput {
+    quilting::run(
+        &Input {
+            base,
+            swatch: sw,
+            field: None,
+        },
+        params,
+        &no_events,
+        &CancelToken::new(),
+    )
+    .expect("quilting runs")
+}
+
+/// Every output element is a whole copy of its swatch element: same vertex and face counts,
+/// the same faces up to an index offset, one connected component.
+fn check_integrity(out: &QuiltOutput, sw: &Swatch) {
+    let m = &out.elements;
+    let mut v0 = 0usize;
+    let mut f0 = 0usize;
+    for (e, &src) in out.element_source.iter().enumerate() {
+        let el = &sw.elements[src as usize];
+        let nv = el.vertices.len();
+        let nf = el.faces.len();
+        assert!(out.element_id[v0..v0 + nv].iter().all(|&x| x as usize == e));
+        let faces: Vec<[u32; 3]> = m.faces[f0..f0 + nf]
+            .iter()
+            .map(|f| f.map(|v| v - v0 as u32))
+            .collect();
+        assert_eq!(faces, sw.element_faces(src as usize), "element {e}");
+        let (_, comps) = connected_components(nv, &faces);
+        assert_eq!(comps, 1);
+        v0 += nv;
+        f0 += nf;
+    }
+    assert_eq!(v0, m.num_vertices());
+    assert_eq!(f0, m.num_faces());
+}
+
+/// Smallest distance between vertices of different elements (grid hash with cell `cell`,
+/// pairs closer than `cell` only; returns `cell` when none).
+fn min_inter_element_distance(out: &QuiltOutput, cell: f32) -> f32 {
+    let mut map: HashMap<[i32; 3], Vec<usize>> = HashMap::new();
+    let key = |p: Vec3| {
+        let q = (p / cell).floor();
+        [q.x as i32, q.y as i32, q.z as i32]
+    };
+    for (i, p) in out.elements.positions.iter().enumerate() {
+        map.entry(key(Vec3::from(*p))).or_default().push(i);
+    }
+    let mut best = cell;
+    for (i, p) in out.elements.positions.iter().enumerate() {
+        let p = Vec3::from(*p);
+        let k = key(p);
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    if let Some(l) = map.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) {
+                        for &j in l {
+                            if out.element_id[j] != out.element_id[i] {
+                                best = best.min(p.distance(Vec3::from(out.elements.positions[j])));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    best
+}
+
+/// Fraction of base area (by face centroid) within `r` of some output vertex.
+fn coverage(base: &TriMesh, out: &QuiltOutput, r: f32) -> f32 {
+    let mut map: HashMap<[i32; 3], Vec<Vec3>> = HashMap::new();
+    let key = |p: Vec3| {
+        let q = (p / r).floor();
+        [q.x as i32, q.y as i32, q.z as i32]
+    };
+    for p in &out.elements.positions {
+        let p = Vec3::from(*p);
+        map.entry(key(p)).or_default().push(p);
+    }
+    let areas = meshmatch::geometry::face_areas(&base.positions, &base.faces);
+    let (mut hit, mut all) = (0.0, 0.0);
+    for (f, a) in base.faces.iter().zip(&areas) {
+        let c = f
+            .iter()
+            .map(|&v| Vec3::from(base.positions[v as usize]))
+            .sum::<Vec3>()
+            / 3.0;
+        let k = key(c);
+        let mut near = false;
+        'o: for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    if let Some(l) = map.get(&[k[0] + dx, k[1] + dy, k[2] + dz])
+                        && l.iter().any(|q| q.distance(c) < r)
+                    {
+                        near = true;
+                        break 'o;
+                    }
+                }
+            }
+        }
+        all += a;
+        if near {
+            hit += a;
+        }
+    }
+    (hit / all) as f32
+}
+
+#[test]
+fn plane_reproduces_a_periodic_swatch() {
+    let sw = swatch(SwatchKind::Studs, 1);
+    let base = plane(16.0, 16.0, 32, 32);
+    let params = Params {
+        swatch_size: Some(4.0), // s = 1: swatch units are base units
+        ..Default::default()
+    };
+    let out = quilt(&base, &sw, &params);
+    check_integrity(&out, &sw);
+    // one stud per unit square: 256 on the plane (studs past the border are dropped)
+    let n = out.num_elements();
+    assert!((200..=260).contains(&n), "{n} studs on a 16 x 16 plane");
+    // rigid copies: every element is its source translated, on the swatch lattice
+    let mut v0 = 0;
+    let mut phase: Option<[f32; 2]> = None;
+    for &src in &out.element_source {
+        let sp = sw.element_positions(src as usize);
+        let d = Vec3::from(out.elements.positions[v0]) - Vec3::from(sp[0]);
+        for (k, q) in sp.iter().enumerate() {
+            let p = Vec3::from(out.elements.positions[v0 + k]);
+            assert!((p - Vec3::from(*q) - d).length() < 1e-3, "not a rigid copy");
+        }
+        assert!(d.z.abs() < 1e-4);
+        let ph = [d.x.rem_euclid(1.0), d.y.rem_euclid(1.0)];
+        let p0 = *phase.get_or_insert(ph);
+        let wrap = |a: f32, b: f32| ((a - b + 0.5).rem_euclid(1.0) - 0.5).abs();
+        assert!(
+            wrap(ph[0], p0[0]) < 0.02 && wrap(ph[1], p0[1]) < 0.02,
+            "off the lattice"
+        );
+        v0 += sp.len();
+    }
+    assert!(coverage(&base, &out, 1.0) > 0.97);
+}
+
+#[test]
+fn chain_mail_on_a_sphere_is_whole_covering_in_shell_and_clear() {
+    let sw = swatch(SwatchKind::Chain, 2);
+    let r = 1.0;
+    let base = icosphere(r, 4);
+    let l = 0.8;
+    let params = Params {
+        swatch_size: Some(l),
+        ..Default::default()
+    };
+    let t = std::time::Instant::now();
+    let out = quilt(&base, &sw, &params);
+    let secs = t.elapsed().as_secs_f64();
+    check_integrity(&out, &sw);
+    let h = out.stats.thickness;
+    // shell: 0 <= |p| - r <= H (1 + tol), up to the chordal error of the base
+    let chord = 0.01;
+    for p in &out.elements.positions {
+        let d = Vec3::from(*p).length() - r;
+        assert!(
+            d >= -chord && d <= h * 1.05 + chord,
+            "outside the shell: {d} (H = {h})"
+        );
+    }
+    let cov = coverage(&base, &out, l / 2.0);
+    assert!(cov > 0.95, "coverage {cov}");
+    let s = l / sw.extent[0];
+    let tau = 0.5 * sw.clearance() * s;
+    let dmin = min_inter_element_distance(&out, tau);
+    assert!(dmin >= 0.99 * tau, "elements {dmin} apart, tau {tau}");
+    eprintln!(
+        "sphere chain: {} elements, {} faces, {:.2} s, coverage {cov:.3}, stats {:?}",
+        out.num_elements(),
+        out.elements.num_faces(),
+        secs,
+        out.stats
+    );
+}
+
+#[test]
+fn every_swatch_quilts_a_sphere_deterministically() {
+    let base = icosphere(1.0, 3);
+    for kind in SwatchKind::ALL {
+        let sw = swatch(kind, 3);
+        let params = Params {
+            swatch_size: Some(1.2),
+            seed: 5,
+            ..Default::default()
+        };
+        let a = quilt(&base, &sw, &params);
+        check_integrity(&a, &sw);
+        assert!(a.num_elements() > 20, "{kind:?}: {}", a.num_elements());
+        assert!(coverage(&base, &a, 0.6) > 0.9, "{kind:?}");
+        let b = quilt(&base, &sw, &params);
+        assert_eq!(
+            a.elements.positions, b.elements.positions,
+            "{kind:?} not deterministic"
+        );
+    }
+}
+
+#[test]
+fn bunny_chain_mail() {
+    let path = meshmatch::testdata::data_path("bunny/bunny.obj");
+    if !path.exists() {
+        eprintln!("skipping: {} missing", path.display());
+        return;
+    }
+    let base = meshmatch::mesh::io::load(&path).unwrap();
+    let sw = swatch(SwatchKind::Chain, 1);
+    let (lo, hi) = base.bounds().unwrap();
+    let diag = Vec3::from(hi).distance(Vec3::from(lo));
+    let params = Params {
+        swatch_size: Some(diag / 6.0),
+        ..Default::default()
+    };
+    let t = std::time::Instant::now();
+    let out = quilt(&base, &sw, &params);
+    let secs = t.elapsed().as_secs_f64();
+    check_integrity(&out, &sw);
+    let l = out.stats.swatch_size;
+    let cov = coverage(&base, &out, l / 2.0);
+    eprintln!(
+        "bunny chain (L = diag/6): {} elements, {} faces, {:.2} s, coverage {cov:.3}",
+        out.num_elements(),
+        out.elements.num_faces(),
+        secs
+    );
+    assert!(cov > 0.9, "coverage {cov}");
+    let tau = 0.5 * sw.clearance() * l / sw.extent[0];
+    let dmin = min_inter_element_distance(&out, tau);
+    assert!(dmin >= 0.99 * tau, "elements {dmin} apart, tau {tau}");
+}
+
+#[test]
+#[ignore = "measurement: chain mail on the bunny at the default scale, writes /tmp/quilt_bunny_chain.obj"]
+fn measure_bunny_chain_default_scale() {
+    let path = meshmatch::testdata::data_path("bunny/bunny.obj");
+    let base = meshmatch::mesh::io::load(&path).unwrap();
+    let sw = swatch(SwatchKind::Chain, 1);
+    let t = std::time::Instant::now();
+    let out = quilt(&base, &sw, &Params::default());
+    let secs = t.elapsed().as_secs_f64();
+    check_integrity(&out, &sw);
+    let cov = coverage(&base, &out, out.stats.swatch_size / 2.0);
+    eprintln!(
+        "bunny chain (default L = diag/10): base {} faces, {} elements, {} faces, {} vertices, {:.2} s, coverage {cov:.3}\n{:?}",
+        base.num_faces(),
+        out.num_elements(),
+        out.elements.num_faces(),
+        out.elements.num_vertices(),
+        secs,
+        out.stats
+    );
+    quilting::save_quilt_obj(
+        &out,
+        Some(&base),
+        std::path::Path::new("/tmp/quilt_bunny_chain.obj"),
+    )
+    .unwrap();
+    quilting::save_quilt_obj(
+        &out,
+        None,
+        std::path::Path::new("/tmp/quilt_bunny_chain_only.obj"),
+    )
+    .unwrap();
+}
+
+#[test]
+fn bad_inputs_give_one_line_errors() {
+    let one_line = |e: meshmatch::Error| {
+        let s = e.to_string();
+        assert!(!s.contains('\n') && !s.is_empty());
+        s
+    };
+    let e = one_line(load_swatch(TriMesh::new(vec![], vec![]), Axis::Z).unwrap_err());
+    assert!(e.contains("no elements"));
+    let studs = swatch(SwatchKind::Studs, 0);
+    let single = TriMesh::new(studs.element_positions(0).to_vec(), studs.element_faces(0));
+    let e = one_line(load_swatch(single, Axis::Z).unwrap_err());
+    assert!(
+        e.contains("one element covers the swatch; quilting needs several"),
+        "{e}"
+    );
+    // rotated so the up axis is y: loading with Axis::Z puts elements below the ground
+    let lying: Vec<[f32; 3]> = studs
+        .mesh
+        .positions
+        .iter()
+        .map(|p| [p[0], p[2], -p[1]])
+        .collect();
+    let lying = TriMesh::new(lying, studs.mesh.faces.clone());
+    let e = one_line(load_swatch(lying.clone(), Axis::Z).unwrap_err());
+    assert!(e.contains("below the ground"), "{e}");
+    assert_eq!(load_swatch(lying, Axis::Y).unwrap().num_elements(), 16);
+    // a plate under all studs makes one element span the swatch
+    let mut pos = studs.mesh.positions.clone();
+    let mut faces = studs.mesh.faces.clone();
+    let k = pos.len() as u32;
+    pos.extend([
+        [0.0, 0.0, 0.0],
+        [4.0, 0.0, 0.0],
+        [4.0, 4.0, 0.0],
+        [0.0, 4.0, 0.0],
+    ]);
+    faces.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+    let e = one_line(load_swatch(TriMesh::new(pos, faces), Axis::Z).unwrap_err());
+    assert!(e.contains("covers the whole swatch"), "{e}");
+    // a good user swatch loads
+    let ok = load_swatch(studs.mesh.clone(), Axis::Z).unwrap();
+    assert_eq!(ok.num_elements(), 16);
+
+    let base = plane(4.0, 4.0, 4, 4);
+    let run = |base: &TriMesh, field: Option<&[[f32; 3]]>, params: &Params| {
+        quilting::run(
+            &Input {
+                base,
+                swatch: &studs,
+                field,
+            },
+            params,
+            &no_events,
+            &CancelToken::new(),
+        )
+    };
+    let e = one_line(run(&TriMesh::new(vec![], vec![]), None, &Params::default()).unwrap_err());
+    assert!(e.contains("no faces"));
+    let e = one_line(run(&base, Some(&[[1.0, 0.0, 0.0]]), &Params::default()).unwrap_err());
+    assert!(e.contains("orientation field"));
+    let tiny = Params {
+        swatch_size: Some(0.001),
+        ..Default::default()
+    };
+    let e = one_line(run(&base, None, &tiny).unwrap_err());
+    assert!(e.contains("faces"), "{e}");
+    let neg = Params {
+        swatch_size: Some(-1.0),
+        ..Default::default()
+    };
+    one_line(run(&base, None, &neg).unwrap_err());
+    // cancel
+    let c = CancelToken::new();
+    c.cancel();
+    let r = quilting::run(
+        &Input {
+            base: &base,
+            swatch: &studs,
+            field: None,
+        },
+        &Params::default(),
+        &no_events,
+        &c,
+    );
+    assert!(matches!(r, Err(meshmatch::Error::Cancelled)));
+}
+
+#[test]
+fn field_orients_the_swatch_and_writers_round_trip() {
+    let sw = swatch(SwatchKind::Weave, 0);
+    let base = plane(8.0, 8.0, 16, 16);
+    // field along +y: x strands of the swatch run along y on the base
+    let field = vec![[0.0, 1.0, 0.0]; base.num_vertices()];
+    let out = quilting::run(
+        &Input {
+            base: &base,
+            swatch: &sw,
+            field: Some(&field),
+        },
+        &Params {
+            swatch_size: Some(4.0),
+            ..Default::default()
+        },
+        &no_events,
+        &CancelToken::new(),
+    )
+    .unwrap();
+    check_integrity(&out, &sw);
+    // element 0 of the weave is an x strand: in the output it spans y, not x
+    let mut v0 = 0;
+    for &src in &out.element_source {
+        let nv = sw.elements[src as usize].vertices.len();
+        if src == 0 {
+            let ps = &out.elements.positions[v0..v0 + nv];
+            let span = |k: usize| {
+                ps.iter().map(|p| p[k]).fold(f32::NEG_INFINITY, f32::max)
+                    - ps.iter().map(|p| p[k]).fold(f32::INFINITY, f32::min)
+            };
+            assert!(span(1) > 3.0 * span(0), "strand not turned by the field");
+        }
+        v0 += nv;
+    }
+    let dir = std::env::temp_dir().join(format!("meshmatch_quilt_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let obj = dir.join("q.obj");
+    quilting::save_quilt_obj(&out, Some(&base), &obj).unwrap();
+    let text = std::fs::read_to_string(&obj).unwrap();
+    assert_eq!(text.matches("\ng element_").count(), out.num_elements());
+    assert!(text.contains("\ng base\n"));
+    let ply = dir.join("q.ply");
+    quilting::save_quilt_ply(&out, &ply).unwrap();
+    let back = meshmatch::mesh::io::load(&ply).unwrap();
+    assert_eq!(back.num_vertices(), out.elements.num_vertices());
+    assert_eq!(back.num_faces(), out.elements.num_faces());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A tiny orthographic z-buffer rasteriser (view along -z after rotating by `yaw` about y),
+/// Lambert-shaded, for eyeballing outputs in measurement runs.
+fn render_png(
+    meshes: &[(&TriMesh, [u8; 3])],
+    yaw: f32,
+    zoom: f32,
+    centre_frac: [f32; 2],
+    size: usize,
+    path: &str,
+) {
+    let rot = glam::Mat3::from_rotation_y(yaw);
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for (m, _) in meshes {
+        for p in &m.positions {
+            let q = rot * Vec3::from(*p);
+            lo = lo.min(q);
+            hi = hi.max(q);
+        }
+    }
+    let ext = (hi - lo).x.max((hi - lo).y) / zoom;
+    let c = glam::Vec2::new(
+        lo.x + (hi.x - lo.x) * centre_frac[0],
+        lo.y + (hi.y - lo.y) * centre_frac[1],
+    );
+    let mut depth = vec![f32::NEG_INFINITY; size * size];
+    let mut img =
+        image::RgbImage::from_pixel(size as u32, size as u32, image::Rgb([255, 255, 255]));
+    let light = Vec3::new(0.3, 0.5, 1.0).normalize();
+    for (m, col) in meshes {
+        for f in &m.faces {
+            let [a, b, cc] = f.map(|v| rot * Vec3::from(m.positions[v as usize]));
+            let n = (b - a).cross(cc - a).normalize_or_zero();
+            let shade = 0.25 + 0.75 * n.dot(light).abs();
+            let px = |p: Vec3| {
+                glam::Vec2::new(
+                    ((p.x - c.x) / ext + 0.5) * size as f32,
+                    (0.5 - (p.y - c.y) / ext) * size as f32,
+                )
+            };
+            let (pa, pb, pc) = (px(a), px(b), px(cc));
+            let x0 = pa.x.min(pb.x).min(pc.x).floor().max(0.0) as i64;
+            let x1 = pa.x.max(pb.x).max(pc.x).ceil().min(size as f32 - 1.0) as i64;
+            let y0 = pa.y.min(pb.y).min(pc.y).floor().max(0.0) as i64;
+            let y1 = pa.y.max(pb.y).max(pc.y).ceil().min(size as f32 - 1.0) as i64;
+            let d = (pb - pa).perp_dot(pc - pa);
+            if d.abs() < 1e-12 {
+                continue;
+            }
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let p = glam::Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                    let l1 = (p - pa).perp_dot(pc - pa) / d;
+                    let l2 = (pb - pa).perp_dot(p - pa) / d;
+                    let l0 = 1.0 - l1 - l2;
+                    if l0 < 0.0 || l1 < 0.0 || l2 < 0.0 {
+                        continue;
+                    }
+                    let z = a.z * l0 + b.z * l1 + cc.z * l2;
+                    let k = y as usize * size + x as usize;
+                    if z > depth[k] {
+                        depth[k] = z;
+                        img.put_pixel(
+                            x as u32,
+                            y as u32,
+                            image::Rgb(col.map(|c| (c as f32 * shade) as u8)),
+                        );
+                    }
+                }
+            }
+        }
+    }
+    img.save(path).unwrap();
+}
+
+#[test]
+#[ignore = "measurement: renders PNG previews of quilts to /tmp"]
+fn render_previews() {
+    let path = meshmatch::testdata::data_path("bunny/bunny.obj");
+    let base = meshmatch::mesh::io::load(&path).unwrap();
+    for kind in SwatchKind::ALL {
+        let sw = swatch(kind, 1);
+        let out = quilt(&base, &sw, &Params::default());
+        let name = kind.as_str();
+        render_png(
+            &[(&base, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+            0.0,
+            1.0,
+            [0.5, 0.5],
+            900,
+            &format!("/tmp/quilt_bunny_{name}.png"),
+        );
+        render_png(
+            &[(&base, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+            0.0,
+            4.0,
+            [0.45, 0.45],
+            900,
+            &format!("/tmp/quilt_bunny_{name}_zoom.png"),
+        );
+        eprintln!(
+            "{name}: {} elements, {} faces, {:.2} s",
+            out.num_elements(),
+            out.elements.num_faces(),
+            out.stats.seconds
+        );
+    }
+    let sw = swatch(SwatchKind::Chain, 1);
+    let sphere = icosphere(1.0, 4);
+    let out = quilt(
+        &sphere,
+        &sw,
+        &Params {
+            swatch_size: Some(0.8),
+            ..Default::default()
+        },
+    );
+    render_png(
+        &[(&sphere, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+        0.0,
+        1.0,
+        [0.5, 0.5],
+        900,
+        "/tmp/quilt_sphere_chain.png",
+    );
+    render_png(
+        &[(&sphere, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+        0.0,
+        4.0,
+        [0.5, 0.5],
+        900,
+        "/tmp/quilt_sphere_chain_zoom.png",
+    );
+    let sw = swatch(SwatchKind::Chain, 1);
+    let pl = plane(8.0, 8.0, 16, 16);
+    let out = quilt(
+        &pl,
+        &sw,
+        &Params {
+            swatch_size: Some(4.0),
+            ..Default::default()
+        },
+    );
+    render_png(
+        &[(&pl, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+        0.0,
+        2.0,
+        [0.5, 0.5],
+        900,
+        "/tmp/quilt_plane_chain.png",
+    );
+}
