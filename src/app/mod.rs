@@ -6,6 +6,7 @@
 
 pub mod engine;
 pub mod files;
+pub mod quilt;
 pub mod state;
 pub mod systems;
 pub mod tools;

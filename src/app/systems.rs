@@ -58,6 +58,7 @@ pub fn registry<P: AppParams>() -> Vec<Box<dyn SystemTool<P>>> {
         Box::new(ExemplarDialog::default()),
         Box::new(super::weather::WeatherDialog::default()),
         Box::new(super::weather::FeatureDialog::default()),
+        Box::new(super::quilt::QuiltDialog::default()),
     ]
 }
 

@@ -11,6 +11,7 @@ mod demo;
 mod detail;
 mod features;
 mod info;
+mod quilt;
 #[cfg(feature = "gui")]
 mod render;
 mod synth;
@@ -84,6 +85,11 @@ commands! {
     Weather(weather::WeatherArgs),
     /// Bake one geometric feature as vertex colours: ambient occlusion, curvature, height...
     Features(features::FeaturesArgs),
+    /// Mesh quilting (Zhou et al. 2006): cover a surface with 3D elements from a swatch (chain
+    /// mail, weaves, nuts, studs, scales), every element whole.
+    Quilt(quilt::QuiltArgs),
+    /// Write a built-in procedural swatch for `quilt`.
+    Swatch(quilt::SwatchArgs),
     /// Time the transfer's stages at several working resolutions (Spot -> horse from the shared data).
     Bench(bench::BenchArgs),
     /// Render a mesh to a PNG offscreen (headlight Lambert shading, vertex colours or texture).

@@ -7,6 +7,8 @@ pub(super) struct Snapshot {
     pub(super) corr: Vec<Correspondence>,
     pub(super) pending_source: Option<u32>,
     pub(super) paint: [Option<Vec<[f32; 4]>>; 2],
+    /// A whole mesh replaced by a tool (index in `meshes`, the slot before): undoing puts it back.
+    pub(super) slot: Option<(usize, Box<MeshSlot>)>,
 }
 
 /// Brush settings for painting vertex colours.
@@ -45,6 +47,7 @@ impl<P: AppParams> AppState<P> {
                 Some((side, _, p)) if side_index(*side) == i => p.clone(),
                 _ => self.meshes[i].as_ref().and_then(|s| s.paint.clone()),
             }),
+            slot: None,
         }
     }
 
@@ -58,6 +61,13 @@ impl<P: AppParams> AppState<P> {
     }
 
     pub(super) fn restore(&mut self, s: Snapshot) {
+        if let Some((i, mut slot)) = s.slot {
+            slot.geometry_dirty = true;
+            slot.colors_dirty = true;
+            self.meshes[i] = Some(*slot);
+            // The restored mesh is the answer: no transfer overwrites it.
+            self.restart_at = None;
+        }
         let corr_changed = s.corr != self.corr;
         self.corr = s.corr;
         self.pending_source = s.pending_source;
@@ -87,7 +97,10 @@ impl<P: AppParams> AppState<P> {
             self.message = "nothing to undo".into();
             return false;
         };
-        let cur = self.snapshot();
+        let mut cur = self.snapshot();
+        if let Some((i, _)) = &s.slot {
+            cur.slot = self.meshes[*i].clone().map(|m| (*i, Box::new(m)));
+        }
         self.redo.push(cur);
         self.restore(s);
         self.message = format!(
@@ -104,7 +117,10 @@ impl<P: AppParams> AppState<P> {
             self.message = "nothing to redo".into();
             return false;
         };
-        let cur = self.snapshot();
+        let mut cur = self.snapshot();
+        if let Some((i, _)) = &s.slot {
+            cur.slot = self.meshes[*i].clone().map(|m| (*i, Box::new(m)));
+        }
         self.undo.push(cur);
         self.restore(s);
         self.message = format!(
@@ -200,6 +216,13 @@ impl<P: AppParams> AppState<P> {
                 self.message = message;
             }
             ToolOutcome::Mesh(side, mesh, message) => {
+                // One undo step puts the replaced mesh back.
+                let i = side_index(side);
+                let old = self.meshes[i].clone();
+                self.push_undo();
+                if let (Some(s), Some(old)) = (self.undo.last_mut(), old) {
+                    s.slot = Some((i, Box::new(old)));
+                }
                 self.set_mesh(side, mesh, false);
                 // The result is the answer: do not overwrite it with a transfer.
                 self.restart_at = None;

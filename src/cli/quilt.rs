@@ -1,0 +1,183 @@
+//! `meshmatch quilt` and `meshmatch swatch`: mesh quilting (Zhou et al. 2006), geometric
+//! textures (chain mail, weaves, nuts, studs, scales) stitched over a base surface, and the
+//! procedural swatches it ships with.
+
+use std::path::{Path, PathBuf};
+
+use super::common::*;
+use crate::error::{Error, Result};
+use crate::mesh::{TriMesh, io};
+use crate::synthesis::quilting::{self, Axis, Params, Swatch, SwatchKind};
+use crate::work::CancelToken;
+
+/// Arguments of `meshmatch quilt`.
+#[derive(clap::Args, Debug)]
+pub struct QuiltArgs {
+    /// The swatch: a mesh file whose elements (connected components) lie over z = 0 with z up
+    /// and whose x-y extent is the swatch, or a built-in kind: chain, weave, nuts, studs, scales.
+    #[arg(long)]
+    pub swatch: String,
+    /// The base surface to cover.
+    #[arg(long)]
+    pub base: PathBuf,
+    /// Output: .obj (one group per element, `element_N`, and `base`), .ply (the elements with a
+    /// per-vertex `element` id), .glb (elements and base as one mesh).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Swatch width (its x extent) in base units; default a tenth of the base's bounding-box
+    /// diagonal.
+    #[arg(long)]
+    pub swatch_size: Option<f32>,
+    /// Shell thickness in base units; default the swatch height scaled like its width.
+    #[arg(long)]
+    pub thickness: Option<f32>,
+    /// Which axis of a swatch file points away from the surface: x, y or z.
+    #[arg(long, default_value = "z")]
+    pub swatch_up: String,
+    /// Write only the elements, not the base.
+    #[arg(long)]
+    pub elements_only: bool,
+    /// Random seed.
+    #[arg(long, default_value_t = Params::default().seed)]
+    pub seed: u64,
+}
+
+fn positive(name: &str, v: Option<f32>) -> Result<()> {
+    match v {
+        Some(x) if !(x.is_finite() && x > 0.0) => Err(Error::InvalidInput(format!(
+            "--{name} {x}: use a positive length in base units"
+        ))),
+        _ => Ok(()),
+    }
+}
+
+/// A built-in swatch by name, or a swatch mesh file with `up` as its up axis.
+fn load_any_swatch(spec: &str, up: &str, seed: u64) -> Result<Swatch> {
+    if let Ok(kind) = SwatchKind::parse(spec) {
+        return Ok(quilting::swatch(kind, seed));
+    }
+    let up = match up.to_ascii_lowercase().as_str() {
+        "x" => Axis::X,
+        "y" => Axis::Y,
+        "z" => Axis::Z,
+        _ => {
+            return Err(Error::InvalidInput(format!(
+                "--swatch-up {up}: use x, y or z"
+            )));
+        }
+    };
+    let path = Path::new(spec);
+    if !path.exists() {
+        return Err(Error::InvalidInput(format!(
+            "--swatch {spec}: no such file, and not a built-in swatch (chain, weave, nuts, studs, scales)"
+        )));
+    }
+    quilting::load_swatch(io::load(path)?, up)
+}
+
+impl QuiltArgs {
+    /// Run the subcommand; returns the exit code.
+    pub fn run(&self) -> Result<i32> {
+        let a = self;
+        check_mesh_output(&a.out)?;
+        positive("swatch-size", a.swatch_size)?;
+        positive("thickness", a.thickness)?;
+        let swatch = load_any_swatch(&a.swatch, &a.swatch_up, a.seed)?;
+        let base = load_usable(&a.base)?;
+        let params = Params {
+            swatch_size: a.swatch_size,
+            thickness: a.thickness,
+            seed: a.seed,
+            ..Params::default()
+        };
+        let bar = progress_bar();
+        let sink = |e| bar_sink(&bar, e);
+        let input = quilting::Input {
+            base: &base,
+            swatch: &swatch,
+            field: None,
+        };
+        let out = quilting::run(&input, &params, &sink, &CancelToken::new())?;
+        bar.finish_and_clear();
+        let s = &out.stats;
+        eprintln!(
+            "quilted {} elements ({} faces) in {:.2} s: {} patches, {:.1}% of the base covered, \
+             swatch {:.4} wide, shell {:.4} thick",
+            s.elements,
+            out.elements.num_faces(),
+            s.seconds,
+            s.patches,
+            100.0 * s.covered_fraction,
+            s.swatch_size,
+            s.thickness
+        );
+        let ext = a
+            .out
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        let with_base = (!a.elements_only).then_some(&base);
+        match ext.as_str() {
+            "obj" => quilting::save_quilt_obj(&out, with_base, &a.out)?,
+            "ply" => {
+                if !a.elements_only {
+                    eprintln!(
+                        "note: PLY carries the elements with a per-vertex element id, not the \
+                         base (use .obj or .glb for both)"
+                    );
+                }
+                quilting::save_quilt_ply(&out, &a.out)?
+            }
+            _ => io::save(&merged(&out.elements, with_base), &a.out)?,
+        }
+        eprintln!("wrote {}", a.out.display());
+        Ok(0)
+    }
+}
+
+/// The elements and, when given, the base as one mesh (for formats without groups).
+fn merged(elements: &TriMesh, base: Option<&TriMesh>) -> TriMesh {
+    let mut positions = elements.positions.clone();
+    let mut faces = elements.faces.clone();
+    if let Some(b) = base {
+        let o = positions.len() as u32;
+        positions.extend_from_slice(&b.positions);
+        faces.extend(b.faces.iter().map(|f| [f[0] + o, f[1] + o, f[2] + o]));
+    }
+    TriMesh::new(positions, faces)
+}
+
+/// Arguments of `meshmatch swatch`.
+#[derive(clap::Args, Debug)]
+pub struct SwatchArgs {
+    /// chain, weave, nuts, studs or scales.
+    #[arg(long)]
+    pub kind: String,
+    /// Output mesh (.obj, .ply, .glb): elements over z = 0, z up.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Random seed (jitter of nuts and scales).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+impl SwatchArgs {
+    /// Run the subcommand; returns the exit code.
+    pub fn run(&self) -> Result<i32> {
+        check_mesh_output(&self.out)?;
+        let s = quilting::swatch(SwatchKind::parse(&self.kind)?, self.seed);
+        io::save(&s.mesh, &self.out)?;
+        eprintln!(
+            "{} swatch: {} elements, {} faces, {:.3} x {:.3}, height {:.3}",
+            self.kind,
+            s.elements.len(),
+            s.mesh.num_faces(),
+            s.extent[0],
+            s.extent[1],
+            s.height
+        );
+        eprintln!("wrote {}", self.out.display());
+        Ok(0)
+    }
+}
