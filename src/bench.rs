@@ -377,3 +377,138 @@ pub fn run(sizes: &[usize], json: bool, probes: usize) -> Result<()> {
     }
     Ok(())
 }
+
+/// One row of the systems' benchmark (`meshmatch bench --system weather|quilt`).
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SystemRow {
+    /// The system and its case.
+    pub case: String,
+    /// Working vertices (surface points) per mesh, or base vertices for quilting.
+    pub vertices: usize,
+    /// Stage times, seconds.
+    pub stages: Vec<(String, f64)>,
+    /// End to end, seconds.
+    pub total_s: f64,
+    /// Output faces (quilting) or 0.
+    pub faces: usize,
+    /// Peak resident set size of the process so far, MiB.
+    pub peak_rss_mb: f64,
+}
+
+/// Geometry-correlated transfer, Spot (textured) -> the horse, both at `n` surface points:
+/// features, CCA, matching and parametric synthesis.
+pub fn weather_row(n: usize) -> Result<SystemRow> {
+    use crate::synthesis::mertens;
+    let mut source = crate::mesh::io::load(&crate::testdata::data_path("spot/spot.obj"))?;
+    source.repair()?;
+    let mut target = crate::mesh::io::load(&crate::testdata::data_path("horse/horse.ply"))?;
+    target.repair()?;
+    let params = mertens::Params {
+        working_vertices: n,
+        ..mertens::Params::default()
+    };
+    let t = Instant::now();
+    let input = mertens::Input {
+        source: &source,
+        target: &target,
+        source_mask: None,
+    };
+    let out = mertens::run(&input, &params, &|_| {}, &CancelToken::new())?;
+    Ok(SystemRow {
+        case: "weather spot -> horse".into(),
+        vertices: out.target.mesh.num_vertices(),
+        stages: out
+            .timings
+            .iter()
+            .map(|(k, s)| (k.to_string(), *s))
+            .collect(),
+        total_s: t.elapsed().as_secs_f64(),
+        faces: 0,
+        peak_rss_mb: peak_rss_mb(),
+    })
+}
+
+/// Mesh quilting of the chain-mail swatch over a plane (`planar`) or the bunny, with the swatch
+/// `1 / swatches` of the base's bounding-box diagonal wide.
+pub fn quilt_row(planar: bool, swatches: f32) -> Result<SystemRow> {
+    use crate::synthesis::quilting;
+    let base = if planar {
+        quilting::plane(1.0, 1.0, 64, 64)
+    } else {
+        let mut b = crate::mesh::io::load(&crate::testdata::data_path("bunny/bunny.obj"))?;
+        b.repair()?;
+        b
+    };
+    let (lo, hi) = base
+        .bounds()
+        .ok_or_else(|| crate::error::Error::InvalidMesh("empty base".into()))?;
+    let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo));
+    let swatch = quilting::swatch(quilting::SwatchKind::Chain, 1);
+    let params = quilting::Params {
+        swatch_size: Some(diag / swatches),
+        ..quilting::Params::default()
+    };
+    let t = Instant::now();
+    let input = quilting::Input {
+        base: &base,
+        swatch: &swatch,
+        field: None,
+    };
+    let out = quilting::run(&input, &params, &|_| {}, &CancelToken::new())?;
+    Ok(SystemRow {
+        case: format!(
+            "quilt chain on {} (swatch = diagonal / {swatches})",
+            if planar { "a plane" } else { "the bunny" }
+        ),
+        vertices: base.num_vertices(),
+        stages: vec![("quilt".into(), out.stats.seconds)],
+        total_s: t.elapsed().as_secs_f64(),
+        faces: out.elements.num_faces(),
+        peak_rss_mb: peak_rss_mb(),
+    })
+}
+
+/// `meshmatch bench --system weather|quilt`: the rows of a synthesis system.
+pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
+    let rows: Vec<SystemRow> = match system {
+        "weather" => sizes
+            .iter()
+            .map(|&n| weather_row(n))
+            .collect::<Result<_>>()?,
+        "quilt" => vec![
+            quilt_row(true, 8.0)?,
+            quilt_row(false, 10.0)?,
+            quilt_row(false, 25.0)?,
+        ],
+        _ => {
+            return Err(crate::error::Error::InvalidInput(format!(
+                "--system {system}: use meshmatch, weather or quilt"
+            )));
+        }
+    };
+    for r in rows {
+        if json {
+            println!("{}", serde_json::to_string(&r).expect("serialisable"));
+        } else {
+            let stages: Vec<String> = r
+                .stages
+                .iter()
+                .map(|(k, s)| format!("{k} {s:.2} s"))
+                .collect();
+            println!(
+                "{}: {} vertices, {:.2} s end to end ({}){}, peak RSS {:.0} MiB",
+                r.case,
+                r.vertices,
+                r.total_s,
+                stages.join(", "),
+                if r.faces > 0 {
+                    format!(", {} output faces", r.faces)
+                } else {
+                    String::new()
+                },
+                r.peak_rss_mb
+            );
+        }
+    }
+    Ok(())
+}

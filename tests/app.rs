@@ -1626,3 +1626,161 @@ fn file_open_works_without_a_system_dialog_through_the_built_in_browser() {
     assert_eq!(target.file.positions.len(), sphere(6, 8).positions.len());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A sphere with radial bumps `1 + a sin(k theta) sin(k phi)`: crevices between the bumps.
+fn bumpy_sphere(rings: u32, segments: u32, k: f32, a: f32) -> TriMesh {
+    let mut m = sphere(rings, segments);
+    for p in &mut m.positions {
+        let v = glam::Vec3::from(*p);
+        let theta = v.y.clamp(-1.0, 1.0).acos();
+        let phi = v.z.atan2(v.x);
+        let r = 1.0 + a * (k * theta).sin() * (k * phi).sin();
+        *p = (v * r).to_array();
+    }
+    m.colors = None;
+    m
+}
+
+fn wait_tool(h: &mut Harness<'static, App>, limit: Duration) {
+    let t0 = Instant::now();
+    while h.state().tool.is_some() {
+        h.step();
+        assert!(t0.elapsed() < limit, "the tool did not finish");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.run_steps(2);
+}
+
+fn system_index<T: 'static>(h: &mut Harness<'static, App>) -> usize {
+    let app = h.state_mut();
+    (0..app.systems.len())
+        .find(|&i| {
+            let any: &mut dyn std::any::Any = app.systems[i].as_any_mut();
+            any.is::<T>()
+        })
+        .expect("registered")
+}
+
+#[test]
+fn weather_tool_learns_dark_crevices_from_the_source_and_one_undo_restores() {
+    use meshmatch::app::weather::WeatherDialog;
+    use meshmatch::synthesis::mertens::{self, Params};
+    // The source's colour is its own ambient occlusion: dark in the crevices between bumps.
+    let mut source = bumpy_sphere(40, 64, 5.0, 0.18);
+    let params = Params {
+        rays: 48,
+        ..Params::default()
+    };
+    let ao = |m: &TriMesh| {
+        let fs = mertens::features(&m.positions, &m.faces, &params, &CancelToken::new()).unwrap();
+        mertens::feature_field(&fs, "ao").unwrap()
+    };
+    source.colors = Some(ao(&source).iter().map(|&a| [a, a * 0.9, a * 0.8]).collect());
+    let target = bumpy_sphere(48, 72, 7.0, 0.14);
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, source, false);
+    app.state.set_mesh(Side::Target, target, false);
+    let mut h = harness(app);
+    // Let the worker prepare the target: the view then shows its working mesh.
+    let t0 = Instant::now();
+    while h
+        .state()
+        .state
+        .slot(Side::Target)
+        .unwrap()
+        .working
+        .is_none()
+    {
+        h.step();
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "target not prepared"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.run_steps(2);
+    let before = h.state().state.slot(Side::Target).unwrap().display_colors();
+    let i = system_index::<WeatherDialog>(&mut h);
+    {
+        let d = h.state_mut().system_mut::<WeatherDialog>().unwrap();
+        d.settings.vertices = 6_000;
+        d.settings.rays = 32;
+        d.settings.clusters = 12;
+    }
+    h.state_mut().start_system(i);
+    assert!(h.state().tool.is_some(), "{:?}", h.state().state.errors);
+    wait_tool(&mut h, Duration::from_secs(120));
+    let st = &h.state().state;
+    assert!(st.errors.is_empty(), "{:?}", st.errors);
+    let slot = st.slot(Side::Target).unwrap();
+    let after = slot.display_colors();
+    let truth = ao(slot.displayed());
+    let lum: Vec<f32> = after.iter().map(|c| (c[0] + c[1] + c[2]) / 3.0).collect();
+    let r = pearson(&lum, &truth);
+    println!("weather: correlation of the target's lightness with its own AO: {r:.3}");
+    assert!(r > 0.6, "correlation {r}");
+    assert!(
+        st.message.contains("features that matter"),
+        "{}",
+        st.message
+    );
+    assert_eq!(st.history_len().0, 1);
+    h.state_mut().state.undo();
+    let undone = h.state().state.slot(Side::Target).unwrap().display_colors();
+    assert!(undone == before, "undo did not restore the colours");
+}
+
+fn pearson(a: &[f32], b: &[f32]) -> f32 {
+    let n = a.len() as f32;
+    let (ma, mb) = (a.iter().sum::<f32>() / n, b.iter().sum::<f32>() / n);
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    sab / (saa.sqrt() * sbb.sqrt()).max(1e-12)
+}
+
+#[test]
+fn quilt_tool_covers_the_target_with_whole_elements_and_one_undo_brings_it_back() {
+    use meshmatch::app::quilt::QuiltDialog;
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.set_mesh(Side::Target, sphere(24, 32), false);
+    let mut h = harness(app);
+    h.run_steps(2);
+    let n_before = h
+        .state()
+        .state
+        .slot(Side::Target)
+        .unwrap()
+        .file
+        .num_vertices();
+    let i = system_index::<QuiltDialog>(&mut h);
+    h.state_mut().system_mut::<QuiltDialog>().unwrap().size = 0.25;
+    h.state_mut().start_system(i);
+    wait_tool(&mut h, Duration::from_secs(120));
+    let st = &h.state().state;
+    assert!(st.errors.is_empty(), "{:?}", st.errors);
+    assert!(st.message.contains("quilted"), "{}", st.message);
+    let quilted = st.slot(Side::Target).unwrap().file.clone();
+    let components = meshmatch::mesh::connected_components(quilted.num_vertices(), &quilted.faces);
+    println!(
+        "quilt: {} vertices, {} components",
+        quilted.num_vertices(),
+        components.1
+    );
+    // The base and at least a few dozen whole elements.
+    assert!(components.1 > 20, "{} components", components.1);
+    h.state_mut().state.undo();
+    assert_eq!(
+        h.state()
+            .state
+            .slot(Side::Target)
+            .unwrap()
+            .file
+            .num_vertices(),
+        n_before
+    );
+}

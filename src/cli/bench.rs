@@ -15,11 +15,23 @@ pub struct BenchArgs {
     /// report how long each took to stop.
     #[arg(long, default_value_t = 0)]
     pub cancel_probes: usize,
+    /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
+    /// Spot -> horse at each size) or quilt (chain mail on a plane and on the bunny).
+    #[arg(long, default_value = "meshmatch")]
+    pub system: String,
 }
 
 impl BenchArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
+        if self.system != "meshmatch" {
+            crate::bench::run_system(
+                &self.system,
+                &crate::bench::parse_sizes(&self.sizes)?,
+                self.json,
+            )?;
+            return Ok(0);
+        }
         crate::bench::run(
             &crate::bench::parse_sizes(&self.sizes)?,
             self.json,

@@ -64,6 +64,9 @@ impl<P: AppParams> AppState<P> {
         if let Some((i, mut slot)) = s.slot {
             slot.geometry_dirty = true;
             slot.colors_dirty = true;
+            let side = if i == 0 { Side::Source } else { Side::Target };
+            self.requests
+                .push(Request::SetMesh(side, slot.id, slot.file.clone()));
             self.meshes[i] = Some(*slot);
             // The restored mesh is the answer: no transfer overwrites it.
             self.restart_at = None;
@@ -216,14 +219,15 @@ impl<P: AppParams> AppState<P> {
                 self.message = message;
             }
             ToolOutcome::Mesh(side, mesh, message) => {
-                // One undo step puts the replaced mesh back.
+                // One undo step puts the replaced mesh back (set_mesh starts a new history, so
+                // the step is recorded after it, with the state from before).
                 let i = side_index(side);
-                let old = self.meshes[i].clone();
-                self.push_undo();
-                if let (Some(s), Some(old)) = (self.undo.last_mut(), old) {
-                    s.slot = Some((i, Box::new(old)));
-                }
+                let mut before = self.snapshot();
+                before.slot = self.meshes[i].clone().map(|m| (i, Box::new(m)));
                 self.set_mesh(side, mesh, false);
+                if before.slot.is_some() {
+                    self.undo.push(before);
+                }
                 // The result is the answer: do not overwrite it with a transfer.
                 self.restart_at = None;
                 self.message = message;
