@@ -26,6 +26,10 @@ pub struct SynthArgs {
     /// spacing is scale / width, so this sets the synthesized vertex count (grows with its square).
     #[arg(long)]
     pub exemplar_width: Option<u32>,
+    /// Most vertices to synthesize: without --exemplar-width, a larger exemplar is shrunk until
+    /// the texel spacing fits this budget (stderr says what was chosen).
+    #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET)]
+    pub vertex_budget: usize,
     /// Texture orientation field: random (isotropic textures; the library's default too), up
     /// (projected +Y), relax2 (stripes) or relax4 (grids).
     #[arg(long, default_value = crate::synthesis::Orientation::default().as_str())]
@@ -78,6 +82,20 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         exemplar = crate::synthesis::wei_levoy::shrink_exemplar(exemplar, w);
     }
     let target = load_usable(&a.target)?;
+    if a.exemplar_width.is_none() {
+        let min = (4u32 << (a.levels.clamp(1, 8) - 1)).max(8);
+        let (fitted, note) = crate::synthesis::wei_levoy::fit_exemplar_to_budget(
+            exemplar,
+            &target,
+            a.scale,
+            a.vertex_budget,
+            min,
+        );
+        exemplar = fitted;
+        if let Some(n) = note {
+            eprintln!("{n}");
+        }
+    }
     // The mask file numbers vertices as the file does; the synthesis takes one flag per vertex
     // of the loaded mesh (repair may have dropped unreferenced file vertices).
     let mask = match &a.mask {

@@ -246,6 +246,56 @@ pub fn shrink_exemplar(img: image::RgbImage, width: u32) -> image::RgbImage {
     image::imageops::resize(&img, width, nh, image::imageops::FilterType::Triangle)
 }
 
+/// Default vertex budget of a synthesis run chosen by [`fit_exemplar_to_budget`].
+pub const DEFAULT_VERTEX_BUDGET: usize = 300_000;
+
+/// Choose the working density from a vertex budget: the texel spacing is `scale / width`, so the
+/// synthesized mesh has about `area / (scale / width)^2` vertices; when that exceeds `budget`,
+/// the exemplar is shrunk (aspect kept) until it fits, never below the `min_width` the pyramid
+/// needs. Returns the exemplar to use and, when it was shrunk, a sentence saying so.
+/// `scale = None` means the synthesis default, a quarter of the bounding-box diagonal.
+pub fn fit_exemplar_to_budget(
+    exemplar: image::RgbImage,
+    target: &TriMesh,
+    scale: Option<f32>,
+    budget: usize,
+    min_width: u32,
+) -> (image::RgbImage, Option<String>) {
+    let Some((lo, hi)) = target.bounds() else {
+        return (exemplar, None);
+    };
+    let diag = Vec3::from(hi).distance(Vec3::from(lo));
+    let scale = scale.unwrap_or(diag / 4.0);
+    let (w, h) = exemplar.dimensions();
+    if !(scale.is_finite() && scale > 0.0) || w == 0 || budget == 0 {
+        return (exemplar, None);
+    }
+    let estimate = |width: f64| target.area() * (width / scale as f64).powi(2);
+    let before = estimate(w as f64);
+    if before <= budget as f64 {
+        return (exemplar, None);
+    }
+    let fit = (w as f64 * (budget as f64 / before).sqrt()).floor() as u32;
+    // Keep the smaller side at least `min_width` too.
+    let min_w = if h < w {
+        (min_width as f64 * w as f64 / h as f64).ceil() as u32
+    } else {
+        min_width
+    };
+    let width = fit.max(min_w).min(w);
+    if width >= w {
+        return (exemplar, None);
+    }
+    let out = shrink_exemplar(exemplar, width);
+    let note = format!(
+        "the exemplar ({w}x{h}) at this scale needs about {before:.0} vertices, over the budget of          {budget}: shrunk to {}x{} pixels (about {:.0} vertices; a larger --scale or          --vertex-budget keeps more of it)",
+        out.width(),
+        out.height(),
+        estimate(out.width() as f64)
+    );
+    (out, Some(note))
+}
+
 /// Neighbourhood sizes of level `k` (0 = finest) in an `l`-level pyramid: current `NxN` and parent
 /// size (0 = no parent). Wei & Levoy §4: `{1x1,1}, {3x3,2}, {5x5,2}, {7x7,2}` coarse to fine.
 fn sizes(k: usize, l: usize) -> (usize, usize) {
