@@ -18,7 +18,7 @@
 //! numbers"): a node entirely inside the ball and far from `p` relative to its size contributes
 //! its dipole `N·(c - p) / |c - p|³` (`N` = sum of area vectors, `c` = area centroid); leaves
 //! are evaluated exactly, a triangle cut by the sphere counts with the fraction of its area
-//! inside, and so does a node cut by the sphere that is small against it (`< 0.03 r`, dipole ×
+//! inside, and so does a node cut by the sphere that is small against it (`< 0.08 r`, dipole ×
 //! fraction, the sphere taken as planar across the node). Cost per query is then about
 //! independent of both the radius and the mesh resolution.
 //!
@@ -38,7 +38,7 @@ const LEAF: usize = 8;
 /// Opening criterion: a node is summarised when `|c - p| > BETA * radius`.
 const BETA: f32 = 2.5;
 /// Nodes cut by the sphere and smaller than this fraction of the radius are summarised too.
-const SMALL: f32 = 0.03;
+const SMALL: f32 = 0.08;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
