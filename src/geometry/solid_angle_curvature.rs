@@ -215,7 +215,7 @@ impl SolidAngleTree {
     /// Signed solid angle `Ω` of the surface inside the ball `B(p, r)` seen from `p`.
     pub fn solid_angle_in_ball(&self, p: [f32; 3], r: f32, stack: &mut Vec<u32>) -> f32 {
         let p = Vec3::from(p);
-        if self.nodes.is_empty() || !p.is_finite() || !(r > 0.0) {
+        if self.nodes.is_empty() || !p.is_finite() || r.is_nan() || r <= 0.0 {
             return 0.0;
         }
         let r2 = r * r;
