@@ -296,6 +296,30 @@ fn timings_on_real_meshes() {
             })
             .collect()
     };
+    if std::env::var_os("MERTENS_LARGE").is_some() {
+        // features + CCA at a larger size: the Igea scan (134K vertices) with a planted colour
+        let igea = meshmatch::mesh::io::load(&data_path("igea/igea.ply")).unwrap();
+        let p = Params::default();
+        let t = std::time::Instant::now();
+        let fs = features(&igea.positions, &igea.faces, &p, &CancelToken::new()).unwrap();
+        let tf = t.elapsed().as_secs_f64();
+        let ao = feature_field(&fs, "ao").unwrap();
+        let y: Vec<f32> = ao.iter().flat_map(|&a| [a, 0.5 * a, 0.2]).collect();
+        let t = std::time::Instant::now();
+        let c = meshmatch::stats::cca(&fs.values, fs.dim, &y, 3, 3, 1e-6).unwrap();
+        eprintln!(
+            "igea {} vertices {} faces: features {tf:.2} s (height+normals {:.2}, curvature {:.2}, \
+             occlusion {:.2}; flipped {}), CCA {:.3} s, rho {:?}",
+            igea.num_vertices(),
+            igea.num_faces(),
+            fs.seconds[0],
+            fs.seconds[1],
+            fs.seconds[2],
+            fs.flipped,
+            t.elapsed().as_secs_f64(),
+            c.correlations
+        );
+    }
     if std::env::var_os("MERTENS_FEATURES_ONLY").is_some() {
         return;
     }
