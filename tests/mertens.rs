@@ -268,6 +268,15 @@ fn timings_on_real_meshes() {
     let (lo, hi) = horse.bounds().unwrap();
     let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo));
     let radii: Vec<f32> = [0.01, 0.03, 0.1, 0.3].iter().map(|r| r * diag).collect();
+    for &r in &radii {
+        let t = std::time::Instant::now();
+        let _ = solid_angle_curvature(pos, faces, &[r]);
+        eprintln!(
+            "curvature r = {:.3} diag: {:.2} s",
+            r / diag,
+            t.elapsed().as_secs_f64()
+        );
+    }
     let t = std::time::Instant::now();
     let k = solid_angle_curvature(pos, faces, &radii);
     eprintln!("curvature 4 radii: {:.2} s", t.elapsed().as_secs_f64());
@@ -287,6 +296,33 @@ fn timings_on_real_meshes() {
             })
             .collect()
     };
+    if std::env::var_os("MERTENS_LARGE").is_some() {
+        // features + CCA at a larger size: the Igea scan (134K vertices) with a planted colour
+        let igea = meshmatch::mesh::io::load(&data_path("igea/igea.ply")).unwrap();
+        let p = Params::default();
+        let t = std::time::Instant::now();
+        let fs = features(&igea.positions, &igea.faces, &p, &CancelToken::new()).unwrap();
+        let tf = t.elapsed().as_secs_f64();
+        let ao = feature_field(&fs, "ao").unwrap();
+        let y: Vec<f32> = ao.iter().flat_map(|&a| [a, 0.5 * a, 0.2]).collect();
+        let t = std::time::Instant::now();
+        let c = meshmatch::stats::cca(&fs.values, fs.dim, &y, 3, 3, 1e-6).unwrap();
+        eprintln!(
+            "igea {} vertices {} faces: features {tf:.2} s (height+normals {:.2}, curvature {:.2}, \
+             occlusion {:.2}; flipped {}), CCA {:.3} s, rho {:?}",
+            igea.num_vertices(),
+            igea.num_faces(),
+            fs.seconds[0],
+            fs.seconds[1],
+            fs.seconds[2],
+            fs.flipped,
+            t.elapsed().as_secs_f64(),
+            c.correlations
+        );
+    }
+    if std::env::var_os("MERTENS_FEATURES_ONLY").is_some() {
+        return;
+    }
     let mut src = horse.clone();
     src.colors = Some(dirt(&src));
     let bunny = meshmatch::mesh::io::load(&data_path("bunny/bunny.obj")).unwrap();
@@ -427,4 +463,38 @@ fn self_transfer_keeps_the_colours() {
     eprintln!("self-transfer: mean {a:?} -> {b:?}, lightness correlation {r:.3}");
     assert!((0..3).all(|k| (a[k] - b[k]).abs() < 0.02), "{a:?} vs {b:?}");
     assert!(r > 0.85, "{r}");
+}
+
+#[test]
+fn textured_source_spot_to_bunny() {
+    use meshmatch::testdata::data_path;
+    let spot = meshmatch::mesh::io::load(&data_path("spot/spot.obj")).unwrap();
+    assert!(spot.texture.is_some() && spot.colors.is_none());
+    let bunny = meshmatch::mesh::io::load(&data_path("bunny/bunny.obj")).unwrap();
+    let params = Params {
+        working_vertices: 8000,
+        rays: 32,
+        clusters: 20,
+        ..Params::default()
+    };
+    let out = run(
+        &Input {
+            source: &spot,
+            target: &bunny,
+            source_mask: None,
+        },
+        &params,
+        &no_events,
+        &CancelToken::new(),
+    )
+    .unwrap();
+    assert_eq!(out.file_colors.len(), bunny.file_vertex_count);
+    let l: Vec<f32> = out.colors.iter().map(|c| srgb_to_lab(*c)[0]).collect();
+    let mean = l.iter().sum::<f32>() / l.len() as f32;
+    let sd = (l.iter().map(|x| (x - mean).powi(2)).sum::<f32>() / l.len() as f32).sqrt();
+    eprintln!(
+        "spot (texture) -> bunny: L mean {mean:.1} sd {sd:.1}, correlations {:?}",
+        out.report.correlations
+    );
+    assert!(sd > 1.0 && out.colors.iter().flatten().all(|x| (0.0..=1.0).contains(x)));
 }

@@ -229,7 +229,7 @@ pub fn directional_occlusion_with(
             let v = bi * BATCH + i;
             let nrm = Vec3::from(normals[v]);
             let p = Vec3::from(positions[v]);
-            if !(nrm.length_squared() > 0.5) || !p.is_finite() {
+            if nrm.length_squared().is_nan() || nrm.length_squared() <= 0.5 || !p.is_finite() {
                 return;
             }
             let (t, b) = frame(nrm);

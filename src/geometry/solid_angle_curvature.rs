@@ -18,7 +18,7 @@
 //! numbers"): a node entirely inside the ball and far from `p` relative to its size contributes
 //! its dipole `N·(c - p) / |c - p|³` (`N` = sum of area vectors, `c` = area centroid); leaves
 //! are evaluated exactly, a triangle cut by the sphere counts with the fraction of its area
-//! inside, and so does a node cut by the sphere that is small against it (`< 0.03 r`, dipole ×
+//! inside, and so does a node cut by the sphere that is small against it (`< 0.08 r`, dipole ×
 //! fraction, the sphere taken as planar across the node). Cost per query is then about
 //! independent of both the radius and the mesh resolution.
 //!
@@ -38,7 +38,7 @@ const LEAF: usize = 8;
 /// Opening criterion: a node is summarised when `|c - p| > BETA * radius`.
 const BETA: f32 = 2.5;
 /// Nodes cut by the sphere and smaller than this fraction of the radius are summarised too.
-const SMALL: f32 = 0.03;
+const SMALL: f32 = 0.08;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -215,7 +215,7 @@ impl SolidAngleTree {
     /// Signed solid angle `Ω` of the surface inside the ball `B(p, r)` seen from `p`.
     pub fn solid_angle_in_ball(&self, p: [f32; 3], r: f32, stack: &mut Vec<u32>) -> f32 {
         let p = Vec3::from(p);
-        if self.nodes.is_empty() || !p.is_finite() || !(r > 0.0) {
+        if self.nodes.is_empty() || !p.is_finite() || r.is_nan() || r <= 0.0 {
             return 0.0;
         }
         let r2 = r * r;

@@ -80,7 +80,12 @@ fn inv_sqrt(c: &Mat<f64>, ridge: f64) -> Result<Mat<f64>> {
 /// with relative ridge `ridge` (1e-6 is a good default). Errors (one line) when there are fewer
 /// than 2 rows, or when X or Y has no varying column.
 pub fn cca(x: &[f32], p: usize, y: &[f32], q: usize, d: usize, ridge: f64) -> Result<Cca> {
-    if p == 0 || q == 0 || x.len() % p != 0 || y.len() % q != 0 || x.len() / p != y.len() / q {
+    if p == 0
+        || q == 0
+        || !x.len().is_multiple_of(p)
+        || !y.len().is_multiple_of(q)
+        || x.len() / p != y.len() / q
+    {
         return Err(Error::InvalidInput(
             "CCA needs X and Y with the same number of rows".into(),
         ));

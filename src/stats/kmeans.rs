@@ -51,7 +51,7 @@ pub fn nearest(centers: &[f32], dim: usize, x: &[f32]) -> (u32, f32) {
 /// fewer distinct points): k-means++ seeding, then up to `iterations` Lloyd steps (stops when
 /// no label changes). An empty cluster is re-seeded at the point farthest from its centre.
 pub fn kmeans(data: &[f32], dim: usize, k: usize, iterations: usize, seed: u64) -> KMeans {
-    let n = if dim == 0 { 0 } else { data.len() / dim };
+    let n = data.len().checked_div(dim).unwrap_or(0);
     let k = k.min(n);
     if k == 0 {
         return KMeans {
@@ -112,8 +112,8 @@ pub fn kmeans(data: &[f32], dim: usize, k: usize, iterations: usize, seed: u64) 
         }
         let mut sum = vec![0.0f64; k * dim];
         let mut cnt = vec![0usize; k];
-        for i in 0..n {
-            let c = labels[i] as usize;
+        for (i, &l) in labels.iter().enumerate() {
+            let c = l as usize;
             cnt[c] += 1;
             for (s, &x) in sum[c * dim..(c + 1) * dim].iter_mut().zip(pt(i)) {
                 *s += x as f64;

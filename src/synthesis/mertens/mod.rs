@@ -240,7 +240,8 @@ fn validate(m: &TriMesh, what: &str) -> Result<()> {
             "{what} face refers to a missing vertex"
         )));
     }
-    if !(m.area() > 0.0) {
+    let area = m.area();
+    if area.is_nan() || area <= 0.0 {
         return Err(Error::InvalidInput(format!("{what} mesh has zero area")));
     }
     Ok(())
@@ -522,7 +523,7 @@ pub fn run(
     let pdf = PdfTransferParams {
         iterations: params.pdf_iterations,
         tolerance: 0.01,
-        seed: params.seed ^ 0x7064_66,
+        seed: params.seed ^ 0x0070_6466,
     };
     if params.multiscale_matching {
         let gs_all = model.project_x(&fs.values);

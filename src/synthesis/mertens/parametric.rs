@@ -213,6 +213,9 @@ pub struct SynthKnobs {
     pub seed: u64,
 }
 
+/// Callback for partial results: `(iteration, channels)`; an error stops the synthesis.
+pub type PartialFn<'a> = dyn FnMut(usize, &[Vec<f32>; 3]) -> Result<()> + 'a;
+
 /// Constrained Heeger-Bergen synthesis of three decorrelated colour channels on the target
 /// (`tgt_guidance`: `n × dim`, `adj`: the target's vertex adjacency). `partial(stage, channels)`
 /// is called after the initialisation and after every iteration; an error from it stops.
@@ -222,7 +225,7 @@ pub fn synthesize(
     adj: &Csr,
     dim: usize,
     knobs: &SynthKnobs,
-    partial: &mut dyn FnMut(usize, &[Vec<f32>; 3]) -> Result<()>,
+    partial: &mut PartialFn,
 ) -> Result<[Vec<f32>; 3]> {
     let ns = src.guidance.len() / dim;
     let nt = tgt_guidance.len() / dim;
@@ -283,9 +286,9 @@ pub fn synthesize(
         let aff = &src_models[k].1;
         for &(i, w) in sup {
             let x = &src.guidance[i as usize * dim..(i as usize + 1) * dim];
-            for c in 0..3 {
+            for (c, r) in res.iter_mut().enumerate() {
                 let e = src.colour[c][i as usize] - apply_affine(aff, dim, x, c);
-                res[c] += w as f64 * (e as f64).powi(2);
+                *r += w as f64 * (e as f64).powi(2);
             }
             wsum += w as f64;
         }
@@ -340,7 +343,7 @@ pub fn synthesize(
         }
     }
     let mut y: [Vec<f32>; 3] = [vec![0.0; nt], vec![0.0; nt], vec![0.0; nt]];
-    let mut rng = SmallRng::seed_from_u64(knobs.seed ^ 0x6e6f_6973_65);
+    let mut rng = SmallRng::seed_from_u64(knobs.seed ^ 0x006e_6f69_7365);
     for i in 0..nt {
         let x = &tgt_guidance[i * dim..(i + 1) * dim];
         for c in 0..3 {
@@ -375,15 +378,15 @@ pub fn synthesize(
         out
     };
     for it in 0..knobs.iterations {
-        for c in 0..3 {
+        for (c, yc) in y.iter_mut().enumerate() {
             if levels > 1 {
-                let mut lv = decompose(adj, &y[c], levels);
-                for b in 0..levels - 1 {
-                    lv[b] = match_blend(&lv[b], c * nq + 1 + b);
+                let mut lv = decompose(adj, yc, levels);
+                for (b, band) in lv.iter_mut().take(levels - 1).enumerate() {
+                    *band = match_blend(band, c * nq + 1 + b);
                 }
-                y[c] = collapse(&lv);
+                *yc = collapse(&lv);
             }
-            y[c] = match_blend(&y[c], c * nq);
+            *yc = match_blend(yc, c * nq);
         }
         partial(it + 1, &y)?;
     }
