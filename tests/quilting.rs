@@ -703,3 +703,29 @@ fn render_previews() {
         "/tmp/quilt_plane_chain.png",
     );
 }
+
+#[test]
+fn a_loaded_non_periodic_swatch_quilts_a_plane() {
+    // a user swatch: the nuts mesh loaded as a plain mesh (not periodic, extent = its bbox)
+    let studs = swatch(SwatchKind::Nuts, 4);
+    let sw = load_swatch(studs.mesh.clone(), Axis::Z).unwrap();
+    assert!(!sw.periodic);
+    let base = plane(12.0, 12.0, 24, 24);
+    let out = quilt(
+        &base,
+        &sw,
+        &Params {
+            swatch_size: Some(sw.extent[0]),
+            ..Default::default()
+        },
+    );
+    check_integrity(&out, &sw);
+    assert!(out.num_elements() > 80, "{}", out.num_elements());
+    assert!(coverage(&base, &out, 1.0) > 0.9);
+    let tau = 0.5 * sw.clearance();
+    let dmin = min_inter_element_distance(&out, tau);
+    assert!(dmin >= 0.99 * tau, "elements {dmin} apart, tau {tau}");
+    for p in &out.elements.positions {
+        assert!(p[2] >= -1e-4 && p[2] <= sw.height * 1.01);
+    }
+}
