@@ -193,7 +193,33 @@ fn plane_reproduces_a_periodic_swatch() {
         swatch_size: Some(4.0), // s = 1: swatch units are base units
         ..Default::default()
     };
-    let out = quilt(&base, &sw, &params);
+    let fractions = std::cell::RefCell::new(Vec::new());
+    let sink = |e: meshmatch::work::Event| {
+        if let meshmatch::work::Event::Progress(p) = e {
+            assert_eq!(p.stage, "quilt");
+            fractions.borrow_mut().push(p.fraction);
+        }
+    };
+    let out = quilting::run(
+        &Input {
+            base: &base,
+            swatch: &sw,
+            field: None,
+        },
+        &params,
+        &sink,
+        &CancelToken::new(),
+    )
+    .unwrap();
+    let fr = fractions.into_inner();
+    assert_eq!(fr.len(), out.stats.patches);
+    assert!(fr.windows(2).all(|w| w[1] >= w[0]) && (fr[fr.len() - 1] - 1.0).abs() < 1e-6);
+    // the exponential map of a plane is an isometry
+    assert!(
+        out.stats.max_distortion < 1.001,
+        "{}",
+        out.stats.max_distortion
+    );
     check_integrity(&out, &sw);
     // one stud per unit square: 256 on the plane (studs past the border are dropped)
     let n = out.num_elements();
@@ -258,6 +284,44 @@ fn chain_mail_on_a_sphere_is_whole_covering_in_shell_and_clear() {
         secs,
         out.stats
     );
+}
+
+#[test]
+fn concave_guard_keeps_offsets_below_the_radius_of_curvature() {
+    // inside of a unit sphere (faces flipped: normals point to the centre), shell thicker than
+    // the radius: without the guard elements would cross the centre
+    let mut base = icosphere(1.0, 3);
+    for f in &mut base.faces {
+        f.swap(1, 2);
+    }
+    let sw = swatch(SwatchKind::Studs, 0);
+    let mut params = Params {
+        swatch_size: Some(1.0),
+        thickness: Some(1.5),
+        ..Default::default()
+    };
+    // signed height of every vertex along its element's base direction (vertex 0 of a stud is
+    // its bottom pole, on the base): negative = crossed the centre
+    let lowest = |out: &QuiltOutput| {
+        let mut v0 = 0;
+        let mut worst = f32::INFINITY;
+        for &src in &out.element_source {
+            let nv = sw.elements[src as usize].vertices.len();
+            let d = Vec3::from(out.elements.positions[v0]).normalize();
+            for p in &out.elements.positions[v0..v0 + nv] {
+                worst = worst.min(Vec3::from(*p).dot(d));
+            }
+            v0 += nv;
+        }
+        worst
+    };
+    let out = quilt(&base, &sw, &params);
+    check_integrity(&out, &sw);
+    let guarded = lowest(&out);
+    assert!(guarded > 0.0, "offset crossed the centre: {guarded}");
+    params.concave_guard = false;
+    let raw = lowest(&quilt(&base, &sw, &params));
+    assert!(raw < 0.0, "{raw}");
 }
 
 #[test]
@@ -638,4 +702,30 @@ fn render_previews() {
         900,
         "/tmp/quilt_plane_chain.png",
     );
+}
+
+#[test]
+fn a_loaded_non_periodic_swatch_quilts_a_plane() {
+    // a user swatch: the nuts mesh loaded as a plain mesh (not periodic, extent = its bbox)
+    let studs = swatch(SwatchKind::Nuts, 4);
+    let sw = load_swatch(studs.mesh.clone(), Axis::Z).unwrap();
+    assert!(!sw.periodic);
+    let base = plane(12.0, 12.0, 24, 24);
+    let out = quilt(
+        &base,
+        &sw,
+        &Params {
+            swatch_size: Some(sw.extent[0]),
+            ..Default::default()
+        },
+    );
+    check_integrity(&out, &sw);
+    assert!(out.num_elements() > 80, "{}", out.num_elements());
+    assert!(coverage(&base, &out, 1.0) > 0.9);
+    let tau = 0.5 * sw.clearance();
+    let dmin = min_inter_element_distance(&out, tau);
+    assert!(dmin >= 0.99 * tau, "elements {dmin} apart, tau {tau}");
+    for p in &out.elements.positions {
+        assert!(p[2] >= -1e-4 && p[2] <= sw.height * 1.01);
+    }
 }

@@ -48,19 +48,31 @@ pub fn tangent_direction(n: Vec3, e1: Vec3) -> Vec3 {
     }
 }
 
-/// Flatten the geodesic disc of graph radius `radius` around `seed_point`, which lies on face
-/// `seed_face` with unit normal `seed_normal`; `e1` (made tangent) becomes the +u axis.
-/// `normals` are unit vertex normals, `adjacency` the vertex adjacency (CSR).
+/// Where a disc starts: a point on a face, the face's unit normal, and the direction that
+/// becomes +u.
+#[derive(Clone, Copy, Debug)]
+pub struct DiscSeed {
+    /// The corners of the face holding `point`.
+    pub face: [u32; 3],
+    /// The seed point.
+    pub point: [f32; 3],
+    /// Unit normal at the seed.
+    pub normal: [f32; 3],
+    /// The +u direction (made tangent).
+    pub e1: [f32; 3],
+}
+
+/// Flatten the geodesic disc of graph radius `radius` around `seed.point`; `seed.e1` (made
+/// tangent) becomes the +u axis. `normals` are unit vertex normals, `adjacency` the vertex
+/// adjacency (CSR).
 pub fn exp_map(
     positions: &[[f32; 3]],
     normals: &[[f32; 3]],
     adjacency: &Csr,
-    seed_face: [u32; 3],
-    seed_point: [f32; 3],
-    seed_normal: [f32; 3],
-    e1: [f32; 3],
+    seed: &DiscSeed,
     radius: f32,
 ) -> ExpMap {
+    let (seed_face, seed_point, seed_normal, e1) = (seed.face, seed.point, seed.normal, seed.e1);
     let n = positions.len();
     let p0 = Vec3::from(seed_point);
     let n0 = Vec3::from(seed_normal).normalize_or(Vec3::Z);
@@ -164,16 +176,13 @@ mod tests {
         let adj = vertex_adjacency(pos.len(), &faces);
         let f = faces[2 * (6 * m + 6)];
         let c = [0.63, 0.61, 0.0];
-        let e = exp_map(
-            &pos,
-            &nrm,
-            &adj,
-            f,
-            c,
-            [0.0, 0.0, 1.0],
-            [1.0, 0.0, 0.0],
-            0.4,
-        );
+        let seed = DiscSeed {
+            face: f,
+            point: c,
+            normal: [0.0, 0.0, 1.0],
+            e1: [1.0, 0.0, 0.0],
+        };
+        let e = exp_map(&pos, &nrm, &adj, &seed, 0.4);
         assert!(e.vertices.len() > 20);
         for (k, &v) in e.vertices.iter().enumerate() {
             let p = pos[v as usize];

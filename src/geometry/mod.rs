@@ -29,7 +29,7 @@ pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, verte
 pub(crate) use bvh::BARY_EPS;
 pub use bvh::TriangleBvh;
 pub use eigen::{hks, hks_times, laplacian_eigen};
-pub use expmap::{ExpMap, exp_map, tangent_direction};
+pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
 pub use frames::{parallel_transport_angle, tangent_frames};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};

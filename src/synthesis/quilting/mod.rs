@@ -62,7 +62,9 @@ use glam::{Vec2, Vec3};
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 
 use crate::error::{Error, Result};
-use crate::geometry::{exp_map, face_areas, face_normals, tangent_direction, vertex_normals};
+use crate::geometry::{
+    DiscSeed, exp_map, face_areas, face_normals, tangent_direction, vertex_normals,
+};
 use crate::mesh::{Csr, TriMesh, vertex_adjacency};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
@@ -400,10 +402,11 @@ impl Flat {
                     let d = seg_dist(p, t[0], t[1])
                         .min(seg_dist(p, t[1], t[2]))
                         .min(seg_dist(p, t[2], t[0]));
-                    if d <= extrapolate && best.is_none_or(|x| d < x.2) {
-                        if let Some(b) = bary2(p, t) {
-                            best = Some((*f, b, d));
-                        }
+                    if d <= extrapolate
+                        && best.is_none_or(|x| d < x.2)
+                        && let Some(b) = bary2(p, t)
+                    {
+                        best = Some((*f, b, d));
                     }
                 }
             }
@@ -581,7 +584,11 @@ pub fn run(
             mesh.num_vertices()
         )));
     }
-    if !(params.max_distortion >= 1.0) || !(params.patch_radius > 0.0) {
+    let ok = params.max_distortion.is_finite()
+        && params.max_distortion >= 1.0
+        && params.patch_radius.is_finite()
+        && params.patch_radius > 0.0;
+    if !ok {
         return Err(Error::InvalidInput(
             "max_distortion must be >= 1 and patch_radius > 0".into(),
         ));
@@ -742,7 +749,7 @@ pub fn run(
             0.0
         })
         .min(params.patch_radius * l);
-    let mut first = rng.random_range(0..nf);
+    let first = rng.random_range(0..nf);
 
     loop {
         cancel.check()?;
@@ -759,8 +766,6 @@ pub fn run(
             best.map(|b| b.1)
         };
         let Some(seed) = seed else { break };
-        first = usize::MAX;
-        let _ = first;
         let sc = faces[seed];
         let centroid = sc
             .iter()
@@ -778,10 +783,12 @@ pub fn run(
                 &mesh.positions,
                 &base.vn,
                 &base.adj,
-                sc,
-                centroid.to_array(),
-                n0.to_array(),
-                e1.to_array(),
+                &DiscSeed {
+                    face: sc,
+                    point: centroid.to_array(),
+                    normal: n0.to_array(),
+                    e1: e1.to_array(),
+                },
                 r_flat,
             );
             let flat = Flat::new(&base, &em.vertices, &em.uv);

@@ -540,8 +540,7 @@ pub fn swatch(kind: SwatchKind, seed: u64) -> Swatch {
     let mut b = Builder::default();
     let mut rng = SmallRng::seed_from_u64(seed ^ 0x5157_4154_4348);
     let (nx, ny) = (4usize, 4usize);
-    let extent;
-    match kind {
+    let extent = match kind {
         SwatchKind::Chain => {
             // flat rings at cell centres, upright rings on the cell edges between them; the
             // upright circle crosses z = zc at 0.2 from each flat ring's centre (inside its
@@ -571,7 +570,7 @@ pub fn swatch(kind: SwatchKind, seed: u64) -> Swatch {
                     });
                 }
             }
-            extent = [nx as f32, ny as f32];
+            [nx as f32, ny as f32]
         }
         SwatchKind::Weave => {
             // strands along x at y = j + 0.25 and along y at x = i + 0.75; x strands go over
@@ -613,7 +612,7 @@ pub fn swatch(kind: SwatchKind, seed: u64) -> Swatch {
                 // swap x and y: the strand runs along y
                 b.strand(&path, rw, rh, 8, |p| Vec3::new(x - p.y, p.x, p.z));
             }
-            extent = [nx as f32, ny as f32];
+            [nx as f32, ny as f32]
         }
         SwatchKind::Nuts => {
             for j in 0..ny {
@@ -630,7 +629,7 @@ pub fn swatch(kind: SwatchKind, seed: u64) -> Swatch {
                     b.revolve(&prof, true, 6, |p| rot * p + c);
                 }
             }
-            extent = [nx as f32, ny as f32];
+            [nx as f32, ny as f32]
         }
         SwatchKind::Studs => {
             let (r, h, fillet) = (0.3f32, 0.35f32, 0.08f32);
@@ -647,7 +646,7 @@ pub fn swatch(kind: SwatchKind, seed: u64) -> Swatch {
                     b.revolve(&prof, false, 16, |p| p + c);
                 }
             }
-            extent = [nx as f32, ny as f32];
+            [nx as f32, ny as f32]
         }
         SwatchKind::Scales => {
             // lattice (i + (j odd) / 2, j / 2); each scale a thin lens (rx 0.65, ry 0.48)
@@ -681,9 +680,9 @@ pub fn swatch(kind: SwatchKind, seed: u64) -> Swatch {
                     });
                 }
             }
-            extent = [nx as f32, 0.5 * rows as f32];
+            [nx as f32, 0.5 * rows as f32]
         }
-    }
+    };
     let mesh = TriMesh::new(b.positions, b.faces);
     Swatch::from_mesh(&mesh, extent, true).expect("procedural swatches are valid")
 }
@@ -721,6 +720,25 @@ mod tests {
                     })
                     .sum();
                 assert!(vol > 0.0, "{kind:?} element {e} volume {vol}");
+                // closed manifold: every edge in two faces; Euler characteristic of a torus
+                // (rings, nuts) or a sphere (studs, strands, scales)
+                let mut edges = std::collections::HashMap::new();
+                for f in &fs {
+                    for k in 0..3 {
+                        let (a, b) = (f[k], f[(k + 1) % 3]);
+                        *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+                    }
+                }
+                assert!(
+                    edges.values().all(|&c| c == 2),
+                    "{kind:?} element {e} not closed"
+                );
+                let chi = ps.len() as i64 - edges.len() as i64 + fs.len() as i64;
+                let want = match kind {
+                    SwatchKind::Chain | SwatchKind::Nuts => 0,
+                    _ => 2,
+                };
+                assert_eq!(chi, want, "{kind:?} element {e}");
                 assert!(face_normals(ps, &fs).len() == fs.len());
             }
         }
