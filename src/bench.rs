@@ -478,7 +478,7 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
         "quilt" => vec![
             quilt_row(true, 8.0)?,
             quilt_row(false, 10.0)?,
-            quilt_row(false, 25.0)?,
+            quilt_row(false, 18.0)?,
         ],
         _ => {
             return Err(crate::error::Error::InvalidInput(format!(
