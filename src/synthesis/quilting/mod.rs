@@ -136,7 +136,12 @@ pub struct QuiltStats {
     pub dropped_unmapped: usize,
     /// Patch retries with a smaller disc because of area distortion.
     pub shrunk_patches: usize,
-    /// Largest flattening distortion accepted.
+    /// Candidates dropped because they lie on flattened triangles distorted by more than twice
+    /// `max_distortion` (left in patches that could not shrink further).
+    pub dropped_distorted: usize,
+    /// Largest flattening distortion under a kept element.
+    pub max_element_distortion: f32,
+    /// Largest flattening distortion of an accepted patch's placement disc.
     pub max_distortion: f32,
     /// Fraction of base area covered by patches.
     pub covered_fraction: f32,
@@ -417,35 +422,48 @@ impl Flat {
     /// Flattening area distortion over faces whose corners lie within `r` of the origin:
     /// `max(rho, 1/rho)`, `rho = (A_2D / A_3D) / (sum A_2D / sum A_3D)`; infinite for a flipped
     /// face.
-    fn distortion(&self, base: &Base, r: f32) -> f32 {
-        let mut sel = Vec::new();
+    fn distortion(&self, base: &Base, r: f32) -> (f32, Vec<f32>) {
         let (mut s2, mut s3) = (0.0f64, 0.0f64);
-        for (f, t) in &self.faces {
-            if t.iter().any(|q| q.length() > r) {
-                continue;
-            }
-            let a2 = 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]) as f64;
-            let a3 = base.area[*f as usize];
-            if a3 <= 1e-30 {
-                continue;
-            }
-            if a2 <= 0.0 {
-                return f32::INFINITY;
-            }
-            s2 += a2;
-            s3 += a3;
-            sel.push(a2 / a3);
-        }
-        if sel.is_empty() || s2 <= 0.0 {
-            return 1.0;
-        }
-        let mean = s2 / s3;
-        sel.iter()
-            .map(|&x| {
-                let rho = x / mean;
-                rho.max(1.0 / rho)
+        let mut worst = 1.0f64;
+        let ratio: Vec<f64> = self
+            .faces
+            .iter()
+            .map(|(f, t)| {
+                let a2 = 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]) as f64;
+                let a3 = base.area[*f as usize];
+                if a3 <= 1e-30 {
+                    return f64::NAN; // degenerate base face: no say
+                }
+                if t.iter().all(|q| q.length() <= r) {
+                    s2 += a2.max(0.0);
+                    s3 += a3;
+                    if a2 <= 0.0 {
+                        worst = f64::INFINITY;
+                    }
+                }
+                if a2 <= 0.0 { 0.0 } else { a2 / a3 }
             })
-            .fold(1.0f64, f64::max) as f32
+            .collect();
+        let mean = if s2 > 0.0 && s3 > 0.0 { s2 / s3 } else { 1.0 };
+        let rho: Vec<f32> = ratio
+            .iter()
+            .map(|&x| {
+                if x.is_nan() {
+                    1.0
+                } else if x <= 0.0 {
+                    f32::INFINITY
+                } else {
+                    let r = x / mean;
+                    r.max(1.0 / r) as f32
+                }
+            })
+            .collect();
+        for ((_, t), &q) in self.faces.iter().zip(&rho) {
+            if t.iter().all(|p| p.length() <= r) {
+                worst = worst.max(q as f64);
+            }
+        }
+        (worst as f32, rho)
     }
 }
 
@@ -739,6 +757,7 @@ pub fn run(
         swatch_size: l,
         thickness: h,
         max_distortion: 1.0,
+        max_element_distortion: 1.0,
         ..Default::default()
     };
     let mut out_faces = 0usize;
@@ -777,7 +796,7 @@ pub fn run(
 
         // ---- flatten, shrinking while distorted
         let mut rp = params.patch_radius * l;
-        let flat = loop {
+        let (flat, rho) = loop {
             let r_flat = rp + 2.0 * r_elem + 2.0 * mean_edge + tau;
             let em = exp_map(
                 &mesh.positions,
@@ -792,12 +811,12 @@ pub fn run(
                 r_flat,
             );
             let flat = Flat::new(&base, &em.vertices, &em.uv);
-            let d = flat.distortion(&base, rp);
+            let (d, rho) = flat.distortion(&base, rp);
             if d <= params.max_distortion || rp <= rp_min * 1.0001 {
                 if d.is_finite() {
                     stats.max_distortion = stats.max_distortion.max(d);
                 }
-                break flat;
+                break (flat, rho);
             }
             stats.shrunk_patches += 1;
             rp = (rp * 0.75).max(rp_min);
@@ -865,10 +884,12 @@ pub fn run(
                     let shift = t + off;
                     let mut ps = Vec::with_capacity(el.vertices.len());
                     let mut ok = true;
+                    let mut worst = 1.0f32;
                     for q in sw.element_positions(e) {
                         let uv = rot.rotate((Vec2::new(q[0], q[1]) + shift) * s);
                         match flat.locate(uv, r_elem + tau) {
                             Some((f, b, _)) => {
+                                worst = worst.max(rho[flat.index[&f] as usize]);
                                 ps.push(base.shell_point(f, b, q[2] * hscale).to_array())
                             }
                             None => {
@@ -881,6 +902,11 @@ pub fn run(
                         stats.dropped_unmapped += 1;
                         continue;
                     }
+                    if worst > 2.0 * params.max_distortion {
+                        stats.dropped_distorted += 1;
+                        continue;
+                    }
+                    stats.max_element_distortion = stats.max_element_distortion.max(worst);
                     let (centre, radius) = centre_and_radius(&ps);
                     let k = flat.index[&af] as usize;
                     let dir = uv_to_3d(&flat.faces[k].1, corners(af), rot).normalize_or_zero();
