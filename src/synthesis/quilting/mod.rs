@@ -12,10 +12,16 @@
 //!    and flattened by the discrete exponential map ([`crate::geometry::exp_map`]) instead of
 //!    DCM/LSCM: it is isometric on developable bases and needs no solve. The disc is flattened
 //!    out to `R_place + 2 r_elem + ...` so that every element centred inside `R_place` lands on
-//!    flattened triangles. The orientation field at the seed becomes the swatch +x axis (ZHOU
-//!    proposal 8). Area distortion `max(rho, 1/rho)` over the triangles of the placement disc
-//!    (proposal 7) above `max_distortion` (default 2, the paper uses 4) shrinks the disc by
-//!    0.75 and retries, down to a minimum.
+//!    flattened triangles. Orientation: the circular mean of the +x axes of the elements
+//!    already placed in the disc (carried into the flattening through each anchor triangle's
+//!    affine map) when they agree, so the lattice continues across seams; otherwise (first
+//!    patch, new component, `follow_neighbours = false`) the orientation field at the seed
+//!    becomes the swatch +x axis (ZHOU proposal 8). Default field: the base x axis projected
+//!    onto each tangent plane (y near the poles of x); an input field replaces it. Area
+//!    distortion `max(rho, 1/rho)` over the triangles of the placement disc (proposal 7) above
+//!    `max_distortion` (default 2, the paper uses 4) shrinks the disc by 0.75 and retries, down
+//!    to `max(0.15 L, smallest element spacing)`; there, candidates on triangles distorted
+//!    more than `2 max_distortion` are dropped rather than stretched.
 //! 3. **Matching (§2.4, simplified).** Eq. (1)-(3) are taken at the element level: the
 //!    already-placed elements whose centres fall in the patch are brought into swatch
 //!    coordinates and every swatch translation `t` on a grid of `l_in / 16` (one period for
@@ -33,7 +39,7 @@
 //!    old (weight 1.1), old -> new (infinite) per conflict, new -> SINK (weight 1). Then new
 //!    elements that conflict with each other (flattening distortion) are dropped greedily,
 //!    nearest to the seed first. So two survivors never overlap and elements stay whole.
-//! 5. **Shell map (§3.2, simplified).** A swatch point `(x, y, z)` goes to `uv = s (x + t)` in
+//! 5. **Shell map (§3.2, simplified).** A swatch point `(x, y, z)` goes to `uv = s R (x + t)` in
 //!    the flattened patch, to the base triangle and barycentric coordinates `b` containing it
 //!    (affine extrapolation from the nearest triangle for points just past a base boundary),
 //!    and to `p(b) + z (H / h_in) g(b) n(b)` with `n` the interpolated area-weighted vertex
@@ -48,6 +54,10 @@
 //! Output: all kept elements merged in one [`TriMesh`], with a per-vertex element id and a
 //! per-element source (swatch element index). Planar quilting is the same code on a flat base
 //! ([`plane`]).
+//!
+//! Measured (release, 2 shared cores): chain mail on the Stanford bunny (6598 faces) at the
+//! default scale: 464 patches, about 5070 elements, 0.97 M faces, about 7 s; a periodic swatch
+//! on a plane is reproduced exactly (rigid copies on one lattice).
 
 mod io;
 pub mod maxflow;
