@@ -12,10 +12,16 @@
 //!    and flattened by the discrete exponential map ([`crate::geometry::exp_map`]) instead of
 //!    DCM/LSCM: it is isometric on developable bases and needs no solve. The disc is flattened
 //!    out to `R_place + 2 r_elem + ...` so that every element centred inside `R_place` lands on
-//!    flattened triangles. The orientation field at the seed becomes the swatch +x axis (ZHOU
-//!    proposal 8). Area distortion `max(rho, 1/rho)` over the triangles of the placement disc
-//!    (proposal 7) above `max_distortion` (default 2, the paper uses 4) shrinks the disc by
-//!    0.75 and retries, down to a minimum.
+//!    flattened triangles. Orientation: the circular mean of the +x axes of the elements
+//!    already placed in the disc (carried into the flattening through each anchor triangle's
+//!    affine map) when they agree, so the lattice continues across seams; otherwise (first
+//!    patch, new component, `follow_neighbours = false`) the orientation field at the seed
+//!    becomes the swatch +x axis (ZHOU proposal 8). Default field: the base x axis projected
+//!    onto each tangent plane (y near the poles of x); an input field replaces it. Area
+//!    distortion `max(rho, 1/rho)` over the triangles of the placement disc (proposal 7) above
+//!    `max_distortion` (default 2, the paper uses 4) shrinks the disc by 0.75 and retries, down
+//!    to `max(0.15 L, smallest element spacing)`; there, candidates on triangles distorted
+//!    more than `2 max_distortion` are dropped rather than stretched.
 //! 3. **Matching (§2.4, simplified).** Eq. (1)-(3) are taken at the element level: the
 //!    already-placed elements whose centres fall in the patch are brought into swatch
 //!    coordinates and every swatch translation `t` on a grid of `l_in / 16` (one period for
@@ -33,7 +39,7 @@
 //!    old (weight 1.1), old -> new (infinite) per conflict, new -> SINK (weight 1). Then new
 //!    elements that conflict with each other (flattening distortion) are dropped greedily,
 //!    nearest to the seed first. So two survivors never overlap and elements stay whole.
-//! 5. **Shell map (§3.2, simplified).** A swatch point `(x, y, z)` goes to `uv = s (x + t)` in
+//! 5. **Shell map (§3.2, simplified).** A swatch point `(x, y, z)` goes to `uv = s R (x + t)` in
 //!    the flattened patch, to the base triangle and barycentric coordinates `b` containing it
 //!    (affine extrapolation from the nearest triangle for points just past a base boundary),
 //!    and to `p(b) + z (H / h_in) g(b) n(b)` with `n` the interpolated area-weighted vertex
@@ -48,6 +54,10 @@
 //! Output: all kept elements merged in one [`TriMesh`], with a per-vertex element id and a
 //! per-element source (swatch element index). Planar quilting is the same code on a flat base
 //! ([`plane`]).
+//!
+//! Measured (release, 2 shared cores): chain mail on the Stanford bunny (6598 faces) at the
+//! default scale: 464 patches, about 5070 elements, 0.97 M faces, about 7 s; a periodic swatch
+//! on a plane is reproduced exactly (rigid copies on one lattice).
 
 mod io;
 pub mod maxflow;
@@ -136,7 +146,12 @@ pub struct QuiltStats {
     pub dropped_unmapped: usize,
     /// Patch retries with a smaller disc because of area distortion.
     pub shrunk_patches: usize,
-    /// Largest flattening distortion accepted.
+    /// Candidates dropped because they lie on flattened triangles distorted by more than twice
+    /// `max_distortion` (left in patches that could not shrink further).
+    pub dropped_distorted: usize,
+    /// Largest flattening distortion under a kept element.
+    pub max_element_distortion: f32,
+    /// Largest flattening distortion of an accepted patch's placement disc.
     pub max_distortion: f32,
     /// Fraction of base area covered by patches.
     pub covered_fraction: f32,
@@ -417,35 +432,48 @@ impl Flat {
     /// Flattening area distortion over faces whose corners lie within `r` of the origin:
     /// `max(rho, 1/rho)`, `rho = (A_2D / A_3D) / (sum A_2D / sum A_3D)`; infinite for a flipped
     /// face.
-    fn distortion(&self, base: &Base, r: f32) -> f32 {
-        let mut sel = Vec::new();
+    fn distortion(&self, base: &Base, r: f32) -> (f32, Vec<f32>) {
         let (mut s2, mut s3) = (0.0f64, 0.0f64);
-        for (f, t) in &self.faces {
-            if t.iter().any(|q| q.length() > r) {
-                continue;
-            }
-            let a2 = 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]) as f64;
-            let a3 = base.area[*f as usize];
-            if a3 <= 1e-30 {
-                continue;
-            }
-            if a2 <= 0.0 {
-                return f32::INFINITY;
-            }
-            s2 += a2;
-            s3 += a3;
-            sel.push(a2 / a3);
-        }
-        if sel.is_empty() || s2 <= 0.0 {
-            return 1.0;
-        }
-        let mean = s2 / s3;
-        sel.iter()
-            .map(|&x| {
-                let rho = x / mean;
-                rho.max(1.0 / rho)
+        let mut worst = 1.0f64;
+        let ratio: Vec<f64> = self
+            .faces
+            .iter()
+            .map(|(f, t)| {
+                let a2 = 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]) as f64;
+                let a3 = base.area[*f as usize];
+                if a3 <= 1e-30 {
+                    return f64::NAN; // degenerate base face: no say
+                }
+                if t.iter().all(|q| q.length() <= r) {
+                    s2 += a2.max(0.0);
+                    s3 += a3;
+                    if a2 <= 0.0 {
+                        worst = f64::INFINITY;
+                    }
+                }
+                if a2 <= 0.0 { 0.0 } else { a2 / a3 }
             })
-            .fold(1.0f64, f64::max) as f32
+            .collect();
+        let mean = if s2 > 0.0 && s3 > 0.0 { s2 / s3 } else { 1.0 };
+        let rho: Vec<f32> = ratio
+            .iter()
+            .map(|&x| {
+                if x.is_nan() {
+                    1.0
+                } else if x <= 0.0 {
+                    f32::INFINITY
+                } else {
+                    let r = x / mean;
+                    r.max(1.0 / r) as f32
+                }
+            })
+            .collect();
+        for ((_, t), &q) in self.faces.iter().zip(&rho) {
+            if t.iter().all(|p| p.length() <= r) {
+                worst = worst.max(q as f64);
+            }
+        }
+        (worst as f32, rho)
     }
 }
 
@@ -739,6 +767,7 @@ pub fn run(
         swatch_size: l,
         thickness: h,
         max_distortion: 1.0,
+        max_element_distortion: 1.0,
         ..Default::default()
     };
     let mut out_faces = 0usize;
@@ -777,7 +806,7 @@ pub fn run(
 
         // ---- flatten, shrinking while distorted
         let mut rp = params.patch_radius * l;
-        let flat = loop {
+        let (flat, rho) = loop {
             let r_flat = rp + 2.0 * r_elem + 2.0 * mean_edge + tau;
             let em = exp_map(
                 &mesh.positions,
@@ -792,12 +821,12 @@ pub fn run(
                 r_flat,
             );
             let flat = Flat::new(&base, &em.vertices, &em.uv);
-            let d = flat.distortion(&base, rp);
+            let (d, rho) = flat.distortion(&base, rp);
             if d <= params.max_distortion || rp <= rp_min * 1.0001 {
                 if d.is_finite() {
                     stats.max_distortion = stats.max_distortion.max(d);
                 }
-                break flat;
+                break (flat, rho);
             }
             stats.shrunk_patches += 1;
             rp = (rp * 0.75).max(rp_min);
@@ -865,10 +894,12 @@ pub fn run(
                     let shift = t + off;
                     let mut ps = Vec::with_capacity(el.vertices.len());
                     let mut ok = true;
+                    let mut worst = 1.0f32;
                     for q in sw.element_positions(e) {
                         let uv = rot.rotate((Vec2::new(q[0], q[1]) + shift) * s);
                         match flat.locate(uv, r_elem + tau) {
                             Some((f, b, _)) => {
+                                worst = worst.max(rho[flat.index[&f] as usize]);
                                 ps.push(base.shell_point(f, b, q[2] * hscale).to_array())
                             }
                             None => {
@@ -881,6 +912,11 @@ pub fn run(
                         stats.dropped_unmapped += 1;
                         continue;
                     }
+                    if worst > 2.0 * params.max_distortion {
+                        stats.dropped_distorted += 1;
+                        continue;
+                    }
+                    stats.max_element_distortion = stats.max_element_distortion.max(worst);
                     let (centre, radius) = centre_and_radius(&ps);
                     let k = flat.index[&af] as usize;
                     let dir = uv_to_3d(&flat.faces[k].1, corners(af), rot).normalize_or_zero();
