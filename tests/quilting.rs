@@ -729,3 +729,32 @@ fn a_loaded_non_periodic_swatch_quilts_a_plane() {
         assert!(p[2] >= -1e-4 && p[2] <= sw.height * 1.01);
     }
 }
+
+#[test]
+fn no_element_leaves_the_shell_on_thin_legs_and_horns() {
+    // The demo giraffe's legs, neck and ossicones are thin against a weave strand at the default
+    // swatch size: patches there distort and extrapolate. Nothing may be flung off the surface.
+    // Refined as the app's working mesh is (64K vertices): its long thin triangles on the legs
+    // flung strands off the surface before the shell guard.
+    let base = meshmatch::geometry::refine_to_density(&meshmatch::demo::giraffe(), 64_000).mesh;
+    let sw = swatch(SwatchKind::Weave, 1);
+    let out = quilt(&base, &sw, &Params::default());
+    check_integrity(&out, &sw);
+    let bvh = meshmatch::geometry::TriangleBvh::new(&base.positions, &base.faces);
+    let limit = 1.5 * out.stats.thickness + 0.05 * out.stats.swatch_size;
+    let worst = out
+        .elements
+        .positions
+        .iter()
+        .map(|p| bvh.closest_point(*p).unwrap().2)
+        .fold(0.0f32, f32::max);
+    println!(
+        "giraffe weave: {} elements, {} dropped outside the shell, worst distance {worst:.4} (H {:.4})",
+        out.stats.elements, out.stats.dropped_outside_shell, out.stats.thickness
+    );
+    assert!(
+        worst <= limit,
+        "a vertex {worst} from the base (limit {limit})"
+    );
+    assert!(out.stats.elements > 50, "{} elements", out.stats.elements);
+}

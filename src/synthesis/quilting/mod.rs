@@ -73,7 +73,7 @@ use rand::{Rng, SeedableRng, rngs::SmallRng};
 
 use crate::error::{Error, Result};
 use crate::geometry::{
-    DiscSeed, exp_map, face_areas, face_normals, tangent_direction, vertex_normals,
+    DiscSeed, TriangleBvh, exp_map, face_areas, face_normals, tangent_direction, vertex_normals,
 };
 use crate::mesh::{Csr, TriMesh, vertex_adjacency};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
@@ -144,6 +144,9 @@ pub struct QuiltStats {
     pub replaced_old: usize,
     /// Candidates dropped because part of them fell off the flattened base.
     pub dropped_unmapped: usize,
+    /// Elements dropped at the end because a vertex lay outside the shell (distorted or
+    /// extrapolated patches on thin parts).
+    pub dropped_outside_shell: usize,
     /// Patch retries with a smaller disc because of area distortion.
     pub shrunk_patches: usize,
     /// Candidates dropped because they lie on flattened triangles distorted by more than twice
@@ -1082,7 +1085,21 @@ pub fn run(
     let mut out_f = Vec::new();
     let mut element_id = Vec::new();
     let mut element_source = Vec::new();
-    for pe in placed.iter().filter(|p| p.alive) {
+    // Shell guard: an element mapped through a strongly distorted or extrapolated patch (thin
+    // parts such as ears, legs and a giraffe's horns) can be flung away from the surface; keep
+    // only elements whose every vertex lies within the shell, at most 1.5 H (plus a twentieth
+    // of the swatch width for the base's chordal error) from the base.
+    let bvh = TriangleBvh::new(input.base.positions.as_slice(), faces);
+    let limit = 1.5 * stats.thickness + 0.05 * stats.swatch_size;
+    let inside = |pe: &&Placed| {
+        pe.positions
+            .iter()
+            .all(|q| bvh.closest_point(*q).is_some_and(|(_, _, d)| d <= limit))
+    };
+    let before = placed.iter().filter(|p| p.alive).count();
+    let kept: Vec<&Placed> = placed.iter().filter(|p| p.alive).filter(inside).collect();
+    stats.dropped_outside_shell = before - kept.len();
+    for pe in kept {
         let id = element_source.len() as u32;
         let v0 = positions.len() as u32;
         positions.extend_from_slice(&pe.positions);
