@@ -33,7 +33,9 @@ use crate::jobs::{CancelToken, Event, Progress, Stopwatch};
 use crate::stats::{Cca, PdfTransferParams, cca, pdf_transfer};
 use crate::{Error, Result, TriMesh};
 
-pub use features::{FeatureSet, feature_field, feature_names, features, normalised_height};
+pub use features::{
+    FeatureSet, feature_field, feature_names, features, normalised_height, wound_inwards,
+};
 
 /// The vertical axis (for the normalised-height feature).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
