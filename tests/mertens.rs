@@ -158,6 +158,28 @@ fn features_have_names_and_sane_values() {
     assert!(feature_field(&fs, "curvature:1").is_ok());
     assert!(feature_field(&fs, "occlusion-y").is_ok());
     assert!(feature_field(&fs, "bogus").is_err());
+    assert!(!fs.flipped);
+    let flipped = TriMesh::new(
+        m.positions.clone(),
+        m.faces.iter().map(|f| [f[0], f[2], f[1]]).collect(),
+    );
+    assert!(
+        !features(&flipped.positions, &flipped.faces, &p, &CancelToken::new())
+            .unwrap()
+            .flipped
+    );
+    // a closed mesh wound inwards is detected and evaluated outward
+    let horse =
+        meshmatch::mesh::io::load(&meshmatch::testdata::data_path("horse/horse.ply")).unwrap();
+    assert!(meshmatch::synthesis::mertens::wound_inwards(
+        &horse.positions,
+        &horse.faces
+    ));
+    let out: Vec<[u32; 3]> = horse.faces.iter().map(|f| [f[0], f[2], f[1]]).collect();
+    assert!(!meshmatch::synthesis::mertens::wound_inwards(
+        &horse.positions,
+        &out
+    ));
 }
 
 #[test]

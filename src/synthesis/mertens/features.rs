@@ -25,7 +25,7 @@ pub struct FeatureSet {
     pub radii: Vec<f32>,
     /// Seconds spent on: normals+height, curvature, occlusion.
     pub seconds: [f64; 3],
-    /// The faces were wound inwards (negative signed volume) and were flipped for the features.
+    /// The faces were wound inwards ([`wound_inwards`]) and were flipped for the features.
     pub flipped: bool,
 }
 
@@ -102,12 +102,33 @@ pub fn normalised_height(positions: &[[f32; 3]], up: Up) -> Vec<f32> {
         .collect()
 }
 
+/// Is the mesh wound inwards? Only a closed mesh (no boundary edge) can tell: its signed volume
+/// is negative. Open meshes (terrains, scans) are trusted as wound (a ray or volume vote is
+/// unreliable there: under a terrain everything is open).
+pub fn wound_inwards(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> bool {
+    let n = positions.len();
+    if faces.iter().any(|f| f.iter().any(|&v| v as usize >= n)) {
+        return false;
+    }
+    if !crate::mesh::boundary_loops(faces).is_empty() {
+        return false;
+    }
+    let volume: f64 = faces
+        .iter()
+        .map(|f| {
+            let [a, b, c] = f.map(|v| Vec3::from(positions[v as usize]).as_dvec3());
+            a.dot(b.cross(c))
+        })
+        .sum();
+    volume < 0.0
+}
+
 /// The features of Mertens et al. §3.1 for every vertex (see [`FeatureSet`]): curvature radii are
 /// `params.curvature_radii × bbox diagonal`, occlusion uses `params.rays` rays per vertex.
 /// Normals are area-weighted vertex normals; the up axis only affects `height` (normals and
 /// occlusion stay in object space, so a gravity direction can matter). A mesh wound inwards
-/// (negative signed volume) is evaluated with its faces flipped, so that source and target agree
-/// on what "outside" means (`FeatureSet::flipped` tells).
+/// ([`wound_inwards`]) is evaluated with its faces flipped, so that source and target agree on
+/// what "outside" means (`FeatureSet::flipped` tells).
 pub fn features(
     positions: &[[f32; 3]],
     faces: &[[u32; 3]],
@@ -130,18 +151,9 @@ pub fn features(
             "mesh has zero or non-finite extent".into(),
         ));
     }
-    // Consistent orientation: every feature assumes outward normals; a mesh wound inwards
-    // (negative signed volume about its box centre) is flipped.
-    let centre = (lo + hi) * 0.5;
-    let volume: f64 = faces
-        .iter()
-        .filter(|f| f.iter().all(|&v| (v as usize) < n))
-        .map(|f| {
-            let [a, b, c] = f.map(|v| (Vec3::from(positions[v as usize]) - centre).as_dvec3());
-            a.dot(b.cross(c))
-        })
-        .sum();
-    let flipped = volume < 0.0;
+    // Consistent orientation: every feature assumes outward normals; a closed mesh wound
+    // inwards is flipped.
+    let flipped = wound_inwards(positions, faces);
     let flipped_faces: Vec<[u32; 3]>;
     let faces: &[[u32; 3]] = if flipped {
         flipped_faces = faces.iter().map(|f| [f[0], f[2], f[1]]).collect();

@@ -34,7 +34,9 @@ use crate::mesh::TriMesh;
 use crate::stats::{Cca, PdfTransferParams, cca, pdf_transfer};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
-pub use features::{FeatureSet, feature_field, feature_names, features, normalised_height};
+pub use features::{
+    FeatureSet, feature_field, feature_names, features, normalised_height, wound_inwards,
+};
 
 /// The vertical axis (for the normalised-height feature).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
