@@ -14,11 +14,13 @@ fn terrain(m: u32, variant: u32) -> TriMesh {
         _ => (4.0, 2.5, 1.3),
     };
     let h = |x: f32, y: f32| -> f32 {
-        let hills = 0.06 * (fa * x * 6.28 + ph).sin() * (fb * y * 6.28).cos();
+        let hills = 0.06
+            * (fa * x * std::f32::consts::TAU + ph).sin()
+            * (fb * y * std::f32::consts::TAU).cos();
         let u = (x * 0.8 + y * 0.6) * fb * 2.0 + ph;
-        let crevice = -0.05 * (1.0 - (u * 3.14159).sin().abs()).powi(6);
+        let crevice = -0.05 * (1.0 - (u * std::f32::consts::PI).sin().abs()).powi(6);
         let v = (x * 0.3 - y * 0.95) * fa * 1.5;
-        let crevice2 = -0.04 * (1.0 - (v * 3.14159).sin().abs()).powi(8);
+        let crevice2 = -0.04 * (1.0 - (v * std::f32::consts::PI).sin().abs()).powi(8);
         hills + crevice + crevice2
     };
     let mut pos = Vec::new();
@@ -226,9 +228,8 @@ fn bad_inputs_are_one_line_errors() {
             .to_string()
             .contains("zero area")
     );
-    for e in [go(&src, &flat, None).unwrap_err().to_string()] {
-        assert!(!e.contains('\n'));
-    }
+    let e = go(&src, &flat, None).unwrap_err().to_string();
+    assert!(!e.contains('\n'));
     // a partial mask works, and the same seed gives the same output
     let half: Vec<bool> = (0..src.num_vertices()).map(|i| i % 30 < 10).collect();
     let a = go(&src, &tgt, Some(&half)).unwrap();
