@@ -521,3 +521,60 @@ fn textured_source_spot_to_bunny() {
     );
     assert!(sd > 1.0 && out.colors.iter().flatten().all(|x| (0.0..=1.0).contains(x)));
 }
+
+#[test]
+fn nonparametric_copies_source_colours_where_the_geometry_asks_for_them() {
+    use meshmatch::synthesis::mertens::Method;
+    let mut src = terrain(110, 0);
+    let truth = truth_colours(&src);
+    // The grain: a per-vertex noise on top of the geometric rule, which only a method that
+    // copies source colours (rather than fitting histograms) carries over exactly.
+    let grainy: Vec<[f32; 3]> = truth
+        .iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let n = ((i as u32).wrapping_mul(2_654_435_761) >> 24) as f32 / 255.0 - 0.5;
+            c.map(|x| (x + 0.08 * n).clamp(0.0, 1.0))
+        })
+        .collect();
+    src.colors = Some(grainy.clone());
+    let tgt = terrain(100, 1);
+    let params = Params {
+        method: Method::NonParametric,
+        ..params_small()
+    };
+    let out = run(
+        &Input {
+            source: &src,
+            target: &tgt,
+            source_mask: None,
+        },
+        &params,
+        &|_| {},
+        &CancelToken::new(),
+    )
+    .unwrap();
+    let want: Vec<f32> = truth_colours(&out.target.mesh)
+        .iter()
+        .map(|c| srgb_to_lab(*c)[0])
+        .collect();
+    let got: Vec<f32> = out.colors.iter().map(|c| srgb_to_lab(*c)[0]).collect();
+    let r = pearson(&got, &want);
+    // Every output colour is one of the source's (up to the colour-space round trip).
+    let quant = |c: [f32; 3]| c.map(|x| (x * 255.0).round() as i32);
+    let palette: std::collections::HashSet<[i32; 3]> = grainy.iter().map(|c| quant(*c)).collect();
+    let near = |c: [f32; 3]| {
+        let q = quant(c);
+        (-1..=1).any(|a| {
+            (-1..=1).any(|b| (-1..=1).any(|d| palette.contains(&[q[0] + a, q[1] + b, q[2] + d])))
+        })
+    };
+    let copied = out.colors.iter().filter(|c| near(**c)).count() as f64 / out.colors.len() as f64;
+    eprintln!(
+        "non-parametric terrain -> terrain: lightness correlation {r:.3}, {:.1}% of colours are source colours, timings {:?}",
+        100.0 * copied,
+        out.timings
+    );
+    assert!(r > 0.7, "lightness correlation {r}");
+    assert!(copied > 0.99, "{copied}");
+}

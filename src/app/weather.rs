@@ -94,6 +94,16 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
         ui.label("Source: the textured model (its colours are the example)");
         ui.label("Target: the shape to weather");
         up_ui(ui, &mut s.up);
+        ui.horizontal(|ui| {
+            ui.label("Method:");
+            ui.selectable_value(&mut s.method, Method::Parametric, "parametric")
+                .on_hover_text("Per-cluster histogram matching of colour and its detail bands");
+            ui.selectable_value(&mut s.method, Method::NonParametric, "non-parametric")
+                .on_hover_text(
+                    "Copies source colours chosen by guidance, neighbourhood and coherence: \
+                     keeps the grain and small structures",
+                );
+        });
         ui.add(egui::Slider::new(&mut s.vertices, 4_000..=200_000).text("working vertices"))
             .on_hover_text("Both meshes are refined to about this many vertices");
         ui.add(egui::Slider::new(&mut s.rays, 16..=256).text("occlusion rays"));

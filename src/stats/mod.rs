@@ -4,9 +4,11 @@
 //! - [`pdf_transfer`]: Pitié et al. 2005 n-D PDF transfer by random rotations
 //! - [`kmeans`] / [`KMeans`]: k-means++ seeding and Lloyd iterations
 //! - [`histogram`]: quantile functions, Heeger-Bergen histogram matching, KS distance
+//! - [`KdTree`]: exact k-nearest neighbours in a few dimensions
 
 pub mod cca;
 pub mod histogram;
+pub mod kdtree;
 pub mod kmeans;
 pub mod pdf_transfer;
 
@@ -15,5 +17,6 @@ pub use histogram::{
     blend_quantiles, ks_distance, match_histogram, match_to_quantiles, quantile_function,
     quantile_sorted,
 };
+pub use kdtree::KdTree;
 pub use kmeans::{KMeans, kmeans};
 pub use pdf_transfer::{PdfTransferParams, pdf_transfer, random_rotation};

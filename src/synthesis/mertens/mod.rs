@@ -21,6 +21,7 @@
 //! Colours are handled in a decorrelated basis: the PCA of the source's sRGB colours.
 
 mod features;
+pub mod nonparametric;
 pub mod parametric;
 pub mod pyramid;
 
@@ -79,7 +80,8 @@ pub enum Method {
     /// Constrained Heeger-Bergen (§4.2), for unstructured textures: the paper's default.
     #[default]
     Parametric,
-    /// Image analogies on the surface (§4.1); not implemented yet.
+    /// Image analogies on the surface (§4.1): copies source colour by guidance, neighbourhood
+    /// colour and coherence ([`nonparametric`]); keeps the texture's grain and structure.
     NonParametric,
 }
 
@@ -377,11 +379,6 @@ pub fn run(
     let (src, tgt) = (input.source, input.target);
     validate(src, "source")?;
     validate(tgt, "target")?;
-    if params.method == Method::NonParametric {
-        return Err(Error::InvalidInput(
-            "non-parametric synthesis is not implemented yet (use parametric)".into(),
-        ));
-    }
     if src.vertex_signal().is_none() {
         return Err(Error::InvalidInput(
             "source mesh has no colours or texture to transfer".into(),
@@ -595,18 +592,43 @@ pub fn run(
         });
         Ok(())
     };
-    let y = parametric::synthesize(
-        &parametric::SourceData {
-            guidance: &gs_train,
-            colour: &src_channels,
-            levels: &src_levels,
-        },
-        &gt,
-        &tgt_adj,
-        d,
-        &knobs,
-        &mut partial,
-    )?;
+    let y = if params.method == Method::NonParametric {
+        let gs_all = model.project_x(&fs.values);
+        let src_adj = rs.mesh.adjacency();
+        let mut partial_np = |it: usize, c: &[[f32; 3]]| -> Result<()> {
+            let y: [Vec<f32>; 3] = [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect());
+            partial(it, &y)
+        };
+        let knobs = nonparametric::Knobs {
+            passes: iters.max(1),
+            ..nonparametric::Knobs::default()
+        };
+        let c = nonparametric::synthesize(
+            &gs_all,
+            &train,
+            &src_dec,
+            &src_adj,
+            &gt,
+            &tgt_adj,
+            d,
+            &knobs,
+            &mut partial_np,
+        )?;
+        [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect::<Vec<f32>>())
+    } else {
+        parametric::synthesize(
+            &parametric::SourceData {
+                guidance: &gs_train,
+                colour: &src_channels,
+                levels: &src_levels,
+            },
+            &gt,
+            &tgt_adj,
+            d,
+            &knobs,
+            &mut partial,
+        )?
+    };
     let colors = to_srgb(&y);
     timings.push(("synthesis", sw.secs()));
     sink(Event::StageTime("synthesis", sw.secs()));
