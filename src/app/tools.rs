@@ -407,6 +407,27 @@ pub fn exemplar_job(
     Ok(job)
 }
 
+/// The "Image: NAME  [Choose image...]" row of the image-exemplar windows; true when the button
+/// was clicked.
+pub fn image_chooser(
+    ui: &mut eframe::egui::Ui,
+    image: Option<&std::path::Path>,
+    hover: &str,
+) -> bool {
+    let mut clicked = false;
+    ui.horizontal(|ui| {
+        let name = image.map_or("(no image chosen)".into(), |p| {
+            p.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        });
+        ui.label(format!("Image: {name}"));
+        clicked = ui.button("Choose image...").on_hover_text(hover).clicked();
+    });
+    clicked
+}
+
 /// What the user asked for in the "Paint with exemplar" window.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ExemplarAction {
@@ -442,22 +463,13 @@ impl ExemplarDialog {
         use eframe::egui;
         let s = &mut self.settings;
         let mut action = ExemplarAction::None;
-        ui.horizontal(|ui| {
-            let name = s.image.as_ref().map_or("(no image chosen)".into(), |p| {
-                p.file_name()
-                    .unwrap_or_default()
-                    .to_string_lossy()
-                    .into_owned()
-            });
-            ui.label(format!("Image: {name}"));
-            if ui
-                .button("Choose image...")
-                .on_hover_text("A PNG or JPEG swatch: bricks, scales, fur, stripes...")
-                .clicked()
-            {
-                action = ExemplarAction::ChooseImage;
-            }
-        });
+        if image_chooser(
+            ui,
+            s.image.as_deref(),
+            "A PNG or JPEG swatch: bricks, scales, fur, stripes...",
+        ) {
+            action = ExemplarAction::ChooseImage;
+        }
         if let Some(p) = &s.image
             && self.size_of.as_ref().is_none_or(|(q, _)| q != p)
         {

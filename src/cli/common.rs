@@ -46,7 +46,14 @@ pub fn bar_sink(bar: &indicatif::ProgressBar, e: Event) {
     match e {
         Event::Progress(p) | Event::Partial { progress: p, .. } => {
             bar.set_position((p.fraction.clamp(0.0, 1.0) * 1000.0) as u64);
-            bar.set_message(p.stage.to_string());
+            if p.iteration > 0 {
+                bar.set_message(format!(
+                    "{} level {}/{} iteration {} energy {:.4}",
+                    p.stage, p.level, p.levels, p.iteration, p.energy
+                ));
+            } else {
+                bar.set_message(p.stage.to_string());
+            }
         }
         Event::StageTime(name, s) => bar.println(format!("  {name:<12} {s:8.3} s")),
     }
@@ -126,25 +133,6 @@ impl SolveArgs {
             ..Default::default()
         }
     }
-}
-
-/// Refuse an output path that is not .ply, .glb or .obj, and create its directory, before any
-/// long work starts.
-pub fn check_mesh_output(p: &Path) -> Result<()> {
-    let ext = p
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
-        return Err(Error::InvalidInput(format!(
-            "{}: output must end in .ply, .glb or .obj",
-            p.display()
-        )));
-    }
-    if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
-    Ok(())
 }
 
 /// Load a source that must carry a signal: its own texture or vertex colours, or `texture`

@@ -38,7 +38,7 @@ impl FeaturesArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
         let up: Up = self.up.parse()?;
-        check_mesh_output(&self.out)?;
+        prepare_output(&self.out)?;
         let mesh = load_usable(&self.mesh)?;
         let params = Params {
             up,

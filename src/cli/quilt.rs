@@ -79,7 +79,7 @@ impl QuiltArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
         let a = self;
-        check_mesh_output(&a.out)?;
+        prepare_output(&a.out)?;
         positive("swatch-size", a.swatch_size)?;
         positive("thickness", a.thickness)?;
         let swatch = load_any_swatch(&a.swatch, &a.swatch_up, a.seed)?;
@@ -165,7 +165,7 @@ pub struct SwatchArgs {
 impl SwatchArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
-        check_mesh_output(&self.out)?;
+        prepare_output(&self.out)?;
         let s = quilting::swatch(SwatchKind::parse(&self.kind)?, self.seed);
         io::save(&s.mesh, &self.out)?;
         eprintln!(

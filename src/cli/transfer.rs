@@ -69,7 +69,7 @@ impl TransferArgs {
 fn transfer(a: &TransferArgs) -> Result<i32> {
     use crate::meshmatch::{self as mm, TransferParams};
     for p in [Some(&a.out), a.out_dense.as_ref()].into_iter().flatten() {
-        check_mesh_output(p)?;
+        prepare_output(p)?;
     }
     // Make sure every output can be written before spending minutes on the transfer.
     if let Some(dir) = a
@@ -96,27 +96,8 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         sharpen: !a.no_sharpen,
         ..TransferParams::default()
     };
-    let bar = indicatif::ProgressBar::new(1000);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:30} {percent:>3}% {msg}",
-        )
-        .expect("valid template"),
-    );
-    let sink = |e: Event| match e {
-        Event::Progress(p) | Event::Partial { progress: p, .. } => {
-            bar.set_position((p.fraction.clamp(0.0, 1.0) * 1000.0) as u64);
-            if p.iteration > 0 {
-                bar.set_message(format!(
-                    "{} level {}/{} iteration {} energy {:.4}",
-                    p.stage, p.level, p.levels, p.iteration, p.energy
-                ));
-            } else {
-                bar.set_message(p.stage.to_string());
-            }
-        }
-        Event::StageTime(name, s) => bar.println(format!("  {name:<12} {s:8.3} s")),
-    };
+    let bar = progress_bar();
+    let sink = |e: Event| bar_sink(&bar, e);
     let cancel = CancelToken::new();
     let t = std::time::Instant::now();
     let prepared_source = mm::prepare(&source, &params, &sink, &cancel)?;

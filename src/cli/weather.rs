@@ -60,9 +60,9 @@ impl WeatherArgs {
         let a = self;
         let method: Method = a.method.parse()?;
         let up: Up = a.up.parse()?;
-        check_mesh_output(&a.out)?;
+        prepare_output(&a.out)?;
         if let Some(d) = &a.out_dense {
-            check_mesh_output(d)?;
+            prepare_output(d)?;
         }
         if !(1..=8192).contains(&a.texture_size) {
             return Err(Error::InvalidInput(format!(

@@ -166,6 +166,9 @@ pub struct QuiltStats {
     pub seconds: f64,
 }
 
+/// The system's output (the house shape's name for [`QuiltOutput`]).
+pub type Output = QuiltOutput;
+
 /// The quilted geometry.
 #[derive(Clone, Debug)]
 pub struct QuiltOutput {
