@@ -5,6 +5,7 @@
 //! with egui and forwards requests to the [`crate::jobs::worker::Worker`].
 
 pub mod engine;
+pub mod feature_aligned;
 pub mod files;
 pub mod quilt;
 pub mod state;

@@ -59,6 +59,7 @@ pub fn registry<P: AppParams>() -> Vec<Box<dyn SystemTool<P>>> {
         Box::new(super::weather::WeatherDialog::default()),
         Box::new(super::weather::FeatureDialog::default()),
         Box::new(super::quilt::QuiltDialog::default()),
+        Box::new(super::feature_aligned::FeatureAlignedDialog::default()),
     ]
 }
 

@@ -7,6 +7,7 @@ mod bench;
 mod common;
 mod complete;
 mod convert;
+mod curves;
 mod demo;
 mod detail;
 mod features;
@@ -90,6 +91,8 @@ commands! {
     Quilt(quilt::QuiltArgs),
     /// Write a built-in procedural swatch for `quilt`.
     Swatch(quilt::SwatchArgs),
+    /// Salient curves (crest lines and sharp creases) of a mesh as OBJ polylines (Xu et al. 2009).
+    Curves(curves::CurvesArgs),
     /// Time the transfer's stages at several working resolutions (Spot -> horse from the shared data).
     Bench(bench::BenchArgs),
     /// Render a mesh to a PNG offscreen (headlight Lambert shading, vertex colours or texture).

@@ -31,7 +31,8 @@ pub struct SynthArgs {
     #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET)]
     pub vertex_budget: usize,
     /// Texture orientation field: random (isotropic textures; the library's default too), up
-    /// (projected +Y), relax2 (stripes) or relax4 (grids).
+    /// (projected +Y), relax2 (stripes), relax4 (grids) or features (along the mesh's salient
+    /// curves: Xu et al. 2009's curve-guided field; the exemplar's x axis follows the curves).
     #[arg(long, default_value = crate::synthesis::Orientation::default().as_str())]
     pub orientation: String,
     /// Pyramid levels.
@@ -62,7 +63,7 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     use crate::synthesis::{Orientation, Search, SynthParams};
     let orientation: Orientation = a.orientation.parse().map_err(|_| {
         Error::InvalidInput(format!(
-            "--orientation {}: use random, up, relax2 or relax4",
+            "--orientation {}: use random, up, relax2, relax4 or features",
             a.orientation
         ))
     })?;

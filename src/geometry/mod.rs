@@ -11,11 +11,17 @@
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
 //! - [`taubin_smooth`]
 //! - [`solid_angle_curvature`] (Connolly / Mertens multi-scale curvature, Barnes-Hut tree)
+//! - [`principal_curvatures`] (tensor averaging), [`salient_curves`] (crest lines after
+//!   Yoshizawa et al. 2005, creases by dihedral angle; Xu et al. 2009 §4.1 grouping)
+//! - [`oriented_curve_field`] (Xu et al. 2009 greedy curve orientation + harmonic diffusion)
 //! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1)
 //! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
 
 mod basic;
 mod bvh;
+mod crest_lines;
+mod curvature;
+mod curve_guided_field;
 mod eigen;
 mod expmap;
 mod frames;
@@ -28,6 +34,12 @@ mod solid_angle_curvature;
 pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, vertex_normals, weld};
 pub(crate) use bvh::BARY_EPS;
 pub use bvh::TriangleBvh;
+pub use crest_lines::{Curve, CurveKind, CurveParams, salient_curves};
+pub use curvature::{PrincipalCurvatures, principal_curvatures};
+pub use curve_guided_field::{
+    CurveField, FieldCurve, FieldParams, HarmonicFieldSolver, curve_tangents, oriented_curve_field,
+    score_terms,
+};
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
 pub use frames::{parallel_transport_angle, tangent_frames};

@@ -9,12 +9,17 @@
 //! They reuse `geometry`, `hierarchy` and `features`; the CLI reaches each through one file in
 //! `cli/` and the app through one entry in `app/systems.rs`.
 //!
+//! - [`feature_aligned`]: feature-aligned shape texturing (Xu et al. 2009): salient curves, a
+//!   curve-guided field, field-driven synthesis.
 //! - [`mertens`]: geometry-correlated texture transfer (Mertens et al. 2006).
 //! - [`quilting`]: geometric texture synthesis by mesh quilting (Zhou et al. 2006).
 //! - [`wei_levoy`]: image-exemplar texture synthesis over arbitrary surfaces (Wei & Levoy 2001).
 
+pub mod feature_aligned;
 pub mod mertens;
 pub mod quilting;
 pub mod wei_levoy;
 
-pub use wei_levoy::{Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize};
+pub use wei_levoy::{
+    Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize, synthesize_with_field,
+};

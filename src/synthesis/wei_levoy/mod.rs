@@ -48,6 +48,10 @@ pub enum Orientation {
     Relax2,
     /// 4-way symmetric relaxation (grids).
     Relax4,
+    /// Along the salient curves of the target: the curve-guided field of Xu et al. 2009
+    /// ([`crate::geometry::oriented_curve_field`] on [`crate::geometry::salient_curves`] with
+    /// default thresholds), or the explicit field given to [`synthesize_with_field`].
+    Features,
 }
 
 impl Orientation {
@@ -58,6 +62,7 @@ impl Orientation {
             Orientation::Up => "up",
             Orientation::Relax2 => "relax2",
             Orientation::Relax4 => "relax4",
+            Orientation::Features => "features",
         }
     }
 }
@@ -70,8 +75,9 @@ impl std::str::FromStr for Orientation {
             "up" => Ok(Orientation::Up),
             "relax2" => Ok(Orientation::Relax2),
             "relax4" => Ok(Orientation::Relax4),
+            "features" => Ok(Orientation::Features),
             _ => Err(Error::InvalidInput(format!(
-                "unknown orientation '{s}' (expected random, up, relax2 or relax4)"
+                "unknown orientation '{s}' (expected random, up, relax2, relax4 or features)"
             ))),
         }
     }
@@ -318,6 +324,47 @@ pub fn synthesize(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<SynthResult> {
+    synthesize_with_field(exemplar, target, mask, None, params, sink, cancel)
+}
+
+/// The curve-guided orientation field of `target` with default thresholds (Xu et al. 2009):
+/// salient curves, greedy orientation, harmonic diffusion; unit tangents per target vertex.
+pub fn feature_field(target: &TriMesh, cancel: &CancelToken) -> Result<Vec<[f32; 3]>> {
+    use crate::geometry::{
+        CurveParams, FieldCurve, FieldParams, oriented_curve_field, salient_curves,
+    };
+    let curves = salient_curves(&target.positions, &target.faces, &CurveParams::default())?;
+    let fc: Vec<FieldCurve> = curves
+        .into_iter()
+        .map(|c| FieldCurve {
+            vertices: c.vertices,
+            closed: c.closed,
+        })
+        .collect();
+    Ok(oriented_curve_field(
+        &target.positions,
+        &target.faces,
+        &fc,
+        &FieldParams::default(),
+        cancel,
+    )?
+    .field)
+}
+
+/// [`synthesize`] with an explicit texture "right" direction per target vertex (`field`, one per
+/// vertex of `target`; used unless the orientation is `Random` or `Up`; with
+/// [`Orientation::Features`], `None` computes [`feature_field`]). The field is carried onto
+/// the refined mesh by averaging edge ends, onto coarser levels by averaging children, and
+/// projected on each tangent plane.
+pub fn synthesize_with_field(
+    exemplar: &image::RgbImage,
+    target: &TriMesh,
+    mask: Option<&[bool]>,
+    field: Option<&[[f32; 3]]>,
+    params: &SynthParams,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<SynthResult> {
     let total = Stopwatch::start();
     let mut timings = SynthTimings::default();
     // ---- validate
@@ -409,9 +456,29 @@ pub fn synthesize(
                 .collect()
         }
     };
+    if let Some(f) = field
+        && f.len() != nv
+    {
+        return Err(Error::InvalidInput(format!(
+            "orientation field has {} entries, the target has {nv} vertices",
+            f.len()
+        )));
+    }
+    let computed;
+    let field: Option<&[[f32; 3]]> = match (field, params.orientation) {
+        (Some(f), _) => Some(f),
+        (None, Orientation::Features) => {
+            computed = feature_field(target, cancel)?;
+            Some(&computed)
+        }
+        (None, _) => None,
+    };
     let mut positions = target.positions.clone();
     let mut faces = target.faces.clone();
-    let mut fixed = fixed0;
+    let mut fixed: Vec<(Option<[f32; 3]>, [f32; 3])> = match field {
+        Some(f) => fixed0.into_iter().zip(f.iter().copied()).collect(),
+        None => fixed0.into_iter().map(|x| (x, [0.0; 3])).collect(),
+    };
     // Bisection leaves edges in (T/2, T]; T = 1.6 h0 gives mean triangle area close to h0^2 / 2,
     // i.e. the paper's d = sqrt(2 A) close to the texel spacing h0.
     refine_edges(
@@ -420,11 +487,15 @@ pub fn synthesize(
         &mut fixed,
         1.6 * h0,
         params.max_vertices,
-        |a, b| match (a, b) {
-            (Some(x), Some(y)) => Some([0, 1, 2].map(|k| 0.5 * (x[k] + y[k]))),
-            _ => None,
+        |a, b| {
+            let c = match (&a.0, &b.0) {
+                (Some(x), Some(y)) => Some([0, 1, 2].map(|k| 0.5 * (x[k] + y[k]))),
+                _ => None,
+            };
+            (c, [0, 1, 2].map(|k| a.1[k] + b.1[k]))
         },
     )?;
+    let (fixed, carried): (Vec<_>, Vec<_>) = fixed.into_iter().unzip();
     cancel.check()?;
     let normals = vertex_normals(&positions, &faces);
     // Mesh pyramid: the shared MeshMatch hierarchy (shortest-edge-first midpoint collapses, about
@@ -473,12 +544,23 @@ pub fn synthesize(
     // ---- orientation, coarse to fine
     let sw = Stopwatch::start();
     let mut dirs: Vec<Vec<[f32; 3]>> = vec![Vec::new(); nlev];
+    // an explicit field: fine to coarse (children averaged), projected on each level
+    let mut field_dirs: Vec<Vec<[f32; 3]>> = Vec::new();
+    if field.is_some() && !matches!(params.orientation, Orientation::Random | Orientation::Up) {
+        field_dirs.push(orient::project_all(&levels[0], &carried));
+        for k in 1..nlev {
+            let d = orient::from_children(&levels[k], &levels[k - 1].parent, &field_dirs[k - 1]);
+            field_dirs.push(d);
+        }
+    }
     let mut rng = stage_rng(params.seed, 2);
     for k in (0..nlev).rev() {
         let lev = &levels[k];
         dirs[k] = match params.orientation {
             Orientation::Random => orient::random_dirs(lev, &mut rng),
             Orientation::Up => orient::up_dirs(lev),
+            _ if !field_dirs.is_empty() => std::mem::take(&mut field_dirs[k]),
+            Orientation::Features => unreachable!("the feature field is computed above"),
             Orientation::Relax2 | Orientation::Relax4 => {
                 let nsym = if params.orientation == Orientation::Relax2 {
                     2

@@ -58,6 +58,30 @@ pub(crate) fn up_dirs(level: &Level) -> Vec<[f32; 3]> {
         .collect()
 }
 
+/// Directions `d` projected into each tangent plane and normalised (any tangent where `d` is 0).
+pub(crate) fn project_all(level: &Level, d: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    level
+        .normals
+        .iter()
+        .zip(d)
+        .map(|(n, d)| project_tangent(Vec3::from(*d), Vec3::from(*n)).to_array())
+        .collect()
+}
+
+/// Coarse directions as the projected sum of their children's (`parent`: fine vertex -> coarse).
+pub(crate) fn from_children(
+    level: &Level,
+    parent: &[u32],
+    child_dirs: &[[f32; 3]],
+) -> Vec<[f32; 3]> {
+    let mut sum = vec![Vec3::ZERO; level.num_vertices()];
+    for (c, &p) in parent.iter().enumerate() {
+        sum[p as usize] += Vec3::from(child_dirs[c]);
+    }
+    let sum: Vec<[f32; 3]> = sum.iter().map(|v| v.to_array()).collect();
+    project_all(level, &sum)
+}
+
 /// Angle of direction `d` in the tangent basis (e1, e2).
 #[inline]
 fn angle_in(d: Vec3, e1: Vec3, e2: Vec3) -> f32 {
