@@ -1784,3 +1784,106 @@ fn quilt_tool_covers_the_target_with_whole_elements_and_one_undo_brings_it_back(
         n_before
     );
 }
+
+/// A cube of side 2 with an `n x n` grid on each face (sharp creases along its 12 edges).
+fn grid_cube(n: i32) -> TriMesh {
+    let mut index = std::collections::HashMap::new();
+    let mut pos: Vec<[f32; 3]> = Vec::new();
+    let mut faces = Vec::new();
+    let mut id = |k: [i32; 3], pos: &mut Vec<[f32; 3]>| -> u32 {
+        *index.entry(k).or_insert_with(|| {
+            pos.push(k.map(|x| x as f32 * 2.0 / n as f32 - 1.0));
+            pos.len() as u32 - 1
+        })
+    };
+    for a in 0..3 {
+        for side in [0, n] {
+            let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+            for i in 0..n {
+                for j in 0..n {
+                    let key = |di: i32, dj: i32| {
+                        let mut k = [0; 3];
+                        k[a] = side;
+                        k[b] = i + di;
+                        k[c] = j + dj;
+                        k
+                    };
+                    let q = [key(0, 0), key(1, 0), key(1, 1), key(0, 1)].map(|k| id(k, &mut pos));
+                    let (t1, t2) = ([q[0], q[1], q[2]], [q[0], q[2], q[3]]);
+                    if side == n {
+                        faces.extend([t1, t2]);
+                    } else {
+                        faces.extend([[t1[0], t1[2], t1[1]], [t2[0], t2[2], t2[1]]]);
+                    }
+                }
+            }
+        }
+    }
+    TriMesh::new(pos, faces)
+}
+
+#[test]
+fn feature_aligned_tool_textures_a_cube_along_its_creases_and_one_undo_restores() {
+    use meshmatch::app::feature_aligned::FeatureAlignedDialog;
+    // Horizontal stripes: the exemplar's x axis (its lines) should follow the cube's edges.
+    let dir = temp_dir("feature_aligned_tool");
+    let image = dir.join("stripes.png");
+    image::RgbImage::from_fn(64, 64, |_, y| {
+        if (y / 8) % 2 == 0 {
+            image::Rgb([20, 20, 20])
+        } else {
+            image::Rgb([230, 230, 230])
+        }
+    })
+    .save(&image)
+    .unwrap();
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.set_mesh(Side::Target, grid_cube(16), false);
+    let mut h = harness(app);
+    let t0 = Instant::now();
+    while h
+        .state()
+        .state
+        .slot(Side::Target)
+        .unwrap()
+        .working
+        .is_none()
+    {
+        h.step();
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "target not prepared"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.run_steps(2);
+    let before = h.state().state.slot(Side::Target).unwrap().display_colors();
+    let i = system_index::<FeatureAlignedDialog>(&mut h);
+    {
+        let d = h.state_mut().system_mut::<FeatureAlignedDialog>().unwrap();
+        d.image = Some(image);
+        d.scale = 0.3;
+        d.pixels = 32;
+    }
+    h.state_mut().start_system(i);
+    assert!(h.state().tool.is_some(), "{:?}", h.state().state.errors);
+    wait_tool(&mut h, Duration::from_secs(120));
+    let st = &h.state().state;
+    assert!(st.errors.is_empty(), "{:?}", st.errors);
+    assert!(st.message.contains("salient curves"), "{}", st.message);
+    let after = st.slot(Side::Target).unwrap().display_colors();
+    let lum = |c: &[f32; 3]| (c[0] + c[1] + c[2]) / 3.0;
+    let dark = after.iter().filter(|c| lum(c) < 0.3).count();
+    let light = after.iter().filter(|c| lum(c) > 0.7).count();
+    println!(
+        "feature-aligned: {dark} dark and {light} light of {} vertices; {}",
+        after.len(),
+        st.message
+    );
+    // The stripes' two tones, both well represented.
+    assert!(dark * 5 > after.len() && light * 5 > after.len());
+    h.state_mut().state.undo();
+    let undone = h.state().state.slot(Side::Target).unwrap().display_colors();
+    assert!(undone == before, "undo did not restore the colours");
+}
