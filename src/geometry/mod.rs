@@ -10,6 +10,7 @@
 //! - [`TriangleBvh`] (closest point, ray hit)
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
 //! - [`taubin_smooth`]
+//! - [`shape_map`] / [`functional_map`] (functional maps + ZoomOut: a global intrinsic map)
 //! - [`solid_angle_curvature`] (Connolly / Mertens multi-scale curvature, Barnes-Hut tree)
 //! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1)
 //! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
@@ -19,6 +20,7 @@ mod bvh;
 mod eigen;
 mod expmap;
 mod frames;
+mod functional_map;
 mod heat;
 mod laplacian;
 mod occlusion;
@@ -30,6 +32,7 @@ pub(crate) use bvh::BARY_EPS;
 pub use bvh::TriangleBvh;
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
+pub use functional_map::{FmapParams, ShapeMap, Spectrum, functional_map, shape_map};
 pub use frames::{parallel_transport_angle, tangent_frames};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
