@@ -147,3 +147,58 @@ fn disconnected_mesh_is_an_error() {
     );
     assert!(r.is_err());
 }
+
+/// A colour that is a known function of the man's vertex: bands by height, left/right and
+/// front/back halves in the other channels.
+fn vertex_colour(p: [f32; 3]) -> [f32; 3] {
+    let band = ((p[1] * 8.0).floor() as i32).rem_euclid(2) as f32;
+    [
+        0.15 + 0.7 * band,
+        if p[0] > 0.0 { 0.85 } else { 0.15 },
+        if p[2] > 0.0 { 0.8 } else { 0.2 },
+    ]
+}
+
+#[test]
+fn transfer_man_to_woman_lands_colours_better_with_the_map() {
+    use meshmatch::meshmatch::{TransferParams, transfer};
+    let (mut man, woman) = (load("human_man"), load("human_woman"));
+    let truth: Vec<[f32; 3]> = man.positions.iter().map(|&p| vertex_colour(p)).collect();
+    man.colors = Some(truth.clone());
+    let cancel = CancelToken::new();
+    let corr: Vec<meshmatch::correspondence::Correspondence> = EXTREMITIES
+        .iter()
+        .map(|&v| meshmatch::correspondence::Correspondence {
+            source_vertex: v,
+            target_vertices: vec![v],
+        })
+        .collect();
+    let mut errs = Vec::new();
+    for (on, corr) in [(false, &corr[..0]), (true, &corr[..0]), (false, &corr[..]), (true, &corr[..])] {
+        let params = TransferParams {
+            vertices: 6_890,
+            iterations: 3,
+            global_map: on,
+            ..TransferParams::default()
+        };
+        let t0 = Instant::now();
+        let r = transfer(&man, &woman, corr, &params, &|_| {}, &cancel).expect("transfer");
+        assert_eq!(r.file_signal.len(), 6890);
+        let de: f64 = r
+            .file_signal
+            .iter()
+            .zip(&truth)
+            .map(|(&a, &b)| meshmatch::color::delta_e76(a, b) as f64)
+            .sum::<f64>()
+            / 6890.0;
+        eprintln!(
+            "transfer man -> woman, {} correspondences, global map {on}: mean dE76 {de:.2}, {:.2}s, notices {:?}",
+            corr.len(),
+            t0.elapsed().as_secs_f64(),
+            r.notices
+        );
+        assert!(r.notices.is_empty());
+        errs.push(de);
+    }
+    assert!(errs[3] < errs[2], "with map {:.2} vs without {:.2}", errs[3], errs[2]);
+}
