@@ -14,7 +14,7 @@ fn load(name: &str) -> TriMesh {
 }
 
 /// Head top, both hands, both feet, one toe tip: SMPL vertex ids (found on the man's T-pose).
-const EXTREMITIES: [u32; 6] = [411, 5906, 2445, 3354, 6755, 3215];
+const EXTREMITIES: [u32; 6] = [411, 2445, 5906, 3354, 6755, 3215];
 
 fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
     (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f32>().sqrt()
@@ -55,6 +55,29 @@ fn man_to_woman_beats_nearest_point() {
     let base = nearest_point_map(&man.positions, &woman.positions);
     let (fb, eb) = accuracy(&man.positions, &base, &man.positions, tol);
     eprintln!("nearest point: {:.1}% within 0.1 sqrt(A), mean error {eb:.4}", 100.0 * fb);
+    if let Ok(list) = std::env::var("FMAP_SWEEP") {
+        for spec in list.split(';') {
+            let v: Vec<f64> = spec.split(',').map(|x| x.parse().unwrap()).collect();
+            let p = FmapParams {
+                orientation: v[0],
+                orientation_stride: v[1] as usize,
+                commutativity: v[2],
+                k_init: v[3] as usize,
+                ..FmapParams::default()
+            };
+            let m = shape_map(
+                (&man.positions, &man.faces),
+                (&woman.positions, &woman.faces),
+                &[],
+                &p,
+                &cancel,
+            )
+            .unwrap();
+            let (f, e) = accuracy(&man.positions, &m.target_to_source, &man.positions, tol);
+            eprintln!("sweep {spec}: {:.1}% mean {e:.4}", 100.0 * f);
+        }
+        return;
+    }
     let mut results = Vec::new();
     for lm in [&[][..], &EXTREMITIES[..]] {
         let pairs: Vec<(u32, u32)> = lm.iter().map(|&v| (v, v)).collect();
@@ -151,7 +174,7 @@ fn disconnected_mesh_is_an_error() {
 /// A colour that is a known function of the man's vertex: bands by height, left/right and
 /// front/back halves in the other channels.
 fn vertex_colour(p: [f32; 3]) -> [f32; 3] {
-    let band = ((p[1] * 8.0).floor() as i32).rem_euclid(2) as f32;
+    let band = ((p[1] * 12.0).floor() as i32).rem_euclid(2) as f32;
     [
         0.15 + 0.7 * band,
         if p[0] > 0.0 { 0.85 } else { 0.15 },
@@ -173,8 +196,17 @@ fn transfer_man_to_woman_lands_colours_better_with_the_map() {
             target_vertices: vec![v],
         })
         .collect();
+    // 2 correspondences (head top, one hand) by default; FMAP_TRANSFER_ALL=1 also runs 0 and 6
+    let counts: Vec<usize> = if std::env::var_os("FMAP_TRANSFER_ALL").is_some() {
+        vec![0, 2, 6]
+    } else {
+        vec![2]
+    };
     let mut errs = Vec::new();
-    for (on, corr) in [(false, &corr[..0]), (true, &corr[..0]), (false, &corr[..]), (true, &corr[..])] {
+    for (on, corr) in counts
+        .iter()
+        .flat_map(|&c| [(false, &corr[..c]), (true, &corr[..c])])
+    {
         let params = TransferParams {
             vertices: 6_890,
             iterations: 3,
@@ -200,5 +232,11 @@ fn transfer_man_to_woman_lands_colours_better_with_the_map() {
         assert!(r.notices.is_empty());
         errs.push(de);
     }
-    assert!(errs[3] < errs[2], "with map {:.2} vs without {:.2}", errs[3], errs[2]);
+    let n = errs.len();
+    assert!(
+        errs[n - 1] < errs[n - 2],
+        "with map {:.2} vs without {:.2}",
+        errs[n - 1],
+        errs[n - 2]
+    );
 }

@@ -58,6 +58,10 @@ pub struct FmapParams {
     pub landmark_energies: usize,
     /// Weight of Laplacian commutativity relative to descriptor preservation.
     pub commutativity: f64,
+    /// Weight of the orientation-preserving term (Ren et al. 2018) relative to descriptor
+    /// preservation (0 = off); computed on every `orientation_stride`-th WKS descriptor.
+    pub orientation: f64,
+    pub orientation_stride: usize,
 }
 
 impl Default for FmapParams {
@@ -70,6 +74,8 @@ impl Default for FmapParams {
             descriptors: 100,
             landmark_energies: 25,
             commutativity: 1e-2,
+            orientation: 1.0,
+            orientation_stride: 4,
         }
     }
 }
@@ -87,6 +93,9 @@ pub struct Spectrum {
     pub mass: Vec<f64>,
     /// The mesh's true area.
     pub area: f64,
+    /// Positions rescaled to unit area, and the faces (for the orientation operators).
+    pub positions: Vec<[f64; 3]>,
+    pub faces: Vec<[u32; 3]>,
 }
 
 impl Spectrum {
@@ -128,12 +137,18 @@ impl Spectrum {
         evals.iter_mut().for_each(|l| *l *= area);
         evecs.iter_mut().for_each(|x| *x *= sa);
         let mass = mass0.iter().map(|m| m / area).collect();
+        let positions = positions
+            .iter()
+            .map(|p| p.map(|x| x as f64 / sa))
+            .collect();
         Ok(Spectrum {
             n,
             evals,
             evecs,
             mass,
             area,
+            positions,
+            faces: faces.to_vec(),
         })
     }
 
@@ -327,6 +342,61 @@ fn cholesky_solve(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
     Some(y)
 }
 
+/// `X_f = Φᵀ M O_f Φ` (`k × k`, row-major) for the orientation operator
+/// `O_f(g) = ⟨n × ∇f, ∇g⟩` (Ren, Poulenard, Liu, Ovsjanikov 2018), per face, lumped to the
+/// corners with a third of the face area.
+fn orientation_operator(sp: &Spectrum, f: &[f64], k: usize) -> Vec<f64> {
+    let mut x = vec![0.0; k * k];
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut grad_j = vec![[0.0f64; 3]; k];
+    for face in &sp.faces {
+        let v = face.map(|i| i as usize);
+        let p = v.map(|i| sp.positions[i]);
+        let nn = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+        let a2 = dot(nn, nn).sqrt();
+        if a2 <= 1e-300 {
+            continue;
+        }
+        let n = nn.map(|c| c / a2);
+        // n × e_v / (2A), e_v the edge opposite corner v (counter-clockwise)
+        let basis: [[f64; 3]; 3] = std::array::from_fn(|c| {
+            let e = sub(p[(c + 2) % 3], p[(c + 1) % 3]);
+            cross(n, e).map(|x| x / a2)
+        });
+        let grad = |vals: [f64; 3]| {
+            let mut g = [0.0; 3];
+            for c in 0..3 {
+                for d in 0..3 {
+                    g[d] += vals[c] * basis[c][d];
+                }
+            }
+            g
+        };
+        let rot = cross(n, grad(v.map(|i| f[i])));
+        for (j, gj) in grad_j.iter_mut().enumerate() {
+            let phi = sp.phi(j);
+            *gj = grad(v.map(|i| phi[i]));
+        }
+        let w = a2 / 6.0; // area / 3
+        for i in 0..k {
+            let phi = sp.phi(i);
+            let ci = w * (phi[v[0]] + phi[v[1]] + phi[v[2]]);
+            for (j, gj) in grad_j.iter().enumerate() {
+                x[i * k + j] += ci * dot(rot, *gj);
+            }
+        }
+    }
+    x
+}
+
 /// The initial `k × k` map from descriptor preservation + Laplacian commutativity (row-major).
 fn fit_initial(
     ss: &Spectrum,
@@ -335,8 +405,12 @@ fn fit_initial(
     ft: &[Vec<f64>],
     k: usize,
     mu: f64,
+    fo: &[(usize, usize)],
+    orient: f64,
 ) -> Result<Vec<f64>> {
     let d = fs.len();
+    let fo: Vec<(&[f64], &[f64])> = fo.iter().map(|&(i, j)| (&fs[i][..], &ft[j][..])).collect();
+    let fo = &fo[..];
     // a: k × d (column j = coefficients of descriptor j), stored row-major a[i * d + j]
     let proj = |sp: &Spectrum, f: &[Vec<f64>]| -> Vec<f64> {
         let cols: Vec<Vec<f64>> = f.par_iter().map(|x| sp.project(x, k)).collect();
@@ -366,6 +440,9 @@ fn fit_initial(
     // scale μ with the descriptor term's size so the ratio is meaningful
     let tr = (0..k).map(|i| aat[i * k + i]).sum::<f64>() / k as f64;
     let mu = mu * tr * k as f64;
+    if orient > 0.0 && !fo.is_empty() {
+        return fit_joint(ss, st, &a, &b, d, &aat, &dd, dn, mu, tr, k, fo, orient);
+    }
     let mut c = vec![0.0; k * k];
     for i in 0..k {
         let mut m = aat.clone();
@@ -381,6 +458,78 @@ fn fit_initial(
         c[i * k..(i + 1) * k].copy_from_slice(&row);
     }
     Ok(c)
+}
+
+/// The initial map with the orientation term: all of `C` at once, normal equations on `vec(C)`
+/// (`k² × k²`, entry `(a, b)` at `a k + b`):
+/// `H[(a,b),(c,d)] = δ_ac (AAᵀ)_bd + μ δ_ac δ_bd D_ab / ‖D‖ + w Σ_f [δ_ac (XXᵀ)_bd + δ_bd (YᵀY)_ac
+/// − X_bd Y_ac − X_db Y_ca]` with `X = X_f` on the source and `Y = X_f` on the target.
+#[allow(clippy::too_many_arguments)]
+fn fit_joint(
+    ss: &Spectrum,
+    st: &Spectrum,
+    a: &[f64],
+    b: &[f64],
+    d: usize,
+    aat: &[f64],
+    dd: &[f64],
+    dn: f64,
+    mu: f64,
+    tr: f64,
+    k: usize,
+    fo: &[(&[f64], &[f64])],
+    orient: f64,
+) -> Result<Vec<f64>> {
+    let kk = k * k;
+    let ops: Vec<(Vec<f64>, Vec<f64>)> = fo
+        .par_iter()
+        .map(|(fs, ft)| (orientation_operator(ss, fs, k), orientation_operator(st, ft, k)))
+        .collect();
+    let mut ho = vec![0.0; kk * kk];
+    for (x, y) in &ops {
+        let mut xxt = vec![0.0; kk];
+        let mut yty = vec![0.0; kk];
+        for p in 0..k {
+            for q in 0..k {
+                xxt[p * k + q] = (0..k).map(|r| x[p * k + r] * x[q * k + r]).sum();
+                yty[p * k + q] = (0..k).map(|r| y[r * k + p] * y[r * k + q]).sum();
+            }
+        }
+        for ai in 0..k {
+            for bi in 0..k {
+                let row = (ai * k + bi) * kk;
+                for ci in 0..k {
+                    for di in 0..k {
+                        let mut h = -x[bi * k + di] * y[ai * k + ci] - x[di * k + bi] * y[ci * k + ai];
+                        if ai == ci {
+                            h += xxt[bi * k + di];
+                        }
+                        if bi == di {
+                            h += yty[ai * k + ci];
+                        }
+                        ho[row + ci * k + di] += h;
+                    }
+                }
+            }
+        }
+    }
+    // the orientation term's size relative to the descriptor term's
+    let tro = (0..kk).map(|i| ho[i * kk + i]).sum::<f64>() / kk as f64;
+    let wo = if tro > 0.0 { orient * tr / tro } else { 0.0 };
+    let mut h: Vec<f64> = ho.iter().map(|x| wo * x).collect();
+    let mut rhs = vec![0.0; kk];
+    for ai in 0..k {
+        for bi in 0..k {
+            let r = ai * k + bi;
+            for di in 0..k {
+                h[r * kk + ai * k + di] += aat[bi * k + di];
+            }
+            h[r * kk + r] += mu * dd[ai * k + bi] / dn + 1e-12 * tr;
+            rhs[r] = (0..d).map(|p| b[ai * d + p] * a[bi * d + p]).sum();
+        }
+    }
+    cholesky_solve(&h, &rhs, kk)
+        .ok_or_else(|| Error::InvalidInput("shape map: descriptor system is singular".into()))
 }
 
 /// Nearest row of `src` (`ns × k`, column-major f32) for every row of `tgt` (`nt × k`), brute
@@ -494,7 +643,20 @@ pub fn functional_map(
         || descriptors(ss, kd, &energies, sigma, &ls, &lm_energies),
         || descriptors(st, kd, &energies, sigma, &lt, &lm_energies),
     );
-    let mut c = fit_initial(ss, st, &fs, &ft, k0, params.commutativity)?;
+    let fo: Vec<(usize, usize)> = (0..energies.len())
+        .step_by(params.orientation_stride.max(1))
+        .map(|i| (i, i))
+        .collect();
+    let mut c = fit_initial(
+        ss,
+        st,
+        &fs,
+        &ft,
+        k0,
+        params.commutativity,
+        &fo,
+        params.orientation,
+    )?;
     timings.push(("initial map".into(), t0.elapsed().as_secs_f64()));
     cancel.check()?;
     let t0 = Instant::now();
