@@ -9,7 +9,11 @@ use std::time::Instant;
 
 fn load(name: &str) -> TriMesh {
     let m = meshmatch::mesh::io::load(&data_path(&format!("human/{name}.obj"))).expect("load");
-    assert_eq!(m.positions.len(), 6890, "{name}: SMPL vertex order expected");
+    assert_eq!(
+        m.positions.len(),
+        6890,
+        "{name}: SMPL vertex order expected"
+    );
     m
 }
 
@@ -54,30 +58,10 @@ fn man_to_woman_beats_nearest_point() {
     let params = FmapParams::default();
     let base = nearest_point_map(&man.positions, &woman.positions);
     let (fb, eb) = accuracy(&man.positions, &base, &man.positions, tol);
-    eprintln!("nearest point: {:.1}% within 0.1 sqrt(A), mean error {eb:.4}", 100.0 * fb);
-    if let Ok(list) = std::env::var("FMAP_SWEEP") {
-        for spec in list.split(';') {
-            let v: Vec<f64> = spec.split(',').map(|x| x.parse().unwrap()).collect();
-            let p = FmapParams {
-                orientation: v[0],
-                orientation_stride: v[1] as usize,
-                commutativity: v[2],
-                k_init: v[3] as usize,
-                ..FmapParams::default()
-            };
-            let m = shape_map(
-                (&man.positions, &man.faces),
-                (&woman.positions, &woman.faces),
-                &[],
-                &p,
-                &cancel,
-            )
-            .unwrap();
-            let (f, e) = accuracy(&man.positions, &m.target_to_source, &man.positions, tol);
-            eprintln!("sweep {spec}: {:.1}% mean {e:.4}", 100.0 * f);
-        }
-        return;
-    }
+    eprintln!(
+        "nearest point: {:.1}% within 0.1 sqrt(A), mean error {eb:.4}",
+        100.0 * fb
+    );
     let mut results = Vec::new();
     for lm in [&[][..], &EXTREMITIES[..]] {
         let pairs: Vec<(u32, u32)> = lm.iter().map(|&v| (v, v)).collect();
@@ -101,12 +85,20 @@ fn man_to_woman_beats_nearest_point() {
         results.push(f);
     }
     assert!(results[1] > 0.8, "with landmarks: {:.3}", results[1]);
-    assert!(results[1] > fb, "map {:.3} vs nearest point {fb:.3}", results[1]);
+    assert!(
+        results[1] > fb,
+        "map {:.3} vs nearest point {fb:.3}",
+        results[1]
+    );
 }
 
 fn rotate(p: [f32; 3]) -> [f32; 3] {
     let (s, c) = 0.7f32.sin_cos();
-    [c * p[0] + s * p[2] + 3.0, p[1] - 1.0, -s * p[0] + c * p[2] + 0.5]
+    [
+        c * p[0] + s * p[2] + 3.0,
+        p[1] - 1.0,
+        -s * p[0] + c * p[2] + 0.5,
+    ]
 }
 
 #[test]
@@ -159,8 +151,7 @@ fn disconnected_mesh_is_an_error() {
     let n = man.positions.len() as u32;
     two.positions
         .extend(man.positions.iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
-    two.faces
-        .extend(man.faces.iter().map(|f| f.map(|v| v + n)));
+    two.faces.extend(man.faces.iter().map(|f| f.map(|v| v + n)));
     let r = shape_map(
         (&man.positions, &man.faces),
         (&two.positions, &two.faces),

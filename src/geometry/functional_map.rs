@@ -69,7 +69,7 @@ impl Default for FmapParams {
         FmapParams {
             k_init: 20,
             k_final: 100,
-            k_step: 5,
+            k_step: 10,
             k_descriptors: 50,
             descriptors: 100,
             landmark_energies: 25,
@@ -137,10 +137,7 @@ impl Spectrum {
         evals.iter_mut().for_each(|l| *l *= area);
         evecs.iter_mut().for_each(|x| *x *= sa);
         let mass = mass0.iter().map(|m| m / area).collect();
-        let positions = positions
-            .iter()
-            .map(|p| p.map(|x| x as f64 / sa))
-            .collect();
+        let positions = positions.iter().map(|p| p.map(|x| x as f64 / sa)).collect();
         Ok(Spectrum {
             n,
             evals,
@@ -483,7 +480,12 @@ fn fit_joint(
     let kk = k * k;
     let ops: Vec<(Vec<f64>, Vec<f64>)> = fo
         .par_iter()
-        .map(|(fs, ft)| (orientation_operator(ss, fs, k), orientation_operator(st, ft, k)))
+        .map(|(fs, ft)| {
+            (
+                orientation_operator(ss, fs, k),
+                orientation_operator(st, ft, k),
+            )
+        })
         .collect();
     let mut ho = vec![0.0; kk * kk];
     for (x, y) in &ops {
@@ -500,7 +502,8 @@ fn fit_joint(
                 let row = (ai * k + bi) * kk;
                 for ci in 0..k {
                     for di in 0..k {
-                        let mut h = -x[bi * k + di] * y[ai * k + ci] - x[di * k + bi] * y[ci * k + ai];
+                        let mut h =
+                            -x[bi * k + di] * y[ai * k + ci] - x[di * k + bi] * y[ci * k + ai];
                         if ai == ci {
                             h += xxt[bi * k + di];
                         }

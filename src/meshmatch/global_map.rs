@@ -97,7 +97,11 @@ pub(super) fn global_map(
         .collect();
     let mut target_pos: Vec<Vec<[f32; 3]>> = vec![Vec::new(); nl];
     for l in (lt + 1)..nl {
-        let prev: &[[f32; 3]] = if l == lt + 1 { &base } else { &target_pos[l - 1] };
+        let prev: &[[f32; 3]] = if l == lt + 1 {
+            &base
+        } else {
+            &target_pos[l - 1]
+        };
         let cur: Vec<[f32; 3]> = (0..ht.levels[l].len())
             .map(|p| {
                 let ch = ht.children(l, p as u32);
@@ -143,7 +147,11 @@ pub(super) fn global_map(
         .map(|p| (0..3).map(|d| (p[d] as f64 - c[d]).powi(2)).sum::<f64>())
         .sum::<f64>()
         / n;
-    let scale = if var > 0.0 { (1.0 / var.sqrt()) as f32 } else { 1.0 };
+    let scale = if var > 0.0 {
+        (1.0 / var.sqrt()) as f32
+    } else {
+        1.0
+    };
     Ok(GlobalMap {
         target_pos,
         top_init,

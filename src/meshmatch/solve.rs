@@ -101,14 +101,7 @@ pub fn solve_constrained(
             .into_iter()
             .enumerate()
             .map(|(l, sh)| {
-                global_map::append_map_term(
-                    g,
-                    hs,
-                    sh,
-                    l,
-                    nl,
-                    level_shape_weight(params, l, nl),
-                )
+                global_map::append_map_term(g, hs, sh, l, nl, level_shape_weight(params, l, nl))
             })
             .collect();
     }
