@@ -395,6 +395,7 @@ fn orientation_operator(sp: &Spectrum, f: &[f64], k: usize) -> Vec<f64> {
 }
 
 /// The initial `k × k` map from descriptor preservation + Laplacian commutativity (row-major).
+#[allow(clippy::too_many_arguments)]
 fn fit_initial(
     ss: &Spectrum,
     st: &Spectrum,

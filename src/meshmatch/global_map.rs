@@ -188,8 +188,8 @@ pub(super) fn append_map_term(
         let mut out = Vec::with_capacity(pos.len() * (dsh + 3));
         for (i, p) in pos.iter().enumerate() {
             out.extend_from_slice(&v[i * dsh..(i + 1) * dsh]);
-            for d in 0..3 {
-                out.push(g * (p[d] - gm.centre[d]));
+            for (x, c) in p.iter().zip(&gm.centre) {
+                out.push(g * (x - c));
             }
         }
         out
