@@ -54,6 +54,10 @@ pub struct TransferArgs {
     /// Keep the filtered vote at the finest level instead of the nearest-neighbour copy.
     #[arg(long)]
     pub no_sharpen: bool,
+    /// Steer the solve with a global intrinsic shape map (functional maps + ZoomOut, the
+    /// correspondences as landmarks) so similar shapes keep the source's layout: on or off.
+    #[arg(long, default_value = "off", value_parser = ["on", "off"])]
+    pub global_map: String,
     /// Size of the baked texture (pixels per side) when the target has UVs.
     #[arg(long, default_value_t = 1024)]
     pub texture_size: u32,
@@ -94,6 +98,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         shape_weight: a.shape_weight,
         fine_shape_scale: a.fine_shape_scale,
         sharpen: !a.no_sharpen,
+        global_map: a.global_map == "on",
         ..TransferParams::default()
     };
     let bar = progress_bar();
@@ -118,6 +123,9 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     );
     for (name, s) in &result.timings {
         eprintln!("  {name:<12} {s:8.3} s");
+    }
+    for n in &result.notices {
+        eprintln!("note: {n}");
     }
 
     // Deliver on the target's own vertices (file order), or baked into its UV layout.

@@ -10,6 +10,7 @@
 //! - [`TriangleBvh`] (closest point, ray hit)
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
 //! - [`taubin_smooth`]
+//! - [`shape_map`] / [`functional_map`] (functional maps + ZoomOut: a global intrinsic map)
 //! - [`solid_angle_curvature`] (Connolly / Mertens multi-scale curvature, Barnes-Hut tree)
 //! - [`principal_curvatures`] (tensor averaging), [`salient_curves`] (crest lines after
 //!   Yoshizawa et al. 2005, creases by dihedral angle; Xu et al. 2009 §4.1 grouping)
@@ -25,6 +26,7 @@ mod curve_guided_field;
 mod eigen;
 mod expmap;
 mod frames;
+mod functional_map;
 mod heat;
 mod laplacian;
 mod occlusion;
@@ -43,6 +45,7 @@ pub use curve_guided_field::{
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
 pub use frames::{parallel_transport_angle, tangent_frames};
+pub use functional_map::{FmapParams, ShapeMap, Spectrum, functional_map, shape_map};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};

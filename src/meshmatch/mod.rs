@@ -18,6 +18,7 @@
 mod affinities;
 mod deliver;
 mod em;
+mod global_map;
 mod prepare;
 mod solve;
 
@@ -56,6 +57,13 @@ pub struct TransferParams {
     /// Benchmark diagnostic: target vertices of the finest level whose exact nearest neighbour
     /// (all source vertices x all rotations) is found by brute force after the solve (0 = off).
     pub exact_samples: usize,
+    /// Steer the solve with a global intrinsic shape map (functional maps + ZoomOut, with the
+    /// correspondences as landmarks): the coarsest level starts from the map and every level's
+    /// shape term includes the distance to the mapped point, strongest at coarse levels. Meant
+    /// for similar shapes (two bodies, two animals of a kind); when the map cannot be computed
+    /// (several components, a tiny mesh) the solve falls back to the random + exhaustive start
+    /// and [`TransferResult::notices`] says why.
+    pub global_map: bool,
 }
 
 impl Default for TransferParams {
@@ -70,6 +78,7 @@ impl Default for TransferParams {
             sharpen: true,
             fan_radius: 2.5,
             exact_samples: 0,
+            global_map: false,
         }
     }
 }
@@ -111,6 +120,8 @@ pub struct TransferResult {
     pub energy: f64,
     /// The exact-search comparison, when `exact_samples` asked for one.
     pub exact: Option<ExactCheck>,
+    /// One-line notices for the user (e.g. why the global map was not used).
+    pub notices: Vec<String>,
 }
 
 /// MeshMatch's final NNF against exhaustive search on a sample of finest-level target vertices.

@@ -8,6 +8,7 @@ use rand::{Rng, SeedableRng};
 
 use super::affinities::{affinities, to_levels, weighted_shape};
 use super::em::{self, C, Ctx, PER, Side};
+use super::global_map;
 use super::{
     Constraints, ExactCheck, PreparedMesh, TransferParams, TransferResult, level_shape_weight,
 };
@@ -78,8 +79,32 @@ pub fn solve_constrained(
         nl = nl.min(k.max(1));
     }
 
+    let mut notices = Vec::new();
+    let mut gmap = None;
+    let mut map_secs = None;
+    if params.global_map {
+        match global_map::global_map(source, target, &pairs, nl, cancel) {
+            Ok(g) => {
+                map_secs = Some(g.seconds);
+                gmap = Some(g);
+            }
+            Err(Error::Cancelled) => return Err(Error::Cancelled),
+            Err(e) => notices.push(format!(
+                "global map not used ({e}); starting from the exhaustive search"
+            )),
+        }
+    }
     let sw = Stopwatch::start();
-    let shapes = level_shapes(source, target, &pairs, params, nl);
+    let mut shapes = level_shapes(source, target, &pairs, params, nl);
+    if let Some(g) = &gmap {
+        shapes = shapes
+            .into_iter()
+            .enumerate()
+            .map(|(l, sh)| {
+                global_map::append_map_term(g, hs, sh, l, nl, level_shape_weight(params, l, nl))
+            })
+            .collect();
+    }
     let locked = locked_per_level(hs, ht, &pairs, nl);
     let fixed = fixed_per_level(ht, constraints, nt0, nl);
     let mut run = Levels {
@@ -103,6 +128,8 @@ pub fn solve_constrained(
             .map(|l| ht.levels[l].len() as f64 * (params.iterations + 1) as f64)
             .sum(),
         done_work: 0.0,
+        top_init: gmap.map(|g| g.top_init),
+        notices,
         nnf: Vec::new(),
         signal: Vec::new(),
         energy: 0.0,
@@ -111,6 +138,9 @@ pub fn solve_constrained(
         t: Timers::default(),
         timings: Vec::new(),
     };
+    if let Some(t) = map_secs {
+        run.stage("global map", t);
+    }
     run.stage("affinities", sw.secs());
     cancel.check()?;
     for l in (0..nl).rev() {
@@ -280,6 +310,9 @@ struct Levels<'a> {
     exhaustive_top: bool,
     total_work: f64,
     done_work: f64,
+    /// Coarsest-level start from the global map (source vertex per target vertex).
+    top_init: Option<Vec<u32>>,
+    notices: Vec<String>,
     nnf: Vec<(u32, u8)>,
     signal: Vec<[f32; 3]>,
     energy: f64,
@@ -395,6 +428,18 @@ impl<'a> Levels<'a> {
                     ),
                 })
                 .collect();
+            if let Some(init) = &self.top_init {
+                // the global map's start: the mapped source vertex, best rotation there
+                let ctx = self.ctx(l, fans_t, 0.0);
+                for (v, e) in nnf.iter_mut().enumerate() {
+                    if self.locked[l][v].is_none() {
+                        let s = init[v];
+                        let (d, k) = ctx.best_rotation(v, s as usize, f32::INFINITY);
+                        *e = (s, k);
+                        dist[v] = d;
+                    }
+                }
+            }
             if self.exhaustive_top {
                 let sw = Stopwatch::start();
                 let ctx = self.ctx(l, fans_t, 0.0);
@@ -589,6 +634,7 @@ impl<'a> Levels<'a> {
             timings: self.timings,
             energy: self.energy,
             exact: self.exact,
+            notices: self.notices,
         }
     }
 }

@@ -1,0 +1,720 @@
+//! Global intrinsic shape map: functional maps (Ovsjanikov et al. 2012, "Functional maps: a
+//! flexible representation of maps between shapes") refined by ZoomOut (Melzi et al. 2019,
+//! "ZoomOut: spectral upsampling for efficient shape correspondence").
+//!
+//! Notation. `Φ_s` (`n_s × k`) and `Φ_t` (`n_t × k`) are the smallest Laplacian eigenvectors of the
+//! source and target, M-orthonormal on the unit-area rescaled surfaces (`Φᵀ M Φ = I`). A point map
+//! `T: target → source` pulls a source function back, `f ∘ T`; its functional map is the
+//! `k × k` matrix
+//!
+//! ```text
+//! C = Φ_tᵀ M_t Π Φ_s,        Π Φ_s ≈ Φ_t C      (Π: n_t × n_s, Π[t, T(t)] = 1)
+//! ```
+//!
+//! so the coefficients of a source function `a` become `C a` on the target.
+//!
+//! 1. **Descriptors.** Wave kernel signature (Aubry et al. 2011) at `descriptors` log-energies,
+//!    `WKS(x, e) = Σ_i φ_i(x)² g_e(λ_i) / Σ_i g_e(λ_i)`, `g_e(λ) = exp(-(e - ln λ)² / 2σ²)`, and
+//!    for every landmark pair `(s_j, t_j)` the landmark wave kernels
+//!    `Σ_i φ_i(x) φ_i(s_j) g_e(λ_i)` at a few energies; each descriptor is scaled to unit M-norm.
+//! 2. **Initial map.** With `A = Φ_sᵀ M_s F_s`, `B = Φ_tᵀ M_t F_t` (`k0 × d`):
+//!    `min_C ‖C A − B‖² + μ Σ_ij C_ij² (λ^t_i − λ^s_j)²` (descriptor preservation + Laplacian
+//!    commutativity, the squared eigenvalue differences normalised to unit Frobenius norm). The
+//!    problem separates by rows of `C`: `(A Aᵀ + μ diag(D_i)) c_i = A b_i`.
+//! 3. **ZoomOut.** For `k = k0, k0 + step, …, k_final`: the point map is the nearest neighbour of
+//!    every row of `Φ_t[:, :k] C` among the rows of `Φ_s[:, :k]`, then
+//!    `C ← Φ_t[:, :k']ᵀ M_t Π Φ_s[:, :k']` with `k' = k + step`. Landmark target vertices keep
+//!    their landmark source vertex.
+//!
+//! Landmarks break intrinsic symmetries (left/right flips); without them a symmetric pair of shapes
+//! may map flipped. Disconnected and tiny meshes, and failed eigen-solves, return an error: callers
+//! fall back to whatever they did without the map.
+
+use std::time::Instant;
+
+use faer::linalg::matmul::matmul;
+use faer::{Accum, MatMut, MatRef, Par};
+use rayon::prelude::*;
+
+use super::eigen::laplacian_eigen;
+use super::laplacian::mass_matrix_voronoi;
+use crate::error::{Error, Result};
+use crate::work::CancelToken;
+
+/// Parameters of [`shape_map`] / [`functional_map`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct FmapParams {
+    /// Size of the initial functional map (descriptor fit).
+    pub k_init: usize,
+    /// Size of the final map after ZoomOut (also the eigenpairs computed per mesh).
+    pub k_final: usize,
+    /// ZoomOut step.
+    pub k_step: usize,
+    /// Eigenpairs used by the descriptors.
+    pub k_descriptors: usize,
+    /// WKS energies.
+    pub descriptors: usize,
+    /// Energies per landmark.
+    pub landmark_energies: usize,
+    /// Weight of Laplacian commutativity relative to descriptor preservation.
+    pub commutativity: f64,
+    /// Weight of the orientation-preserving term (Ren et al. 2018) relative to descriptor
+    /// preservation (0 = off); computed on every `orientation_stride`-th WKS descriptor.
+    pub orientation: f64,
+    pub orientation_stride: usize,
+}
+
+impl Default for FmapParams {
+    fn default() -> Self {
+        FmapParams {
+            k_init: 20,
+            k_final: 100,
+            k_step: 10,
+            k_descriptors: 50,
+            descriptors: 100,
+            landmark_energies: 25,
+            commutativity: 1e-2,
+            orientation: 1.0,
+            orientation_stride: 4,
+        }
+    }
+}
+
+/// A mesh's Laplacian spectrum on its unit-area rescaling.
+#[derive(Clone, Debug)]
+pub struct Spectrum {
+    /// Vertex count.
+    pub n: usize,
+    /// Eigenvalues ascending (unit-area scale).
+    pub evals: Vec<f64>,
+    /// Eigenvectors, flat column-major `n × k` (`evecs[i * n + v]`), M-orthonormal on unit area.
+    pub evecs: Vec<f64>,
+    /// Voronoi vertex areas of the unit-area surface.
+    pub mass: Vec<f64>,
+    /// The mesh's true area.
+    pub area: f64,
+    /// Positions rescaled to unit area, and the faces (for the orientation operators).
+    pub positions: Vec<[f64; 3]>,
+    pub faces: Vec<[u32; 3]>,
+}
+
+impl Spectrum {
+    /// Smallest `k` eigenpairs of `positions`/`faces`, rescaled to unit area. Errors on meshes
+    /// with more than one connected component, fewer than `k + 1` vertices or zero area.
+    pub fn new(positions: &[[f32; 3]], faces: &[[u32; 3]], k: usize) -> Result<Spectrum> {
+        let n = positions.len();
+        if n < k + 1 || n < 10 || faces.is_empty() {
+            return Err(Error::InvalidInput(format!(
+                "shape map: mesh too small ({n} vertices) for {k} eigenpairs"
+            )));
+        }
+        let (label, _) = crate::mesh::connected_components(n, faces);
+        let mut used = vec![false; n];
+        for f in faces {
+            for &v in f {
+                used[v as usize] = true;
+            }
+        }
+        let first = label[used.iter().position(|&u| u).unwrap_or(0)];
+        if (0..n).any(|v| used[v] && label[v] != first) {
+            return Err(Error::InvalidInput(
+                "shape map: the mesh has several connected components".into(),
+            ));
+        }
+        let mass0 = mass_matrix_voronoi(positions, faces);
+        let area: f64 = mass0.iter().sum();
+        if area.is_nan() || area <= 0.0 {
+            return Err(Error::InvalidInput("shape map: mesh has no area".into()));
+        }
+        let (mut evals, mut evecs) = laplacian_eigen(positions, faces, k)?;
+        if evals.iter().any(|x| !x.is_finite()) || evecs.iter().any(|x| !x.is_finite()) {
+            return Err(Error::InvalidInput(
+                "shape map: the eigen-solve did not converge".into(),
+            ));
+        }
+        // unit area: λ' = λ A, φ' = φ √A, M' = M / A
+        let sa = area.sqrt();
+        evals.iter_mut().for_each(|l| *l *= area);
+        evecs.iter_mut().for_each(|x| *x *= sa);
+        let mass = mass0.iter().map(|m| m / area).collect();
+        let positions = positions.iter().map(|p| p.map(|x| x as f64 / sa)).collect();
+        Ok(Spectrum {
+            n,
+            evals,
+            evecs,
+            mass,
+            area,
+            positions,
+            faces: faces.to_vec(),
+        })
+    }
+
+    /// Eigenpairs held.
+    pub fn k(&self) -> usize {
+        self.evals.len()
+    }
+
+    fn phi(&self, i: usize) -> &[f64] {
+        &self.evecs[i * self.n..(i + 1) * self.n]
+    }
+
+    /// `Φ[:, :k]ᵀ M f` for a vertex function `f`.
+    fn project(&self, f: &[f64], k: usize) -> Vec<f64> {
+        (0..k)
+            .map(|i| {
+                self.phi(i)
+                    .iter()
+                    .zip(f)
+                    .zip(&self.mass)
+                    .map(|((p, x), m)| p * x * m)
+                    .sum()
+            })
+            .collect()
+    }
+}
+
+/// A point-to-point map target → source and its functional map.
+#[derive(Clone, Debug)]
+pub struct ShapeMap {
+    /// Source vertex of every target vertex.
+    pub target_to_source: Vec<u32>,
+    /// Final functional map, row-major `k × k` (`c[i * k + j]`): source coefficients → target.
+    pub c: Vec<f64>,
+    /// Size of `c`.
+    pub k: usize,
+    /// Stage timings (seconds).
+    pub timings: Vec<(String, f64)>,
+}
+
+/// Spectra of both meshes plus [`functional_map`]. `landmarks` are (source vertex, target vertex)
+/// pairs.
+pub fn shape_map(
+    source: (&[[f32; 3]], &[[u32; 3]]),
+    target: (&[[f32; 3]], &[[u32; 3]]),
+    landmarks: &[(u32, u32)],
+    params: &FmapParams,
+    cancel: &CancelToken,
+) -> Result<ShapeMap> {
+    let t0 = Instant::now();
+    let k = params.k_final.max(params.k_init).max(params.k_descriptors);
+    let (ss, st) = rayon::join(
+        || Spectrum::new(source.0, source.1, k),
+        || Spectrum::new(target.0, target.1, k),
+    );
+    let (ss, st) = (ss?, st?);
+    let te = t0.elapsed().as_secs_f64();
+    cancel.check()?;
+    let mut m = functional_map(&ss, &st, landmarks, params, cancel)?;
+    m.timings.insert(0, ("eigen".into(), te));
+    Ok(m)
+}
+
+/// Log-energies and σ of the WKS over the non-zero eigenvalues of both spectra (`kd` pairs).
+fn wks_energies(a: &[f64], b: &[f64], count: usize) -> (Vec<f64>, f64) {
+    let pos = |v: &[f64]| -> (f64, f64) {
+        let lmax = v.iter().copied().fold(0.0f64, f64::max);
+        let l1 = v
+            .iter()
+            .copied()
+            .filter(|&l| l > 1e-9 * lmax)
+            .fold(f64::INFINITY, f64::min);
+        (l1.ln(), lmax.ln())
+    };
+    let (a0, a1) = pos(a);
+    let (b0, b1) = pos(b);
+    let (e0, e1) = (a0.max(b0), a1.min(b1) - 0.02);
+    let count = count.max(2);
+    let step = (e1 - e0) / (count - 1) as f64;
+    let e = (0..count).map(|j| e0 + step * j as f64).collect();
+    (e, 7.0 * step)
+}
+
+/// Descriptor functions (each unit M-norm) of one shape: WKS, then landmark wave kernels.
+fn descriptors(
+    sp: &Spectrum,
+    kd: usize,
+    energies: &[f64],
+    sigma: f64,
+    landmarks: &[u32],
+    lm_energies: &[f64],
+) -> Vec<Vec<f64>> {
+    let ev = &sp.evals[..kd];
+    let lmax = ev.iter().copied().fold(0.0f64, f64::max);
+    let g = |e: f64| -> Vec<f64> {
+        ev.iter()
+            .map(|&l| {
+                if l > 1e-9 * lmax {
+                    (-(e - l.ln()).powi(2) / (2.0 * sigma * sigma)).exp()
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    };
+    let n = sp.n;
+    let mut out: Vec<Vec<f64>> = energies
+        .par_iter()
+        .map(|&e| {
+            let w = g(e);
+            let tot: f64 = w.iter().sum::<f64>().max(1e-300);
+            let mut f = vec![0.0; n];
+            for (i, wi) in w.iter().enumerate() {
+                if *wi < 1e-12 {
+                    continue;
+                }
+                for (fv, p) in f.iter_mut().zip(sp.phi(i)) {
+                    *fv += wi * p * p;
+                }
+            }
+            f.iter_mut().for_each(|x| *x /= tot);
+            f
+        })
+        .collect();
+    let lm: Vec<Vec<f64>> = landmarks
+        .par_iter()
+        .flat_map_iter(|&l| {
+            lm_energies.iter().map(move |&e| {
+                let w = g(e);
+                let mut f = vec![0.0; n];
+                for (i, wi) in w.iter().enumerate() {
+                    let c = wi * sp.phi(i)[l as usize];
+                    if c == 0.0 {
+                        continue;
+                    }
+                    for (fv, p) in f.iter_mut().zip(sp.phi(i)) {
+                        *fv += c * p;
+                    }
+                }
+                f
+            })
+        })
+        .collect();
+    out.extend(lm);
+    for f in &mut out {
+        let nrm: f64 = f
+            .iter()
+            .zip(&sp.mass)
+            .map(|(x, m)| x * x * m)
+            .sum::<f64>()
+            .sqrt();
+        if nrm > 0.0 {
+            f.iter_mut().for_each(|x| *x /= nrm);
+        }
+    }
+    out
+}
+
+/// Solve the SPD system `a x = b` (`a` row-major `k × k`) by Cholesky; `None` when not PD.
+fn cholesky_solve(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
+    let mut l = vec![0.0; k * k];
+    for i in 0..k {
+        for j in 0..=i {
+            let mut s = a[i * k + j];
+            for p in 0..j {
+                s -= l[i * k + p] * l[j * k + p];
+            }
+            if i == j {
+                if s.is_nan() || s <= 0.0 {
+                    return None;
+                }
+                l[i * k + i] = s.sqrt();
+            } else {
+                l[i * k + j] = s / l[j * k + j];
+            }
+        }
+    }
+    let mut y = b.to_vec();
+    for i in 0..k {
+        for p in 0..i {
+            y[i] -= l[i * k + p] * y[p];
+        }
+        y[i] /= l[i * k + i];
+    }
+    for i in (0..k).rev() {
+        for p in i + 1..k {
+            y[i] -= l[p * k + i] * y[p];
+        }
+        y[i] /= l[i * k + i];
+    }
+    Some(y)
+}
+
+/// `X_f = Φᵀ M O_f Φ` (`k × k`, row-major) for the orientation operator
+/// `O_f(g) = ⟨n × ∇f, ∇g⟩` (Ren, Poulenard, Liu, Ovsjanikov 2018), per face, lumped to the
+/// corners with a third of the face area.
+fn orientation_operator(sp: &Spectrum, f: &[f64], k: usize) -> Vec<f64> {
+    let mut x = vec![0.0; k * k];
+    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let cross = |a: [f64; 3], b: [f64; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let mut grad_j = vec![[0.0f64; 3]; k];
+    for face in &sp.faces {
+        let v = face.map(|i| i as usize);
+        let p = v.map(|i| sp.positions[i]);
+        let nn = cross(sub(p[1], p[0]), sub(p[2], p[0]));
+        let a2 = dot(nn, nn).sqrt();
+        if a2 <= 1e-300 {
+            continue;
+        }
+        let n = nn.map(|c| c / a2);
+        // n × e_v / (2A), e_v the edge opposite corner v (counter-clockwise)
+        let basis: [[f64; 3]; 3] = std::array::from_fn(|c| {
+            let e = sub(p[(c + 2) % 3], p[(c + 1) % 3]);
+            cross(n, e).map(|x| x / a2)
+        });
+        let grad = |vals: [f64; 3]| {
+            let mut g = [0.0; 3];
+            for c in 0..3 {
+                for d in 0..3 {
+                    g[d] += vals[c] * basis[c][d];
+                }
+            }
+            g
+        };
+        let rot = cross(n, grad(v.map(|i| f[i])));
+        for (j, gj) in grad_j.iter_mut().enumerate() {
+            let phi = sp.phi(j);
+            *gj = grad(v.map(|i| phi[i]));
+        }
+        let w = a2 / 6.0; // area / 3
+        for i in 0..k {
+            let phi = sp.phi(i);
+            let ci = w * (phi[v[0]] + phi[v[1]] + phi[v[2]]);
+            for (j, gj) in grad_j.iter().enumerate() {
+                x[i * k + j] += ci * dot(rot, *gj);
+            }
+        }
+    }
+    x
+}
+
+/// The initial `k × k` map from descriptor preservation + Laplacian commutativity (row-major).
+#[allow(clippy::too_many_arguments)]
+fn fit_initial(
+    ss: &Spectrum,
+    st: &Spectrum,
+    fs: &[Vec<f64>],
+    ft: &[Vec<f64>],
+    k: usize,
+    mu: f64,
+    fo: &[(usize, usize)],
+    orient: f64,
+) -> Result<Vec<f64>> {
+    let d = fs.len();
+    let fo: Vec<(&[f64], &[f64])> = fo.iter().map(|&(i, j)| (&fs[i][..], &ft[j][..])).collect();
+    let fo = &fo[..];
+    // a: k × d (column j = coefficients of descriptor j), stored row-major a[i * d + j]
+    let proj = |sp: &Spectrum, f: &[Vec<f64>]| -> Vec<f64> {
+        let cols: Vec<Vec<f64>> = f.par_iter().map(|x| sp.project(x, k)).collect();
+        let mut a = vec![0.0; k * d];
+        for (j, c) in cols.iter().enumerate() {
+            for i in 0..k {
+                a[i * d + j] = c[i];
+            }
+        }
+        a
+    };
+    let a = proj(ss, fs);
+    let b = proj(st, ft);
+    let mut aat = vec![0.0; k * k];
+    for i in 0..k {
+        for j in 0..k {
+            aat[i * k + j] = (0..d).map(|p| a[i * d + p] * a[j * d + p]).sum();
+        }
+    }
+    let mut dd = vec![0.0; k * k];
+    for i in 0..k {
+        for j in 0..k {
+            dd[i * k + j] = (st.evals[i] - ss.evals[j]).powi(2);
+        }
+    }
+    let dn = dd.iter().map(|x| x * x).sum::<f64>().sqrt().max(1e-300);
+    // scale μ with the descriptor term's size so the ratio is meaningful
+    let tr = (0..k).map(|i| aat[i * k + i]).sum::<f64>() / k as f64;
+    let mu = mu * tr * k as f64;
+    if orient > 0.0 && !fo.is_empty() {
+        return fit_joint(ss, st, &a, &b, d, &aat, &dd, dn, mu, tr, k, fo, orient);
+    }
+    let mut c = vec![0.0; k * k];
+    for i in 0..k {
+        let mut m = aat.clone();
+        for j in 0..k {
+            m[j * k + j] += mu * dd[i * k + j] / dn + 1e-12 * tr;
+        }
+        let rhs: Vec<f64> = (0..k)
+            .map(|j| (0..d).map(|p| a[j * d + p] * b[i * d + p]).sum())
+            .collect();
+        let row = cholesky_solve(&m, &rhs, k).ok_or_else(|| {
+            Error::InvalidInput("shape map: descriptor system is singular".into())
+        })?;
+        c[i * k..(i + 1) * k].copy_from_slice(&row);
+    }
+    Ok(c)
+}
+
+/// The initial map with the orientation term: all of `C` at once, normal equations on `vec(C)`
+/// (`k² × k²`, entry `(a, b)` at `a k + b`):
+/// `H[(a,b),(c,d)] = δ_ac (AAᵀ)_bd + μ δ_ac δ_bd D_ab / ‖D‖ + w Σ_f [δ_ac (XXᵀ)_bd + δ_bd (YᵀY)_ac
+/// − X_bd Y_ac − X_db Y_ca]` with `X = X_f` on the source and `Y = X_f` on the target.
+#[allow(clippy::too_many_arguments)]
+fn fit_joint(
+    ss: &Spectrum,
+    st: &Spectrum,
+    a: &[f64],
+    b: &[f64],
+    d: usize,
+    aat: &[f64],
+    dd: &[f64],
+    dn: f64,
+    mu: f64,
+    tr: f64,
+    k: usize,
+    fo: &[(&[f64], &[f64])],
+    orient: f64,
+) -> Result<Vec<f64>> {
+    let kk = k * k;
+    let ops: Vec<(Vec<f64>, Vec<f64>)> = fo
+        .par_iter()
+        .map(|(fs, ft)| {
+            (
+                orientation_operator(ss, fs, k),
+                orientation_operator(st, ft, k),
+            )
+        })
+        .collect();
+    let mut ho = vec![0.0; kk * kk];
+    for (x, y) in &ops {
+        let mut xxt = vec![0.0; kk];
+        let mut yty = vec![0.0; kk];
+        for p in 0..k {
+            for q in 0..k {
+                xxt[p * k + q] = (0..k).map(|r| x[p * k + r] * x[q * k + r]).sum();
+                yty[p * k + q] = (0..k).map(|r| y[r * k + p] * y[r * k + q]).sum();
+            }
+        }
+        for ai in 0..k {
+            for bi in 0..k {
+                let row = (ai * k + bi) * kk;
+                for ci in 0..k {
+                    for di in 0..k {
+                        let mut h =
+                            -x[bi * k + di] * y[ai * k + ci] - x[di * k + bi] * y[ci * k + ai];
+                        if ai == ci {
+                            h += xxt[bi * k + di];
+                        }
+                        if bi == di {
+                            h += yty[ai * k + ci];
+                        }
+                        ho[row + ci * k + di] += h;
+                    }
+                }
+            }
+        }
+    }
+    // the orientation term's size relative to the descriptor term's
+    let tro = (0..kk).map(|i| ho[i * kk + i]).sum::<f64>() / kk as f64;
+    let wo = if tro > 0.0 { orient * tr / tro } else { 0.0 };
+    let mut h: Vec<f64> = ho.iter().map(|x| wo * x).collect();
+    let mut rhs = vec![0.0; kk];
+    for ai in 0..k {
+        for bi in 0..k {
+            let r = ai * k + bi;
+            for di in 0..k {
+                h[r * kk + ai * k + di] += aat[bi * k + di];
+            }
+            h[r * kk + r] += mu * dd[ai * k + bi] / dn + 1e-12 * tr;
+            rhs[r] = (0..d).map(|p| b[ai * d + p] * a[bi * d + p]).sum();
+        }
+    }
+    cholesky_solve(&h, &rhs, kk)
+        .ok_or_else(|| Error::InvalidInput("shape map: descriptor system is singular".into()))
+}
+
+/// Nearest row of `src` (`ns × k`, column-major f32) for every row of `tgt` (`nt × k`), brute
+/// force in blocks with a matrix product.
+fn nearest_rows(src: &[f32], ns: usize, tgt: &[f32], nt: usize, k: usize) -> Vec<u32> {
+    const BLOCK: usize = 256;
+    let s = MatRef::from_column_major_slice(src, ns, k);
+    let t = MatRef::from_column_major_slice(tgt, nt, k);
+    let snorm: Vec<f32> = (0..ns)
+        .map(|r| (0..k).map(|c| src[c * ns + r].powi(2)).sum())
+        .collect();
+    let blocks: Vec<usize> = (0..nt).step_by(BLOCK).collect();
+    let res: Vec<Vec<u32>> = blocks
+        .par_iter()
+        .map(|&b0| {
+            let nb = BLOCK.min(nt - b0);
+            let mut dots = vec![0.0f32; ns * nb];
+            matmul(
+                MatMut::from_column_major_slice_mut(&mut dots, ns, nb),
+                Accum::Replace,
+                s,
+                t.subrows(b0, nb).transpose(),
+                1.0f32,
+                Par::Seq,
+            );
+            (0..nb)
+                .map(|j| {
+                    let col = &dots[j * ns..(j + 1) * ns];
+                    let mut best = (f32::INFINITY, 0u32);
+                    for (r, (&d, &sn)) in col.iter().zip(&snorm).enumerate() {
+                        let v = sn - 2.0 * d;
+                        if v < best.0 {
+                            best = (v, r as u32);
+                        }
+                    }
+                    best.1
+                })
+                .collect()
+        })
+        .collect();
+    res.concat()
+}
+
+/// Point map from a `k × k` functional map: nearest neighbours of `Φ_t C` among `Φ_s`.
+fn point_map(ss: &Spectrum, st: &Spectrum, c: &[f64], k: usize, fixed: &[(u32, u32)]) -> Vec<u32> {
+    let src: Vec<f32> = ss.evecs[..k * ss.n].iter().map(|&x| x as f32).collect();
+    let mut tgt = vec![0.0f32; st.n * k];
+    tgt.par_chunks_mut(st.n).enumerate().for_each(|(j, col)| {
+        for (i, row) in (0..k).map(|i| (i, c[i * k + j])) {
+            if row == 0.0 {
+                continue;
+            }
+            for (o, p) in col.iter_mut().zip(st.phi(i)) {
+                *o += (row * p) as f32;
+            }
+        }
+    });
+    let mut map = nearest_rows(&src, ss.n, &tgt, st.n, k);
+    for &(s, t) in fixed {
+        map[t as usize] = s;
+    }
+    map
+}
+
+/// `C = Φ_t[:, :k]ᵀ M_t Π Φ_s[:, :k]` (row-major) for a point map target → source.
+fn map_to_fmap(ss: &Spectrum, st: &Spectrum, map: &[u32], k: usize) -> Vec<f64> {
+    let mut c = vec![0.0; k * k];
+    c.par_chunks_mut(k).enumerate().for_each(|(i, row)| {
+        let pt = st.phi(i);
+        for (j, r) in row.iter_mut().enumerate() {
+            let ps = ss.phi(j);
+            *r = (0..st.n)
+                .map(|t| pt[t] * st.mass[t] * ps[map[t] as usize])
+                .sum();
+        }
+    });
+    c
+}
+
+/// Functional map between two spectra plus ZoomOut (module docs), with `landmarks` as
+/// (source vertex, target vertex) pairs.
+pub fn functional_map(
+    ss: &Spectrum,
+    st: &Spectrum,
+    landmarks: &[(u32, u32)],
+    params: &FmapParams,
+    cancel: &CancelToken,
+) -> Result<ShapeMap> {
+    let kmax = ss.k().min(st.k());
+    let k0 = params.k_init.clamp(2, kmax);
+    let kf = params.k_final.clamp(k0, kmax);
+    let kd = params.k_descriptors.clamp(k0, kmax);
+    if landmarks
+        .iter()
+        .any(|&(s, t)| s as usize >= ss.n || t as usize >= st.n)
+    {
+        return Err(Error::InvalidInput(
+            "shape map: landmark out of range".into(),
+        ));
+    }
+    let mut timings = Vec::new();
+    let t0 = Instant::now();
+    let (energies, sigma) = wks_energies(&ss.evals[..kd], &st.evals[..kd], params.descriptors);
+    let lm_count = params.landmark_energies.min(energies.len());
+    let lm_energies: Vec<f64> = (0..lm_count)
+        .map(|j| energies[j * energies.len() / lm_count.max(1)])
+        .collect();
+    let ls: Vec<u32> = landmarks.iter().map(|p| p.0).collect();
+    let lt: Vec<u32> = landmarks.iter().map(|p| p.1).collect();
+    let (fs, ft) = rayon::join(
+        || descriptors(ss, kd, &energies, sigma, &ls, &lm_energies),
+        || descriptors(st, kd, &energies, sigma, &lt, &lm_energies),
+    );
+    let fo: Vec<(usize, usize)> = (0..energies.len())
+        .step_by(params.orientation_stride.max(1))
+        .map(|i| (i, i))
+        .collect();
+    let mut c = fit_initial(
+        ss,
+        st,
+        &fs,
+        &ft,
+        k0,
+        params.commutativity,
+        &fo,
+        params.orientation,
+    )?;
+    timings.push(("initial map".into(), t0.elapsed().as_secs_f64()));
+    cancel.check()?;
+    let t0 = Instant::now();
+    let step = params.k_step.max(1);
+    let mut k = k0;
+    let map = loop {
+        let map = point_map(ss, st, &c, k, landmarks);
+        cancel.check()?;
+        if k >= kf {
+            break map;
+        }
+        k = (k + step).min(kf);
+        c = map_to_fmap(ss, st, &map, k);
+    };
+    timings.push(("zoomout".into(), t0.elapsed().as_secs_f64()));
+    Ok(ShapeMap {
+        target_to_source: map,
+        c,
+        k,
+        timings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fmap_cholesky_solves() {
+        let a = [4.0, 1.0, 1.0, 3.0];
+        let x = cholesky_solve(&a, &[1.0, 2.0], 2).unwrap();
+        assert!((4.0 * x[0] + x[1] - 1.0).abs() < 1e-12);
+        assert!((x[0] + 3.0 * x[1] - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn fmap_nearest_rows_brute_force() {
+        let src = [0.0f32, 1.0, 5.0, 0.0, 1.0, 5.0]; // 3 × 2
+        let tgt = [4.0f32, 0.9, 4.0, 1.1]; // 2 × 2
+        assert_eq!(nearest_rows(&src, 3, &tgt, 2, 2), vec![2, 1]);
+    }
+
+    #[test]
+    fn fmap_rejects_disconnected_and_tiny() {
+        let p = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [5.0, 0.0, 0.0],
+            [6.0, 0.0, 0.0],
+            [5.0, 1.0, 0.0],
+        ];
+        let f = vec![[0, 1, 2], [3, 4, 5]];
+        assert!(Spectrum::new(&p, &f, 3).is_err());
+        assert!(Spectrum::new(&p[..3], &f[..1], 2).is_err());
+    }
+}

@@ -1,0 +1,233 @@
+//! Global intrinsic shape map (functional maps + ZoomOut) on the SMPL bodies, which share
+//! connectivity (man vertex i ↔ woman vertex i is the ground truth).
+
+use meshmatch::geometry::{FmapParams, refine_to_density, shape_map};
+use meshmatch::mesh::TriMesh;
+use meshmatch::testdata::data_path;
+use meshmatch::work::CancelToken;
+use std::time::Instant;
+
+fn load(name: &str) -> TriMesh {
+    let m = meshmatch::mesh::io::load(&data_path(&format!("human/{name}.obj"))).expect("load");
+    assert_eq!(
+        m.positions.len(),
+        6890,
+        "{name}: SMPL vertex order expected"
+    );
+    m
+}
+
+/// Head top, both hands, both feet, one toe tip: SMPL vertex ids (found on the man's T-pose).
+const EXTREMITIES: [u32; 6] = [411, 2445, 5906, 3354, 6755, 3215];
+
+fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
+    (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f32>().sqrt()
+}
+
+/// Fraction of target vertices whose mapped source vertex lies within `tol` of `truth[t]` (a
+/// position on the source), and the mean error.
+fn accuracy(src: &[[f32; 3]], map: &[u32], truth: &[[f32; 3]], tol: f32) -> (f64, f64) {
+    let mut good = 0usize;
+    let mut sum = 0.0f64;
+    for (t, &s) in map.iter().enumerate() {
+        let e = dist(src[s as usize], truth[t]);
+        sum += e as f64;
+        if e <= tol {
+            good += 1;
+        }
+    }
+    (good as f64 / map.len() as f64, sum / map.len() as f64)
+}
+
+fn nearest_point_map(src: &[[f32; 3]], tgt: &[[f32; 3]]) -> Vec<u32> {
+    use rayon::prelude::*;
+    tgt.par_iter()
+        .map(|&p| {
+            (0..src.len())
+                .min_by(|&a, &b| dist(src[a], p).total_cmp(&dist(src[b], p)))
+                .unwrap() as u32
+        })
+        .collect()
+}
+
+#[test]
+fn man_to_woman_beats_nearest_point() {
+    let (man, woman) = (load("human_man"), load("human_woman"));
+    let tol = 0.1 * man.area().sqrt() as f32;
+    let cancel = CancelToken::new();
+    let params = FmapParams::default();
+    let base = nearest_point_map(&man.positions, &woman.positions);
+    let (fb, eb) = accuracy(&man.positions, &base, &man.positions, tol);
+    eprintln!(
+        "nearest point: {:.1}% within 0.1 sqrt(A), mean error {eb:.4}",
+        100.0 * fb
+    );
+    let mut results = Vec::new();
+    for lm in [&[][..], &EXTREMITIES[..]] {
+        let pairs: Vec<(u32, u32)> = lm.iter().map(|&v| (v, v)).collect();
+        let t0 = Instant::now();
+        let m = shape_map(
+            (&man.positions, &man.faces),
+            (&woman.positions, &woman.faces),
+            &pairs,
+            &params,
+            &cancel,
+        )
+        .expect("shape map");
+        let (f, e) = accuracy(&man.positions, &m.target_to_source, &man.positions, tol);
+        eprintln!(
+            "fmap + zoomout, {} landmarks: {:.1}% within 0.1 sqrt(A), mean error {e:.4}, {:.2}s {:?}",
+            pairs.len(),
+            100.0 * f,
+            t0.elapsed().as_secs_f64(),
+            m.timings
+        );
+        results.push(f);
+    }
+    assert!(results[1] > 0.8, "with landmarks: {:.3}", results[1]);
+    assert!(
+        results[1] > fb,
+        "map {:.3} vs nearest point {fb:.3}",
+        results[1]
+    );
+}
+
+fn rotate(p: [f32; 3]) -> [f32; 3] {
+    let (s, c) = 0.7f32.sin_cos();
+    [
+        c * p[0] + s * p[2] + 3.0,
+        p[1] - 1.0,
+        -s * p[0] + c * p[2] + 0.5,
+    ]
+}
+
+#[test]
+fn remeshed_moved_copy_maps_to_identity_and_is_not_flipped() {
+    let man = load("human_man");
+    let r = refine_to_density(&man, 11_000);
+    let truth = r.mesh.positions.clone();
+    let moved: Vec<[f32; 3]> = truth.iter().map(|&p| rotate(p)).collect();
+    let tol = 0.1 * man.area().sqrt() as f32;
+    let cancel = CancelToken::new();
+    // landmarks: original vertices keep their ids in the refined mesh
+    let pairs: Vec<(u32, u32)> = EXTREMITIES.iter().map(|&v| (v, v)).collect();
+    let t0 = Instant::now();
+    let m = shape_map(
+        (&man.positions, &man.faces),
+        (&moved, &r.mesh.faces),
+        &pairs,
+        &FmapParams::default(),
+        &cancel,
+    )
+    .expect("shape map");
+    let (f, e) = accuracy(&man.positions, &m.target_to_source, &truth, tol);
+    // flip check: vertices away from the symmetry plane x = 0 keep their side
+    let (mut side, mut off) = (0usize, 0usize);
+    for (t, &s) in m.target_to_source.iter().enumerate() {
+        if truth[t][0].abs() > 0.05 {
+            off += 1;
+            if (truth[t][0] > 0.0) == (man.positions[s as usize][0] > 0.0) {
+                side += 1;
+            }
+        }
+    }
+    let side = side as f64 / off as f64;
+    eprintln!(
+        "self map to a moved copy with {} vertices: {:.1}% within 0.1 sqrt(A), mean error {e:.4}, same side {:.1}%, {:.2}s {:?}",
+        truth.len(),
+        100.0 * f,
+        100.0 * side,
+        t0.elapsed().as_secs_f64(),
+        m.timings
+    );
+    assert!(f > 0.9, "identity recovered for {f:.3}");
+    assert!(side > 0.95, "flipped: same side {side:.3}");
+}
+
+#[test]
+fn disconnected_mesh_is_an_error() {
+    let man = load("human_man");
+    let mut two = man.clone();
+    let n = man.positions.len() as u32;
+    two.positions
+        .extend(man.positions.iter().map(|p| [p[0] + 5.0, p[1], p[2]]));
+    two.faces.extend(man.faces.iter().map(|f| f.map(|v| v + n)));
+    let r = shape_map(
+        (&man.positions, &man.faces),
+        (&two.positions, &two.faces),
+        &[],
+        &FmapParams::default(),
+        &CancelToken::new(),
+    );
+    assert!(r.is_err());
+}
+
+/// A colour that is a known function of the man's vertex: bands by height, left/right and
+/// front/back halves in the other channels.
+fn vertex_colour(p: [f32; 3]) -> [f32; 3] {
+    let band = ((p[1] * 12.0).floor() as i32).rem_euclid(2) as f32;
+    [
+        0.15 + 0.7 * band,
+        if p[0] > 0.0 { 0.85 } else { 0.15 },
+        if p[2] > 0.0 { 0.8 } else { 0.2 },
+    ]
+}
+
+#[test]
+fn transfer_man_to_woman_lands_colours_better_with_the_map() {
+    use meshmatch::meshmatch::{TransferParams, transfer};
+    let (mut man, woman) = (load("human_man"), load("human_woman"));
+    let truth: Vec<[f32; 3]> = man.positions.iter().map(|&p| vertex_colour(p)).collect();
+    man.colors = Some(truth.clone());
+    let cancel = CancelToken::new();
+    let corr: Vec<meshmatch::correspondence::Correspondence> = EXTREMITIES
+        .iter()
+        .map(|&v| meshmatch::correspondence::Correspondence {
+            source_vertex: v,
+            target_vertices: vec![v],
+        })
+        .collect();
+    // 2 correspondences (head top, one hand) by default; FMAP_TRANSFER_ALL=1 also runs 0 and 6
+    let counts: Vec<usize> = if std::env::var_os("FMAP_TRANSFER_ALL").is_some() {
+        vec![0, 2, 6]
+    } else {
+        vec![2]
+    };
+    let mut errs = Vec::new();
+    for (on, corr) in counts
+        .iter()
+        .flat_map(|&c| [(false, &corr[..c]), (true, &corr[..c])])
+    {
+        let params = TransferParams {
+            vertices: 6_890,
+            iterations: 3,
+            global_map: on,
+            ..TransferParams::default()
+        };
+        let t0 = Instant::now();
+        let r = transfer(&man, &woman, corr, &params, &|_| {}, &cancel).expect("transfer");
+        assert_eq!(r.file_signal.len(), 6890);
+        let de: f64 = r
+            .file_signal
+            .iter()
+            .zip(&truth)
+            .map(|(&a, &b)| meshmatch::color::delta_e76(a, b) as f64)
+            .sum::<f64>()
+            / 6890.0;
+        eprintln!(
+            "transfer man -> woman, {} correspondences, global map {on}: mean dE76 {de:.2}, {:.2}s, notices {:?}",
+            corr.len(),
+            t0.elapsed().as_secs_f64(),
+            r.notices
+        );
+        assert!(r.notices.is_empty());
+        errs.push(de);
+    }
+    let n = errs.len();
+    assert!(
+        errs[n - 1] < errs[n - 2],
+        "with map {:.2} vs without {:.2}",
+        errs[n - 1],
+        errs[n - 2]
+    );
+}
