@@ -11,6 +11,11 @@ pub const MAX_VERTICES: usize = 20_000_000;
 /// triangles, as glTF nodes sharing a mesh do).
 pub const MAX_FACES: usize = 3 * MAX_VERTICES;
 
+/// Largest working resolution (vertices per mesh after refinement) the engine builds: at 1M
+/// working vertices a transfer peaks near 3 GB, so this is about 12 GB. Refinement never grows
+/// a mesh past it, whatever it is asked for.
+pub const MAX_WORKING_VERTICES: usize = 4_000_000;
+
 /// What a mesh looks like: counts and defects.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ValidationReport {

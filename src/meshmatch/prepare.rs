@@ -89,9 +89,7 @@ pub fn prepare(
             "mesh has no vertices or no faces".into(),
         ));
     }
-    if params.fan_radius.is_nan() || params.fan_radius <= 0.0 {
-        return Err(Error::InvalidInput("fan_radius must be positive".into()));
-    }
+    params.validate()?;
     let watch = Stopwatch::start();
     let mut timings = Vec::new();
     let stage = |name: &'static str, t: f64, timings: &mut Vec<(String, f64)>| {

@@ -94,6 +94,22 @@ fn read_regular_file(file: &Path, limit: u64, what: &str) -> std::io::Result<Vec
     Ok(out)
 }
 
+/// Largest auxiliary text file read (a correspondences JSON, a vertex mask, a session): 256 MiB.
+pub const MAX_TEXT_FILE_BYTES: u64 = 256 << 20;
+
+/// Read an input file that is not a mesh (correspondences, masks, sessions) by the loaders' rule:
+/// a regular file (no directory, device or pipe such as `/dev/zero`) of at most `limit` bytes;
+/// `what` names it in the message ("the correspondences file", ...).
+pub fn read_input_file(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
+    read_regular_file(path, limit, what).map_err(|e| Error::io(path, e))
+}
+
+/// [`read_input_file`] with [`MAX_TEXT_FILE_BYTES`], as UTF-8 text.
+pub fn read_text_file(path: &Path, what: &str) -> Result<String> {
+    let bytes = read_input_file(path, MAX_TEXT_FILE_BYTES, what)?;
+    String::from_utf8(bytes).map_err(|_| Error::format(path, format!("{what} is not UTF-8 text")))
+}
+
 thread_local! {
     /// Warnings of the load in progress on this thread (see `warn`).
     static WARNINGS: std::cell::RefCell<Vec<String>> = const { std::cell::RefCell::new(Vec::new()) };
