@@ -285,10 +285,31 @@ pub fn load(path: &Path) -> Result<TriMesh> {
 pub fn load_with_warnings(path: &Path) -> Result<(TriMesh, Vec<String>)> {
     let fmt = MeshFormat::from_path(path)
         .ok_or_else(|| Error::UnsupportedFormat { path: path.into() })?;
+    if fmt == MeshFormat::Ply
+        && let Some(e) = ply_header_budget(path)
+    {
+        return Err(e);
+    }
     let bytes =
         read_regular_file(path, MAX_MESH_FILE_BYTES, "the file").map_err(|e| Error::io(path, e))?;
     let (res, warnings) = load_format_bytes(&bytes, fmt, path);
     res.map(|m| (m, warnings))
+}
+
+/// Read the first 64 KiB of a regular PLY file and return the budget error of its header, if
+/// any, so that a file declaring 300M vertices is refused before gigabytes are read.
+fn ply_header_budget(path: &Path) -> Option<Error> {
+    use std::io::Read as _;
+    if !std::fs::metadata(path).ok()?.is_file() {
+        return None;
+    }
+    let mut head = Vec::with_capacity(64 << 10);
+    std::fs::File::open(path)
+        .ok()?
+        .take(64 << 10)
+        .read_to_end(&mut head)
+        .ok()?;
+    ply::header_budget_error(&head, path)
 }
 
 /// Load a mesh from bytes, choosing the format by `path`'s extension; `path` names the file in
