@@ -9,11 +9,82 @@ use crate::work::Event;
 /// Load a mesh the engine can work on: `check_usable` and [`check_geometry`]. Loader warnings
 /// are printed only when every check passes, so a refused file is one line.
 pub fn load_usable(path: &Path) -> Result<TriMesh> {
-    let (m, warnings) = io::load_with_warnings(path)?;
+    let (mut m, mut warnings) = io::load_with_warnings(path)?;
     m.check_usable()?;
     check_geometry(&m, path)?;
+    let dups = drop_duplicate_faces(&mut m);
+    if dups > 0 {
+        warnings.push(format!(
+            "{}: {dups} duplicate faces (same three vertices as an earlier face) ignored",
+            path.display()
+        ));
+    }
+    check_valence(&m, path)?;
     io::print_warnings(&warnings);
     Ok(m)
+}
+
+/// Most triangles one vertex may be a corner of (a fan-triangulated polygon of a million corners
+/// would make the hierarchy's edge collapses quadratic).
+pub const MAX_VALENCE: usize = 10_000;
+
+/// Remove faces with the same vertex set as an earlier face (their per-corner UVs too); the
+/// vertices and their order are kept. Returns how many were removed.
+fn drop_duplicate_faces(m: &mut TriMesh) -> usize {
+    let mut seen = std::collections::HashSet::with_capacity(m.faces.len());
+    let keep: Vec<bool> = m
+        .faces
+        .iter()
+        .map(|f| {
+            let mut k = *f;
+            k.sort_unstable();
+            seen.insert(k)
+        })
+        .collect();
+    let removed = keep.iter().filter(|&&k| !k).count();
+    if removed == 0 {
+        return 0;
+    }
+    if let Some(uvs) = m.uvs.as_mut().filter(|u| u.len() == 3 * keep.len()) {
+        let mut i = 0;
+        uvs.retain(|_| {
+            let k = keep[i / 3];
+            i += 1;
+            k
+        });
+    }
+    let mut i = 0;
+    m.faces.retain(|_| {
+        let k = keep[i];
+        i += 1;
+        k
+    });
+    removed
+}
+
+/// Refuse a vertex that is a corner of more than [`MAX_VALENCE`] triangles.
+fn check_valence(m: &TriMesh, path: &Path) -> Result<()> {
+    let mut count = vec![0u32; m.positions.len()];
+    for f in &m.faces {
+        for &v in f {
+            if let Some(c) = count.get_mut(v as usize) {
+                *c = c.saturating_add(1);
+            }
+        }
+    }
+    if let Some((v, &c)) = count
+        .iter()
+        .enumerate()
+        .find(|&(_, &c)| c as usize > MAX_VALENCE)
+    {
+        let file_v = m.file_index.get(v).copied().unwrap_or(v as u32);
+        return Err(Error::InvalidMesh(format!(
+            "{}: vertex {file_v} is a corner of {c} triangles (at most {MAX_VALENCE}); a polygon \
+             with that many corners must be triangulated or remeshed first",
+            path.display()
+        )));
+    }
+    Ok(())
 }
 
 /// Smallest and largest bounding-box diagonal accepted by the engine's commands.
