@@ -117,7 +117,11 @@ pub fn main() -> i32 {
     let cli = Cli::parse();
     let res = std::panic::catch_unwind(|| match &cli.command {
         None => open_app(),
-        Some(c) => c.run(),
+        Some(c) => {
+            // A command never writes over a file it read (an output's texture beside an input).
+            crate::mesh::io::protect_inputs();
+            c.run()
+        }
     });
     match res {
         Ok(Ok(code)) => code,

@@ -25,6 +25,12 @@ pub use ply::{PlyOptions, load_ply_bytes, save_ply};
 /// then a rename. On any failure the temporary file is removed and `path` is left untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write as _;
+    if is_protected(path) {
+        return Err(Error::InvalidInput(format!(
+            "{}: is a file this command read; not overwritten",
+            path.display()
+        )));
+    }
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -46,6 +52,39 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         let _ = std::fs::remove_file(&tmp);
         Error::io(path, e)
     })
+}
+
+/// Files read so far, when [`protect_inputs`] was called (the CLI does; the app does not, so it
+/// can save over a file it opened).
+static PROTECTED: std::sync::Mutex<Option<Vec<std::path::PathBuf>>> = std::sync::Mutex::new(None);
+
+/// From now on, remember every file the loaders read (meshes, MTL files, textures, buffers,
+/// correspondences, masks) and never write over one: [`write_atomic`] refuses it and a texture
+/// written beside a mesh takes another name. For one-shot processes such as the CLI.
+pub fn protect_inputs() {
+    let mut g = PROTECTED.lock().unwrap_or_else(|e| e.into_inner());
+    g.get_or_insert_with(Vec::new);
+}
+
+fn note_input(path: &Path) {
+    let mut g = PROTECTED.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(list) = g.as_mut()
+        && let Ok(c) = std::fs::canonicalize(path)
+        && !list.contains(&c)
+    {
+        list.push(c);
+    }
+}
+
+/// True when `path` is a file read since [`protect_inputs`].
+pub fn is_protected(path: &Path) -> bool {
+    let g = PROTECTED.lock().unwrap_or_else(|e| e.into_inner());
+    match g.as_ref() {
+        Some(list) if !list.is_empty() => {
+            std::fs::canonicalize(path).is_ok_and(|c| list.contains(&c))
+        }
+        _ => false,
+    }
 }
 
 /// Largest file a loader reads beside a mesh (an external glTF buffer or image, an MTL file, a
@@ -82,7 +121,14 @@ fn read_regular_file(file: &Path, limit: u64, what: &str) -> std::io::Result<Vec
         ));
     }
     let f = std::fs::File::open(file)?;
-    let mut out = Vec::with_capacity(meta.len() as usize);
+    note_input(file);
+    let mut out = Vec::new();
+    out.try_reserve_exact(meta.len() as usize).map_err(|_| {
+        IoError::new(
+            ErrorKind::OutOfMemory,
+            format!("{what} of {} bytes does not fit in memory", meta.len()),
+        )
+    })?;
     // The size may change while reading: never take more than the limit.
     f.take(limit + 1).read_to_end(&mut out)?;
     if out.len() as u64 > limit {
@@ -427,8 +473,28 @@ fn write_texture_beside(mesh: &TriMesh, path: &Path) -> Result<Option<String>> {
     let Some(tex) = &mesh.texture else {
         return Ok(None);
     };
-    let name = texture_name_for(path);
-    let tex_path = path.with_file_name(&name);
+    // Never over a file this command read (`convert spot.obj spot.ply` beside the source's
+    // `spot_texture.png`): then `<stem>_<ext>_texture.png`, numbered if need be.
+    let mut name = texture_name_for(path);
+    let mut tex_path = path.with_file_name(&name);
+    let mut k = 1;
+    while is_protected(&tex_path) {
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "mesh".into());
+        let ext = path
+            .extension()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        name = if k == 1 {
+            format!("{stem}_{ext}_texture.png")
+        } else {
+            format!("{stem}_{ext}_texture_{k}.png")
+        };
+        tex_path = path.with_file_name(&name);
+        k += 1;
+    }
     write_atomic(&tex_path, &encode_png(tex, &tex_path)?)?;
     Ok(Some(name))
 }
