@@ -198,12 +198,6 @@ pub fn check_outputs(inputs: &[&Path], outputs: &[(&str, &Path, OutKind)]) -> Re
             OutKind::Png if ext.as_deref() != Some("png") => Some(".png"),
             _ => None,
         };
-        if let Some(want) = want {
-            return Err(Error::InvalidInput(format!(
-                "{flag} {}: must end in {want}",
-                p.display()
-            )));
-        }
         if p.is_dir() || p.as_os_str().to_string_lossy().ends_with('/') {
             return Err(Error::InvalidInput(format!(
                 "{flag} {}: is a directory; give a file name",
@@ -215,6 +209,12 @@ pub fn check_outputs(inputs: &[&Path], outputs: &[(&str, &Path, OutKind)]) -> Re
         {
             return Err(Error::InvalidInput(format!(
                 "{flag} {}: is not a regular file",
+                p.display()
+            )));
+        }
+        if let Some(want) = want {
+            return Err(Error::InvalidInput(format!(
+                "{flag} {}: must end in {want}",
                 p.display()
             )));
         }

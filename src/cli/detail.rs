@@ -41,10 +41,7 @@ fn detail(a: &DetailArgs) -> Result<i32> {
             a.strength
         )));
     }
-    check_outputs(
-        &[&a.source, &a.target],
-        &[("--out", &a.out, OutKind::Mesh)],
-    )?;
+    check_outputs(&[&a.source, &a.target], &[("--out", &a.out, OutKind::Mesh)])?;
     let source = load_usable(&a.source)?;
     let target = load_usable(&a.target)?;
     let bar = progress_bar();

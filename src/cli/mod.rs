@@ -138,10 +138,7 @@ pub fn main() -> i32 {
                 .collect();
             let first = first.join(" ");
             let first = first.trim_start_matches("error: ");
-            let _ = writeln!(
-                std::io::stderr().lock(),
-                "meshmatch: {first} (see --help)"
-            );
+            let _ = writeln!(std::io::stderr().lock(), "meshmatch: {first} (see --help)");
             return 2;
         }
     };

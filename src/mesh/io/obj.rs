@@ -1,9 +1,9 @@
 //! Wavefront OBJ reader/writer (hand-written) with MTL `map_Kd` textures.
 
-use crate::mesh::validate::{MAX_FACES, MAX_VERTICES};
 use super::{check_content, check_exportable, fan, finish, text_lines, warn, write_atomic};
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
+use crate::mesh::validate::{MAX_FACES, MAX_VERTICES};
 use std::collections::{HashMap, HashSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -164,9 +164,7 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
                 if pos.len() > MAX_VERTICES {
                     return Err(Error::format(
                         path,
-                        format!(
-                            "line {line_no}: more than {MAX_VERTICES} vertices (the budget)"
-                        ),
+                        format!("line {line_no}: more than {MAX_VERTICES} vertices (the budget)"),
                     ));
                 }
             }
