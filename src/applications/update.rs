@@ -77,6 +77,9 @@ pub fn update_texture(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<UpdateResult> {
+    params.validate()?;
+    old.check_finite()?;
+    new.check_finite()?;
     if old.signal_kind() == SignalKind::None {
         return Err(Error::InvalidInput(
             "the old mesh has no vertex colours or texture to update from".into(),

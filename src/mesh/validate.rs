@@ -163,6 +163,24 @@ impl TriMesh {
         Ok(())
     }
 
+    /// Refuse a vertex with a NaN or infinite coordinate (the engine's front doors call this,
+    /// so a library user gets this message instead of a failure deep in the solver).
+    pub fn check_finite(&self) -> Result<()> {
+        if let Some((i, p)) = self.positions.iter().enumerate().find(|(_, p)| !finite(p)) {
+            let name = self
+                .path
+                .as_ref()
+                .map(|p| format!("{}: ", p.display()))
+                .unwrap_or_default();
+            let file_i = self.file_index.get(i).copied().unwrap_or(i as u32);
+            return Err(Error::InvalidMesh(format!(
+                "{name}vertex {file_i} has a coordinate that is not a finite number ({} {} {})",
+                p[0], p[1], p[2]
+            )));
+        }
+        Ok(())
+    }
+
     /// Drop degenerate and duplicate faces, faces touching non-finite vertices, and then
     /// unreferenced vertices, keeping `file_index` so every vertex maps back to the file.
     /// Fails (without changing anything) if no usable face would remain.

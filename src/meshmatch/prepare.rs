@@ -90,6 +90,7 @@ pub fn prepare(
         ));
     }
     params.validate()?;
+    mesh.check_finite()?;
     let watch = Stopwatch::start();
     let mut timings = Vec::new();
     let stage = |name: &'static str, t: f64, timings: &mut Vec<(String, f64)>| {
