@@ -497,3 +497,62 @@ fn numeric_flags_accept_or_refuse_cleanly() {
         }
     }
 }
+
+/// The library's front doors refuse what the CLI refuses: bad parameters and a NaN vertex are
+/// errors, not panics.
+#[test]
+fn library_front_doors_refuse_hostile_parameters_and_vertices() {
+    use meshmatch::TriMesh;
+    use meshmatch::meshmatch::{TransferParams, prepare};
+    use meshmatch::work::CancelToken;
+    let grid = |bad: bool| {
+        let n = 6;
+        let mut pos = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                pos.push([i as f32, j as f32, 0.0]);
+            }
+        }
+        if bad {
+            pos[7] = [f32::NAN, 0.0, 0.0];
+        }
+        let mut faces = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = (j * n + i) as u32;
+                let n = n as u32;
+                faces.push([a, a + 1, a + n + 1]);
+                faces.push([a, a + n + 1, a + n]);
+            }
+        }
+        TriMesh::new(pos, faces)
+    };
+    let cancel = CancelToken::new();
+    let ok = TransferParams {
+        vertices: 200,
+        ..TransferParams::default()
+    };
+    assert!(prepare(&grid(true), &ok, &|_| {}, &cancel).is_err());
+    for p in [
+        TransferParams {
+            vertices: usize::MAX,
+            ..ok.clone()
+        },
+        TransferParams {
+            iterations: 1_000_000_000,
+            ..ok.clone()
+        },
+        TransferParams {
+            shape_weight: f32::NAN,
+            ..ok.clone()
+        },
+        TransferParams {
+            levels: Some(0),
+            ..ok.clone()
+        },
+    ] {
+        assert!(p.validate().is_err(), "{p:?}");
+        assert!(prepare(&grid(false), &p, &|_| {}, &cancel).is_err());
+    }
+    assert!(prepare(&grid(false), &ok, &|_| {}, &cancel).is_ok());
+}
