@@ -105,6 +105,19 @@ pub fn prepare(
             "mesh has no non-degenerate faces".into(),
         ));
     }
+    // A mesh denser than the working budget is used as it is: refuse it rather than run the
+    // solver for hours on it.
+    let max_v = crate::mesh::MAX_WORKING_VERTICES;
+    if welded.positions.len() > max_v {
+        return Err(Error::InvalidMesh(format!(
+            "{}{} vertices, more than the working budget of {max_v}; decimate the mesh first",
+            mesh.path
+                .as_ref()
+                .map(|p| format!("{}: ", p.display()))
+                .unwrap_or_default(),
+            welded.positions.len()
+        )));
+    }
     // Input face of every welded face (weld drops out-of-range and degenerate faces in order).
     let nin = mesh.positions.len();
     let welded_to_input: Vec<u32> = mesh
