@@ -77,13 +77,16 @@ pub fn parse_sizes(s: &str) -> Result<Vec<usize>> {
             } else {
                 (t.as_str(), 1.0)
             };
+            let max = crate::mesh::MAX_WORKING_VERTICES;
             num.parse::<f64>()
                 .ok()
-                .filter(|v| *v > 0.0)
-                .map(|v| (v * mul) as usize)
+                .filter(|v| v.is_finite() && *v > 0.0)
+                .map(|v| v * mul)
+                .filter(|v| *v >= 1.0 && *v <= max as f64)
+                .map(|v| v as usize)
                 .ok_or_else(|| {
                     crate::error::Error::InvalidInput(format!(
-                        "--sizes: cannot read '{t}' (use e.g. 16k,64k)"
+                        "--sizes: cannot use '{t}' (use e.g. 16k,64k; each from 1 to {max} vertices)"
                     ))
                 })
         })

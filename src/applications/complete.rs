@@ -68,6 +68,8 @@ pub fn complete(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<CompletionResult> {
+    params.validate()?;
+    mesh.check_finite()?;
     let nfile = mesh.file_vertex_count;
     if synthesize.len() != nfile {
         return Err(Error::InvalidInput(format!(

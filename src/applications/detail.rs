@@ -136,6 +136,9 @@ pub fn transfer_detail(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<DetailResult> {
+    params.validate()?;
+    source.check_finite()?;
+    target.check_finite()?;
     if !strength.is_finite() {
         return Err(Error::InvalidInput("strength must be finite".into()));
     }

@@ -77,6 +77,9 @@ pub fn update_texture(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<UpdateResult> {
+    params.validate()?;
+    old.check_finite()?;
+    new.check_finite()?;
     if old.signal_kind() == SignalKind::None {
         return Err(Error::InvalidInput(
             "the old mesh has no vertex colours or texture to update from".into(),
@@ -111,8 +114,15 @@ pub fn update_texture(
     let (out_w, energy) = if !changed_w.iter().any(|&c| c) {
         (copied.iter().map(|c| c.unwrap_or([0.0; 3])).collect(), 0.0)
     } else {
-        let area_ratio = old.area() / new.area().max(1e-30);
-        let vs = ((nw as f64) * area_ratio).round().max(1.0) as usize;
+        // The example at the target's density, within 4x the working resolution and the budget:
+        // a degenerate or rescaled new mesh (zero, NaN or tiny area) must not ask for billions.
+        let area_ratio = old.area() / new.area();
+        let cap = (4 * params.vertices.max(nw)).min(crate::mesh::MAX_WORKING_VERTICES);
+        let vs = if area_ratio.is_finite() {
+            ((nw as f64) * area_ratio).round().clamp(1.0, cap as f64) as usize
+        } else {
+            cap
+        };
         let ps = prepare(
             old,
             &TransferParams {

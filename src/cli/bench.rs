@@ -5,14 +5,14 @@ use crate::error::Result;
 /// Arguments of `meshmatch bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// Working resolutions, e.g. `16k,64k,256k,1m`.
+    /// Working resolutions, e.g. `16k,64k,256k,1m` (each at most 4m).
     #[arg(long, default_value = "16k,64k")]
     pub sizes: String,
     /// One JSON object per line per size.
     #[arg(long)]
     pub json: bool,
     /// After each size, cancel that many whole transfers at evenly spaced moments and
-    /// report how long each took to stop.
+    /// report how long each took to stop (at most 1000).
     #[arg(long, default_value_t = 0)]
     pub cancel_probes: usize,
     /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
@@ -24,6 +24,12 @@ pub struct BenchArgs {
 impl BenchArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
+        if self.cancel_probes > 1000 {
+            return Err(crate::error::Error::InvalidInput(format!(
+                "--cancel-probes {}: use 0 to 1000",
+                self.cancel_probes
+            )));
+        }
         if self.system != "meshmatch" {
             crate::bench::run_system(
                 &self.system,

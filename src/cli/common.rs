@@ -6,26 +6,263 @@ use crate::error::{Error, Result};
 use crate::mesh::{TriMesh, io};
 use crate::work::Event;
 
+/// Load a mesh the engine can work on: `check_usable` and [`check_geometry`]. Loader warnings
+/// are printed only when every check passes, so a refused file is one line.
 pub fn load_usable(path: &Path) -> Result<TriMesh> {
-    let m = io::load(path)?;
+    let (mut m, mut warnings) = io::load_with_warnings(path)?;
     m.check_usable()?;
+    check_geometry(&m, path)?;
+    let dups = drop_duplicate_faces(&mut m);
+    if dups > 0 {
+        warnings.push(format!(
+            "{}: {dups} duplicate faces (same three vertices as an earlier face) ignored",
+            path.display()
+        ));
+    }
+    check_valence(&m, path)?;
+    io::print_warnings(&warnings);
     Ok(m)
 }
 
-/// Fail early on an output path with an unknown extension; create its folder.
-pub fn prepare_output(p: &Path) -> Result<()> {
-    let ext = p
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) {
-        return Err(Error::InvalidInput(format!(
-            "{}: output must end in .ply, .glb or .obj",
-            p.display()
+/// Most triangles one vertex may be a corner of (a fan-triangulated polygon of a million corners
+/// would make the hierarchy's edge collapses quadratic).
+pub const MAX_VALENCE: usize = 10_000;
+
+/// Remove faces with the same vertex set as an earlier face (their per-corner UVs too); the
+/// vertices and their order are kept. Returns how many were removed.
+fn drop_duplicate_faces(m: &mut TriMesh) -> usize {
+    let mut seen = std::collections::HashSet::with_capacity(m.faces.len());
+    let keep: Vec<bool> = m
+        .faces
+        .iter()
+        .map(|f| {
+            let mut k = *f;
+            k.sort_unstable();
+            seen.insert(k)
+        })
+        .collect();
+    let removed = keep.iter().filter(|&&k| !k).count();
+    if removed == 0 {
+        return 0;
+    }
+    if let Some(uvs) = m.uvs.as_mut().filter(|u| u.len() == 3 * keep.len()) {
+        let mut i = 0;
+        uvs.retain(|_| {
+            let k = keep[i / 3];
+            i += 1;
+            k
+        });
+    }
+    let mut i = 0;
+    m.faces.retain(|_| {
+        let k = keep[i];
+        i += 1;
+        k
+    });
+    removed
+}
+
+/// Refuse a vertex that is a corner of more than [`MAX_VALENCE`] triangles.
+fn check_valence(m: &TriMesh, path: &Path) -> Result<()> {
+    let mut count = vec![0u32; m.positions.len()];
+    for f in &m.faces {
+        for &v in f {
+            if let Some(c) = count.get_mut(v as usize) {
+                *c = c.saturating_add(1);
+            }
+        }
+    }
+    if let Some((v, &c)) = count
+        .iter()
+        .enumerate()
+        .find(|&(_, &c)| c as usize > MAX_VALENCE)
+    {
+        let file_v = m.file_index.get(v).copied().unwrap_or(v as u32);
+        return Err(Error::InvalidMesh(format!(
+            "{}: vertex {file_v} is a corner of {c} triangles (at most {MAX_VALENCE}); a polygon \
+             with that many corners must be triangulated or remeshed first",
+            path.display()
         )));
     }
-    if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    Ok(())
+}
+
+/// Smallest and largest bounding-box diagonal accepted by the engine's commands.
+pub const MIN_EXTENT: f64 = 1e-12;
+/// See [`MIN_EXTENT`].
+pub const MAX_EXTENT: f64 = 1e12;
+
+/// Refuse geometry the engine cannot work on, with a message naming the file: a vertex with a
+/// NaN or infinite coordinate (a text value beyond ±3.4e38 reads as infinite), no face of
+/// positive area (every vertex at one point, or on one line), or a size outside
+/// [`MIN_EXTENT`]..[`MAX_EXTENT`]. Every command that synthesises refuses the same way.
+pub fn check_geometry(m: &TriMesh, path: &Path) -> Result<()> {
+    let name = path.display();
+    if let Some((i, p)) = m
+        .positions
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !p.iter().all(|x| x.is_finite()))
+    {
+        let file_i = m.file_index.get(i).copied().unwrap_or(i as u32);
+        return Err(Error::InvalidMesh(format!(
+            "{name}: vertex {file_i} has a coordinate that is not a finite number ({} {} {}); \
+             fix or remove it (values beyond ±3.4e38 read as infinite)",
+            p[0], p[1], p[2]
+        )));
+    }
+    let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+    for p in &m.positions {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k] as f64);
+            hi[k] = hi[k].max(p[k] as f64);
+        }
+    }
+    let has_area = m.faces.iter().any(|f| {
+        let [a, b, c] = f.map(|i| {
+            let p = m.positions[i as usize];
+            [p[0] as f64, p[1] as f64, p[2] as f64]
+        });
+        let (u, v) = (
+            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+        );
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        n[0] * n[0] + n[1] * n[1] + n[2] * n[2] > 0.0
+    });
+    if !has_area {
+        return Err(Error::InvalidMesh(format!(
+            "{name}: every face has zero area (the vertices coincide or lie on one line)"
+        )));
+    }
+    let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
+    if !(MIN_EXTENT..=MAX_EXTENT).contains(&diag) {
+        return Err(Error::InvalidMesh(format!(
+            "{name}: the mesh spans {diag:.3e} units, outside the supported {MIN_EXTENT:e} to \
+             {MAX_EXTENT:e}; rescale it"
+        )));
+    }
+    Ok(())
+}
+
+/// What an output path must be.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutKind {
+    /// A mesh: .ply, .glb or .obj.
+    Mesh,
+    /// A PNG image.
+    #[cfg_attr(not(feature = "gui"), allow(dead_code))]
+    Png,
+    /// Any file name (CSV, text).
+    File,
+}
+
+/// The identity of a path for comparisons: canonical when it exists, else its canonical folder
+/// joined with its name, else the absolute path.
+fn identity(p: &Path) -> std::path::PathBuf {
+    if let Ok(c) = std::fs::canonicalize(p) {
+        return c;
+    }
+    if let (Some(dir), Some(name)) = (p.parent(), p.file_name()) {
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        if let Ok(c) = std::fs::canonicalize(dir) {
+            return c.join(name);
+        }
+    }
+    std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf())
+}
+
+/// Check every output before any work: the extension its kind needs, not a directory, distinct
+/// from every input and from each other (`outputs` are `(flag, path, kind)`); then create their
+/// folders. A command that passes this writes nothing until its work has succeeded.
+pub fn check_outputs(inputs: &[&Path], outputs: &[(&str, &Path, OutKind)]) -> Result<()> {
+    let ins: Vec<_> = inputs.iter().map(|p| identity(p)).collect();
+    let mut seen: Vec<(&str, std::path::PathBuf)> = Vec::new();
+    for &(flag, p, kind) in outputs {
+        let ext = p
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        let want = match kind {
+            OutKind::Mesh if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) => {
+                Some(".ply, .glb or .obj")
+            }
+            OutKind::Png if ext.as_deref() != Some("png") => Some(".png"),
+            _ => None,
+        };
+        if p.is_dir() || p.as_os_str().to_string_lossy().ends_with('/') {
+            return Err(Error::InvalidInput(format!(
+                "{flag} {}: is a directory; give a file name",
+                p.display()
+            )));
+        }
+        if let Ok(meta) = std::fs::metadata(p)
+            && !meta.is_file()
+        {
+            return Err(Error::InvalidInput(format!(
+                "{flag} {}: is not a regular file",
+                p.display()
+            )));
+        }
+        if let Some(want) = want {
+            return Err(Error::InvalidInput(format!(
+                "{flag} {}: must end in {want}",
+                p.display()
+            )));
+        }
+        let id = identity(p);
+        if ins.contains(&id) {
+            return Err(Error::InvalidInput(format!(
+                "{flag} {}: is also an input of this command; write elsewhere",
+                p.display()
+            )));
+        }
+        if let Some((other, _)) = seen.iter().find(|(_, q)| *q == id) {
+            return Err(Error::InvalidInput(format!(
+                "{flag} {}: the same file as {other}; give each output its own path",
+                p.display()
+            )));
+        }
+        seen.push((flag, id));
+    }
+    for &(_, p, _) in outputs {
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        }
+    }
+    Ok(())
+}
+
+/// Most occlusion rays per vertex accepted by `--rays`.
+pub const MAX_RAYS: usize = 4096;
+
+/// Refuse `--rays` outside 1..=[`MAX_RAYS`].
+pub fn check_rays(rays: usize) -> Result<()> {
+    if !(1..=MAX_RAYS).contains(&rays) {
+        return Err(Error::InvalidInput(format!(
+            "--rays {rays}: use 1 to {MAX_RAYS} rays per vertex"
+        )));
+    }
+    Ok(())
+}
+
+/// Largest baked texture side accepted by `--texture-size`.
+pub const MAX_TEXTURE_SIZE: u32 = 8192;
+
+/// Refuse a `--texture-size` outside 1..=[`MAX_TEXTURE_SIZE`].
+pub fn check_texture_size(size: u32) -> Result<()> {
+    if !(1..=MAX_TEXTURE_SIZE).contains(&size) {
+        return Err(Error::InvalidInput(format!(
+            "--texture-size {size}: use 1 to {MAX_TEXTURE_SIZE} pixels per side"
+        )));
     }
     Ok(())
 }
@@ -62,7 +299,7 @@ pub fn bar_sink(bar: &indicatif::ProgressBar, e: Event) {
 /// Read a mask file: vertex indices (file numbering), one per line; `#` comments and blank lines
 /// are ignored. Returns per-vertex flags of length `n`.
 pub fn read_mask(path: &Path, n: usize) -> Result<Vec<bool>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = io::read_text_file(path, "the mask file")?;
     let mut mask = vec![false; n];
     for (i, line) in text.lines().enumerate() {
         let t = line.split('#').next().unwrap_or("").trim();
@@ -100,20 +337,20 @@ pub fn parse_rgb(s: &str) -> Result<[f32; 3]> {
 /// Solver settings shared by `complete`, `update` and `detail`.
 #[derive(clap::Args, Debug)]
 pub struct SolveArgs {
-    /// Working resolution (vertices; coarser meshes are refined to it).
+    /// Working resolution (vertices; coarser meshes are refined to it), at most 4,000,000.
     #[arg(long, default_value_t = 64_000)]
     pub vertices: usize,
-    /// Number of hierarchy levels (default: down to about 128 vertices).
+    /// Number of hierarchy levels, 1 to 16 (default: down to about 128 vertices).
     #[arg(long)]
     pub levels: Option<usize>,
-    /// EM iterations per level.
+    /// EM iterations per level, 0 to 1000.
     #[arg(long, default_value_t = 5)]
     pub iterations: usize,
     /// Random seed (runs with the same seed are identical).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Weight of shape features against colour (1 = equal).
-    #[arg(long)]
+    /// Weight of shape features against colour (1 = equal); finite, 0 or more.
+    #[arg(long, allow_hyphen_values = true)]
     pub shape_weight: Option<f32>,
     /// Keep the filtered vote at the finest level instead of the nearest-neighbour copy.
     #[arg(long)]
@@ -122,8 +359,9 @@ pub struct SolveArgs {
 
 impl SolveArgs {
     /// The transfer parameters, with `shape_weight` defaulting to `default_shape_weight`.
-    pub fn params(&self, default_shape_weight: f32) -> crate::meshmatch::TransferParams {
-        crate::meshmatch::TransferParams {
+    /// Checked by `TransferParams::validate`, so a bad value is refused before any file is read.
+    pub fn params(&self, default_shape_weight: f32) -> Result<crate::meshmatch::TransferParams> {
+        let p = crate::meshmatch::TransferParams {
             vertices: self.vertices,
             levels: self.levels,
             iterations: self.iterations,
@@ -131,7 +369,9 @@ impl SolveArgs {
             shape_weight: self.shape_weight.unwrap_or(default_shape_weight),
             sharpen: !self.no_sharpen,
             ..Default::default()
-        }
+        };
+        p.validate()?;
+        Ok(p)
     }
 }
 

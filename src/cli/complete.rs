@@ -39,7 +39,13 @@ impl CompleteArgs {
 }
 
 fn complete(a: &CompleteArgs) -> Result<i32> {
-    prepare_output(&a.out)?;
+    let params = a.solve.params(1.0)?;
+    let inputs: Vec<&std::path::Path> = [Some(&a.mesh), a.painted.as_ref(), a.mask.as_ref()]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    check_outputs(&inputs, &[("--out", &a.out, OutKind::Mesh)])?;
     let mut mesh = load_usable(&a.mesh)?;
     let synth = match (&a.painted, &a.mask) {
         (Some(p), _) => {
@@ -74,7 +80,6 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
             ));
         }
     };
-    let params = a.solve.params(1.0);
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);
     let t = std::time::Instant::now();

@@ -19,6 +19,10 @@ impl ConvertArgs {
     pub fn run(&self) -> Result<i32> {
         // The mesh is written as loaded, not repaired: the output keeps the input file's
         // vertices, their order and its faces (degenerate and duplicate ones included).
+        super::common::check_outputs(
+            &[&self.input],
+            &[("output", &self.output, super::common::OutKind::Mesh)],
+        )?;
         let (mesh, warnings) = io::load_with_warnings(&self.input)?;
         mesh.check_usable()?;
         io::save(&mesh, &self.output)?;

@@ -37,7 +37,10 @@ pub struct CurvesArgs {
 impl CurvesArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
-        prepare_output(&self.out)?;
+        check_outputs(
+            &[self.mesh.as_path()],
+            &[("--out", self.out.as_path(), OutKind::File)],
+        )?;
         let mesh = load_usable(&self.mesh)?;
         let params = CurveParams {
             threshold: self.threshold,

@@ -34,10 +34,16 @@ impl DetailArgs {
 }
 
 fn detail(a: &DetailArgs) -> Result<i32> {
-    prepare_output(&a.out)?;
+    let params = a.solve.params(crate::applications::DETAIL_SHAPE_WEIGHT)?;
+    if !a.strength.is_finite() {
+        return Err(crate::error::Error::InvalidInput(format!(
+            "--strength {}: must be a finite number",
+            a.strength
+        )));
+    }
+    check_outputs(&[&a.source, &a.target], &[("--out", &a.out, OutKind::Mesh)])?;
     let source = load_usable(&a.source)?;
     let target = load_usable(&a.target)?;
-    let params = a.solve.params(crate::applications::DETAIL_SHAPE_WEIGHT);
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);
     let t = std::time::Instant::now();

@@ -26,7 +26,7 @@ pub struct FeaturesArgs {
     /// The object's up axis, for height: y or z.
     #[arg(long, default_value = "y")]
     pub up: String,
-    /// Occlusion rays per vertex.
+    /// Occlusion rays per vertex, 1 to 4096.
     #[arg(long, default_value_t = Params::default().rays)]
     pub rays: usize,
     /// Random seed (ray directions).
@@ -38,7 +38,8 @@ impl FeaturesArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
         let up: Up = self.up.parse()?;
-        prepare_output(&self.out)?;
+        check_rays(self.rays)?;
+        check_outputs(&[&self.mesh], &[("--out", &self.out, OutKind::Mesh)])?;
         let mesh = load_usable(&self.mesh)?;
         let params = Params {
             up,

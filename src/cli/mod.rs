@@ -123,10 +123,41 @@ pub fn main() -> i32 {
             "meshmatch: internal error: {msg}{at}"
         );
     }));
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(
+                e.kind(),
+                ErrorKind::DisplayHelp
+                    | ErrorKind::DisplayVersion
+                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            ) {
+                let _ = e.print();
+                return e.exit_code();
+            }
+            // A bad argument is one line, like every other refusal (clap's own text adds a
+            // usage hint on further lines).
+            let text = e.to_string();
+            let first: Vec<&str> = text
+                .lines()
+                .map(str::trim)
+                .skip_while(|l| l.is_empty())
+                .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
+                .collect();
+            let first = first.join(" ");
+            let first = first.trim_start_matches("error: ");
+            let _ = writeln!(std::io::stderr().lock(), "meshmatch: {first} (see --help)");
+            return 2;
+        }
+    };
     let res = std::panic::catch_unwind(|| match &cli.command {
         None => open_app(),
-        Some(c) => c.run(),
+        Some(c) => {
+            // A command never writes over a file it read (an output's texture beside an input).
+            crate::mesh::io::protect_inputs();
+            c.run()
+        }
     });
     match res {
         Ok(Ok(code)) => code,

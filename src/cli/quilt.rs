@@ -79,7 +79,12 @@ impl QuiltArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
         let a = self;
-        prepare_output(&a.out)?;
+        let swatch_file = Path::new(&a.swatch);
+        let mut inputs = vec![a.base.as_path()];
+        if swatch_file.exists() {
+            inputs.push(swatch_file);
+        }
+        check_outputs(&inputs, &[("--out", a.out.as_path(), OutKind::Mesh)])?;
         positive("swatch-size", a.swatch_size)?;
         positive("thickness", a.thickness)?;
         let swatch = load_any_swatch(&a.swatch, &a.swatch_up, a.seed)?;
@@ -165,7 +170,7 @@ pub struct SwatchArgs {
 impl SwatchArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
-        prepare_output(&self.out)?;
+        check_outputs(&[], &[("--out", self.out.as_path(), OutKind::Mesh)])?;
         let s = quilting::swatch(SwatchKind::parse(&self.kind)?, self.seed);
         io::save(&s.mesh, &self.out)?;
         eprintln!(

@@ -4,14 +4,13 @@ use std::path::PathBuf;
 
 use crate::correspondence::CorrespondenceFile;
 use crate::error::{Error, Result};
-use crate::mesh::io;
 
 /// Arguments of `meshmatch render`.
 #[derive(clap::Args, Debug)]
 pub struct RenderArgs {
     /// The mesh to render.
     pub mesh: PathBuf,
-    /// Output PNG.
+    /// Output PNG (must end in .png; never one of the inputs).
     #[arg(long)]
     pub out: PathBuf,
     /// Camera azimuth around the up axis, degrees.
@@ -20,7 +19,7 @@ pub struct RenderArgs {
     /// Camera elevation, degrees.
     #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
     pub elevation: f32,
-    /// Image size as WxH.
+    /// Image size as WxH, each 1 to 8192.
     #[arg(long, default_value = "800x600")]
     pub size: String,
     /// Draw the wireframe over the shading.
@@ -48,8 +47,23 @@ impl RenderArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
         let (width, height) = parse_size(&self.size)?;
-        let m = io::load(&self.mesh)?;
-        m.check_usable()?;
+        for (flag, v) in [("--azimuth", self.azimuth), ("--elevation", self.elevation)] {
+            if !v.is_finite() {
+                return Err(Error::InvalidInput(format!(
+                    "{flag} {v}: must be a finite number of degrees"
+                )));
+            }
+        }
+        let inputs: Vec<&std::path::Path> = [Some(&self.mesh), self.correspondences.as_ref()]
+            .into_iter()
+            .flatten()
+            .map(|p| p.as_path())
+            .collect();
+        super::common::check_outputs(
+            &inputs,
+            &[("--out", &self.out, super::common::OutKind::Png)],
+        )?;
+        let m = super::common::load_usable(&self.mesh)?;
         let colors = m.vertex_signal();
         let markers = match &self.correspondences {
             Some(p) => {

@@ -19,7 +19,8 @@ pub struct SynthArgs {
     /// Output mesh (.ply, .glb, .obj): the uniform-density synthesized mesh with vertex colours.
     #[arg(long)]
     pub out: PathBuf,
-    /// Mesh units spanned by the exemplar's width (default: a quarter of the bounding-box diagonal).
+    /// Mesh units spanned by the exemplar's width (default: a quarter of the bounding-box
+    /// diagonal); positive, finite.
     #[arg(long)]
     pub scale: Option<f32>,
     /// Shrink the exemplar to at most this many pixels wide first (aspect kept): the texel
@@ -35,7 +36,7 @@ pub struct SynthArgs {
     /// curves: Xu et al. 2009's curve-guided field; the exemplar's x axis follows the curves).
     #[arg(long, default_value = crate::synthesis::Orientation::default().as_str())]
     pub orientation: String,
-    /// Pyramid levels.
+    /// Pyramid levels, 1 to 12.
     #[arg(long, default_value_t = 4)]
     pub levels: usize,
     /// Vertex indices (file numbering, one per line) to synthesize; the rest keep their colours.
@@ -70,9 +71,25 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     let search: Search = a.search.parse().map_err(|_| {
         Error::InvalidInput(format!("--search {}: use exhaustive or fast", a.search))
     })?;
-    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    if let Some(s) = a.scale
+        && !(s.is_finite() && s > 0.0)
+    {
+        return Err(Error::InvalidInput(format!(
+            "--scale {s}: must be a positive finite number"
+        )));
     }
+    if !(1..=12).contains(&a.levels) {
+        return Err(Error::InvalidInput(format!(
+            "--levels {}: use 1 to 12",
+            a.levels
+        )));
+    }
+    let inputs: Vec<&std::path::Path> = [Some(&a.exemplar), Some(&a.target), a.mask.as_ref()]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    check_outputs(&inputs, &[("--out", &a.out, OutKind::Mesh)])?;
     let mut exemplar = io::load_texture(&a.exemplar)?.image;
     if let Some(w) = a.exemplar_width {
         if w < 8 {

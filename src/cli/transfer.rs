@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use super::common::*;
 use crate::correspondence::CorrespondenceFile;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::mesh::io;
 use crate::work::{CancelToken, Event};
 
@@ -20,7 +20,8 @@ pub struct TransferArgs {
     /// Target mesh to texture.
     #[arg(long)]
     pub target: PathBuf,
-    /// Correspondences JSON (`{"correspondences": [{"source_vertex": i, "target_vertices": [j, ..]}]}`).
+    /// Correspondences JSON (`{"correspondences": [{"source_vertex": i, "target_vertices": [j, ..]}]}`),
+    /// at most 256 pairs and 1024 target vertices in all.
     #[arg(long)]
     pub correspondences: Option<PathBuf>,
     /// Output: .ply (vertex colours), .glb (baked texture if the target has UVs, else COLOR_0), .obj (+MTL+PNG).
@@ -32,24 +33,25 @@ pub struct TransferArgs {
     /// Write the nearest-neighbour field as CSV: target_vertex,source_vertex,rotation_deg.
     #[arg(long)]
     pub nnf_out: Option<PathBuf>,
-    /// Working resolution (vertices per mesh; denser meshes are used as they are).
+    /// Working resolution (vertices per mesh; denser meshes are used as they are), at most
+    /// 4,000,000.
     #[arg(long, default_value_t = 64_000)]
     pub vertices: usize,
-    /// Number of hierarchy levels (default: down to about 128 vertices, at most 7).
+    /// Number of hierarchy levels, 1 to 16 (default: down to about 128 vertices, at most 7).
     #[arg(long)]
     pub levels: Option<usize>,
-    /// EM iterations per level.
+    /// EM iterations per level, 0 to 1000.
     #[arg(long, default_value_t = 5)]
     pub iterations: usize,
     /// Random seed (runs with the same seed are identical).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Weight of shape features against colour (1 = equal).
-    #[arg(long, default_value_t = 1.0)]
+    /// Weight of shape features against colour (1 = equal); finite, 0 or more.
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     pub shape_weight: f32,
     /// The finest level's shape weight as a fraction of --shape-weight (geometric in between);
-    /// below 1, fine levels follow the colour more (sharper patches, looser layout).
-    #[arg(long, default_value_t = crate::meshmatch::FINE_SHAPE_SCALE)]
+    /// below 1, fine levels follow the colour more (sharper patches, looser layout). Positive, finite.
+    #[arg(long, allow_hyphen_values = true, default_value_t = crate::meshmatch::FINE_SHAPE_SCALE)]
     pub fine_shape_scale: f32,
     /// Keep the filtered vote at the finest level instead of the nearest-neighbour copy.
     #[arg(long)]
@@ -58,7 +60,7 @@ pub struct TransferArgs {
     /// correspondences as landmarks) so similar shapes keep the source's layout: on or off.
     #[arg(long, default_value = "off", value_parser = ["on", "off"])]
     pub global_map: String,
-    /// Size of the baked texture (pixels per side) when the target has UVs.
+    /// Size of the baked texture (pixels per side) when the target has UVs, 1 to 8192.
     #[arg(long, default_value_t = 1024)]
     pub texture_size: u32,
 }
@@ -72,24 +74,6 @@ impl TransferArgs {
 
 fn transfer(a: &TransferArgs) -> Result<i32> {
     use crate::meshmatch::{self as mm, TransferParams};
-    for p in [Some(&a.out), a.out_dense.as_ref()].into_iter().flatten() {
-        prepare_output(p)?;
-    }
-    // Make sure every output can be written before spending minutes on the transfer.
-    if let Some(dir) = a
-        .nnf_out
-        .as_ref()
-        .and_then(|p| p.parent())
-        .filter(|d| !d.as_os_str().is_empty())
-    {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
-    let source = load_signal_source(&a.source, a.source_texture.as_deref())?;
-    let target = load_usable(&a.target)?;
-    let corr = match &a.correspondences {
-        Some(p) => CorrespondenceFile::load(p)?.correspondences,
-        None => Vec::new(),
-    };
     let params = TransferParams {
         vertices: a.vertices,
         levels: a.levels,
@@ -100,6 +84,33 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         sharpen: !a.no_sharpen,
         global_map: a.global_map == "on",
         ..TransferParams::default()
+    };
+    params.validate()?;
+    check_texture_size(a.texture_size)?;
+    // Make sure every output can be written before spending minutes on the transfer.
+    let inputs: Vec<&std::path::Path> = [
+        Some(&a.source),
+        Some(&a.target),
+        a.source_texture.as_ref(),
+        a.correspondences.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    .map(|p| p.as_path())
+    .collect();
+    let mut outputs = vec![("--out", a.out.as_path(), OutKind::Mesh)];
+    if let Some(p) = &a.out_dense {
+        outputs.push(("--out-dense", p, OutKind::Mesh));
+    }
+    if let Some(p) = &a.nnf_out {
+        outputs.push(("--nnf-out", p, OutKind::File));
+    }
+    check_outputs(&inputs, &outputs)?;
+    let source = load_signal_source(&a.source, a.source_texture.as_deref())?;
+    let target = load_usable(&a.target)?;
+    let corr = match &a.correspondences {
+        Some(p) => CorrespondenceFile::load(p)?.correspondences,
+        None => Vec::new(),
     };
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);

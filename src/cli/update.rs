@@ -31,7 +31,8 @@ impl UpdateArgs {
 }
 
 fn update(a: &UpdateArgs) -> Result<i32> {
-    prepare_output(&a.out)?;
+    let params = a.solve.params(1.0)?;
+    check_outputs(&[&a.old, &a.new], &[("--out", &a.out, OutKind::Mesh)])?;
     let old = load_usable(&a.old)?;
     if old.vertex_signal().is_none() {
         return Err(Error::InvalidInput(format!(
@@ -40,7 +41,6 @@ fn update(a: &UpdateArgs) -> Result<i32> {
         )));
     }
     let new = load_usable(&a.new)?;
-    let params = a.solve.params(1.0);
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);
     let t = std::time::Instant::now();

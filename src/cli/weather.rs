@@ -37,19 +37,19 @@ pub struct WeatherArgs {
     /// The objects' up axis, for the height feature: y or z.
     #[arg(long, default_value = "y")]
     pub up: String,
-    /// Working vertices per mesh (meshes are refined to about this many).
+    /// Working vertices per mesh (meshes are refined to about this many), at most 4,000,000.
     #[arg(long, default_value_t = Params::default().working_vertices)]
     pub vertices: usize,
-    /// Occlusion rays per vertex.
+    /// Occlusion rays per vertex, 1 to 4096.
     #[arg(long, default_value_t = Params::default().rays)]
     pub rays: usize,
-    /// Clusters of the guidance field (the paper's only parameter).
+    /// Clusters of the guidance field (the paper's only parameter), 1 to 1000.
     #[arg(long, default_value_t = Params::default().clusters)]
     pub clusters: usize,
     /// Random seed.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Size of the baked texture (pixels per side) when the target has UVs.
+    /// Size of the baked texture (pixels per side) when the target has UVs, 1 to 8192.
     #[arg(long, default_value_t = 1024)]
     pub texture_size: u32,
 }
@@ -60,16 +60,36 @@ impl WeatherArgs {
         let a = self;
         let method: Method = a.method.parse()?;
         let up: Up = a.up.parse()?;
-        prepare_output(&a.out)?;
-        if let Some(d) = &a.out_dense {
-            prepare_output(d)?;
-        }
-        if !(1..=8192).contains(&a.texture_size) {
+        check_texture_size(a.texture_size)?;
+        check_rays(a.rays)?;
+        if !(1..=1000).contains(&a.clusters) {
             return Err(Error::InvalidInput(format!(
-                "--texture-size {}: use 1 to 8192",
-                a.texture_size
+                "--clusters {}: use 1 to 1000",
+                a.clusters
             )));
         }
+        let max_v = crate::mesh::MAX_WORKING_VERTICES;
+        if a.vertices > max_v {
+            return Err(Error::InvalidInput(format!(
+                "--vertices {}: the working resolution is at most {max_v} vertices",
+                a.vertices
+            )));
+        }
+        let inputs: Vec<&std::path::Path> = [
+            Some(&a.source),
+            Some(&a.target),
+            a.source_texture.as_ref(),
+            a.mask.as_ref(),
+        ]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+        let mut outputs = vec![("--out", a.out.as_path(), OutKind::Mesh)];
+        if let Some(p) = &a.out_dense {
+            outputs.push(("--out-dense", p, OutKind::Mesh));
+        }
+        check_outputs(&inputs, &outputs)?;
         let source = load_signal_source(&a.source, a.source_texture.as_deref())?;
         let target = load_usable(&a.target)?;
         let mask = match &a.mask {

@@ -152,8 +152,9 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
     const UNIT: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     let mut source_bary: Vec<[[f32; 3]; 3]> = vec![UNIT; faces.len()];
 
-    // vertex indices are u32: never grow past that (a huge target refines until it is reached)
-    let target_vertices = target_vertices.min(u32::MAX as usize / 2);
+    // A hard cap tied to the memory budget: never grow past the working-vertex budget, whatever
+    // is asked (a caller's runaway target, e.g. from a zero or NaN area ratio, stops here).
+    let target_vertices = target_vertices.min(crate::mesh::MAX_WORKING_VERTICES);
     if target_vertices > n0 && !faces.is_empty() {
         let extra = (target_vertices - n0).min(1 << 24);
         positions.reserve(extra);

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 pub use topology::{Csr, boundary_loops, connected_components, vertex_adjacency};
-pub use validate::{RepairReport, ValidationReport};
+pub use validate::{MAX_FACES, MAX_VERTICES, MAX_WORKING_VERTICES, RepairReport, ValidationReport};
 
 /// An sRGB texture image (8-bit RGB), as referenced by `map_Kd` or `baseColorTexture`.
 #[derive(Clone, Debug)]

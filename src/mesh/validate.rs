@@ -11,6 +11,11 @@ pub const MAX_VERTICES: usize = 20_000_000;
 /// triangles, as glTF nodes sharing a mesh do).
 pub const MAX_FACES: usize = 3 * MAX_VERTICES;
 
+/// Largest working resolution (vertices per mesh after refinement) the engine builds: at 1M
+/// working vertices a transfer peaks near 3 GB, so this is about 12 GB. Refinement never grows
+/// a mesh past it, whatever it is asked for.
+pub const MAX_WORKING_VERTICES: usize = 4_000_000;
+
 /// What a mesh looks like: counts and defects.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ValidationReport {
@@ -153,6 +158,24 @@ impl TriMesh {
         if !self.positions.iter().any(finite) {
             return Err(Error::InvalidMesh(format!(
                 "{name}no vertex has finite coordinates"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Refuse a vertex with a NaN or infinite coordinate (the engine's front doors call this,
+    /// so a library user gets this message instead of a failure deep in the solver).
+    pub fn check_finite(&self) -> Result<()> {
+        if let Some((i, p)) = self.positions.iter().enumerate().find(|(_, p)| !finite(p)) {
+            let name = self
+                .path
+                .as_ref()
+                .map(|p| format!("{}: ", p.display()))
+                .unwrap_or_default();
+            let file_i = self.file_index.get(i).copied().unwrap_or(i as u32);
+            return Err(Error::InvalidMesh(format!(
+                "{name}vertex {file_i} has a coordinate that is not a finite number ({} {} {})",
+                p[0], p[1], p[2]
             )));
         }
         Ok(())

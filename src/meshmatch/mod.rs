@@ -83,6 +83,63 @@ impl Default for TransferParams {
     }
 }
 
+/// Most EM iterations per level accepted ([`TransferParams::validate`]); the paper uses 5.
+pub const MAX_ITERATIONS: usize = 1000;
+
+/// Most hierarchy levels accepted ([`TransferParams::validate`]); halving from the working
+/// budget reaches about 128 vertices in 15 levels.
+pub const MAX_LEVELS: usize = 16;
+
+impl TransferParams {
+    /// Refuse parameters no transfer can honour, before any work: `vertices` above the working
+    /// budget ([`crate::mesh::MAX_WORKING_VERTICES`]), `iterations` above [`MAX_ITERATIONS`],
+    /// `levels` outside 1..=[`MAX_LEVELS`], a negative or non-finite `shape_weight`, a
+    /// `fine_shape_scale` or `fan_radius` that is not positive and finite.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |msg: String| Err(Error::InvalidInput(msg));
+        let max_v = crate::mesh::MAX_WORKING_VERTICES;
+        if self.vertices > max_v {
+            return bad(format!(
+                "--vertices {}: the working resolution is at most {max_v} vertices",
+                self.vertices
+            ));
+        }
+        if self.iterations > MAX_ITERATIONS {
+            return bad(format!(
+                "--iterations {}: use 0 to {MAX_ITERATIONS} iterations per level",
+                self.iterations
+            ));
+        }
+        if let Some(l) = self.levels
+            && !(1..=MAX_LEVELS).contains(&l)
+        {
+            return bad(format!("--levels {l}: use 1 to {MAX_LEVELS} levels"));
+        }
+        if !(self.shape_weight.is_finite() && self.shape_weight >= 0.0) {
+            return bad(format!(
+                "--shape-weight {}: must be a finite number, 0 or more",
+                self.shape_weight
+            ));
+        }
+        if !(self.fine_shape_scale.is_finite() && self.fine_shape_scale > 0.0) {
+            return bad(format!(
+                "--fine-shape-scale {}: must be a positive finite number",
+                self.fine_shape_scale
+            ));
+        }
+        if !(self.fan_radius.is_finite() && self.fan_radius > 0.0) {
+            return bad(format!(
+                "fan radius {}: must be a positive finite number",
+                self.fan_radius
+            ));
+        }
+        if self.exact_samples > crate::mesh::MAX_WORKING_VERTICES {
+            return bad(format!("exact samples {}: too many", self.exact_samples));
+        }
+        Ok(())
+    }
+}
+
 /// Default [`TransferParams::fine_shape_scale`]: the same shape weight on every level. At 0.3
 /// Spot -> horse (no correspondences) keeps more of Spot's black patches, but the zebra ->
 /// giraffe neck stripes lose their regular rings, so the default leaves it to the user.

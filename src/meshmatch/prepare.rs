@@ -89,9 +89,8 @@ pub fn prepare(
             "mesh has no vertices or no faces".into(),
         ));
     }
-    if params.fan_radius.is_nan() || params.fan_radius <= 0.0 {
-        return Err(Error::InvalidInput("fan_radius must be positive".into()));
-    }
+    params.validate()?;
+    mesh.check_finite()?;
     let watch = Stopwatch::start();
     let mut timings = Vec::new();
     let stage = |name: &'static str, t: f64, timings: &mut Vec<(String, f64)>| {
@@ -105,6 +104,19 @@ pub fn prepare(
         return Err(Error::InvalidMesh(
             "mesh has no non-degenerate faces".into(),
         ));
+    }
+    // A mesh denser than the working budget is used as it is: refuse it rather than run the
+    // solver for hours on it.
+    let max_v = crate::mesh::MAX_WORKING_VERTICES;
+    if welded.positions.len() > max_v {
+        return Err(Error::InvalidMesh(format!(
+            "{}{} vertices, more than the working budget of {max_v}; decimate the mesh first",
+            mesh.path
+                .as_ref()
+                .map(|p| format!("{}: ", p.display()))
+                .unwrap_or_default(),
+            welded.positions.len()
+        )));
     }
     // Input face of every welded face (weld drops out-of-range and degenerate faces in order).
     let nin = mesh.positions.len();

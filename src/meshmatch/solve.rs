@@ -58,6 +58,8 @@ pub fn solve_constrained(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<TransferResult> {
+    params.validate()?;
+    crate::correspondence::check_limits(corr)?;
     let watch = Stopwatch::start();
     let (Some(sig_s), Some(fans_s)) = (source.signal.as_ref(), source.fans.as_ref()) else {
         return Err(Error::InvalidInput(

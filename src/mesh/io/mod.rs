@@ -25,6 +25,12 @@ pub use ply::{PlyOptions, load_ply_bytes, save_ply};
 /// then a rename. On any failure the temporary file is removed and `path` is left untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write as _;
+    if is_protected(path) {
+        return Err(Error::InvalidInput(format!(
+            "{}: is a file this command read; not overwritten",
+            path.display()
+        )));
+    }
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -46,6 +52,39 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         let _ = std::fs::remove_file(&tmp);
         Error::io(path, e)
     })
+}
+
+/// Files read so far, when [`protect_inputs`] was called (the CLI does; the app does not, so it
+/// can save over a file it opened).
+static PROTECTED: std::sync::Mutex<Option<Vec<std::path::PathBuf>>> = std::sync::Mutex::new(None);
+
+/// From now on, remember every file the loaders read (meshes, MTL files, textures, buffers,
+/// correspondences, masks) and never write over one: [`write_atomic`] refuses it and a texture
+/// written beside a mesh takes another name. For one-shot processes such as the CLI.
+pub fn protect_inputs() {
+    let mut g = PROTECTED.lock().unwrap_or_else(|e| e.into_inner());
+    g.get_or_insert_with(Vec::new);
+}
+
+fn note_input(path: &Path) {
+    let mut g = PROTECTED.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(list) = g.as_mut()
+        && let Ok(c) = std::fs::canonicalize(path)
+        && !list.contains(&c)
+    {
+        list.push(c);
+    }
+}
+
+/// True when `path` is a file read since [`protect_inputs`].
+pub fn is_protected(path: &Path) -> bool {
+    let g = PROTECTED.lock().unwrap_or_else(|e| e.into_inner());
+    match g.as_ref() {
+        Some(list) if !list.is_empty() => {
+            std::fs::canonicalize(path).is_ok_and(|c| list.contains(&c))
+        }
+        _ => false,
+    }
 }
 
 /// Largest file a loader reads beside a mesh (an external glTF buffer or image, an MTL file, a
@@ -82,7 +121,14 @@ fn read_regular_file(file: &Path, limit: u64, what: &str) -> std::io::Result<Vec
         ));
     }
     let f = std::fs::File::open(file)?;
-    let mut out = Vec::with_capacity(meta.len() as usize);
+    note_input(file);
+    let mut out = Vec::new();
+    out.try_reserve_exact(meta.len() as usize).map_err(|_| {
+        IoError::new(
+            ErrorKind::OutOfMemory,
+            format!("{what} of {} bytes does not fit in memory", meta.len()),
+        )
+    })?;
     // The size may change while reading: never take more than the limit.
     f.take(limit + 1).read_to_end(&mut out)?;
     if out.len() as u64 > limit {
@@ -92,6 +138,22 @@ fn read_regular_file(file: &Path, limit: u64, what: &str) -> std::io::Result<Vec
         ));
     }
     Ok(out)
+}
+
+/// Largest auxiliary text file read (a correspondences JSON, a vertex mask, a session): 256 MiB.
+pub const MAX_TEXT_FILE_BYTES: u64 = 256 << 20;
+
+/// Read an input file that is not a mesh (correspondences, masks, sessions) by the loaders' rule:
+/// a regular file (no directory, device or pipe such as `/dev/zero`) of at most `limit` bytes;
+/// `what` names it in the message ("the correspondences file", ...).
+pub fn read_input_file(path: &Path, limit: u64, what: &str) -> Result<Vec<u8>> {
+    read_regular_file(path, limit, what).map_err(|e| Error::io(path, e))
+}
+
+/// [`read_input_file`] with [`MAX_TEXT_FILE_BYTES`], as UTF-8 text.
+pub fn read_text_file(path: &Path, what: &str) -> Result<String> {
+    let bytes = read_input_file(path, MAX_TEXT_FILE_BYTES, what)?;
+    String::from_utf8(bytes).map_err(|_| Error::format(path, format!("{what} is not UTF-8 text")))
 }
 
 thread_local! {
@@ -269,10 +331,31 @@ pub fn load(path: &Path) -> Result<TriMesh> {
 pub fn load_with_warnings(path: &Path) -> Result<(TriMesh, Vec<String>)> {
     let fmt = MeshFormat::from_path(path)
         .ok_or_else(|| Error::UnsupportedFormat { path: path.into() })?;
+    if fmt == MeshFormat::Ply
+        && let Some(e) = ply_header_budget(path)
+    {
+        return Err(e);
+    }
     let bytes =
         read_regular_file(path, MAX_MESH_FILE_BYTES, "the file").map_err(|e| Error::io(path, e))?;
     let (res, warnings) = load_format_bytes(&bytes, fmt, path);
     res.map(|m| (m, warnings))
+}
+
+/// Read the first 64 KiB of a regular PLY file and return the budget error of its header, if
+/// any, so that a file declaring 300M vertices is refused before gigabytes are read.
+fn ply_header_budget(path: &Path) -> Option<Error> {
+    use std::io::Read as _;
+    if !std::fs::metadata(path).ok()?.is_file() {
+        return None;
+    }
+    let mut head = Vec::with_capacity(64 << 10);
+    std::fs::File::open(path)
+        .ok()?
+        .take(64 << 10)
+        .read_to_end(&mut head)
+        .ok()?;
+    ply::header_budget_error(&head, path)
 }
 
 /// Load a mesh from bytes, choosing the format by `path`'s extension; `path` names the file in
@@ -390,8 +473,28 @@ fn write_texture_beside(mesh: &TriMesh, path: &Path) -> Result<Option<String>> {
     let Some(tex) = &mesh.texture else {
         return Ok(None);
     };
-    let name = texture_name_for(path);
-    let tex_path = path.with_file_name(&name);
+    // Never over a file this command read (`convert spot.obj spot.ply` beside the source's
+    // `spot_texture.png`): then `<stem>_<ext>_texture.png`, numbered if need be.
+    let mut name = texture_name_for(path);
+    let mut tex_path = path.with_file_name(&name);
+    let mut k = 1;
+    while is_protected(&tex_path) {
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "mesh".into());
+        let ext = path
+            .extension()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        name = if k == 1 {
+            format!("{stem}_{ext}_texture.png")
+        } else {
+            format!("{stem}_{ext}_texture_{k}.png")
+        };
+        tex_path = path.with_file_name(&name);
+        k += 1;
+    }
     write_atomic(&tex_path, &encode_png(tex, &tex_path)?)?;
     Ok(Some(name))
 }

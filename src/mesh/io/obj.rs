@@ -3,6 +3,7 @@
 use super::{check_content, check_exportable, fan, finish, text_lines, warn, write_atomic};
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
+use crate::mesh::validate::{MAX_FACES, MAX_VERTICES};
 use std::collections::{HashMap, HashSet};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -114,6 +115,7 @@ fn parse_f32(tok: Option<&str>, line: usize, what: &str, path: &Path) -> Result<
 }
 
 /// Parse OBJ bytes; `path` names the file in messages and locates MTL files and textures.
+/// At most [`MAX_VERTICES`] vertices and [`MAX_FACES`] triangles.
 pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     check_content(bytes, super::MeshFormat::Obj, path)?;
     let mut pos: Vec<[f32; 3]> = Vec::new();
@@ -159,6 +161,12 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
                     parse_f32(Some(w), line_no, "w coordinate", path)?;
                 }
                 pos.push([x, y, z]);
+                if pos.len() > MAX_VERTICES {
+                    return Err(Error::format(
+                        path,
+                        format!("line {line_no}: more than {MAX_VERTICES} vertices (the budget)"),
+                    ));
+                }
             }
             "vt" => {
                 let u = parse_f32(toks.next(), line_no, "u coordinate", path)?;
@@ -214,6 +222,12 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
                     && used_set.insert(m.clone())
                 {
                     used_materials.push(m.clone());
+                }
+                if faces.len() + poly.len() > MAX_FACES + 2 {
+                    return Err(Error::format(
+                        path,
+                        format!("line {line_no}: more than {MAX_FACES} triangles (the budget)"),
+                    ));
                 }
                 fan(poly.len(), |a, b, c| {
                     faces.push([poly[a][0], poly[b][0], poly[c][0]]);

@@ -292,6 +292,37 @@ fn parse_header(bytes: &[u8], path: &Path) -> Result<Header> {
     })
 }
 
+/// Refuse a header declaring more vertices than [`MAX_VERTICES`] or more faces or strips than
+/// [`MAX_FACES`], whatever the file size (a sparse file can declare 300M vertices cheaply).
+fn check_budget(h: &Header, path: &Path) -> Result<()> {
+    use crate::mesh::validate::{MAX_FACES, MAX_VERTICES};
+    for el in &h.elements {
+        let limit = match el.name.as_str() {
+            "vertex" => MAX_VERTICES,
+            "face" | "tristrips" => MAX_FACES,
+            _ => continue,
+        };
+        if el.count > limit {
+            return Err(Error::format(
+                path,
+                format!(
+                    "element '{}' declares {} items, more than the budget of {limit}",
+                    el.name, el.count
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The budget error of a PLY header found in `head` (the file's first bytes), if its header
+/// declares too much; `None` when the header is within budget or not complete in `head`. Lets
+/// `load` refuse a huge file before reading it.
+pub(super) fn header_budget_error(head: &[u8], path: &Path) -> Option<Error> {
+    let h = parse_header(head, path).ok()?;
+    check_budget(&h, path).err()
+}
+
 /// Reject element counts the file cannot possibly hold (before anything is allocated).
 fn check_counts(h: &Header, body_len: usize, path: &Path) -> Result<()> {
     let mut need: usize = 0;
@@ -355,6 +386,7 @@ fn vertex_role(name: &str) -> Role {
 pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     check_content(bytes, super::MeshFormat::Ply, path)?;
     let h = parse_header(bytes, path)?;
+    check_budget(&h, path)?;
     let body_len = bytes.len() - h.body_start;
     check_counts(&h, body_len, path)?;
     let mut body = Body {

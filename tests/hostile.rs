@@ -1,0 +1,558 @@
+//! Hostile inputs to every subcommand (issue 20): each row of the campaign as a small, fast
+//! regression test on tiny generated files, plus a property-style sweep of the numeric flags.
+//! Every case must end in exit 0 or 2 with a one-line error, within a time bound, and must not
+//! damage a file.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("meshmatch-hostile-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Exit code and stderr of `meshmatch args`, killed (and the test failed) after `limit`.
+fn run_in(dir: &Path, args: &[&str], limit: Duration) -> (i32, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_meshmatch"))
+        .args(args)
+        .current_dir(dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = std::io::Read::read_to_string(&mut err, &mut s);
+        s
+    });
+    let t = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("meshmatch {args:?} ran past {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let stderr = reader.join().unwrap();
+    // A signal (abort) has no code: report it as -1.
+    (status.code().unwrap_or(-1), stderr)
+}
+
+fn run(dir: &Path, args: &[&str]) -> (i32, String) {
+    run_in(dir, args, Duration::from_secs(20))
+}
+
+/// The command is refused with exit 2 and one line on stderr that mentions `mention`.
+fn refused(dir: &Path, args: &[&str], mention: &str) {
+    let (code, err) = run(dir, args);
+    assert_eq!(code, 2, "exit code of {args:?}: {err}");
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "{args:?}: one line, got {err}"
+    );
+    assert!(
+        err.contains(mention),
+        "{args:?}: should mention '{mention}': {err}"
+    );
+    assert!(
+        !err.contains("internal error") && !err.contains("panicked"),
+        "{args:?}: {err}"
+    );
+}
+
+/// A coloured grid of `n` x `n` vertices as ASCII PLY, positions through `pos`.
+fn grid_ply(path: &Path, n: usize, colors: bool, pos: impl Fn(usize, usize) -> String) {
+    let mut s = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
+        n * n
+    );
+    if colors {
+        s.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    }
+    s.push_str(&format!(
+        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        2 * (n - 1) * (n - 1)
+    ));
+    for j in 0..n {
+        for i in 0..n {
+            s.push_str(&pos(i, j));
+            if colors {
+                let k = j * n + i;
+                s.push_str(&format!(
+                    " {} {} {}",
+                    k * 37 % 256,
+                    k * 91 % 256,
+                    k * 13 % 256
+                ));
+            }
+            s.push('\n');
+        }
+    }
+    for j in 0..n - 1 {
+        for i in 0..n - 1 {
+            let a = j * n + i;
+            s.push_str(&format!(
+                "3 {} {} {}\n3 {} {} {}\n",
+                a,
+                a + 1,
+                a + n + 1,
+                a,
+                a + n + 1,
+                a + n
+            ));
+        }
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+fn plain(i: usize, j: usize) -> String {
+    format!(
+        "{} {} {}",
+        i as f32 / 9.0,
+        j as f32 / 9.0,
+        0.1 * ((i * j) % 3) as f32
+    )
+}
+
+/// `src.ply` (coloured), `tgt.ply` and a few hostile variants in a fresh folder.
+fn scene(name: &str) -> PathBuf {
+    let d = tmpdir(name);
+    grid_ply(&d.join("src.ply"), 10, true, plain);
+    grid_ply(&d.join("tgt.ply"), 10, false, plain);
+    for (file, bad) in [
+        ("nan.ply", "nan 0 0"),
+        ("inf.ply", "inf 0 0"),
+        ("big.ply", "1e39 0 0"),
+    ] {
+        grid_ply(&d.join(file), 10, true, |i, j| {
+            if (i, j) == (4, 4) {
+                bad.to_string()
+            } else {
+                plain(i, j)
+            }
+        });
+    }
+    grid_ply(&d.join("point.ply"), 10, false, |_, _| "0.5 0.5 0.5".into());
+    grid_ply(&d.join("allnan.ply"), 10, false, |_, _| {
+        "nan nan nan".into()
+    });
+    for (file, s) in [("micro.ply", 1e-6f64), ("tiny.ply", 1e-30)] {
+        grid_ply(&d.join(file), 10, false, |i, j| {
+            format!("{:e} {:e} 0", i as f64 * s, j as f64 * s)
+        });
+    }
+    d
+}
+
+const FAST: &[&str] = &["--vertices", "300", "--iterations", "1", "--levels", "2"];
+
+fn with<'a>(base: &[&'a str], extra: &[&'a str]) -> Vec<&'a str> {
+    base.iter().chain(extra).copied().collect()
+}
+
+#[test]
+fn huge_and_invalid_parameters_are_refused_before_work() {
+    let d = scene("params");
+    let t = [
+        "transfer", "--source", "src.ply", "--target", "tgt.ply", "--out", "o.ply",
+    ];
+    let c = [
+        "complete", "--mesh", "src.ply", "--mask", "mask.txt", "--out", "o.ply",
+    ];
+    let u = [
+        "update", "--old", "src.ply", "--new", "tgt.ply", "--out", "o.ply",
+    ];
+    let de = [
+        "detail", "--source", "src.ply", "--target", "tgt.ply", "--out", "o.ply",
+    ];
+    std::fs::write(d.join("mask.txt"), "1\n2\n").unwrap();
+    for base in [&t[..], &c[..], &u[..], &de[..]] {
+        refused(&d, &with(base, &["--vertices", "1000000000000"]), "4000000");
+        refused(
+            &d,
+            &with(base, &["--vertices", "18446744073709551615"]),
+            "4000000",
+        );
+        refused(&d, &with(base, &["--iterations", "1000000000"]), "1000");
+        refused(&d, &with(base, &["--levels", "0"]), "--levels");
+        refused(
+            &d,
+            &with(base, &["--shape-weight", "NaN"]),
+            "--shape-weight",
+        );
+        refused(&d, &with(base, &["--shape-weight=-1"]), "--shape-weight");
+        refused(
+            &d,
+            &with(base, &["--shape-weight", "inf"]),
+            "--shape-weight",
+        );
+    }
+    refused(
+        &d,
+        &with(&t, &["--fine-shape-scale", "NaN"]),
+        "--fine-shape-scale",
+    );
+    for size in ["0", "65536", "100000"] {
+        let args = with(&t[..5], &["--out", "o.glb", "--texture-size", size]);
+        refused(&d, &args, "8192");
+    }
+    refused(&d, &["bench", "--sizes", "1000000000000"], "--sizes");
+    refused(&d, &["bench", "--sizes", "0"], "--sizes");
+    refused(
+        &d,
+        &[
+            "features",
+            "src.ply",
+            "--out",
+            "f.ply",
+            "--rays",
+            "1000000000",
+        ],
+        "--rays",
+    );
+    assert!(!d.join("o.ply").exists() && !d.join("o.glb").exists());
+}
+
+#[test]
+fn degenerate_new_meshes_in_update_are_refused_or_run_bounded() {
+    let d = scene("update");
+    for (new, mention) in [
+        ("point.ply", "zero area"),
+        ("allnan.ply", "finite"),
+        ("tiny.ply", "rescale"),
+    ] {
+        let args = with(
+            &["update", "--old", "src.ply", "--new", new, "--out", "o.ply"],
+            FAST,
+        );
+        refused(&d, &args, mention);
+    }
+    // A mesh scaled by 1e-6 is valid: the example's density is clamped, the run is short.
+    let args = with(
+        &[
+            "update",
+            "--old",
+            "src.ply",
+            "--new",
+            "micro.ply",
+            "--out",
+            "o.ply",
+        ],
+        FAST,
+    );
+    let (code, err) = run(&d, &args);
+    assert_eq!(code, 0, "{err}");
+}
+
+#[test]
+fn non_finite_vertices_are_refused_by_every_command() {
+    let d = scene("nonfinite");
+    std::fs::write(d.join("mask.txt"), "1\n").unwrap();
+    for bad in ["nan.ply", "inf.ply", "big.ply"] {
+        let cases: [Vec<&str>; 4] = [
+            vec![
+                "transfer", "--source", "src.ply", "--target", bad, "--out", "o.ply",
+            ],
+            vec![
+                "complete", "--mesh", bad, "--mask", "mask.txt", "--out", "o.ply",
+            ],
+            vec!["update", "--old", bad, "--new", "tgt.ply", "--out", "o.ply"],
+            vec![
+                "detail", "--source", "src.ply", "--target", bad, "--out", "o.ply",
+            ],
+        ];
+        for args in cases {
+            refused(&d, &with(&args, FAST), "not a finite number");
+        }
+    }
+}
+
+#[test]
+fn sparse_ply_declaring_300m_vertices_is_refused_before_reading() {
+    let d = tmpdir("sparse");
+    let p = d.join("huge.ply");
+    let mut f = std::fs::File::create(&p).unwrap();
+    std::io::Write::write_all(
+        &mut f,
+        b"ply\nformat binary_little_endian 1.0\nelement vertex 300000000\nproperty float x\nproperty float y\nproperty float z\nelement face 0\nproperty list uchar int vertex_indices\nend_header\n",
+    )
+    .unwrap();
+    f.set_len(3_600_000_200).unwrap(); // sparse: no disk used
+    drop(f);
+    let t = Instant::now();
+    refused(&d, &["info", "huge.ply"], "budget");
+    refused(&d, &["convert", "huge.ply", "out.obj"], "budget");
+    assert!(t.elapsed() < Duration::from_secs(5), "{:?}", t.elapsed());
+    std::fs::remove_file(&p).unwrap();
+}
+
+#[test]
+fn correspondences_files_are_capped() {
+    let d = scene("corr");
+    let t = [
+        "transfer", "--source", "src.ply", "--target", "tgt.ply", "--out", "o.ply",
+    ];
+    #[cfg(unix)]
+    refused(
+        &d,
+        &with(&t, &["--correspondences", "/dev/zero"]),
+        "not a regular file",
+    );
+    refused(&d, &with(&t, &["--correspondences", "."]), "directory");
+    let pairs = |n: usize, targets: usize| {
+        let v: Vec<String> = (0..n)
+            .map(|i| {
+                let ts: Vec<String> = (0..targets).map(|k| ((i + k) % 100).to_string()).collect();
+                format!(
+                    "{{\"source_vertex\": {}, \"target_vertices\": [{}]}}",
+                    i % 100,
+                    ts.join(",")
+                )
+            })
+            .collect();
+        format!("{{\"correspondences\": [{}]}}", v.join(","))
+    };
+    std::fs::write(d.join("many.json"), pairs(10_000, 40)).unwrap();
+    std::fs::write(d.join("pairs.json"), pairs(300, 1)).unwrap();
+    std::fs::write(d.join("targets.json"), pairs(100, 20)).unwrap();
+    refused(
+        &d,
+        &with(&t, &["--correspondences", "many.json"]),
+        "at most 256",
+    );
+    refused(
+        &d,
+        &with(&t, &["--correspondences", "pairs.json"]),
+        "at most 256",
+    );
+    refused(
+        &d,
+        &with(&t, &["--correspondences", "targets.json"]),
+        "at most 1024",
+    );
+    refused(
+        &d,
+        &[
+            "complete",
+            "--mesh",
+            "src.ply",
+            "--mask",
+            "/dev/zero",
+            "--out",
+            "o.ply",
+        ],
+        "not a regular file",
+    );
+}
+
+#[test]
+fn huge_polygons_and_duplicate_faces_do_not_run_away() {
+    let d = scene("polygons");
+    // One face of 20,000 corners: its fan makes vertex 1 a corner of 19,998 triangles.
+    let n = 20_000;
+    let mut s = String::new();
+    for i in 0..n {
+        let a = std::f32::consts::TAU * i as f32 / n as f32;
+        s.push_str(&format!("v {} {} 0\n", a.cos(), a.sin()));
+    }
+    s.push('f');
+    for i in 1..=n {
+        s.push_str(&format!(" {i}"));
+    }
+    s.push('\n');
+    std::fs::write(d.join("poly.obj"), s).unwrap();
+    let t = ["transfer", "--source", "src.ply", "--out", "o.ply"];
+    refused(
+        &d,
+        &with(&with(&t, &["--target", "poly.obj"]), FAST),
+        "triangulated",
+    );
+    // 200,000 copies of two faces: dropped with a warning, the transfer is quick.
+    let mut s = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0.5\n");
+    s.push_str(&"f 1 2 3\nf 2 4 3\n".repeat(100_000));
+    std::fs::write(d.join("dups.obj"), s).unwrap();
+    let (code, err) = run(&d, &with(&with(&t, &["--target", "dups.obj"]), FAST));
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("duplicate faces"), "{err}");
+}
+
+#[test]
+fn outputs_are_checked_before_any_work_and_inputs_never_overwritten() {
+    let d = scene("outputs");
+    std::fs::write(d.join("keep.ply"), b"old").unwrap();
+    std::fs::create_dir_all(d.join("folder")).unwrap();
+    let t = ["transfer", "--source", "src.ply", "--target", "tgt.ply"];
+    for flag in ["--nnf-out", "--out-dense"] {
+        let args = with(&with(&t, &["--out", "keep.ply", flag, "folder"]), FAST);
+        refused(&d, &args, "directory");
+        assert_eq!(std::fs::read(d.join("keep.ply")).unwrap(), b"old");
+    }
+    refused(
+        &d,
+        &with(&with(&t, &["--out", "x.ply", "--nnf-out", "x.ply"]), FAST),
+        "same file",
+    );
+    refused(&d, &with(&with(&t, &["--out", "./tgt.ply"]), FAST), "input");
+    refused(
+        &d,
+        &with(&with(&t, &["--out", "x.txt"]), FAST),
+        ".ply, .glb or .obj",
+    );
+    refused(&d, &["convert", "src.ply", "src.ply"], "input");
+    let src = std::fs::read(d.join("src.ply")).unwrap();
+    let tgt = std::fs::read(d.join("tgt.ply")).unwrap();
+    assert_eq!(std::fs::read(d.join("src.ply")).unwrap(), src);
+    assert_eq!(std::fs::read(d.join("tgt.ply")).unwrap(), tgt);
+}
+
+#[test]
+fn convert_beside_its_source_keeps_the_source_texture() {
+    let d = tmpdir("sidecar");
+    let img = image::RgbImage::from_fn(4, 4, |x, y| image::Rgb([x as u8 * 60, y as u8 * 60, 7]));
+    img.save(d.join("m_texture.png")).unwrap();
+    std::fs::write(d.join("m.mtl"), "newmtl a\nmap_Kd m_texture.png\n").unwrap();
+    std::fs::write(
+        d.join("m.obj"),
+        "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl a\nf 1/1 2/2 3/3\n",
+    )
+    .unwrap();
+    let before = std::fs::read(d.join("m_texture.png")).unwrap();
+    let (code, err) = run(&d, &["convert", "m.obj", "m.ply"]);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(std::fs::read(d.join("m_texture.png")).unwrap(), before);
+    assert!(d.join("m_ply_texture.png").exists());
+    let ply = std::fs::read(d.join("m.ply")).unwrap();
+    assert!(String::from_utf8_lossy(&ply).contains("TextureFile m_ply_texture.png"));
+}
+
+#[cfg(feature = "gui")]
+#[test]
+fn render_needs_a_png_output_and_finite_angles() {
+    let d = scene("render");
+    refused(&d, &["render", "src.ply", "--out", "tgt.ply"], ".png");
+    refused(
+        &d,
+        &["render", "src.ply", "--out", "r.png", "--azimuth", "NaN"],
+        "--azimuth",
+    );
+}
+
+/// Property-style sweep: every numeric flag of `transfer` over a fixed list of hostile values
+/// (zero, negatives, NaN, infinities, huge, tiny) ends in exit 0 or 2, a refusal is one line,
+/// and nothing aborts, panics or runs past its bound.
+#[test]
+fn numeric_flags_accept_or_refuse_cleanly() {
+    let d = scene("sweep");
+    let values = [
+        "0",
+        "-1",
+        "NaN",
+        "inf",
+        "-inf",
+        "1e39",
+        "1e-30",
+        "1000000000000",
+        "18446744073709551615",
+    ];
+    let flags = [
+        "--vertices",
+        "--levels",
+        "--iterations",
+        "--seed",
+        "--shape-weight",
+        "--fine-shape-scale",
+        "--texture-size",
+    ];
+    for flag in flags {
+        for v in values {
+            let mut args = vec![
+                "transfer", "--source", "src.ply", "--target", "tgt.ply", "--out", "o.ply",
+            ];
+            // The base settings keep an accepted run short; the flag under test replaces its own.
+            for pair in FAST.chunks(2) {
+                if pair[0] != flag {
+                    args.extend_from_slice(pair);
+                }
+            }
+            let kv = format!("{flag}={v}");
+            args.push(&kv);
+            let (code, err) = run_in(&d, &args, Duration::from_secs(15));
+            assert!(code == 0 || code == 2, "{kv}: exit {code}: {err}");
+            assert!(
+                !err.contains("internal error") && !err.contains("panicked"),
+                "{kv}: {err}"
+            );
+            if code == 2 {
+                assert_eq!(err.trim_end().lines().count(), 1, "{kv}: {err}");
+            }
+        }
+    }
+}
+
+/// The library's front doors refuse what the CLI refuses: bad parameters and a NaN vertex are
+/// errors, not panics.
+#[test]
+fn library_front_doors_refuse_hostile_parameters_and_vertices() {
+    use meshmatch::TriMesh;
+    use meshmatch::meshmatch::{TransferParams, prepare};
+    use meshmatch::work::CancelToken;
+    let grid = |bad: bool| {
+        let n = 6;
+        let mut pos = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                pos.push([i as f32, j as f32, 0.0]);
+            }
+        }
+        if bad {
+            pos[7] = [f32::NAN, 0.0, 0.0];
+        }
+        let mut faces = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = (j * n + i) as u32;
+                let n = n as u32;
+                faces.push([a, a + 1, a + n + 1]);
+                faces.push([a, a + n + 1, a + n]);
+            }
+        }
+        TriMesh::new(pos, faces)
+    };
+    let cancel = CancelToken::new();
+    let ok = TransferParams {
+        vertices: 200,
+        ..TransferParams::default()
+    };
+    assert!(prepare(&grid(true), &ok, &|_| {}, &cancel).is_err());
+    for p in [
+        TransferParams {
+            vertices: usize::MAX,
+            ..ok.clone()
+        },
+        TransferParams {
+            iterations: 1_000_000_000,
+            ..ok.clone()
+        },
+        TransferParams {
+            shape_weight: f32::NAN,
+            ..ok.clone()
+        },
+        TransferParams {
+            levels: Some(0),
+            ..ok.clone()
+        },
+    ] {
+        assert!(p.validate().is_err(), "{p:?}");
+        assert!(prepare(&grid(false), &p, &|_| {}, &cancel).is_err());
+    }
+    assert!(prepare(&grid(false), &ok, &|_| {}, &cancel).is_ok());
+}
