@@ -382,7 +382,7 @@ fn rounded_block_crest_lines_are_recovered() {
 /// Horizontal stripes: colour varies along y only, so they run along the exemplar's x axis.
 fn stripes(w: u32, period: u32) -> image::RgbImage {
     image::RgbImage::from_fn(w, w, |_, y| {
-        if (y / (period / 2)) % 2 == 0 {
+        if (y / (period / 2)).is_multiple_of(2) {
             image::Rgb([230, 230, 230])
         } else {
             image::Rgb([30, 30, 30])
@@ -579,11 +579,11 @@ fn field_solve_residual_and_step_timing() {
     let l = cotan_laplacian(&mesh.positions, &mesh.faces);
     let n = mesh.num_vertices();
     let mut res = vec![glam::DVec3::ZERO; n];
-    for col in 0..n {
+    for (col, xc) in x.iter().enumerate().take(n) {
         let rows = l.symbolic().row_idx_of_col_raw(col);
         let vals = l.val_of_col(col);
         for (&r, &v) in rows.iter().zip(vals) {
-            res[r] += x[col] * v;
+            res[r] += *xc * v;
         }
     }
     let (mut num, mut den) = (0.0, 0.0);

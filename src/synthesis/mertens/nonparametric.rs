@@ -67,6 +67,9 @@ fn variance(rows: impl Iterator<Item = f32> + Clone, n: usize) -> f32 {
     (var as f32).max(1e-12)
 }
 
+/// Called after every pass with its index and the colours so far.
+pub type PassSink<'a> = dyn FnMut(usize, &[[f32; 3]]) -> Result<()> + 'a;
+
 /// Synthesize the target's colour: `gs` is the guidance of every source vertex (`d` per vertex),
 /// `train` the source vertices that may be copied, `colour` every source vertex's colour, `gt`
 /// the target's matched guidance. Returns the colour per target vertex (in `colour`'s space) and
@@ -81,7 +84,7 @@ pub fn synthesize(
     tgt_adj: &Csr,
     d: usize,
     knobs: &Knobs,
-    partial: &mut dyn FnMut(usize, &[[f32; 3]]) -> Result<()>,
+    partial: &mut PassSink,
 ) -> Result<Vec<[f32; 3]>> {
     let d = d.max(1);
     let nt = gt.len() / d;
