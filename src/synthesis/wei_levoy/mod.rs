@@ -294,7 +294,9 @@ pub fn fit_exemplar_to_budget(
     }
     let out = shrink_exemplar(exemplar, width);
     let note = format!(
-        "the exemplar ({w}x{h}) at this scale needs about {before:.0} vertices, over the budget of          {budget}: shrunk to {}x{} pixels (about {:.0} vertices; a larger --scale or          --vertex-budget keeps more of it)",
+        "the exemplar ({w}x{h}) at this scale needs about {before:.0} vertices, over the budget of \
+         {budget}: shrunk to {}x{} pixels (about {:.0} vertices; a larger --scale or \
+         --vertex-budget keeps more of it)",
         out.width(),
         out.height(),
         estimate(out.width() as f64)
