@@ -548,17 +548,6 @@ pub fn run(
     let sw = Stopwatch::start();
     let src_adj = rs.mesh.adjacency();
     let levels = params.levels.max(1);
-    let channels: [Vec<f32>; 3] =
-        [0, 1, 2].map(|c| src_dec.iter().map(|y| y[c]).collect::<Vec<f32>>());
-    let pick = |v: &[f32]| -> Vec<f32> { train.iter().map(|&i| v[i as usize]).collect() };
-    let src_levels: [Vec<Vec<f32>>; 3] = [0, 1, 2].map(|c| {
-        pyramid::decompose(&src_adj, &channels[c], levels)
-            .iter()
-            .map(|l| pick(l))
-            .collect()
-    });
-    let src_channels: [Vec<f32>; 3] = [0, 1, 2].map(|c| pick(&channels[c]));
-    drop(src_adj);
     let tgt_adj = rt.mesh.adjacency();
     let knobs = parametric::SynthKnobs {
         clusters: params.clusters,
@@ -594,7 +583,6 @@ pub fn run(
     };
     let y = if params.method == Method::NonParametric {
         let gs_all = model.project_x(&fs.values);
-        let src_adj = rs.mesh.adjacency();
         let mut partial_np = |it: usize, c: &[[f32; 3]]| -> Result<()> {
             let y: [Vec<f32>; 3] = [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect());
             partial(it, &y)
@@ -616,6 +604,19 @@ pub fn run(
         )?;
         [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect::<Vec<f32>>())
     } else {
+        // The source's decorrelated colour channels and their Laplacian bands, on the training
+        // vertices.
+        let channels: [Vec<f32>; 3] =
+            [0, 1, 2].map(|c| src_dec.iter().map(|y| y[c]).collect::<Vec<f32>>());
+        let pick = |v: &[f32]| -> Vec<f32> { train.iter().map(|&i| v[i as usize]).collect() };
+        let src_levels: [Vec<Vec<f32>>; 3] = [0, 1, 2].map(|c| {
+            pyramid::decompose(&src_adj, &channels[c], levels)
+                .iter()
+                .map(|l| pick(l))
+                .collect()
+        });
+        let src_channels: [Vec<f32>; 3] = [0, 1, 2].map(|c| pick(&channels[c]));
+        drop(src_adj);
         parametric::synthesize(
             &parametric::SourceData {
                 guidance: &gs_train,
