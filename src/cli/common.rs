@@ -161,6 +161,11 @@ pub enum OutKind {
     File,
 }
 
+/// The given input paths (optional ones left out), for [`check_outputs`].
+pub fn input_paths<'a>(paths: &[Option<&'a std::path::PathBuf>]) -> Vec<&'a Path> {
+    paths.iter().flatten().map(|p| p.as_path()).collect()
+}
+
 /// The identity of a path for comparisons: canonical when it exists, else its canonical folder
 /// joined with its name, else the absolute path.
 fn identity(p: &Path) -> std::path::PathBuf {

@@ -40,11 +40,7 @@ impl CompleteArgs {
 
 fn complete(a: &CompleteArgs) -> Result<i32> {
     let params = a.solve.params(1.0)?;
-    let inputs: Vec<&std::path::Path> = [Some(&a.mesh), a.painted.as_ref(), a.mask.as_ref()]
-        .into_iter()
-        .flatten()
-        .map(|p| p.as_path())
-        .collect();
+    let inputs = input_paths(&[Some(&a.mesh), a.painted.as_ref(), a.mask.as_ref()]);
     check_outputs(&inputs, &[("--out", &a.out, OutKind::Mesh)])?;
     let mut mesh = load_usable(&a.mesh)?;
     let synth = match (&a.painted, &a.mask) {

@@ -54,11 +54,7 @@ impl RenderArgs {
                 )));
             }
         }
-        let inputs: Vec<&std::path::Path> = [Some(&self.mesh), self.correspondences.as_ref()]
-            .into_iter()
-            .flatten()
-            .map(|p| p.as_path())
-            .collect();
+        let inputs = super::common::input_paths(&[Some(&self.mesh), self.correspondences.as_ref()]);
         super::common::check_outputs(
             &inputs,
             &[("--out", &self.out, super::common::OutKind::Png)],

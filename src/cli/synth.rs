@@ -84,11 +84,7 @@ fn synth(a: &SynthArgs) -> Result<i32> {
             a.levels
         )));
     }
-    let inputs: Vec<&std::path::Path> = [Some(&a.exemplar), Some(&a.target), a.mask.as_ref()]
-        .into_iter()
-        .flatten()
-        .map(|p| p.as_path())
-        .collect();
+    let inputs = input_paths(&[Some(&a.exemplar), Some(&a.target), a.mask.as_ref()]);
     check_outputs(&inputs, &[("--out", &a.out, OutKind::Mesh)])?;
     let mut exemplar = io::load_texture(&a.exemplar)?.image;
     if let Some(w) = a.exemplar_width {

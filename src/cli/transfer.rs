@@ -88,16 +88,12 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     params.validate()?;
     check_texture_size(a.texture_size)?;
     // Make sure every output can be written before spending minutes on the transfer.
-    let inputs: Vec<&std::path::Path> = [
+    let inputs = input_paths(&[
         Some(&a.source),
         Some(&a.target),
         a.source_texture.as_ref(),
         a.correspondences.as_ref(),
-    ]
-    .into_iter()
-    .flatten()
-    .map(|p| p.as_path())
-    .collect();
+    ]);
     let mut outputs = vec![("--out", a.out.as_path(), OutKind::Mesh)];
     if let Some(p) = &a.out_dense {
         outputs.push(("--out-dense", p, OutKind::Mesh));

@@ -75,16 +75,12 @@ impl WeatherArgs {
                 a.vertices
             )));
         }
-        let inputs: Vec<&std::path::Path> = [
+        let inputs = input_paths(&[
             Some(&a.source),
             Some(&a.target),
             a.source_texture.as_ref(),
             a.mask.as_ref(),
-        ]
-        .into_iter()
-        .flatten()
-        .map(|p| p.as_path())
-        .collect();
+        ]);
         let mut outputs = vec![("--out", a.out.as_path(), OutKind::Mesh)];
         if let Some(p) = &a.out_dense {
             outputs.push(("--out-dense", p, OutKind::Mesh));
