@@ -1887,3 +1887,63 @@ fn feature_aligned_tool_textures_a_cube_along_its_creases_and_one_undo_restores(
     let undone = h.state().state.slot(Side::Target).unwrap().display_colors();
     assert!(undone == before, "undo did not restore the colours");
 }
+
+#[test]
+fn suggest_adds_well_spread_pairs_from_the_map_and_one_undo_removes_them() {
+    let load = |n: &str| meshmatch::mesh::io::load(&meshmatch::testdata::data_path(n)).unwrap();
+    let man = load("human/human_man.obj");
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, man.clone(), false);
+    app.state
+        .set_mesh(Side::Target, load("human/human_woman.obj"), false);
+    // head top and one hand, as a user would click them (SMPL: same vertex ids on both)
+    for v in [411u32, 2445] {
+        app.state.corr.push(Correspondence {
+            source_vertex: v,
+            target_vertices: vec![v],
+        });
+    }
+    let mut h = harness(app);
+    h.run_steps(2);
+    h.get_by_label("Suggest").click();
+    h.run_steps(2);
+    assert!(h.state().tool.is_some(), "suggest started");
+    wait_tool(&mut h, Duration::from_secs(120));
+    let corr = h.state().state.corr.clone();
+    assert_eq!(
+        corr.len(),
+        2 + meshmatch::app::tools::SUGGESTED_PAIRS,
+        "{}",
+        h.state().state.message
+    );
+    // Each suggestion pairs a woman vertex with the man's vertex at the same place: the truth is
+    // the same vertex id.
+    let tol = 0.1 * man.area().sqrt() as f32;
+    let d = |a: [f32; 3], b: [f32; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f32>().sqrt();
+    let mut targets = Vec::new();
+    for c in &corr[2..] {
+        let t = c.target_vertices[0];
+        let e = d(
+            man.positions[c.source_vertex as usize],
+            man.positions[t as usize],
+        );
+        assert!(
+            e < tol,
+            "pair {} -> {t}: {e} from the truth",
+            c.source_vertex
+        );
+        targets.push(man.positions[t as usize]);
+    }
+    // well spread: no two suggested target markers closer than a tenth of the body's size
+    for i in 0..targets.len() {
+        for j in 0..i {
+            assert!(
+                d(targets[i], targets[j]) > 0.17,
+                "markers {i} and {j} bunch up"
+            );
+        }
+    }
+    // one undo step removes all of them
+    h.state_mut().state.undo();
+    assert_eq!(h.state().state.corr.len(), 2);
+}

@@ -201,7 +201,8 @@ fn transfer_man_to_woman_lands_colours_better_with_the_map() {
         let params = TransferParams {
             vertices: 6_890,
             iterations: 3,
-            global_map: on,
+            // auto: the map's isometry score picks the structure value
+            structure: if on { None } else { Some(0.0) },
             ..TransferParams::default()
         };
         let t0 = Instant::now();
@@ -221,6 +222,14 @@ fn transfer_man_to_woman_lands_colours_better_with_the_map() {
             r.notices
         );
         assert!(r.notices.is_empty());
+        if on {
+            assert!(
+                r.structure > 0.4,
+                "auto structure {} (score {:?}) between two bodies",
+                r.structure,
+                r.map_score
+            );
+        }
         errs.push(de);
     }
     let n = errs.len();
@@ -230,4 +239,116 @@ fn transfer_man_to_woman_lands_colours_better_with_the_map() {
         errs[n - 1],
         errs[n - 2]
     );
+}
+
+#[test]
+fn map_command_writes_every_target_vertex_within_tolerance() {
+    let dir = std::env::temp_dir().join(format!("meshmatch-map-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let corr = meshmatch::correspondence::CorrespondenceFile {
+        correspondences: EXTREMITIES
+            .iter()
+            .map(|&v| meshmatch::correspondence::Correspondence {
+                source_vertex: v,
+                target_vertices: vec![v],
+            })
+            .collect(),
+    };
+    corr.save(&dir.join("lm.json")).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_meshmatch"))
+        .arg("map")
+        .arg("--source")
+        .arg(data_path("human/human_man.obj"))
+        .arg("--target")
+        .arg(data_path("human/human_woman.obj"))
+        .arg("--correspondences")
+        .arg(dir.join("lm.json"))
+        .arg("--out")
+        .arg(dir.join("map.csv"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    eprintln!("{err}");
+    let text = std::fs::read_to_string(dir.join("map.csv")).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("target_vertex,source_vertex"));
+    let map: Vec<u32> = lines
+        .enumerate()
+        .map(|(i, l)| {
+            let (t, s) = l.split_once(',').expect("two columns");
+            assert_eq!(t.parse::<usize>().unwrap(), i, "file order");
+            s.parse().unwrap()
+        })
+        .collect();
+    assert_eq!(map.len(), 6890);
+    let man = load("human_man");
+    let tol = 0.1 * man.area().sqrt() as f32;
+    let (f, e) = accuracy(&man.positions, &map, &man.positions, tol);
+    eprintln!(
+        "map command: {:.1}% within 0.1 sqrt(A), mean error {e:.4}",
+        100.0 * f
+    );
+    assert!(f >= 0.97, "{:.1}% within tolerance", 100.0 * f);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn map_command_interpolates_a_dense_remeshed_moved_target() {
+    // above the map's own resolution: the map is computed on simplified surfaces and
+    // interpolated back to every target vertex
+    use meshmatch::meshmatch::{POINT_MAP_VERTICES, map_meshes};
+    let man = load("human_man");
+    let r = refine_to_density(&man, 20_000);
+    assert!(r.mesh.positions.len() > POINT_MAP_VERTICES);
+    let truth = r.mesh.positions.clone();
+    let moved = TriMesh::new(
+        truth.iter().map(|&p| rotate(p)).collect(),
+        r.mesh.faces.clone(),
+    );
+    let corr: Vec<meshmatch::correspondence::Correspondence> = EXTREMITIES
+        .iter()
+        .map(|&v| meshmatch::correspondence::Correspondence {
+            source_vertex: v,
+            target_vertices: vec![v],
+        })
+        .collect();
+    let t0 = Instant::now();
+    let m = map_meshes(&man, &moved, &corr, &CancelToken::new()).expect("map");
+    let secs = t0.elapsed().as_secs_f64();
+    assert_eq!(m.target_to_source.len(), truth.len());
+    let tol = 0.1 * man.area().sqrt() as f32;
+    let (f, e) = accuracy(&man.positions, &m.target_to_source, &truth, tol);
+    eprintln!(
+        "map onto a {}-vertex moved copy (computed on {:?}): {:.1}% within 0.1 sqrt(A), mean error {e:.4}, score {:.2}, {secs:.2}s {:?}",
+        truth.len(),
+        m.map_vertices,
+        100.0 * f,
+        m.score,
+        m.timings
+    );
+    assert!(f >= 0.97, "{:.1}% within tolerance", 100.0 * f);
+}
+
+#[test]
+fn auto_structure_follows_similar_shapes_and_leaves_different_ones_alone() {
+    use meshmatch::meshmatch::{AUTO_SCORE_MIN, auto_structure, map_meshes};
+    let cancel = CancelToken::new();
+    let (man, woman) = (load("human_man"), load("human_woman"));
+    let two: Vec<meshmatch::correspondence::Correspondence> = EXTREMITIES[..2]
+        .iter()
+        .map(|&v| meshmatch::correspondence::Correspondence {
+            source_vertex: v,
+            target_vertices: vec![v],
+        })
+        .collect();
+    let bodies = map_meshes(&man, &woman, &two, &cancel).expect("bodies");
+    let (zebra, giraffe) = (meshmatch::demo::zebra(), meshmatch::demo::giraffe());
+    let animals = map_meshes(&zebra, &giraffe, &[], &cancel).expect("animals");
+    eprintln!(
+        "isometry score: man -> woman {:.3}, zebra -> giraffe {:.3}",
+        bodies.score, animals.score
+    );
+    assert!(bodies.score > AUTO_SCORE_MIN && auto_structure(bodies.score) > 0.4);
+    assert!(animals.score < AUTO_SCORE_MIN && auto_structure(animals.score) == 0.0);
 }

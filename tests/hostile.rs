@@ -201,6 +201,9 @@ fn huge_and_invalid_parameters_are_refused_before_work() {
         &with(&t, &["--fine-shape-scale", "NaN"]),
         "--fine-shape-scale",
     );
+    for bad in ["2", "-0.5", "NaN", "inf", "structure"] {
+        refused(&d, &with(&t, &["--structure", bad]), "--structure");
+    }
     for size in ["0", "65536", "100000"] {
         let args = with(&t[..5], &["--out", "o.glb", "--texture-size", size]);
         refused(&d, &args, "8192");
@@ -471,6 +474,7 @@ fn numeric_flags_accept_or_refuse_cleanly() {
         "--shape-weight",
         "--fine-shape-scale",
         "--texture-size",
+        "--structure",
     ];
     for flag in flags {
         for v in values {

@@ -114,6 +114,32 @@ impl AppParams for TransferParams {
                 )
                 .changed();
             ui.end_row();
+            ui.label("Structure");
+            let mut auto = self.structure.is_none();
+            ui.horizontal(|ui| {
+                if ui
+                    .checkbox(&mut auto, "auto")
+                    .on_hover_text(
+                        "Let the global shape map's isometry score choose: about 0.7 between \
+                         similar shapes (two bodies, an edited scan), 0 between different ones",
+                    )
+                    .changed()
+                {
+                    self.structure = if auto { None } else { Some(0.5) };
+                    changed = true;
+                }
+                if let Some(x) = self.structure.as_mut() {
+                    changed |= ui
+                        .add(egui::Slider::new(x, 0.0..=1.0))
+                        .on_hover_text(
+                            "How closely to keep the source's layout through a global shape \
+                             map: 0 = pure patch synthesis (restyle a different shape), \
+                             1 = follow the map at every level (similar shapes)",
+                        )
+                        .changed();
+                }
+            });
+            ui.end_row();
             ui.label("Fan radius");
             changed |= ui
                 .add(egui::Slider::new(&mut self.fan_radius, 0.5..=8.0))

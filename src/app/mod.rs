@@ -211,6 +211,18 @@ where
                     _ => Err(Error::InvalidInput(format!("no {side:?} mesh to complete"))),
                 }
             }
+            "suggest" => match (self.state.slot(Side::Source), self.state.slot(Side::Target)) {
+                (Some(s), Some(t)) => Ok(tools::suggest_job(
+                    (*s.file).clone(),
+                    (*t.file).clone(),
+                    self.state.corr.clone(),
+                    tools::SUGGESTED_PAIRS,
+                    wake,
+                )),
+                _ => Err(Error::InvalidInput(
+                    "suggesting correspondences needs a source and a target mesh".into(),
+                )),
+            },
             "detail" => match (self.state.slot(Side::Source), self.state.slot(Side::Target)) {
                 (Some(s), Some(t)) => Ok(tools::detail_job(
                     (*s.file).clone(),
@@ -713,7 +725,23 @@ where
                 });
             }
             ui.separator();
-            ui.heading("Correspondences");
+            ui.horizontal(|ui| {
+                ui.heading("Correspondences");
+                let ready = self.tool.is_none()
+                    && self.state.slot(Side::Source).is_some()
+                    && self.state.slot(Side::Target).is_some();
+                if ui
+                    .add_enabled(ready, egui::Button::new("Suggest"))
+                    .on_hover_text(format!(
+                        "Add {} well-spread pairs from the global shape map (functional maps, \
+                         the current pairs as landmarks); move or delete any. One undo step.",
+                        tools::SUGGESTED_PAIRS
+                    ))
+                    .clicked()
+                {
+                    self.start_tool("suggest");
+                }
+            });
             if let Some(v) = self.state.pending_source {
                 ui.colored_label(Color32::YELLOW, format!("source {v} waiting for a target"));
             }

@@ -29,6 +29,8 @@ pub enum ToolOutcome {
     Colors(Side, Vec<[f32; 3]>, String),
     /// A new mesh for one side (replaces it).
     Mesh(Side, TriMesh, String),
+    /// Suggested correspondences (file vertices) to add to the existing ones, as one undo step.
+    Correspondences(Vec<crate::correspondence::Correspondence>, String),
 }
 
 /// A partial result: colours per vertex of the tool's working mesh.
@@ -259,6 +261,164 @@ pub fn detail_job(
             format!("detail transferred onto the target ({n} vertices, strength {strength})"),
         ))
     })
+}
+
+/// Pairs "Suggest correspondences" adds.
+pub const SUGGESTED_PAIRS: usize = 6;
+
+/// Suggest `count` well-spread correspondences from the global shape map
+/// ([`crate::meshmatch::map_meshes`], the existing pairs as landmarks): target vertices by
+/// farthest-point sampling (away from the existing target markers too) among the vertices the
+/// map and the map back agree on (within [`CYCLE_TOLERANCE`]), each paired with its mapped source
+/// vertex.
+pub fn suggest_job(
+    source: TriMesh,
+    target: TriMesh,
+    existing: Vec<crate::correspondence::Correspondence>,
+    count: usize,
+    wake: impl Fn() + Send + Sync + 'static,
+) -> ToolJob {
+    ToolJob::spawn("suggest correspondences", wake, move |sink, cancel| {
+        let progress = |f: f32| {
+            sink(Event::Progress(crate::work::Progress {
+                stage: "global map",
+                fraction: f,
+                ..Default::default()
+            }))
+        };
+        progress(0.05);
+        let m = crate::meshmatch::map_meshes(&source, &target, &existing, cancel)?;
+        progress(0.5);
+        // The map back, for a cycle-consistency check: only target vertices that come back
+        // close to themselves are suggested (maps err most at thin extremities).
+        let reversed: Vec<crate::correspondence::Correspondence> = existing
+            .iter()
+            .flat_map(|c| {
+                c.target_vertices
+                    .iter()
+                    .map(move |&t| crate::correspondence::Correspondence {
+                        source_vertex: t,
+                        target_vertices: vec![c.source_vertex],
+                    })
+            })
+            .collect();
+        let back = crate::meshmatch::map_meshes(&target, &source, &reversed, cancel)?;
+        progress(0.9);
+        let file_pos = file_positions(&target);
+        let diag = target
+            .bounds()
+            .map(|(lo, hi)| (0..3).map(|i| (hi[i] - lo[i]).powi(2)).sum::<f32>().sqrt())
+            .unwrap_or(0.0);
+        let consistent: Vec<bool> = (0..target.positions.len())
+            .map(|v| {
+                let f = target.file_index.get(v).copied().unwrap_or(v as u32) as usize;
+                let s = m.target_to_source.get(f).copied().unwrap_or(0) as usize;
+                let r = back.target_to_source.get(s).copied().unwrap_or(0) as usize;
+                match (file_pos.get(f), file_pos.get(r)) {
+                    (Some(a), Some(b)) => {
+                        (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f32>().sqrt()
+                            <= CYCLE_TOLERANCE * diag
+                    }
+                    _ => false,
+                }
+            })
+            .collect();
+        let seeds: Vec<u32> = existing
+            .iter()
+            .flat_map(|c| c.target_vertices.iter().copied())
+            .collect();
+        let picks = farthest_points(&target, &seeds, &consistent, count);
+        let pairs: Vec<crate::correspondence::Correspondence> = picks
+            .into_iter()
+            .filter_map(|t| {
+                let f = target.file_index.get(t as usize).copied().unwrap_or(t);
+                m.target_to_source
+                    .get(f as usize)
+                    .map(|&s| crate::correspondence::Correspondence {
+                        source_vertex: s,
+                        target_vertices: vec![f],
+                    })
+            })
+            .collect();
+        let quality = if m.score >= crate::meshmatch::AUTO_SCORE_MIN {
+            "similar shapes"
+        } else {
+            "the shapes differ: check each pair"
+        };
+        let msg = format!(
+            "{} pairs suggested from the global map (isometry score {:.2}, {quality}); move or delete any",
+            pairs.len(),
+            m.score
+        );
+        Ok(ToolOutcome::Correspondences(pairs, msg))
+    })
+}
+
+/// A suggested target vertex must come back through the map and the map back to within this
+/// fraction of the target's bounding-box diagonal.
+pub const CYCLE_TOLERANCE: f32 = 0.02;
+
+/// Position of every file vertex (the first input vertex of each).
+fn file_positions(mesh: &TriMesh) -> Vec<[f32; 3]> {
+    let nf = mesh.file_vertex_count.max(mesh.positions.len());
+    let mut out = vec![[f32::NAN; 3]; nf];
+    for (i, p) in mesh.positions.iter().enumerate().rev() {
+        let f = mesh.file_index.get(i).copied().unwrap_or(i as u32) as usize;
+        if f < nf {
+            out[f] = *p;
+        }
+    }
+    out
+}
+
+/// `count` vertices of `mesh` among the `allowed` ones by farthest-point sampling (Euclidean),
+/// starting away from `seeds` (file vertices) or, with none, from the centroid.
+fn farthest_points(mesh: &TriMesh, seeds: &[u32], allowed: &[bool], count: usize) -> Vec<u32> {
+    let p = &mesh.positions;
+    if p.is_empty() {
+        return Vec::new();
+    }
+    let d2 = |a: [f32; 3], b: [f32; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f32>();
+    let mut best = vec![f32::INFINITY; p.len()];
+    let relax = |best: &mut [f32], q: [f32; 3]| {
+        for (b, &x) in best.iter_mut().zip(p) {
+            *b = b.min(d2(x, q));
+        }
+    };
+    let seed_pos: Vec<[f32; 3]> = (0..p.len())
+        .filter(|&v| {
+            let f = mesh.file_index.get(v).copied().unwrap_or(v as u32);
+            seeds.contains(&f)
+        })
+        .map(|v| p[v])
+        .collect();
+    for q in &seed_pos {
+        relax(&mut best, *q);
+    }
+    if seed_pos.is_empty() {
+        let n = p.len() as f32;
+        let c = p.iter().fold([0.0f32; 3], |a, x| {
+            [a[0] + x[0] / n, a[1] + x[1] / n, a[2] + x[2] / n]
+        });
+        relax(&mut best, c);
+    }
+    for (b, &ok) in best.iter_mut().zip(allowed) {
+        if !ok {
+            *b = f32::NEG_INFINITY;
+        }
+    }
+    let mut out = Vec::with_capacity(count);
+    for _ in 0..count {
+        let Some((v, &d)) = best.iter().enumerate().max_by(|a, b| a.1.total_cmp(b.1)) else {
+            break;
+        };
+        if d <= 0.0 || !d.is_finite() {
+            break;
+        }
+        out.push(v as u32);
+        relax(&mut best, p[v]);
+    }
+    out
 }
 
 /// Where "Paint with exemplar" puts the texture.

@@ -69,6 +69,11 @@ pub fn complete(
     cancel: &CancelToken,
 ) -> Result<CompletionResult> {
     params.validate()?;
+    // No global shape map here (the known part of the same surface is the source: a shape map of a mesh onto itself would copy the hole onto itself).
+    let params = &TransferParams {
+        structure: Some(0.0),
+        ..params.clone()
+    };
     mesh.check_finite()?;
     let nfile = mesh.file_vertex_count;
     if synthesize.len() != nfile {

@@ -137,6 +137,11 @@ pub fn transfer_detail(
     cancel: &CancelToken,
 ) -> Result<DetailResult> {
     params.validate()?;
+    // No global shape map here (detail is synthesised from the source's statistics, not its layout).
+    let params = &TransferParams {
+        structure: Some(0.0),
+        ..params.clone()
+    };
     source.check_finite()?;
     target.check_finite()?;
     if !strength.is_finite() {

@@ -78,6 +78,11 @@ pub fn update_texture(
     cancel: &CancelToken,
 ) -> Result<UpdateResult> {
     params.validate()?;
+    // No global shape map here (the locked vertices already carry the old layout).
+    let params = &TransferParams {
+        structure: Some(0.0),
+        ..params.clone()
+    };
     old.check_finite()?;
     new.check_finite()?;
     if old.signal_kind() == SignalKind::None {

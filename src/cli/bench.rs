@@ -16,7 +16,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 0)]
     pub cancel_probes: usize,
     /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
-    /// Spot -> horse at each size) or quilt (chain mail on a plane and on the bunny).
+    /// Spot -> horse at each size), quilt (chain mail on a plane and on the bunny) or map (the
+    /// global shape map man -> woman at each size, and a transfer with structure 0 and auto).
     #[arg(long, default_value = "meshmatch")]
     pub system: String,
 }

@@ -12,6 +12,7 @@ mod demo;
 mod detail;
 mod features;
 mod info;
+mod map;
 mod quilt;
 #[cfg(feature = "gui")]
 mod render;
@@ -71,6 +72,9 @@ commands! {
     Demo(demo::DemoArgs),
     /// Transfer a texture from a source mesh to a target mesh (MeshMatch).
     Transfer(transfer::TransferArgs),
+    /// The global intrinsic shape map between two meshes (functional maps + ZoomOut) as a CSV of
+    /// target vertex -> source vertex; the correspondences are landmarks.
+    Map(map::MapArgs),
     /// Synthesize a texture over a mesh from a 2D exemplar image (Wei and Levoy 2001).
     Synth(synth::SynthArgs),
     /// Complete a partly painted mesh by example: the painted (or unmasked) vertices are the

@@ -56,10 +56,13 @@ pub struct TransferArgs {
     /// Keep the filtered vote at the finest level instead of the nearest-neighbour copy.
     #[arg(long)]
     pub no_sharpen: bool,
-    /// Steer the solve with a global intrinsic shape map (functional maps + ZoomOut, the
-    /// correspondences as landmarks) so similar shapes keep the source's layout: on or off.
-    #[arg(long, default_value = "off", value_parser = ["on", "off"])]
-    pub global_map: String,
+    /// How closely to keep the source's layout through a global intrinsic shape map (functional
+    /// maps + ZoomOut, the correspondences as landmarks): 0 = pure patch synthesis (no map),
+    /// 1 = follow the map at every level, or auto (default): the map is computed and its
+    /// isometry score picks the value (about 0.5 between similar shapes such as two bodies, 0
+    /// between different animals). stderr says what was chosen.
+    #[arg(long, default_value = "auto", value_parser = parse_structure, allow_hyphen_values = true)]
+    pub structure: StructureArg,
     /// Size of the baked texture (pixels per side) when the target has UVs, 1 to 8192.
     #[arg(long, default_value_t = 1024)]
     pub texture_size: u32,
@@ -82,7 +85,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         shape_weight: a.shape_weight,
         fine_shape_scale: a.fine_shape_scale,
         sharpen: !a.no_sharpen,
-        global_map: a.global_map == "on",
+        structure: a.structure.0,
         ..TransferParams::default()
     };
     params.validate()?;
@@ -134,6 +137,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     for n in &result.notices {
         eprintln!("note: {n}");
     }
+    eprintln!("{}", structure_line(params.structure, &result));
 
     // Deliver on the target's own vertices (file order), or baked into its UV layout.
     let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
@@ -161,4 +165,38 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         eprintln!("wrote {}", nnf.display());
     }
     Ok(0)
+}
+
+/// The stderr line saying which structure value the transfer used and why.
+pub(crate) fn structure_line(asked: Option<f32>, r: &crate::meshmatch::TransferResult) -> String {
+    match (asked, r.map_score) {
+        (Some(0.0), _) => "structure 0: pure synthesis, no global map".into(),
+        (None, Some(q)) => format!(
+            "structure auto: {:.2} (the global map's isometry score is {q:.2}; 0 below {:.2})",
+            r.structure,
+            crate::meshmatch::AUTO_SCORE_MIN
+        ),
+        (_, Some(q)) => format!(
+            "structure {:.2} (the global map's isometry score is {q:.2})",
+            r.structure
+        ),
+        (_, None) => "structure 0: the global map could not be used".into(),
+    }
+}
+
+/// `--structure`: `None` = auto.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StructureArg(pub Option<f32>);
+
+/// `--structure`: `auto` or a number from 0 to 1.
+pub(crate) fn parse_structure(s: &str) -> std::result::Result<StructureArg, String> {
+    if s.eq_ignore_ascii_case("auto") {
+        return Ok(StructureArg(None));
+    }
+    match s.parse::<f32>() {
+        Ok(x) if (0.0..=1.0).contains(&x) => Ok(StructureArg(Some(x))),
+        _ => Err(format!(
+            "'{s}': use auto or a number from 0 (pure synthesis) to 1 (follow the map)"
+        )),
+    }
 }

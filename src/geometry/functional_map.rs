@@ -182,9 +182,73 @@ pub struct ShapeMap {
     pub c: Vec<f64>,
     /// Size of `c`.
     pub k: usize,
+    /// How close the map is to an isometry ([`MapQuality`]).
+    pub quality: MapQuality,
     /// Stage timings (seconds).
     pub timings: Vec<(String, f64)>,
 }
+
+/// How close a functional map is to that of an isometry, on its leading `k` × `k` block
+/// (`k` at most [`QUALITY_K`]): an isometry's `C` is orthogonal and commutes with the Laplacians
+/// (Ovsjanikov et al. 2012, §6.1), so both defects are near 0 between similar shapes and grow as
+/// the shapes differ.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapQuality {
+    /// `‖CᵀC − I‖_F / ‖I‖_F`.
+    pub orthogonality: f64,
+    /// `‖C Λ_s − Λ_t C‖_F / ‖C Λ_s‖_F`.
+    pub commutativity: f64,
+}
+
+/// Size of the leading block on which [`MapQuality`] is measured (the low frequencies, which a
+/// map between similar shapes preserves most reliably).
+pub const QUALITY_K: usize = 30;
+
+impl MapQuality {
+    /// Measure the leading block of a row-major `k × k` map `c` (source → target coefficients).
+    pub fn of(c: &[f64], k: usize, source_evals: &[f64], target_evals: &[f64]) -> MapQuality {
+        let q = k
+            .min(QUALITY_K)
+            .min(source_evals.len())
+            .min(target_evals.len());
+        let at = |i: usize, j: usize| c[i * k + j];
+        let mut ortho = 0.0;
+        for a in 0..q {
+            for b in 0..q {
+                let dot: f64 = (0..q).map(|i| at(i, a) * at(i, b)).sum();
+                let d = dot - if a == b { 1.0 } else { 0.0 };
+                ortho += d * d;
+            }
+        }
+        let (mut num, mut den) = (0.0, 0.0);
+        for i in 0..q {
+            for j in 0..q {
+                let x = at(i, j) * source_evals[j];
+                let y = target_evals[i] * at(i, j);
+                num += (x - y) * (x - y);
+                den += x * x;
+            }
+        }
+        MapQuality {
+            orthogonality: (ortho / q.max(1) as f64).sqrt(),
+            commutativity: if den > 0.0 { (num / den).sqrt() } else { 1.0 },
+        }
+    }
+
+    /// One number in `[0, 1]`: 1 for an isometry, falling as the defects grow (the larger defect
+    /// counts; each reaches 0.5 at [`QUALITY_HALF`]).
+    pub fn score(&self) -> f64 {
+        let d = self.orthogonality.max(self.commutativity);
+        if d.is_finite() {
+            1.0 / (1.0 + (d / QUALITY_HALF).powi(2))
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Defect at which [`MapQuality::score`] is 0.5.
+pub const QUALITY_HALF: f64 = 0.5;
 
 /// Spectra of both meshes plus [`functional_map`]. `landmarks` are (source vertex, target vertex)
 /// pairs.
@@ -676,10 +740,12 @@ pub fn functional_map(
         c = map_to_fmap(ss, st, &map, k);
     };
     timings.push(("zoomout".into(), t0.elapsed().as_secs_f64()));
+    let quality = MapQuality::of(&c, k, &ss.evals, &st.evals);
     Ok(ShapeMap {
         target_to_source: map,
         c,
         k,
+        quality,
         timings,
     })
 }

@@ -45,7 +45,7 @@ pub use curve_guided_field::{
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
 pub use frames::{parallel_transport_angle, tangent_frames};
-pub use functional_map::{FmapParams, ShapeMap, Spectrum, functional_map, shape_map};
+pub use functional_map::{FmapParams, MapQuality, ShapeMap, Spectrum, functional_map, shape_map};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};

@@ -11,25 +11,56 @@
 //! - **shape term**: every level's shape vectors get three more dimensions, the source vertex's
 //!   position on the source and, for a target vertex, the source position of its mapped point
 //!   (children means on coarser levels, the ancestor's value on finer ones), scaled to unit
-//!   variance and weighted [`MAP_WEIGHT`] at the coarsest level, decaying geometrically to
-//!   `MAP_WEIGHT * MAP_FINE_SCALE` at the finest, so coarse levels follow the map and fine levels
-//!   the colour.
+//!   variance and weighted by the structure value ([`super::structure_weights`]): strongest at
+//!   the coarsest level, decaying geometrically to the finest, so coarse levels follow the map and
+//!   fine levels the colour (at structure 1 the map leads every level).
 
 use super::prepare::PreparedMesh;
 use crate::error::{Error, Result};
-use crate::geometry::{FmapParams, shape_map};
+use std::sync::{Arc, Mutex};
+
+use crate::geometry::{FmapParams, Spectrum, functional_map, shape_map};
 use crate::hierarchy::Hierarchy;
 use crate::work::{CancelToken, Stopwatch};
 
 /// Largest hierarchy level on which the map is computed.
-pub(super) const MAP_LEVEL_VERTICES: usize = 6_000;
-/// Weight of the mapped-position term at the coarsest level, relative to the automatic shape
-/// features (both at unit total variance).
-pub(super) const MAP_WEIGHT: f32 = 2.0;
-/// The finest level's map weight as a fraction of [`MAP_WEIGHT`].
-pub(super) const MAP_FINE_SCALE: f32 = 0.05;
+pub(super) const MAP_LEVEL_VERTICES: usize = 4_000;
+/// Final functional map size inside a solve (the solve refines the layout itself; `map` uses
+/// 100).
+pub(super) const SOLVE_MAP_K: usize = 60;
+
+/// Per prepared mesh: its spectrum on the map level (level, k, spectrum) and, on a target, the
+/// latest map (source cache identity, landmarks, map).
+#[derive(Debug, Default)]
+pub(crate) struct MapCache {
+    spectrum: Mutex<Option<(usize, usize, Arc<Spectrum>)>>,
+    map: Mutex<Option<CachedMap>>,
+}
+
+/// A target's latest map: the source's cache (by address), the landmarks and the map.
+type CachedMap = (usize, Vec<(u32, u32)>, Arc<GlobalMap>);
+
+impl MapCache {
+    /// The spectrum of `h`'s level `l` with `k` eigenpairs, computed once.
+    fn spectrum(&self, h: &Hierarchy, l: usize, k: usize) -> Result<Arc<Spectrum>> {
+        if let Ok(g) = self.spectrum.lock()
+            && let Some((cl, ck, sp)) = g.as_ref()
+            && *cl == l
+            && *ck == k
+        {
+            return Ok(sp.clone());
+        }
+        let m = &h.levels[l];
+        let sp = Arc::new(Spectrum::new(&m.positions, &m.faces, k)?);
+        if let Ok(mut g) = self.spectrum.lock() {
+            *g = Some((l, k, sp.clone()));
+        }
+        Ok(sp)
+    }
+}
 
 /// The map as the solve uses it.
+#[derive(Debug)]
 pub(super) struct GlobalMap {
     /// Per target level (`0..nl`): the source position of every vertex's mapped point.
     pub target_pos: Vec<Vec<[f32; 3]>>,
@@ -40,6 +71,8 @@ pub(super) struct GlobalMap {
     pub scale: f32,
     /// Wall time, seconds.
     pub seconds: f64,
+    /// The map's isometry score ([`crate::geometry::MapQuality::score`]).
+    pub score: f64,
 }
 
 /// Finest level with at most `MAP_LEVEL_VERTICES` vertices (at most `nl - 1`).
@@ -57,14 +90,14 @@ pub(super) fn global_map(
     pairs: &[(u32, Vec<u32>)],
     nl: usize,
     cancel: &CancelToken,
-) -> Result<GlobalMap> {
+) -> Result<Arc<GlobalMap>> {
     let sw = Stopwatch::start();
     let (hs, ht) = (&source.hierarchy, &target.hierarchy);
     let (ls, lt) = (map_level(hs, nl), map_level(ht, nl));
     let (ms, mt) = (&hs.levels[ls], &ht.levels[lt]);
     let nmin = ms.len().min(mt.len());
     let params = FmapParams {
-        k_final: 100.min(nmin / 4),
+        k_final: SOLVE_MAP_K.min(nmin / 4),
         k_step: 10,
         ..FmapParams::default()
     };
@@ -82,13 +115,23 @@ pub(super) fn global_map(
         .collect();
     landmarks.sort_unstable();
     landmarks.dedup_by_key(|p| p.1);
-    let m = shape_map(
-        (&ms.positions, &ms.faces),
-        (&mt.positions, &mt.faces),
-        &landmarks,
-        &params,
-        cancel,
-    )?;
+    let key = Arc::as_ptr(&source.map_cache) as usize;
+    if let Ok(g) = target.map_cache.map.lock()
+        && let Some((k, l, m)) = g.as_ref()
+        && *k == key
+        && *l == landmarks
+        && m.target_pos.len() == nl
+    {
+        return Ok(m.clone());
+    }
+    let k = params.k_final.max(params.k_init).max(params.k_descriptors);
+    let (ss, st) = rayon::join(
+        || source.map_cache.spectrum(hs, ls, k),
+        || target.map_cache.spectrum(ht, lt, k),
+    );
+    let (ss, st) = (ss?, st?);
+    cancel.check()?;
+    let m = functional_map(&ss, &st, &landmarks, &params, cancel)?;
     // mapped source positions on the map level, then every target level
     let base: Vec<[f32; 3]> = m
         .target_to_source
@@ -152,38 +195,44 @@ pub(super) fn global_map(
     } else {
         1.0
     };
-    Ok(GlobalMap {
+    let g = Arc::new(GlobalMap {
         target_pos,
         top_init,
         centre: c.map(|x| x as f32),
         scale,
         seconds: sw.secs(),
-    })
+        score: m.quality.score(),
+    });
+    if let Ok(mut c) = target.map_cache.map.lock() {
+        *c = Some((key, landmarks, g.clone()));
+    }
+    Ok(g)
 }
 
-/// Map weight multiplier of level `l` of `nl`: `MAP_WEIGHT` at the coarsest, geometric down to
-/// `MAP_WEIGHT * MAP_FINE_SCALE` at the finest.
-fn level_map_weight(l: usize, nl: usize) -> f32 {
+/// Map weight of level `l` of `nl` for structure `s` ([`super::structure_weights`]): the
+/// coarsest weight at the coarsest level, geometric down to its fine fraction at the finest.
+fn level_map_weight(s: f32, l: usize, nl: usize) -> f32 {
+    let (coarse, fine) = super::structure_weights(s);
     let t = if nl > 1 {
         1.0 - l as f32 / (nl - 1) as f32
     } else {
         1.0
     };
-    MAP_WEIGHT * MAP_FINE_SCALE.powf(t)
+    coarse * fine.powf(t)
 }
 
 /// Append the mapped-position dimensions to level `l`'s weighted shape vectors (`dsh` per vertex;
-/// `w` the level's shape weight): returns the new vectors and dimension.
+/// `structure` the structure value): returns the new vectors and dimension.
 pub(super) fn append_map_term(
     gm: &GlobalMap,
     hs: &Hierarchy,
     shapes: (Vec<f32>, Vec<f32>, usize),
     l: usize,
     nl: usize,
-    w: f32,
+    structure: f32,
 ) -> (Vec<f32>, Vec<f32>, usize) {
     let (s, t, dsh) = shapes;
-    let g = (w.max(0.0) * level_map_weight(l, nl)).sqrt() * gm.scale;
+    let g = level_map_weight(structure, l, nl).sqrt() * gm.scale;
     let add = |v: Vec<f32>, pos: &[[f32; 3]]| -> Vec<f32> {
         let mut out = Vec::with_capacity(pos.len() * (dsh + 3));
         for (i, p) in pos.iter().enumerate() {
@@ -199,4 +248,209 @@ pub(super) fn append_map_term(
         add(t, &gm.target_pos[l]),
         dsh + 3,
     )
+}
+
+/// A point-to-point map between two meshes' file vertices ([`map_meshes`]).
+#[derive(Clone, Debug)]
+pub struct PointMap {
+    /// Source file vertex of every target file vertex.
+    pub target_to_source: Vec<u32>,
+    /// The functional map's isometry score ([`crate::geometry::MapQuality::score`]).
+    pub score: f64,
+    /// Final functional map size.
+    pub k: usize,
+    /// Vertices of the surfaces the map was computed on (source, target).
+    pub map_vertices: (usize, usize),
+    /// Stage timings (seconds).
+    pub timings: Vec<(String, f64)>,
+}
+
+/// Largest surface [`map_meshes`] computes the spectral map on directly; denser meshes are
+/// simplified to it (the hierarchy's midpoint collapses) and the map is interpolated back.
+pub const POINT_MAP_VERTICES: usize = 8_000;
+
+/// The global intrinsic map between two meshes (functional maps + ZoomOut,
+/// [`crate::geometry::shape_map`]) as a point map on every target file vertex, with the
+/// correspondences as landmarks.
+///
+/// Both meshes are welded (UV seams closed) and, above [`POINT_MAP_VERTICES`], simplified. On a
+/// simplified target every vertex takes the closest point of the simplified surface; its mapped
+/// position is the barycentric blend of the corners' mapped source positions, and its source
+/// vertex the welded source vertex nearest to that blend, so the map is finer than the surface
+/// it was computed on.
+pub fn map_meshes(
+    source: &crate::mesh::TriMesh,
+    target: &crate::mesh::TriMesh,
+    corr: &[crate::correspondence::Correspondence],
+    cancel: &CancelToken,
+) -> Result<PointMap> {
+    use crate::geometry::{TriangleBvh, weld};
+    use crate::hierarchy::HierarchyOptions;
+    crate::correspondence::check_limits(corr)?;
+    let mut timings = Vec::new();
+    let sw = Stopwatch::start();
+    let side = |m: &crate::mesh::TriMesh, what: &str| -> Result<(Hierarchy, Vec<u32>, usize)> {
+        if m.positions.is_empty() || m.faces.is_empty() {
+            return Err(Error::InvalidMesh(format!(
+                "the {what} mesh has no vertices or no faces"
+            )));
+        }
+        m.check_finite()?;
+        let (w, input_to_welded) = weld(m);
+        if w.faces.is_empty() {
+            return Err(Error::InvalidMesh(format!(
+                "the {what} mesh has no faces of non-zero size"
+            )));
+        }
+        let h = Hierarchy::build_cancellable(
+            &w.positions,
+            &w.faces,
+            HierarchyOptions {
+                min_vertices: POINT_MAP_VERTICES,
+                max_levels: None,
+            },
+            cancel,
+        )?;
+        let l = (0..h.num_levels())
+            .find(|&l| h.levels[l].len() <= POINT_MAP_VERTICES)
+            .unwrap_or(h.num_levels() - 1);
+        Ok((h, input_to_welded, l))
+    };
+    let (s, t) = rayon::join(|| side(source, "source"), || side(target, "target"));
+    let ((hs, s_in, ls), (ht, t_in, lt)) = (s?, t?);
+    timings.push(("simplify".to_string(), sw.secs()));
+    cancel.check()?;
+    // file vertex -> welded vertex (first input vertex of each file vertex)
+    let file_to_welded = |m: &crate::mesh::TriMesh, input_to_welded: &[u32]| -> Vec<u32> {
+        let nf = m.file_vertex_count.max(m.positions.len());
+        let mut out = vec![u32::MAX; nf];
+        for (i, &w) in input_to_welded.iter().enumerate() {
+            let f = m.file_index.get(i).copied().unwrap_or(i as u32) as usize;
+            if f < nf && out[f] == u32::MAX {
+                out[f] = w;
+            }
+        }
+        out
+    };
+    let sf = file_to_welded(source, &s_in);
+    let tf = file_to_welded(target, &t_in);
+    let mut landmarks = Vec::new();
+    for c in corr {
+        let s = sf
+            .get(c.source_vertex as usize)
+            .copied()
+            .filter(|&v| v != u32::MAX);
+        let Some(s) = s else {
+            return Err(Error::InvalidInput(format!(
+                "correspondence source vertex {} is out of range (source has {} vertices)",
+                c.source_vertex,
+                sf.len()
+            )));
+        };
+        for &t in &c.target_vertices {
+            let Some(t) = tf.get(t as usize).copied().filter(|&v| v != u32::MAX) else {
+                return Err(Error::InvalidInput(format!(
+                    "correspondence target vertex {t} is out of range (target has {} vertices)",
+                    tf.len()
+                )));
+            };
+            landmarks.push((hs.ancestor(0, s, ls), ht.ancestor(0, t, lt)));
+        }
+    }
+    landmarks.sort_unstable();
+    landmarks.dedup_by_key(|p| p.1);
+    let (ms, mt) = (&hs.levels[ls], &ht.levels[lt]);
+    let nmin = ms.len().min(mt.len());
+    let params = FmapParams {
+        k_final: 100.min(nmin / 4),
+        ..FmapParams::default()
+    };
+    if params.k_final < params.k_init {
+        return Err(Error::InvalidInput(format!(
+            "shape map: the meshes are too coarse ({nmin} vertices; at least {} needed)",
+            4 * params.k_init
+        )));
+    }
+    let m = shape_map(
+        (&ms.positions, &ms.faces),
+        (&mt.positions, &mt.faces),
+        &landmarks,
+        &params,
+        cancel,
+    )?;
+    timings.extend(m.timings.iter().cloned());
+    let sw = Stopwatch::start();
+    // welded target vertex -> welded source vertex
+    let mapped: Vec<[f32; 3]> = m
+        .target_to_source
+        .iter()
+        .map(|&s| ms.positions[s as usize])
+        .collect();
+    let fine_s = &hs.levels[0].positions;
+    let fine_t = &ht.levels[0].positions;
+    let welded_map: Vec<u32> = if lt == 0 && ls == 0 {
+        m.target_to_source.clone()
+    } else {
+        use rayon::prelude::*;
+        let bvh = TriangleBvh::new(&mt.positions, &mt.faces);
+        let flat: Vec<f32> = fine_s.iter().flatten().copied().collect();
+        let tree = crate::stats::kdtree::KdTree::new(&flat, 3);
+        fine_t
+            .par_iter()
+            .enumerate()
+            .map_init(Vec::new, |buf, (v, &p)| {
+                let q = match bvh.closest_point(p) {
+                    Some((f, b, _)) => {
+                        let face = mt.faces[f as usize];
+                        let mut q = [0.0f32; 3];
+                        for (k, &c) in face.iter().enumerate() {
+                            for d in 0..3 {
+                                q[d] += b[k] * mapped[c as usize][d];
+                            }
+                        }
+                        q
+                    }
+                    None => mapped[ht.ancestor(0, v as u32, lt) as usize],
+                };
+                tree.knn(&q, 1, buf);
+                buf.first().map_or(0, |x| x.1)
+            })
+            .collect()
+    };
+    // the landmarks' own target vertices keep their source vertex
+    let mut welded_map = welded_map;
+    for c in corr {
+        let s = sf[c.source_vertex as usize];
+        for &t in &c.target_vertices {
+            welded_map[tf[t as usize] as usize] = s;
+        }
+    }
+    let s_first: Vec<u32> = {
+        let mut first = vec![u32::MAX; hs.levels[0].len()];
+        for (f, &w) in sf.iter().enumerate() {
+            if w != u32::MAX && first[w as usize] == u32::MAX {
+                first[w as usize] = f as u32;
+            }
+        }
+        first
+    };
+    let target_to_source = tf
+        .iter()
+        .map(|&w| {
+            if w == u32::MAX {
+                0
+            } else {
+                let s = s_first[welded_map[w as usize] as usize];
+                if s == u32::MAX { 0 } else { s }
+            }
+        })
+        .collect();
+    timings.push(("interpolate".to_string(), sw.secs()));
+    Ok(PointMap {
+        target_to_source,
+        score: m.quality.score(),
+        k: m.k,
+        map_vertices: (ms.len(), mt.len()),
+        timings,
+    })
 }

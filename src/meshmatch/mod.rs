@@ -27,6 +27,7 @@ use crate::mesh::{SignalKind, TriMesh};
 use crate::work::{CancelToken, Event};
 
 pub use deliver::{BakeLayout, bake_texture, deliver, deliver_dense};
+pub use global_map::{POINT_MAP_VERTICES, PointMap, map_meshes};
 pub use prepare::{PreparedMesh, prepare};
 pub use solve::{solve, solve_constrained};
 
@@ -57,13 +58,16 @@ pub struct TransferParams {
     /// Benchmark diagnostic: target vertices of the finest level whose exact nearest neighbour
     /// (all source vertices x all rotations) is found by brute force after the solve (0 = off).
     pub exact_samples: usize,
-    /// Steer the solve with a global intrinsic shape map (functional maps + ZoomOut, with the
-    /// correspondences as landmarks): the coarsest level starts from the map and every level's
-    /// shape term includes the distance to the mapped point, strongest at coarse levels. Meant
-    /// for similar shapes (two bodies, two animals of a kind); when the map cannot be computed
-    /// (several components, a tiny mesh) the solve falls back to the random + exhaustive start
-    /// and [`TransferResult::notices`] says why.
-    pub global_map: bool,
+    /// How closely the transfer keeps the source's layout, through a global intrinsic shape map
+    /// (functional maps + ZoomOut, the correspondences as landmarks): `Some(0.0)` = pure
+    /// patch-based synthesis (cross-shape stylisation, no map computed), `Some(1.0)` = follow the
+    /// map at every level; in between the map leads the coarse levels and the colour the fine
+    /// ones ([`structure_weights`]). `None` = automatic: the map is computed and
+    /// [`auto_structure`] picks the value from how close it is to an isometry, so similar shapes
+    /// (two bodies, an edited scan) keep the layout and dissimilar ones are synthesised as
+    /// before. When the map cannot be computed (several components, a tiny mesh) the solve runs
+    /// without it and [`TransferResult::notices`] says why.
+    pub structure: Option<f32>,
 }
 
 impl Default for TransferParams {
@@ -78,7 +82,7 @@ impl Default for TransferParams {
             sharpen: true,
             fan_radius: 2.5,
             exact_samples: 0,
-            global_map: false,
+            structure: None,
         }
     }
 }
@@ -133,6 +137,13 @@ impl TransferParams {
                 self.fan_radius
             ));
         }
+        if let Some(x) = self.structure
+            && !(0.0..=1.0).contains(&x)
+        {
+            return bad(format!(
+                "--structure {x}: use a number from 0 (pure synthesis) to 1 (follow the map), or auto"
+            ));
+        }
         if self.exact_samples > crate::mesh::MAX_WORKING_VERTICES {
             return bad(format!("exact samples {}: too many", self.exact_samples));
         }
@@ -144,6 +155,31 @@ impl TransferParams {
 /// Spot -> horse (no correspondences) keeps more of Spot's black patches, but the zebra ->
 /// giraffe neck stripes lose their regular rings, so the default leaves it to the user.
 pub const FINE_SHAPE_SCALE: f32 = 1.0;
+
+/// Map weights for a structure value `s` in `(0, 1]`: (coarsest-level weight, finest level's
+/// fraction of it), geometric in between; log-linear in `s`, `(2, 0.05)` at `s = 0.5` and
+/// `(32, 1)` at `s = 1` (the map dominates every level). The weight is relative to the automatic
+/// shape features, both at unit variance.
+pub fn structure_weights(s: f32) -> (f32, f32) {
+    let s = s.clamp(0.0, 1.0);
+    (2.0 * 16f32.powf(2.0 * s - 1.0), 0.05f32.powf(2.0 - 2.0 * s))
+}
+
+/// The automatic structure value from a map's isometry score ([`crate::geometry::MapQuality`]):
+/// 0 below [`AUTO_SCORE_MIN`] (dissimilar shapes: synthesis as without the map), rising linearly
+/// to [`AUTO_STRUCTURE_MAX`] at a score of 1.
+pub fn auto_structure(score: f64) -> f32 {
+    if !(score > AUTO_SCORE_MIN) {
+        return 0.0;
+    }
+    let t = ((score - AUTO_SCORE_MIN) / (1.0 - AUTO_SCORE_MIN)).clamp(0.0, 1.0);
+    (AUTO_STRUCTURE_MAX as f64 * t.sqrt()) as f32
+}
+
+/// Isometry score under which the automatic structure is 0.
+pub const AUTO_SCORE_MIN: f64 = 0.5;
+/// The automatic structure of an exact isometry.
+pub const AUTO_STRUCTURE_MAX: f32 = 0.85;
 
 /// Shape weight of level `l` of `nl` (0 = finest): `shape_weight` at the coarsest level,
 /// `shape_weight * fine_shape_scale` at the finest, geometric in between.
@@ -179,6 +215,10 @@ pub struct TransferResult {
     pub exact: Option<ExactCheck>,
     /// One-line notices for the user (e.g. why the global map was not used).
     pub notices: Vec<String>,
+    /// The structure value used (after `auto`), and the map's isometry score when a map was
+    /// computed.
+    pub structure: f32,
+    pub map_score: Option<f64>,
 }
 
 /// MeshMatch's final NNF against exhaustive search on a sample of finest-level target vertices.
@@ -194,6 +234,10 @@ pub struct ExactCheck {
     pub exact_seconds: f64,
     /// The whole solve's time, seconds.
     pub meshmatch_seconds: f64,
+    /// Patch coherence of the result: mean colour-fan distance (no shape terms) of each sampled
+    /// target vertex to its nearest source patch over every source vertex and rotation, in the
+    /// level's colour weighting. Lower = the target is made of source patches more faithfully.
+    pub coherence: f64,
 }
 
 /// Extra constraints on the target: vertices whose signal is fixed (paint-by-example masks and

@@ -36,6 +36,9 @@ pub struct PreparedMesh {
     pub(super) samplers: Vec<FanSampler>,
     pub(super) fan_radius: f32,
     pub(super) timings: Vec<(String, f64)>,
+    /// The global map's per-mesh spectrum and latest map (shared by clones, which have the same
+    /// geometry), so that solves after a parameter edit do not recompute them.
+    pub(super) map_cache: Arc<super::global_map::MapCache>,
 }
 
 impl PreparedMesh {
@@ -315,5 +318,6 @@ pub fn prepare(
         samplers,
         fan_radius: params.fan_radius,
         timings,
+        map_cache: Arc::default(),
     })
 }

@@ -84,16 +84,27 @@ pub fn solve_constrained(
     let mut notices = Vec::new();
     let mut gmap = None;
     let mut map_secs = None;
-    if params.global_map {
+    let mut structure = params.structure.unwrap_or(0.0);
+    let mut map_score = None;
+    if params.structure != Some(0.0) {
         match global_map::global_map(source, target, &pairs, nl, cancel) {
             Ok(g) => {
                 map_secs = Some(g.seconds);
-                gmap = Some(g);
+                map_score = Some(g.score);
+                if params.structure.is_none() {
+                    structure = super::auto_structure(g.score);
+                }
+                if structure > 0.0 {
+                    gmap = Some(g);
+                }
             }
             Err(Error::Cancelled) => return Err(Error::Cancelled),
-            Err(e) => notices.push(format!(
-                "global map not used ({e}); starting from the exhaustive search"
-            )),
+            Err(e) => {
+                structure = 0.0;
+                notices.push(format!(
+                    "global map not used ({e}); starting from the exhaustive search"
+                ))
+            }
         }
     }
     let sw = Stopwatch::start();
@@ -102,9 +113,7 @@ pub fn solve_constrained(
         shapes = shapes
             .into_iter()
             .enumerate()
-            .map(|(l, sh)| {
-                global_map::append_map_term(g, hs, sh, l, nl, level_shape_weight(params, l, nl))
-            })
+            .map(|(l, sh)| global_map::append_map_term(g, hs, sh, l, nl, structure))
             .collect();
     }
     let locked = locked_per_level(hs, ht, &pairs, nl);
@@ -130,7 +139,7 @@ pub fn solve_constrained(
             .map(|l| ht.levels[l].len() as f64 * (params.iterations + 1) as f64)
             .sum(),
         done_work: 0.0,
-        top_init: gmap.map(|g| g.top_init),
+        top_init: gmap.map(|g| g.top_init.clone()),
         notices,
         nnf: Vec::new(),
         signal: Vec::new(),
@@ -151,7 +160,10 @@ pub fn solve_constrained(
         let name: &'static str = LEVEL_NAMES.get(l).copied().unwrap_or("level >=10");
         run.stage(name, sw_level.secs());
     }
-    Ok(run.finish())
+    let mut r = run.finish();
+    r.structure = structure;
+    r.map_score = map_score;
+    Ok(r)
 }
 
 /// Correspondences from file indices to working vertices (one source vertex, its target set).
@@ -637,6 +649,7 @@ impl<'a> Levels<'a> {
             energy: self.energy,
             exact: self.exact,
             notices: self.notices,
+            ..TransferResult::default()
         }
     }
 }
@@ -656,6 +669,24 @@ fn exact_check(
     let sw = Stopwatch::start();
     let exact = em::exact_distances(ctx, &sample);
     let secs = sw.secs();
+    fn side<'a>(x: &em::Side<'a>) -> em::Side<'a> {
+        em::Side {
+            level: x.level,
+            frames: x.frames,
+            eang: x.eang,
+            shape: &[],
+            fans: x.fans,
+        }
+    }
+    let colour_only = Ctx {
+        s: side(&ctx.s),
+        t: side(&ctx.t),
+        dsh: 0,
+        wc: ctx.wc,
+        hs: ctx.hs,
+        l: ctx.l,
+    };
+    let coherence = em::exact_distances(&colour_only, &sample);
     let mean = |x: &mut dyn Iterator<Item = f64>| x.sum::<f64>() / k.max(1) as f64;
     ExactCheck {
         samples: k,
@@ -663,6 +694,7 @@ fn exact_check(
         exact_energy: mean(&mut exact.iter().map(|&d| d as f64)),
         exact_seconds: secs * n as f64 / k.max(1) as f64,
         meshmatch_seconds: solve_seconds,
+        coherence: mean(&mut coherence.iter().map(|&d| d as f64)),
     }
 }
 

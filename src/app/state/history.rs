@@ -232,6 +232,34 @@ impl<P: AppParams> AppState<P> {
                 self.restart_at = None;
                 self.message = message;
             }
+            ToolOutcome::Correspondences(pairs, message) => {
+                let (ns, nt) = (
+                    self.slot(Side::Source)
+                        .map(|s| s.file.file_vertex_count.max(s.file.num_vertices())),
+                    self.slot(Side::Target)
+                        .map(|s| s.file.file_vertex_count.max(s.file.num_vertices())),
+                );
+                let (Some(ns), Some(nt)) = (ns, nt) else {
+                    return;
+                };
+                let fits = pairs.iter().all(|c| {
+                    (c.source_vertex as usize) < ns
+                        && c.target_vertices.iter().all(|&t| (t as usize) < nt)
+                });
+                if !fits {
+                    self.report("the meshes changed while the pairs were suggested; suggest again");
+                    return;
+                }
+                if pairs.is_empty() {
+                    self.message = message;
+                    return;
+                }
+                self.push_undo();
+                self.corr.extend(pairs);
+                self.selected = None;
+                self.message = message;
+                self.schedule_restart_now();
+            }
         }
     }
 
