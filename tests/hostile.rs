@@ -379,6 +379,38 @@ fn huge_polygons_and_duplicate_faces_do_not_run_away() {
         &with(&with(&t, &["--target", "poly.obj"]), FAST),
         "triangulated",
     );
+    // A PLY of 20,000 faces of 255 corners each (5.1M corners) over rings of a cylinder:
+    // refused or run within the bound, never a runaway.
+    let (rings, per) = (200usize, 255usize);
+    let mut s = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face 20000\nproperty list uchar int vertex_indices\nend_header\n",
+        rings * per
+    );
+    for r in 0..rings {
+        for i in 0..per {
+            let a = std::f32::consts::TAU * i as f32 / per as f32;
+            s.push_str(&format!("{} {} {}\n", a.cos(), a.sin(), r as f32 * 0.01));
+        }
+    }
+    for f in 0..20_000usize {
+        let (r, k) = (f % rings, f / rings);
+        s.push_str("255");
+        for i in 0..per {
+            s.push_str(&format!(" {}", r * per + (i + k) % per));
+        }
+        s.push('\n');
+    }
+    std::fs::write(d.join("gons.ply"), s).unwrap();
+    let t0 = Instant::now();
+    let (code, err) = run(&d, &with(&with(&t, &["--target", "gons.ply"]), FAST));
+    assert!(code == 0 || code == 2, "exit {code}: {err}");
+    assert!(!err.contains("panicked") && !err.contains("internal error"), "{err}");
+    if code == 2 {
+        // warnings about the file may come first; the error itself is one line
+        let errors = err.lines().filter(|l| !l.starts_with("warning")).count();
+        assert_eq!(errors, 1, "{err}");
+    }
+    eprintln!("20,000 255-gons: exit {code} in {:.1} s: {}", t0.elapsed().as_secs_f64(), err.lines().last().unwrap_or(""));
     // 200,000 copies of two faces: dropped with a warning, the transfer is quick.
     let mut s = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0.5\n");
     s.push_str(&"f 1 2 3\nf 2 4 3\n".repeat(100_000));
@@ -559,4 +591,26 @@ fn library_front_doors_refuse_hostile_parameters_and_vertices() {
         assert!(prepare(&grid(false), &p, &|_| {}, &cancel).is_err());
     }
     assert!(prepare(&grid(false), &ok, &|_| {}, &cancel).is_ok());
+}
+
+#[test]
+fn app_sessions_and_recent_lists_follow_the_regular_file_rule() {
+    use meshmatch::app::AppState;
+    use meshmatch::meshmatch::TransferParams;
+    let d = tmpdir("session");
+    let mut state: AppState<TransferParams> = AppState::new();
+    let t0 = Instant::now();
+    // a device that never ends and a directory: refused at once, nothing read
+    for bad in [Path::new("/dev/zero"), d.as_path()] {
+        let e = state.open_session(bad).expect_err("refused").to_string();
+        assert!(
+            e.contains("not a regular file") || e.contains("is a directory"),
+            "{e}"
+        );
+    }
+    assert!(t0.elapsed() < Duration::from_secs(5));
+    // a Recent list that is a device is ignored, not read
+    state.load_recent(PathBuf::from("/dev/zero"));
+    assert!(state.recent.is_empty());
+    assert!(state.meshes.iter().all(|m| m.is_none()));
 }

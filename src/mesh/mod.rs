@@ -12,7 +12,9 @@ mod validate;
 use std::path::PathBuf;
 use std::sync::Arc;
 
-pub use topology::{Csr, boundary_loops, connected_components, vertex_adjacency};
+pub use topology::{
+    Csr, boundary_loops, connected_components, edge_counts, sorted_edges, vertex_adjacency,
+};
 pub use validate::{MAX_FACES, MAX_VERTICES, MAX_WORKING_VERTICES, RepairReport, ValidationReport};
 
 /// An sRGB texture image (8-bit RGB), as referenced by `map_Kd` or `baseColorTexture`.

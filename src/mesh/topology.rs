@@ -111,48 +111,105 @@ pub fn connected_components(n: usize, faces: &[[u32; 3]]) -> (Vec<u32>, usize) {
 /// Non-manifold boundary vertices may split or join loops arbitrarily; every boundary edge is
 /// in exactly one returned loop (an open chain is returned as is).
 pub fn boundary_loops(faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
-    let mut count: HashMap<(u32, u32), u32> = HashMap::with_capacity(faces.len() * 3);
-    for f in faces {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            *count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+    // Undirected edges sorted (no hashing: millions of edges sort in well under a second), then
+    // the directed boundary half-edges a->b (the face's orientation) of edges used once.
+    let edges = sorted_edges(faces);
+    let mut boundary: Vec<(u32, u32)> = Vec::new();
+    let mut i = 0;
+    while i < edges.len() {
+        let mut j = i + 1;
+        while j < edges.len() && edges[j].0 == edges[i].0 {
+            j += 1;
         }
-    }
-    // directed boundary half-edges a->b (the face's orientation)
-    let mut next: HashMap<u32, Vec<u32>> = HashMap::new();
-    let mut nedges = 0usize;
-    for f in faces {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            if count[&(a.min(b), a.max(b))] == 1 {
-                next.entry(a).or_default().push(b);
-                nedges += 1;
-            }
+        if j - i == 1 {
+            let h = edges[i].1 as usize;
+            let f = faces[h / 3];
+            boundary.push((f[h % 3], f[(h % 3 + 1) % 3]));
         }
+        i = j;
     }
-    let mut starts: Vec<u32> = next.keys().copied().collect();
-    starts.sort_unstable();
+    // in face order within each start vertex (stable sort), popped from the end as a stack
+    boundary.sort_by_key(|e| e.0);
+    let nedges = boundary.len();
+    let mut starts: Vec<u32> = boundary.iter().map(|e| e.0).collect();
+    starts.dedup();
+    // per start vertex: its range in `boundary` and how many are left
+    let mut range: std::collections::HashMap<u32, (usize, usize)> =
+        std::collections::HashMap::with_capacity(starts.len());
+    let mut k = 0;
+    while k < nedges {
+        let mut e = k + 1;
+        while e < nedges && boundary[e].0 == boundary[k].0 {
+            e += 1;
+        }
+        range.insert(boundary[k].0, (k, e));
+        k = e;
+    }
+    let mut pop = |v: u32| -> Option<u32> {
+        let r = range.get_mut(&v)?;
+        if r.1 > r.0 {
+            r.1 -= 1;
+            Some(boundary[r.1].1)
+        } else {
+            None
+        }
+    };
     let mut loops = Vec::new();
     let mut used = 0usize;
     for s in starts {
-        while next.get(&s).is_some_and(|v| !v.is_empty()) {
+        while let Some(first) = pop(s) {
             let mut lp = vec![s];
-            let mut cur = s;
-            while let Some(nb) = next.get_mut(&cur).and_then(|v| v.pop()) {
+            let mut nb = first;
+            loop {
                 used += 1;
                 if nb == s {
                     break;
                 }
                 lp.push(nb);
-                cur = nb;
                 if used > nedges {
                     break;
+                }
+                match pop(nb) {
+                    Some(x) => nb = x,
+                    None => break,
                 }
             }
             loops.push(lp);
         }
     }
     loops
+}
+
+/// Every face edge as (undirected key `min << 32 | max`, half-edge `3 * face + k`), sorted by key.
+pub fn sorted_edges(faces: &[[u32; 3]]) -> Vec<(u64, u32)> {
+    let mut e: Vec<(u64, u32)> = Vec::with_capacity(faces.len() * 3);
+    for (fi, f) in faces.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            e.push((((a.min(b) as u64) << 32) | a.max(b) as u64, (3 * fi + k) as u32));
+        }
+    }
+    e.sort_unstable();
+    e
+}
+
+/// Undirected edges and, among them, those shared by more than two faces (non-manifold).
+pub fn edge_counts(faces: &[[u32; 3]]) -> (usize, usize) {
+    let e = sorted_edges(faces);
+    let (mut edges, mut non_manifold) = (0, 0);
+    let mut i = 0;
+    while i < e.len() {
+        let mut j = i + 1;
+        while j < e.len() && e[j].0 == e[i].0 {
+            j += 1;
+        }
+        edges += 1;
+        if j - i > 2 {
+            non_manifold += 1;
+        }
+        i = j;
+    }
+    (edges, non_manifold)
 }
 
 #[cfg(test)]

@@ -112,7 +112,7 @@ impl TriMesh {
         r.non_finite_vertices = self.positions.iter().filter(|p| !finite(p)).count();
         let mut seen = HashSet::with_capacity(self.faces.len());
         let mut used = vec![false; n];
-        let mut edge_count: HashMap<(u32, u32), u32> = HashMap::with_capacity(self.faces.len() * 3);
+        let mut kept: Vec<[u32; 3]> = Vec::with_capacity(self.faces.len());
         for f in &self.faces {
             for &v in f {
                 used[v as usize] = true;
@@ -126,13 +126,10 @@ impl TriMesh {
             if !seen.insert(key) {
                 r.duplicate_faces += 1;
             }
-            for k in 0..3 {
-                let (a, b) = (f[k], f[(k + 1) % 3]);
-                *edge_count.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-            }
+            kept.push(*f);
         }
         r.isolated_vertices = used.iter().filter(|u| !**u).count();
-        r.non_manifold_edges = edge_count.values().filter(|&&c| c > 2).count();
+        r.non_manifold_edges = super::topology::edge_counts(&kept).1;
         r.components = super::connected_components(n, &self.faces).1;
         r.boundary_loops = super::boundary_loops(&self.faces).len();
         r.non_manifold_vertices = count_non_manifold_vertices(n, &self.faces);

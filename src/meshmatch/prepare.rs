@@ -108,6 +108,19 @@ pub fn prepare(
             "mesh has no non-degenerate faces".into(),
         ));
     }
+    // A tangle of faces is not a surface: refuse it rather than build a hierarchy over vertices
+    // shared by thousands of faces (a PLY of thousands of overlapping 255-gons, say).
+    let (edges, non_manifold) = crate::mesh::edge_counts(&welded.faces);
+    if non_manifold * 10 > edges {
+        return Err(Error::InvalidMesh(format!(
+            "{}{non_manifold} of {edges} edges are shared by more than two faces: this is not a \
+             surface MeshMatch can work on; clean the mesh (remove overlapping faces) first",
+            mesh.path
+                .as_ref()
+                .map(|p| format!("{}: ", p.display()))
+                .unwrap_or_default(),
+        )));
+    }
     // A mesh denser than the working budget is used as it is: refuse it rather than run the
     // solver for hours on it.
     let max_v = crate::mesh::MAX_WORKING_VERTICES;

@@ -70,7 +70,7 @@ pub fn default_recent_store() -> Option<PathBuf> {
 impl<P: AppParams> AppState<P> {
     /// Read the Recent list from `store` (missing or unreadable: empty) and keep it saved there.
     pub fn load_recent(&mut self, store: PathBuf) {
-        self.recent = std::fs::read(&store)
+        self.recent = crate::mesh::io::read_input_file(&store, 1 << 20, "the Recent list")
             .ok()
             .and_then(|b| serde_json::from_slice::<Vec<RecentFile>>(&b).ok())
             .unwrap_or_default();
@@ -226,7 +226,8 @@ impl<P: AppParams> AppState<P> {
     /// Open a session JSON: both meshes (files or built-in scenes), the source texture,
     /// correspondences, parameters and paint. Nothing changes when any part fails to load.
     pub fn open_session(&mut self, path: &Path) -> Result<()> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        // the loaders' rule: a regular file of bounded size (no directory, device or pipe)
+        let text = crate::mesh::io::read_text_file(path, "the session file")?;
         let s: Session<P> = serde_json::from_str(&text)
             .map_err(|e| Error::format(path, format!("invalid session JSON: {e}")))?;
         // Relative paths in the session are relative to the session file.
