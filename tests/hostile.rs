@@ -404,13 +404,20 @@ fn huge_polygons_and_duplicate_faces_do_not_run_away() {
     let t0 = Instant::now();
     let (code, err) = run(&d, &with(&with(&t, &["--target", "gons.ply"]), FAST));
     assert!(code == 0 || code == 2, "exit {code}: {err}");
-    assert!(!err.contains("panicked") && !err.contains("internal error"), "{err}");
+    assert!(
+        !err.contains("panicked") && !err.contains("internal error"),
+        "{err}"
+    );
     if code == 2 {
         // warnings about the file may come first; the error itself is one line
         let errors = err.lines().filter(|l| !l.starts_with("warning")).count();
         assert_eq!(errors, 1, "{err}");
     }
-    eprintln!("20,000 255-gons: exit {code} in {:.1} s: {}", t0.elapsed().as_secs_f64(), err.lines().last().unwrap_or(""));
+    eprintln!(
+        "20,000 255-gons: exit {code} in {:.1} s: {}",
+        t0.elapsed().as_secs_f64(),
+        err.lines().last().unwrap_or("")
+    );
     // 200,000 copies of two faces: dropped with a warning, the transfer is quick.
     let mut s = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0.5\n");
     s.push_str(&"f 1 2 3\nf 2 4 3\n".repeat(100_000));

@@ -120,8 +120,9 @@ impl AppParams for TransferParams {
                 if ui
                     .checkbox(&mut auto, "auto")
                     .on_hover_text(
-                        "Let the global shape map's isometry score choose: about 0.7 between \
-                         similar shapes (two bodies, an edited scan), 0 between different ones",
+                        "Let the global shape map's isometry score choose: 1 between \
+                         near-isometric shapes (two bodies, an edited scan), 0 between \
+                         different ones",
                     )
                     .changed()
                 {

@@ -1,11 +1,10 @@
 //! `meshmatch curves`: the salient curves of a mesh (crest lines after Yoshizawa et al. 2005 and
 //! sharp creases, grouped and broken as Xu et al. 2009 §4.1) as OBJ polylines.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use super::common::*;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::geometry::{CurveKind, CurveParams, salient_curves};
 
 /// Arguments of `meshmatch curves`.
@@ -91,9 +90,7 @@ impl CurvesArgs {
             s.push('\n');
             base += pts.len();
         }
-        let mut f = std::fs::File::create(&self.out).map_err(|e| Error::io(&self.out, e))?;
-        f.write_all(s.as_bytes())
-            .map_err(|e| Error::io(&self.out, e))?;
+        crate::mesh::io::write_atomic(&self.out, s.as_bytes())?;
         let (nr, nv, nc) = curves.iter().fold((0, 0, 0), |(r, v, c), x| match x.kind {
             CurveKind::Ridge => (r + 1, v, c),
             CurveKind::Ravine => (r, v + 1, c),

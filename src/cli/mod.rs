@@ -158,9 +158,13 @@ pub fn main() -> i32 {
     let res = std::panic::catch_unwind(|| match &cli.command {
         None => open_app(),
         Some(c) => {
-            // A command never writes over a file it read (an output's texture beside an input).
+            // A command never writes over a file it read (an output's texture beside an input),
+            // and its outputs replace existing files only once the whole command succeeded.
             crate::mesh::io::protect_inputs();
-            c.run()
+            let staged = crate::mesh::io::StagedWrites::begin();
+            let code = c.run()?;
+            staged.commit()?;
+            Ok(code)
         }
     });
     match res {

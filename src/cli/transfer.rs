@@ -59,8 +59,8 @@ pub struct TransferArgs {
     /// How closely to keep the source's layout through a global intrinsic shape map (functional
     /// maps + ZoomOut, the correspondences as landmarks): 0 = pure patch synthesis (no map),
     /// 1 = follow the map at every level, or auto (default): the map is computed and its
-    /// isometry score picks the value (about 0.5 between similar shapes such as two bodies, 0
-    /// between different animals). stderr says what was chosen.
+    /// isometry score picks the value (1 between near-isometric shapes such as two bodies or a
+    /// bent copy, 0 between different animals, linear in between). stderr says what was chosen.
     #[arg(long, default_value = "auto", value_parser = parse_structure, allow_hyphen_values = true)]
     pub structure: StructureArg,
     /// Size of the baked texture (pixels per side) when the target has UVs, 1 to 8192.
@@ -172,9 +172,10 @@ pub(crate) fn structure_line(asked: Option<f32>, r: &crate::meshmatch::TransferR
     match (asked, r.map_score) {
         (Some(0.0), _) => "structure 0: pure synthesis, no global map".into(),
         (None, Some(q)) => format!(
-            "structure auto: {:.2} (the global map's isometry score is {q:.2}; 0 below {:.2})",
+            "structure auto: {:.2} (the global map's isometry score is {q:.2}; 0 up to {:.2}, 1 from {:.2})",
             r.structure,
-            crate::meshmatch::AUTO_SCORE_MIN
+            crate::meshmatch::AUTO_SCORE_MIN,
+            crate::meshmatch::AUTO_SCORE_FULL
         ),
         (_, Some(q)) => format!(
             "structure {:.2} (the global map's isometry score is {q:.2})",

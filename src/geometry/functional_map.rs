@@ -21,8 +21,9 @@
 //!    `min_C ‖C A − B‖² + μ Σ_ij C_ij² (λ^t_i − λ^s_j)²` (descriptor preservation + Laplacian
 //!    commutativity, the squared eigenvalue differences normalised to unit Frobenius norm). The
 //!    problem separates by rows of `C`: `(A Aᵀ + μ diag(D_i)) c_i = A b_i`.
-//! 3. **ZoomOut.** For `k = k0, k0 + step, …, k_final`: the point map is the nearest neighbour of
-//!    every row of `Φ_t[:, :k] C` among the rows of `Φ_s[:, :k]`, then
+//! 3. **ZoomOut.** For `k = k0, k0 + step, …, k_final`: the point map takes every target vertex
+//!    to the source vertex whose row of `Φ_s[:, :k] Cᵀ` is nearest to its row of `Φ_t[:, :k]`
+//!    (Melzi et al. eq. 3), then
 //!    `C ← Φ_t[:, :k']ᵀ M_t Π Φ_s[:, :k']` with `k' = k + step`. Landmark target vertices keep
 //!    their landmark source vertex.
 //!
@@ -643,15 +644,18 @@ fn nearest_rows(src: &[f32], ns: usize, tgt: &[f32], nt: usize, k: usize) -> Vec
 
 /// Point map from a `k × k` functional map: nearest neighbours of `Φ_t C` among `Φ_s`.
 fn point_map(ss: &Spectrum, st: &Spectrum, c: &[f64], k: usize, fixed: &[(u32, u32)]) -> Vec<u32> {
-    let src: Vec<f32> = ss.evecs[..k * ss.n].iter().map(|&x| x as f32).collect();
-    let mut tgt = vec![0.0f32; st.n * k];
-    tgt.par_chunks_mut(st.n).enumerate().for_each(|(j, col)| {
-        for (i, row) in (0..k).map(|i| (i, c[i * k + j])) {
-            if row == 0.0 {
+    // ZoomOut's point map (Melzi et al. 2019, eq. 3): every target row Φ_t(x) against the source
+    // rows mapped into the target basis, Φ_s(y) Cᵀ (which, unlike comparing Φ_t(x) C with
+    // Φ_s(y), stays right when C is not orthogonal).
+    let tgt: Vec<f32> = st.evecs[..k * st.n].iter().map(|&x| x as f32).collect();
+    let mut src = vec![0.0f32; ss.n * k];
+    src.par_chunks_mut(ss.n).enumerate().for_each(|(i, col)| {
+        for (j, w) in (0..k).map(|j| (j, c[i * k + j])) {
+            if w == 0.0 {
                 continue;
             }
-            for (o, p) in col.iter_mut().zip(st.phi(i)) {
-                *o += (row * p) as f32;
+            for (o, p) in col.iter_mut().zip(ss.phi(j)) {
+                *o += (w * p) as f32;
             }
         }
     });

@@ -186,7 +186,10 @@ pub fn sorted_edges(faces: &[[u32; 3]]) -> Vec<(u64, u32)> {
     for (fi, f) in faces.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (f[k], f[(k + 1) % 3]);
-            e.push((((a.min(b) as u64) << 32) | a.max(b) as u64, (3 * fi + k) as u32));
+            e.push((
+                ((a.min(b) as u64) << 32) | a.max(b) as u64,
+                (3 * fi + k) as u32,
+            ));
         }
     }
     e.sort_unstable();

@@ -19,15 +19,16 @@ use super::prepare::PreparedMesh;
 use crate::error::{Error, Result};
 use std::sync::{Arc, Mutex};
 
+use rayon::prelude::*;
+
 use crate::geometry::{FmapParams, Spectrum, functional_map, shape_map};
 use crate::hierarchy::Hierarchy;
 use crate::work::{CancelToken, Stopwatch};
 
 /// Largest hierarchy level on which the map is computed.
-pub(super) const MAP_LEVEL_VERTICES: usize = 4_000;
-/// Final functional map size inside a solve (the solve refines the layout itself; `map` uses
-/// 100).
-pub(super) const SOLVE_MAP_K: usize = 60;
+pub(super) const MAP_LEVEL_VERTICES: usize = 8_000;
+/// Final functional map size inside a solve.
+pub(super) const SOLVE_MAP_K: usize = 100;
 
 /// Per prepared mesh: its spectrum on the map level (level, k, spectrum) and, on a target, the
 /// latest map (source cache identity, landmarks, map).
@@ -159,11 +160,32 @@ pub(super) fn global_map(
             .collect();
         target_pos[l] = cur;
     }
+    // Finer levels than the map's: the closest point of the map level's surface and the
+    // barycentric blend of its corners' mapped positions, so the term is as fine as the level.
+    let bvh = crate::geometry::TriangleBvh::new(&mt.positions, &mt.faces);
     for (l, slot) in target_pos.iter_mut().enumerate().take(lt + 1) {
-        *slot = ht
-            .ancestor_map(l, lt)
-            .iter()
-            .map(|&a| base[a as usize])
+        if l == lt {
+            *slot = base.clone();
+            continue;
+        }
+        let anc = ht.ancestor_map(l, lt);
+        *slot = ht.levels[l]
+            .positions
+            .par_iter()
+            .zip(anc.par_iter())
+            .map(|(&p, &a)| match bvh.closest_point(p) {
+                Some((f, b, _)) => {
+                    let face = mt.faces[f as usize];
+                    let mut q = [0.0f32; 3];
+                    for (k, &c) in face.iter().enumerate() {
+                        for d in 0..3 {
+                            q[d] += b[k] * base[c as usize][d];
+                        }
+                    }
+                    q
+                }
+                None => base[a as usize],
+            })
             .collect();
     }
     // start: nearest coarsest-level source vertex to every mapped point

@@ -166,20 +166,19 @@ pub fn structure_weights(s: f32) -> (f32, f32) {
 }
 
 /// The automatic structure value from a map's isometry score ([`crate::geometry::MapQuality`]):
-/// 0 below [`AUTO_SCORE_MIN`] (dissimilar shapes: synthesis as without the map), rising linearly
-/// to [`AUTO_STRUCTURE_MAX`] at a score of 1.
+/// 0 up to [`AUTO_SCORE_MIN`] (dissimilar shapes: synthesis as without the map), rising linearly
+/// to 1 (follow the map) at [`AUTO_SCORE_FULL`] and above.
 pub fn auto_structure(score: f64) -> f32 {
     if !(score > AUTO_SCORE_MIN) {
         return 0.0;
     }
-    let t = ((score - AUTO_SCORE_MIN) / (1.0 - AUTO_SCORE_MIN)).clamp(0.0, 1.0);
-    (AUTO_STRUCTURE_MAX as f64 * t.sqrt()) as f32
+    ((score - AUTO_SCORE_MIN) / (AUTO_SCORE_FULL - AUTO_SCORE_MIN)).clamp(0.0, 1.0) as f32
 }
 
-/// Isometry score under which the automatic structure is 0.
+/// Isometry score up to which the automatic structure is 0.
 pub const AUTO_SCORE_MIN: f64 = 0.5;
-/// The automatic structure of an exact isometry.
-pub const AUTO_STRUCTURE_MAX: f32 = 0.85;
+/// Isometry score from which the automatic structure is 1.
+pub const AUTO_SCORE_FULL: f64 = 0.9;
 
 /// Shape weight of level `l` of `nl` (0 = finest): `shape_weight` at the coarsest level,
 /// `shape_weight * fine_shape_scale` at the finest, geometric in between.

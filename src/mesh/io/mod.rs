@@ -14,7 +14,7 @@ mod ply;
 use crate::error::{Error, Result};
 use crate::mesh::Texture;
 use crate::mesh::TriMesh;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 pub use glb::{GlbOptions, load_gltf_bytes, save_glb, save_gltf};
@@ -41,17 +41,76 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .unwrap_or_else(|| "out".into());
     let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
     let mut file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
-    let written = file
-        .write_all(bytes)
-        .and_then(|()| file.sync_all())
-        .and_then(|()| {
-            drop(file);
-            std::fs::rename(&tmp, path)
-        });
-    written.map_err(|e| {
+    let written = file.write_all(bytes).and_then(|()| file.sync_all());
+    drop(file);
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::io(path, e));
+    }
+    // Inside a group of staged writes the rename waits for the group's commit.
+    if let Ok(mut g) = STAGED.lock()
+        && let Some(list) = g.as_mut()
+    {
+        list.retain(|(_, p)| p != path);
+        list.push((tmp, path.to_path_buf()));
+        return Ok(());
+    }
+    std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         Error::io(path, e)
     })
+}
+
+/// Files written under their temporary names while a [`StagedWrites`] group is open:
+/// (temporary, final path).
+static STAGED: std::sync::Mutex<Option<Vec<(PathBuf, PathBuf)>>> = std::sync::Mutex::new(None);
+
+/// All or nothing for the outputs of one command: while the group is open, [`write_atomic`]
+/// (every writer of meshes, textures, sidecars, CSVs and images) leaves each file under its
+/// temporary name beside its destination; [`StagedWrites::commit`] renames them all at the end,
+/// and dropping the group without a commit (an error, a panic) removes them, so no existing file
+/// is replaced unless the whole command succeeded.
+#[must_use = "commit the group, or drop it to discard its files"]
+pub struct StagedWrites(());
+
+impl StagedWrites {
+    /// Open the group (the CLI does, around every subcommand).
+    pub fn begin() -> StagedWrites {
+        if let Ok(mut g) = STAGED.lock() {
+            *g = Some(Vec::new());
+        }
+        StagedWrites(())
+    }
+
+    /// Move every staged file to its destination. A rename failing (which needs a destination
+    /// that changed kind meanwhile) removes the files not yet moved and reports it.
+    pub fn commit(self) -> Result<()> {
+        let list = STAGED
+            .lock()
+            .ok()
+            .and_then(|mut g| g.take())
+            .unwrap_or_default();
+        let mut it = list.into_iter();
+        while let Some((tmp, path)) = it.next() {
+            if let Err(e) = std::fs::rename(&tmp, &path) {
+                let _ = std::fs::remove_file(&tmp);
+                for (t, _) in it {
+                    let _ = std::fs::remove_file(&t);
+                }
+                return Err(Error::io(&path, e));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for StagedWrites {
+    fn drop(&mut self) {
+        let list = STAGED.lock().ok().and_then(|mut g| g.take());
+        for (tmp, _) in list.unwrap_or_default() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+    }
 }
 
 /// Files read so far, when [`protect_inputs`] was called (the CLI does; the app does not, so it
