@@ -644,10 +644,30 @@ fn nearest_rows(src: &[f32], ns: usize, tgt: &[f32], nt: usize, k: usize) -> Vec
 
 /// Point map from a `k × k` functional map: nearest neighbours of `Φ_t C` among `Φ_s`.
 fn point_map(ss: &Spectrum, st: &Spectrum, c: &[f64], k: usize, fixed: &[(u32, u32)]) -> Vec<u32> {
+    let all: Vec<u32> = (0..st.n as u32).collect();
+    point_map_rows(ss, st, c, k, fixed, &all)
+}
+
+/// [`point_map`] for the target vertices `rows` only (the result is per row).
+fn point_map_rows(
+    ss: &Spectrum,
+    st: &Spectrum,
+    c: &[f64],
+    k: usize,
+    fixed: &[(u32, u32)],
+    rows: &[u32],
+) -> Vec<u32> {
     // ZoomOut's point map (Melzi et al. 2019, eq. 3): every target row Φ_t(x) against the source
     // rows mapped into the target basis, Φ_s(y) Cᵀ (which, unlike comparing Φ_t(x) C with
     // Φ_s(y), stays right when C is not orthogonal).
-    let tgt: Vec<f32> = st.evecs[..k * st.n].iter().map(|&x| x as f32).collect();
+    let m = rows.len();
+    let mut tgt = vec![0.0f32; m * k];
+    tgt.par_chunks_mut(m.max(1)).enumerate().for_each(|(i, col)| {
+        let phi = st.phi(i);
+        for (o, &r) in col.iter_mut().zip(rows) {
+            *o = phi[r as usize] as f32;
+        }
+    });
     let mut src = vec![0.0f32; ss.n * k];
     src.par_chunks_mut(ss.n).enumerate().for_each(|(i, col)| {
         for (j, w) in (0..k).map(|j| (j, c[i * k + j])) {
@@ -659,11 +679,39 @@ fn point_map(ss: &Spectrum, st: &Spectrum, c: &[f64], k: usize, fixed: &[(u32, u
             }
         }
     });
-    let mut map = nearest_rows(&src, ss.n, &tgt, st.n, k);
+    let mut map = nearest_rows(&src, ss.n, &tgt, m, k);
     for &(s, t) in fixed {
-        map[t as usize] = s;
+        if let Ok(r) = rows.binary_search(&t) {
+            map[r] = s;
+        }
     }
     map
+}
+
+/// Largest target the intermediate ZoomOut steps use whole; bigger ones use a random sample of
+/// about this many vertices (plus the landmarks), the integrals of `C` estimated from it, and
+/// only the last step maps every vertex.
+pub const ZOOMOUT_SAMPLE: usize = 4_000;
+
+/// [`map_to_fmap`] from a sample: `map[r]` is the source vertex of target vertex `rows[r]`; the
+/// sample's masses are rescaled to the whole surface's.
+fn map_to_fmap_rows(ss: &Spectrum, st: &Spectrum, rows: &[u32], map: &[u32], k: usize) -> Vec<f64> {
+    let total: f64 = st.mass.iter().sum();
+    let sampled: f64 = rows.iter().map(|&t| st.mass[t as usize]).sum();
+    let w = if sampled > 0.0 { total / sampled } else { 1.0 };
+    let mut c = vec![0.0; k * k];
+    c.par_chunks_mut(k).enumerate().for_each(|(i, row)| {
+        let pt = st.phi(i);
+        for (j, r) in row.iter_mut().enumerate() {
+            let ps = ss.phi(j);
+            *r = w * rows
+                .iter()
+                .zip(map)
+                .map(|(&t, &s)| pt[t as usize] * st.mass[t as usize] * ps[s as usize])
+                .sum::<f64>();
+        }
+    });
+    c
 }
 
 /// `C = Φ_t[:, :k]ᵀ M_t Π Φ_s[:, :k]` (row-major) for a point map target → source.
@@ -734,17 +782,36 @@ pub fn functional_map(
     let t0 = Instant::now();
     let step = params.k_step.max(1);
     let mut k = k0;
+    // intermediate steps on a sample of a large target (deterministic: a hash of the index)
+    let rows: Option<Vec<u32>> = (st.n > ZOOMOUT_SAMPLE * 3 / 2).then(|| {
+        let keep = (ZOOMOUT_SAMPLE as u64).saturating_mul(1 << 32) / st.n as u64;
+        let mut lm: Vec<u32> = landmarks.iter().map(|l| l.1).collect();
+        lm.sort_unstable();
+        (0..st.n as u32)
+            .filter(|&v| {
+                (v.wrapping_mul(2_654_435_761) as u64) < keep || lm.binary_search(&v).is_ok()
+            })
+            .collect()
+    });
     let map = loop {
-        let map = point_map(ss, st, &c, k, landmarks);
-        cancel.check()?;
         if k >= kf {
-            break map;
+            break point_map(ss, st, &c, k, landmarks);
         }
-        k = (k + step).min(kf);
-        c = map_to_fmap(ss, st, &map, k);
+        let next = (k + step).min(kf);
+        c = match &rows {
+            Some(r) => {
+                let m = point_map_rows(ss, st, &c, k, landmarks, r);
+                map_to_fmap_rows(ss, st, r, &m, next)
+            }
+            None => map_to_fmap(ss, st, &point_map(ss, st, &c, k, landmarks), next),
+        };
+        k = next;
+        cancel.check()?;
     };
     timings.push(("zoomout".into(), t0.elapsed().as_secs_f64()));
-    let quality = MapQuality::of(&c, k, &ss.evals, &st.evals);
+    // the quality of the final point map itself, on the leading block (exact integrals)
+    let q = k.min(QUALITY_K);
+    let quality = MapQuality::of(&map_to_fmap(ss, st, &map, q), q, &ss.evals, &st.evals);
     Ok(ShapeMap {
         target_to_source: map,
         c,
