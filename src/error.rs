@@ -57,3 +57,30 @@ impl Error {
         }
     }
 }
+
+/// A vector of `len` copies of `value`, or a one-line error naming `what` and the size when the
+/// memory cannot be had (`try_reserve`: an allocation failure is an error, not an abort).
+pub fn try_filled<T: Clone>(len: usize, value: T, what: &str) -> Result<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| {
+        Error::InvalidInput(format!(
+            "not enough memory for {what} ({:.0} MiB); use fewer working vertices",
+            (len as f64) * std::mem::size_of::<T>() as f64 / (1u64 << 20) as f64
+        ))
+    })?;
+    v.resize(len, value);
+    Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn an_impossible_allocation_is_an_error_not_an_abort() {
+        let e = super::try_filled(usize::MAX / 8, 0.0f32, "the fans").unwrap_err();
+        assert!(
+            e.to_string().contains("not enough memory for the fans"),
+            "{e}"
+        );
+        assert_eq!(super::try_filled(3, 1u8, "x").unwrap(), vec![1, 1, 1]);
+    }
+}

@@ -357,5 +357,9 @@ fn auto_structure_follows_similar_shapes_and_leaves_different_ones_alone() {
     // a cow onto a horse: pure synthesis, as without the map
     assert!(animals.score < AUTO_SCORE_MIN && auto_structure(animals.score) == 0.0);
     // two quadrupeds of different build: in between, well below the bodies
-    assert!(auto_structure(kin.score) < 0.6, "zebra -> giraffe {}", kin.score);
+    assert!(
+        auto_structure(kin.score) < 0.6,
+        "zebra -> giraffe {}",
+        kin.score
+    );
 }

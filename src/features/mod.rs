@@ -413,8 +413,9 @@ impl FanSampler {
         let n = level.len();
         let nb = FAN_RADII * FAN_ANGLES;
         let per = nb * FAN_TAPS;
-        let mut idx = vec![0u32; n * per];
-        let mut wts = vec![0.0f32; n * per];
+        let len = n.saturating_mul(per);
+        let mut idx = crate::error::try_filled(len, 0u32, "the fan sampling table")?;
+        let mut wts = crate::error::try_filled(len, 0.0f32, "the fan sampling weights")?;
         let sigma = 0.6 * level.mean_edge;
         // Gaussian cut-off at 2.5σ (weight 0.044).
         let cut = 2.5 * sigma;

@@ -222,10 +222,10 @@ impl MapQuality {
             }
         }
         let (mut num, mut den) = (0.0, 0.0);
-        for i in 0..q {
-            for j in 0..q {
-                let x = at(i, j) * source_evals[j];
-                let y = target_evals[i] * at(i, j);
+        for (i, &lt) in target_evals.iter().enumerate().take(q) {
+            for (j, &ls) in source_evals.iter().enumerate().take(q) {
+                let x = at(i, j) * ls;
+                let y = lt * at(i, j);
                 num += (x - y) * (x - y);
                 den += x * x;
             }
@@ -662,12 +662,14 @@ fn point_map_rows(
     // Φ_s(y), stays right when C is not orthogonal).
     let m = rows.len();
     let mut tgt = vec![0.0f32; m * k];
-    tgt.par_chunks_mut(m.max(1)).enumerate().for_each(|(i, col)| {
-        let phi = st.phi(i);
-        for (o, &r) in col.iter_mut().zip(rows) {
-            *o = phi[r as usize] as f32;
-        }
-    });
+    tgt.par_chunks_mut(m.max(1))
+        .enumerate()
+        .for_each(|(i, col)| {
+            let phi = st.phi(i);
+            for (o, &r) in col.iter_mut().zip(rows) {
+                *o = phi[r as usize] as f32;
+            }
+        });
     let mut src = vec![0.0f32; ss.n * k];
     src.par_chunks_mut(ss.n).enumerate().for_each(|(i, col)| {
         for (j, w) in (0..k).map(|j| (j, c[i * k + j])) {

@@ -169,7 +169,7 @@ pub fn structure_weights(s: f32) -> (f32, f32) {
 /// 0 up to [`AUTO_SCORE_MIN`] (dissimilar shapes: synthesis as without the map), rising linearly
 /// to 1 (follow the map) at [`AUTO_SCORE_FULL`] and above.
 pub fn auto_structure(score: f64) -> f32 {
-    if !(score > AUTO_SCORE_MIN) {
+    if score.is_nan() || score <= AUTO_SCORE_MIN {
         return 0.0;
     }
     ((score - AUTO_SCORE_MIN) / (AUTO_SCORE_FULL - AUTO_SCORE_MIN)).clamp(0.0, 1.0) as f32

@@ -419,7 +419,8 @@ impl<'a> Levels<'a> {
             &built
         };
         self.t.fans += sw.secs();
-        let mut fans_t = vec![0.0f32; lt.len() * PER];
+        let mut fans_t =
+            crate::error::try_filled(lt.len().saturating_mul(PER), 0.0f32, "the target's fans")?;
         let mut dist = vec![0.0f32; lt.len()];
         self.start_level(l, &fans_t, &mut dist)?;
         self.iterate(l, sampler_t, &mut fans_t, &mut dist)
