@@ -621,3 +621,26 @@ fn app_sessions_and_recent_lists_follow_the_regular_file_rule() {
     assert!(state.recent.is_empty());
     assert!(state.meshes.iter().all(|m| m.is_none()));
 }
+
+#[test]
+fn a_working_size_beyond_the_memory_limit_is_refused_before_work() {
+    // Under a 4 GB address-space limit the largest working size cannot fit: a one-line error
+    // naming the memory, not an abort halfway through the preparation.
+    let d = scene("memory");
+    let t0 = Instant::now();
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 4000000 && exec '{}' transfer --source src.ply --target tgt.ply --out o.ply --vertices 4000000",
+            env!("CARGO_BIN_EXE_meshmatch")
+        ))
+        .current_dir(&d)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("MiB of memory"), "{err}");
+    assert!(t0.elapsed() < Duration::from_secs(10));
+    assert!(!d.join("o.ply").exists());
+}

@@ -13,6 +13,9 @@ use crate::hierarchy::{Hierarchy, HierarchyOptions};
 use crate::mesh::{SignalKind, TriMesh, sample_texture};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
+/// Memory assumed per working vertex when checking a preparation against the process's limit.
+pub const WORKING_VERTEX_BYTES: u64 = 6 << 10;
+
 /// Working vertex count up to which a target keeps its fan sampling tables between solves.
 const KEEP_SAMPLERS_UP_TO: usize = 300_000;
 
@@ -149,6 +152,21 @@ pub fn prepare(
         })
         .map(|(i, _)| i as u32)
         .collect();
+    // Refuse up front what cannot fit: about 6 KB per working vertex at peak (hierarchy, frames,
+    // fan tables and fans; measured peak RSS is 2.4-4 KB per vertex, plus room for the address
+    // space's overheads), rather than abort halfway on a failed allocation.
+    let working = welded.positions.len().max(params.vertices) as u64;
+    let need = working.saturating_mul(WORKING_VERTEX_BYTES);
+    if let Some(limit) = crate::work::memory_limit()
+        && need > limit
+    {
+        return Err(Error::InvalidInput(format!(
+            "{working} working vertices need about {} MiB of memory, more than the {} MiB this \
+             process may use; use fewer --vertices",
+            need >> 20,
+            limit >> 20
+        )));
+    }
     // Refine the bare welded surface (the signal is sampled below from the input itself).
     let bare = TriMesh::new(welded.positions.clone(), welded.faces.clone());
     let r = crate::geometry::refine_to_density(&bare, params.vertices);
