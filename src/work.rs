@@ -127,6 +127,30 @@ impl Stopwatch {
     }
 }
 
+/// The memory this process may still use, in bytes, where the system says: the smaller of its
+/// address-space limit (`ulimit -v`, from `/proc/self/limits`) and the memory available
+/// (`MemAvailable` + `SwapFree` in `/proc/meminfo`). `None` where neither is known.
+pub fn memory_limit() -> Option<u64> {
+    let field = |text: &str, key: &str| -> Option<u64> {
+        let line = text.lines().find(|l| l.starts_with(key))?;
+        line[key.len()..]
+            .split_whitespace()
+            .next()?
+            .parse::<u64>()
+            .ok()
+    };
+    let address_space = std::fs::read_to_string("/proc/self/limits")
+        .ok()
+        .and_then(|t| field(&t, "Max address space"));
+    let available = std::fs::read_to_string("/proc/meminfo").ok().and_then(|t| {
+        Some((field(&t, "MemAvailable:")? + field(&t, "SwapFree:").unwrap_or(0)) * 1024)
+    });
+    match (address_space, available) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -153,29 +177,5 @@ mod tests {
         assert!(!done.load(Ordering::SeqCst));
         // Without a cancel the work's result comes back.
         assert_eq!(run_cancellable(&CancelToken::new(), || 7).unwrap(), 7);
-    }
-}
-
-/// The memory this process may still use, in bytes, where the system says: the smaller of its
-/// address-space limit (`ulimit -v`, from `/proc/self/limits`) and the memory available
-/// (`MemAvailable` + `SwapFree` in `/proc/meminfo`). `None` where neither is known.
-pub fn memory_limit() -> Option<u64> {
-    let field = |text: &str, key: &str| -> Option<u64> {
-        let line = text.lines().find(|l| l.starts_with(key))?;
-        line[key.len()..]
-            .split_whitespace()
-            .next()?
-            .parse::<u64>()
-            .ok()
-    };
-    let address_space = std::fs::read_to_string("/proc/self/limits")
-        .ok()
-        .and_then(|t| field(&t, "Max address space"));
-    let available = std::fs::read_to_string("/proc/meminfo").ok().and_then(|t| {
-        Some((field(&t, "MemAvailable:")? + field(&t, "SwapFree:").unwrap_or(0)) * 1024)
-    });
-    match (address_space, available) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
     }
 }
