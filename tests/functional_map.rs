@@ -20,6 +20,17 @@ fn load(name: &str) -> TriMesh {
 /// Head top, both hands, both feet, one toe tip: SMPL vertex ids (found on the man's T-pose).
 const EXTREMITIES: [u32; 6] = [411, 2445, 5906, 3354, 6755, 3215];
 
+/// Correspondences pairing each vertex with the same vertex id (SMPL: the same body point).
+fn same_vertex_pairs(vertices: &[u32]) -> Vec<meshmatch::correspondence::Correspondence> {
+    vertices
+        .iter()
+        .map(|&v| meshmatch::correspondence::Correspondence {
+            source_vertex: v,
+            target_vertices: vec![v],
+        })
+        .collect()
+}
+
 fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
     (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f32>().sqrt()
 }
@@ -180,13 +191,7 @@ fn transfer_man_to_woman_lands_colours_better_with_the_map() {
     let truth: Vec<[f32; 3]> = man.positions.iter().map(|&p| vertex_colour(p)).collect();
     man.colors = Some(truth.clone());
     let cancel = CancelToken::new();
-    let corr: Vec<meshmatch::correspondence::Correspondence> = EXTREMITIES
-        .iter()
-        .map(|&v| meshmatch::correspondence::Correspondence {
-            source_vertex: v,
-            target_vertices: vec![v],
-        })
-        .collect();
+    let corr: Vec<meshmatch::correspondence::Correspondence> = same_vertex_pairs(&EXTREMITIES);
     // 2 correspondences (head top, one hand) by default; FMAP_TRANSFER_ALL=1 also runs 0 and 6
     let counts: Vec<usize> = if std::env::var_os("FMAP_TRANSFER_ALL").is_some() {
         vec![0, 2, 6]
@@ -246,13 +251,7 @@ fn map_command_writes_every_target_vertex_within_tolerance() {
     let dir = std::env::temp_dir().join(format!("meshmatch-map-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let corr = meshmatch::correspondence::CorrespondenceFile {
-        correspondences: EXTREMITIES
-            .iter()
-            .map(|&v| meshmatch::correspondence::Correspondence {
-                source_vertex: v,
-                target_vertices: vec![v],
-            })
-            .collect(),
+        correspondences: same_vertex_pairs(&EXTREMITIES),
     };
     corr.save(&dir.join("lm.json")).unwrap();
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_meshmatch"))
@@ -306,13 +305,7 @@ fn map_command_interpolates_a_dense_remeshed_moved_target() {
         truth.iter().map(|&p| rotate(p)).collect(),
         r.mesh.faces.clone(),
     );
-    let corr: Vec<meshmatch::correspondence::Correspondence> = EXTREMITIES
-        .iter()
-        .map(|&v| meshmatch::correspondence::Correspondence {
-            source_vertex: v,
-            target_vertices: vec![v],
-        })
-        .collect();
+    let corr: Vec<meshmatch::correspondence::Correspondence> = same_vertex_pairs(&EXTREMITIES);
     let t0 = Instant::now();
     let m = map_meshes(&man, &moved, &corr, &CancelToken::new()).expect("map");
     let secs = t0.elapsed().as_secs_f64();
@@ -335,13 +328,7 @@ fn auto_structure_follows_similar_shapes_and_leaves_different_ones_alone() {
     use meshmatch::meshmatch::{AUTO_SCORE_MIN, auto_structure, map_meshes};
     let cancel = CancelToken::new();
     let (man, woman) = (load("human_man"), load("human_woman"));
-    let two: Vec<meshmatch::correspondence::Correspondence> = EXTREMITIES[..2]
-        .iter()
-        .map(|&v| meshmatch::correspondence::Correspondence {
-            source_vertex: v,
-            target_vertices: vec![v],
-        })
-        .collect();
+    let two: Vec<meshmatch::correspondence::Correspondence> = same_vertex_pairs(&EXTREMITIES[..2]);
     let bodies = map_meshes(&man, &woman, &two, &cancel).expect("bodies");
     let data = |p: &str| meshmatch::mesh::io::load(&data_path(p)).expect(p);
     let (spot, horse) = (data("spot/spot.obj"), data("horse/horse.ply"));

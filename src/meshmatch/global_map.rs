@@ -173,19 +173,7 @@ pub(super) fn global_map(
             .positions
             .par_iter()
             .zip(anc.par_iter())
-            .map(|(&p, &a)| match bvh.closest_point(p) {
-                Some((f, b, _)) => {
-                    let face = mt.faces[f as usize];
-                    let mut q = [0.0f32; 3];
-                    for (k, &c) in face.iter().enumerate() {
-                        for d in 0..3 {
-                            q[d] += b[k] * base[c as usize][d];
-                        }
-                    }
-                    q
-                }
-                None => base[a as usize],
-            })
+            .map(|(&p, &a)| blend_at(&bvh, &mt.faces, &base, p).unwrap_or(base[a as usize]))
             .collect();
     }
     // start: nearest coarsest-level source vertex to every mapped point
@@ -229,6 +217,24 @@ pub(super) fn global_map(
         *c = Some((key, landmarks, g.clone()));
     }
     Ok(g)
+}
+
+/// The per-vertex `values` of a surface (`faces`, searched by `bvh`) blended barycentrically at
+/// the closest point to `p`; `None` when there is none (empty surface, non-finite `p`).
+fn blend_at(
+    bvh: &crate::geometry::TriangleBvh,
+    faces: &[[u32; 3]],
+    values: &[[f32; 3]],
+    p: [f32; 3],
+) -> Option<[f32; 3]> {
+    let (f, b, _) = bvh.closest_point(p)?;
+    let mut q = [0.0f32; 3];
+    for (k, &c) in faces[f as usize].iter().enumerate() {
+        for d in 0..3 {
+            q[d] += b[k] * values[c as usize][d];
+        }
+    }
+    Some(q)
 }
 
 /// Map weight of level `l` of `nl` for structure `s` ([`super::structure_weights`]): the
@@ -421,19 +427,8 @@ pub fn map_meshes(
             .par_iter()
             .enumerate()
             .map_init(Vec::new, |buf, (v, &p)| {
-                let q = match bvh.closest_point(p) {
-                    Some((f, b, _)) => {
-                        let face = mt.faces[f as usize];
-                        let mut q = [0.0f32; 3];
-                        for (k, &c) in face.iter().enumerate() {
-                            for d in 0..3 {
-                                q[d] += b[k] * mapped[c as usize][d];
-                            }
-                        }
-                        q
-                    }
-                    None => mapped[ht.ancestor(0, v as u32, lt) as usize],
-                };
+                let q = blend_at(&bvh, &mt.faces, &mapped, p)
+                    .unwrap_or_else(|| mapped[ht.ancestor(0, v as u32, lt) as usize]);
                 tree.knn(&q, 1, buf);
                 buf.first().map_or(0, |x| x.1)
             })
