@@ -1,4 +1,6 @@
-// Mesh shader: per-vertex sRGB colour, headlight Lambert shading, optional wireframe pass.
+// Mesh shader: per-vertex sRGB colour times a texture sampled per pixel (mipmapped, an sRGB
+// texture so the sample is linear; a 1x1 white one for untextured meshes), headlight Lambert
+// shading, optional wireframe pass.
 //
 // Colours arrive in sRGB [0,1] and are decoded per vertex; shading happens in linear light and
 // the render target (an sRGB view of the texture egui samples as Rgba8Unorm) encodes on store,
@@ -13,12 +15,15 @@ struct Uniforms {
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
+@group(1) @binding(0) var base_tex: texture_2d<f32>;
+@group(1) @binding(1) var base_samp: sampler;
 
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) normal: vec3<f32>,
     @location(2) color: vec3<f32>,
+    @location(3) uv: vec2<f32>,
 };
 
 fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
@@ -31,6 +36,7 @@ fn srgb_to_linear(c: vec3<f32>) -> vec3<f32> {
 fn vs_main(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
+    @location(3) uv: vec2<f32>,
     @location(2) color: vec3<f32>,
 ) -> VsOut {
     var out: VsOut;
@@ -38,6 +44,7 @@ fn vs_main(
     out.world = position;
     out.normal = normal;
     out.color = srgb_to_linear(color);
+    out.uv = uv;
     return out;
 }
 
@@ -53,13 +60,15 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         lambert = abs(dot(n, v));
     }
     let ambient = u.wire.a;
-    return vec4<f32>(in.color * (ambient + (1.0 - ambient) * lambert), 1.0);
+    let base = in.color * textureSample(base_tex, base_samp, in.uv).rgb;
+    return vec4<f32>(base * (ambient + (1.0 - ambient) * lambert), 1.0);
 }
 
 @vertex
 fn vs_wire(
     @location(0) position: vec3<f32>,
     @location(1) normal: vec3<f32>,
+    @location(3) uv: vec2<f32>,
     @location(2) color: vec3<f32>,
 ) -> VsOut {
     var out: VsOut;
@@ -70,6 +79,7 @@ fn vs_wire(
     out.world = position;
     out.normal = normal;
     out.color = color;
+    out.uv = uv;
     return out;
 }
 

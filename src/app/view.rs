@@ -140,15 +140,23 @@ impl Views {
                     if slot.geometry_dirty || g.mesh.is_none() {
                         let cols = slot.display_colors();
                         let m = slot.displayed();
-                        g.mesh = Some(GpuMesh::new(&rs.device, renderer, m, &cols));
+                        g.mesh = Some(GpuMesh::new(
+                            &rs.device,
+                            &rs.queue,
+                            renderer,
+                            m,
+                            &cols,
+                            slot.shows_texture(),
+                        ));
                         g.bvh = Some(TriangleBvh::new(&m.positions, &m.faces));
                         g.markers.clear();
                         slot.geometry_dirty = false;
                         slot.colors_dirty = false;
                         g.dirty = true;
                     } else if slot.colors_dirty {
-                        if let Some(m) = &g.mesh {
-                            m.update_colors(&rs.queue, &slot.display_colors());
+                        let textured = slot.shows_texture();
+                        if let Some(m) = g.mesh.as_mut() {
+                            m.update_colors(&rs.queue, &slot.display_colors(), textured);
                         }
                         slot.colors_dirty = false;
                         g.dirty = true;

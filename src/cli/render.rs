@@ -60,7 +60,6 @@ impl RenderArgs {
             &[("--out", &self.out, super::common::OutKind::Png)],
         )?;
         let m = super::common::load_usable(&self.mesh)?;
-        let colors = m.vertex_signal();
         let markers = match &self.correspondences {
             Some(p) => {
                 render_markers(&m, &CorrespondenceFile::load(p)?.correspondences, self.side)?
@@ -75,7 +74,7 @@ impl RenderArgs {
             wireframe: self.wireframe,
             markers,
         };
-        crate::render::render_to_png(&m, colors.as_deref(), &opts, &self.out)?;
+        crate::render::render_to_png(&m, None, &opts, &self.out)?;
         eprintln!("wrote {}", self.out.display());
         Ok(0)
     }

@@ -148,8 +148,12 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         &result.file_signal,
         ext,
         a.texture_size,
-    );
-    io::save(&out_mesh, &a.out)?;
+        &crate::work::CancelToken::new(),
+    )?;
+    if let Some(line) = out_mesh.atlas_line(a.texture_size) {
+        eprintln!("{line}");
+    }
+    io::save(&out_mesh.mesh, &a.out)?;
     eprintln!("wrote {}", a.out.display());
     if let Some(dense) = &a.out_dense {
         let d = mm::deliver_dense(prepared_target.working_mesh(), &result.working_signal);

@@ -132,8 +132,12 @@ impl WeatherArgs {
             &out.file_colors,
             ext,
             a.texture_size,
-        );
-        io::save(&out_mesh, &a.out)?;
+            &crate::work::CancelToken::new(),
+        )?;
+        if let Some(line) = out_mesh.atlas_line(a.texture_size) {
+            eprintln!("{line}");
+        }
+        io::save(&out_mesh.mesh, &a.out)?;
         eprintln!("wrote {}", a.out.display());
         if let Some(dense) = &a.out_dense {
             let d = crate::meshmatch::deliver_dense(&out.target.mesh, &out.colors);

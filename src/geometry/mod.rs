@@ -17,6 +17,9 @@
 //! - [`oriented_curve_field`] (Xu et al. 2009 greedy curve orientation + harmonic diffusion)
 //! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1)
 //! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
+//! - [`uv_atlas`] (charts, LSCM + ARAP, packing: UVs for a mesh without them)
+//! - [`bake_uv`] / [`fill_gutters`] (conservative UV rasterisation, pull-push gutters),
+//!   [`mip_chain`], [`sample_bilinear`]
 
 mod basic;
 mod bvh;
@@ -32,6 +35,8 @@ mod laplacian;
 mod occlusion;
 mod refine;
 mod solid_angle_curvature;
+mod uv_atlas;
+mod uv_bake;
 
 pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, vertex_normals, weld};
 pub(crate) use bvh::BARY_EPS;
@@ -53,3 +58,5 @@ pub use refine::{Refined, nearest_original, refine_to_density};
 pub use solid_angle_curvature::{
     SolidAngleTree, solid_angle_curvature, solid_angle_curvature_cancellable,
 };
+pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
+pub use uv_bake::{BakedImage, bake_uv, fill_gutters, mip_chain, sample_bilinear};

@@ -9,7 +9,8 @@ use crate::mesh::TriMesh;
 /// Bake a working-mesh signal into the target's own UV layout: every texel inside a UV triangle
 /// finds its surface point (barycentric in that input face), the working face containing it (from
 /// the refinement provenance) and interpolates the working signal there; texels outside every
-/// island are filled from their neighbours for a few texels (dilation against seams). A mesh
+/// island (the gutters) are filled by pull-push from the nearest islands, so no background shows
+/// under filtering. A mesh
 /// without UVs, or one that is not the mesh `prepared_target` came from, gives a black image
 /// except for what can be located by nearest working vertex.
 pub fn bake_texture(
@@ -63,10 +64,33 @@ impl BakeLayout {
     }
 }
 
+/// What [`deliver`] made: the mesh to write, and the atlas it generated for a target without UVs.
+#[derive(Clone, Debug)]
+pub struct Delivered {
+    /// The target file mesh with the result (vertex colours and/or a baked texture).
+    pub mesh: TriMesh,
+    /// The atlas generated for a target without UVs (`.glb`/`.obj` outputs), if one was.
+    pub atlas: Option<crate::geometry::UvAtlas>,
+}
+
+impl Delivered {
+    /// One line for stderr or the status bar about the generated atlas, if any.
+    pub fn atlas_line(&self, texture_size: u32) -> Option<String> {
+        self.atlas.as_ref().map(|a| {
+            format!(
+                "generated a UV atlas for the target: {} charts, {:.0}% of the {texture_size}x{texture_size} texture",
+                a.charts,
+                100.0 * a.utilization
+            )
+        })
+    }
+}
+
 /// The result as `transfer --out` delivers it at a path with extension `ext` (case-insensitive):
-/// the target file mesh with the signal on its own vertices, and, for `.glb`/`.obj` when the
-/// target has UVs, a `baseColorTexture` of `texture_size` pixels baked into its UV layout (a
-/// `.glb` then carries the texture alone, without vertex colours).
+/// the target file mesh with the signal on its own vertices, and, for `.glb`/`.obj`, a
+/// `baseColorTexture` of `texture_size` pixels baked into its UV layout (a `.glb` then carries
+/// the texture alone, without vertex colours). A target without UVs first gets a generated atlas
+/// ([`crate::geometry::uv_atlas`]); `cancel` stops that.
 pub fn deliver(
     target: &TriMesh,
     layout: &BakeLayout,
@@ -74,13 +98,25 @@ pub fn deliver(
     file_signal: &[[f32; 3]],
     ext: &str,
     texture_size: u32,
-) -> TriMesh {
+    cancel: &crate::work::CancelToken,
+) -> crate::error::Result<Delivered> {
     let ext = ext.to_ascii_lowercase();
     let mut out = target.clone();
     out.colors = Some(file_signal.to_vec());
     out.texture = None;
-    if ext != "ply" && target.uvs.is_some() {
-        let image = layout.bake(target, working_signal, texture_size);
+    let mut atlas = None;
+    if ext != "ply" {
+        if out.uvs.is_none() {
+            let params = crate::geometry::AtlasParams {
+                texture_size,
+                ..Default::default()
+            };
+            let a =
+                crate::geometry::uv_atlas(&out.positions, &out.faces, &params, &|_| {}, cancel)?;
+            out.uvs = Some(a.uvs.clone());
+            atlas = Some(a);
+        }
+        let image = layout.bake(&out, working_signal, texture_size);
         out.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
             image,
             path: None,
@@ -89,7 +125,7 @@ pub fn deliver(
             out.colors = None;
         }
     }
-    out
+    Ok(Delivered { mesh: out, atlas })
 }
 
 /// The dense result (`transfer --out-dense`): the working mesh with the signal on its vertices.
@@ -109,8 +145,6 @@ fn bake_layout(
 ) -> image::RgbImage {
     let size = size.max(1);
     let (w, h) = (size as usize, size as usize);
-    let mut acc = vec![[0.0f32; 3]; w * h];
-    let mut have = vec![false; w * h];
     let Some(uvs) = target.uvs.as_ref() else {
         return image::RgbImage::new(size, size);
     };
@@ -175,89 +209,9 @@ fn bake_layout(
         }
         out
     };
-    for (f, _) in target.faces.iter().enumerate() {
-        let uv = [uvs[3 * f], uvs[3 * f + 1], uvs[3 * f + 2]]
-            .map(|u| [u[0] * w as f32, (1.0 - u[1]) * h as f32]);
-        let minx = uv
-            .iter()
-            .map(|p| p[0])
-            .fold(f32::INFINITY, f32::min)
-            .floor()
-            .max(0.0) as usize;
-        let maxx = (uv
-            .iter()
-            .map(|p| p[0])
-            .fold(f32::NEG_INFINITY, f32::max)
-            .ceil() as usize)
-            .min(w);
-        let miny = uv
-            .iter()
-            .map(|p| p[1])
-            .fold(f32::INFINITY, f32::min)
-            .floor()
-            .max(0.0) as usize;
-        let maxy = (uv
-            .iter()
-            .map(|p| p[1])
-            .fold(f32::NEG_INFINITY, f32::max)
-            .ceil() as usize)
-            .min(h);
-        let det = (uv[1][0] - uv[0][0]) * (uv[2][1] - uv[0][1])
-            - (uv[2][0] - uv[0][0]) * (uv[1][1] - uv[0][1]);
-        if !det.is_finite() || det.abs() < 1e-12 {
-            continue;
-        }
-        for y in miny..maxy {
-            for x in minx..maxx {
-                let p = [x as f32 + 0.5, y as f32 + 0.5];
-                let b1 = ((p[0] - uv[0][0]) * (uv[2][1] - uv[0][1])
-                    - (uv[2][0] - uv[0][0]) * (p[1] - uv[0][1]))
-                    / det;
-                let b2 = ((uv[1][0] - uv[0][0]) * (p[1] - uv[0][1])
-                    - (p[0] - uv[0][0]) * (uv[1][1] - uv[0][1]))
-                    / det;
-                let b0 = 1.0 - b1 - b2;
-                if b0 < -1e-4 || b1 < -1e-4 || b2 < -1e-4 {
-                    continue;
-                }
-                let i = y * w + x;
-                acc[i] = sample(f, [b0, b1, b2]);
-                have[i] = true;
-            }
-        }
-    }
-    // Dilate a few texels past island borders.
-    for _ in 0..4 {
-        let prev = have.clone();
-        let snap = acc.clone();
-        for y in 0..h {
-            for x in 0..w {
-                let i = y * w + x;
-                if prev[i] {
-                    continue;
-                }
-                let mut a = [0.0f32; 3];
-                let mut c = 0;
-                for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                    let (xx, yy) = (x as i64 + dx, y as i64 + dy);
-                    if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
-                        continue;
-                    }
-                    let j = yy as usize * w + xx as usize;
-                    if prev[j] {
-                        for ch in 0..3 {
-                            a[ch] += snap[j][ch];
-                        }
-                        c += 1;
-                    }
-                }
-                if c > 0 {
-                    acc[i] = a.map(|v| v / c as f32);
-                    have[i] = true;
-                }
-            }
-        }
-    }
+    let mut baked = crate::geometry::bake_uv(uvs, target.faces.len(), w, h, sample);
+    crate::geometry::fill_gutters(&mut baked);
+    let acc = baked.pixels;
     let mut img = image::RgbImage::new(size, size);
     for (i, p) in img.pixels_mut().enumerate() {
         p.0 = crate::color::to_u8(acc[i]);

@@ -26,7 +26,7 @@ use crate::error::{Error, Result};
 use crate::mesh::{SignalKind, TriMesh};
 use crate::work::{CancelToken, Event};
 
-pub use deliver::{BakeLayout, bake_texture, deliver, deliver_dense};
+pub use deliver::{BakeLayout, Delivered, bake_texture, deliver, deliver_dense};
 pub use global_map::{POINT_MAP_VERTICES, PointMap, map_meshes};
 pub use prepare::{PreparedMesh, prepare};
 pub use solve::{solve, solve_constrained};

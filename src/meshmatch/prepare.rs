@@ -251,6 +251,27 @@ pub fn prepare(
         .collect();
     let mut working = TriMesh::new(r.mesh.positions, r.mesh.faces);
     working.colors = signal0.clone();
+    // A textured input keeps its texture on the working mesh (UVs interpolated into every working
+    // corner), so views draw it per pixel rather than through the vertex colours.
+    if mesh.signal_kind() == SignalKind::Texture
+        && let Some(uvs) = mesh.uvs.as_ref()
+    {
+        let wuv: Vec<[f32; 2]> = face_input
+            .iter()
+            .zip(&r.source_bary)
+            .flat_map(|(&f, cb)| {
+                let f = f as usize;
+                cb.map(|b| {
+                    (0..3).fold([0.0f32; 2], |a, k| {
+                        let u = uvs[3 * f + k];
+                        [a[0] + b[k] * u[0], a[1] + b[k] * u[1]]
+                    })
+                })
+            })
+            .collect();
+        working.uvs = Some(wuv);
+        working.texture = mesh.texture.clone();
+    }
     stage("refine", sw.secs(), &mut timings);
 
     sink(Event::Progress(progress("hierarchy", &watch, 0.2)));

@@ -29,6 +29,7 @@ struct Uniforms {
 struct Vertex {
     position: [f32; 3],
     normal: [f32; 3],
+    uv: [f32; 2],
 }
 
 /// One correspondence marker, drawn as a shaded sphere that the mesh can hide.
@@ -78,6 +79,8 @@ pub struct MeshRenderer {
     sphere_indices: wgpu::Buffer,
     sphere_index_count: u32,
     layout: wgpu::BindGroupLayout,
+    texture_layout: wgpu::BindGroupLayout,
+    sampler: wgpu::Sampler,
     /// MSAA sample count used by targets made for this renderer.
     pub samples: u32,
 }
@@ -117,16 +120,47 @@ impl MeshRenderer {
                 count: None,
             }],
         });
+        let texture_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("meshmatch base texture"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        // Trilinear, repeating (UVs outside [0, 1] tile, as OBJ and glTF expect).
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("meshmatch base sampler"),
+            address_mode_u: wgpu::AddressMode::Repeat,
+            address_mode_v: wgpu::AddressMode::Repeat,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            ..Default::default()
+        });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("meshmatch pipeline layout"),
-            bind_group_layouts: &[Some(&layout)],
+            bind_group_layouts: &[Some(&layout), Some(&texture_layout)],
             immediate_size: 0,
         });
         let buffers = [
             Some(wgpu::VertexBufferLayout {
                 array_stride: std::mem::size_of::<Vertex>() as u64,
                 step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 3 => Float32x2],
             }),
             Some(wgpu::VertexBufferLayout {
                 array_stride: 12,
@@ -236,6 +270,8 @@ impl MeshRenderer {
             }),
             sphere_index_count: sphere_tris.len() as u32,
             layout,
+            texture_layout,
+            sampler,
             samples,
         }
     }
@@ -297,6 +333,11 @@ impl MeshRenderer {
         });
         let Some(mesh) = mesh else { return };
         pass.set_bind_group(0, &mesh.bind_group, &[]);
+        let tex = match (&mesh.texture_group, mesh.textured) {
+            (Some(t), true) => t,
+            _ => &mesh.white_group,
+        };
+        pass.set_bind_group(1, tex, &[]);
         pass.set_vertex_buffer(0, mesh.vertices.slice(..));
         pass.set_vertex_buffer(1, mesh.colors.slice(..));
         pass.set_pipeline(&self.fill);
@@ -393,7 +434,9 @@ pub fn display_colors(mesh: &TriMesh, colors: Option<&[[f32; 3]]>) -> Vec<[f32; 
     out
 }
 
-/// A mesh uploaded to the GPU: positions+normals, colours (rewritable), triangles and edges.
+/// A mesh uploaded to the GPU: drawn vertices (split at sharp edges and UV seams, see
+/// [`super::draw_mesh`]), colours (rewritable), triangles, edges and, for a textured mesh, its
+/// texture with mipmaps.
 pub struct GpuMesh {
     vertices: wgpu::Buffer,
     colors: wgpu::Buffer,
@@ -401,6 +444,14 @@ pub struct GpuMesh {
     edges: wgpu::Buffer,
     uniforms: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
+    /// A 1x1 white texture: vertex colours alone.
+    white_group: wgpu::BindGroup,
+    /// The mesh's own texture, if it has one with UVs.
+    texture_group: Option<wgpu::BindGroup>,
+    /// Whether the texture is drawn (else the vertex colours).
+    textured: bool,
+    /// Mesh vertex of every drawn vertex.
+    draw_vertex: Vec<u32>,
     index_count: u32,
     edge_count: u32,
     vertex_count: usize,
@@ -411,41 +462,101 @@ pub struct GpuMesh {
     pub frame: Frame,
 }
 
+/// Whether `mesh` can be drawn through its texture (a texture and per-corner UVs).
+pub fn has_texture(mesh: &TriMesh) -> bool {
+    mesh.texture.is_some()
+        && mesh
+            .uvs
+            .as_ref()
+            .is_some_and(|u| u.len() == 3 * mesh.faces.len())
+}
+
+/// Upload an sRGB image with its mip chain as a sampleable texture.
+fn upload_texture(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    image: &image::RgbaImage,
+) -> wgpu::TextureView {
+    let max = device.limits().max_texture_dimension_2d.max(1);
+    let mut img = image.clone();
+    if img.width() > max || img.height() > max {
+        let s = max as f32 / img.width().max(img.height()) as f32;
+        img = image::imageops::resize(
+            &img,
+            ((img.width() as f32 * s) as u32).max(1),
+            ((img.height() as f32 * s) as u32).max(1),
+            image::imageops::FilterType::Triangle,
+        );
+    }
+    let mips = crate::geometry::mip_chain(&img);
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("mesh base texture"),
+        size: wgpu::Extent3d {
+            width: img.width(),
+            height: img.height(),
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: mips.len() as u32,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    for (level, m) in mips.iter().enumerate() {
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &texture,
+                mip_level: level as u32,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            m.as_raw(),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * m.width()),
+                rows_per_image: Some(m.height()),
+            },
+            wgpu::Extent3d {
+                width: m.width(),
+                height: m.height(),
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+    texture.create_view(&Default::default())
+}
+
 impl GpuMesh {
-    /// Upload `mesh` with per-vertex sRGB `colors` (see [`display_colors`]).
+    /// Upload `mesh` with per-vertex sRGB `colors` (see [`display_colors`]); with `textured` and
+    /// a texture on the mesh, its texture is drawn per pixel instead of the colours.
     pub fn new(
         device: &wgpu::Device,
+        queue: &wgpu::Queue,
         renderer: &MeshRenderer,
         mesh: &TriMesh,
         colors: &[[f32; 3]],
+        textured: bool,
     ) -> Self {
-        let normals = vertex_normals(&mesh.positions, &mesh.faces);
-        let n = mesh.positions.len().max(1);
-        let mut verts: Vec<Vertex> = mesh
-            .positions
-            .iter()
-            .zip(&normals)
-            .map(|(p, nr)| Vertex {
-                position: *p,
-                normal: *nr,
+        let can_texture = has_texture(mesh);
+        let d = super::draw_mesh::draw_mesh(mesh, can_texture);
+        let mut verts: Vec<Vertex> = (0..d.positions.len())
+            .map(|i| Vertex {
+                position: d.positions[i],
+                normal: d.normals[i],
+                uv: d.uvs[i],
             })
             .collect();
-        verts.resize(
-            n,
-            Vertex {
+        if verts.is_empty() {
+            verts.push(Vertex {
                 position: [0.0; 3],
                 normal: [0.0; 3],
-            },
-        );
-        let mut cols = colors.to_vec();
-        cols.resize(n, DEFAULT_VERTEX_COLOR);
+                uv: [0.0; 2],
+            });
+        }
+        let textured = textured && can_texture;
+        let cols = expand_colors(&d.vertex, colors, textured, verts.len());
         let nv = mesh.positions.len() as u32;
-        let tris: Vec<u32> = mesh
-            .faces
-            .iter()
-            .filter(|f| f.iter().all(|&i| i < nv))
-            .flat_map(|f| *f)
-            .collect();
         let mut edge_list: Vec<[u32; 2]> = mesh
             .faces
             .iter()
@@ -455,7 +566,12 @@ impl GpuMesh {
             .collect();
         edge_list.sort_unstable();
         edge_list.dedup();
-        let edges: Vec<u32> = edge_list.into_iter().flatten().collect();
+        let edges: Vec<u32> = edge_list
+            .into_iter()
+            .flatten()
+            .map(|v| d.first[v as usize])
+            .collect();
+        let tris = d.triangles;
         let init = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
             // wgpu rejects zero-sized bindings; keep at least 4 bytes.
             let pad = [0u8; 16];
@@ -500,6 +616,28 @@ impl GpuMesh {
                 resource: uniforms.as_entire_binding(),
             }],
         });
+        let texture_group = |view: &wgpu::TextureView| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("mesh texture group"),
+                layout: &renderer.texture_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(view),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: wgpu::BindingResource::Sampler(&renderer.sampler),
+                    },
+                ],
+            })
+        };
+        let white = image::RgbaImage::from_pixel(1, 1, image::Rgba([255; 4]));
+        let white_group = texture_group(&upload_texture(device, queue, &white));
+        let texture_group = mesh.texture.as_ref().filter(|_| can_texture).map(|t| {
+            let rgba = image::DynamicImage::ImageRgb8(t.image.clone()).to_rgba8();
+            texture_group(&upload_texture(device, queue, &rgba))
+        });
         GpuMesh {
             vertices,
             colors,
@@ -507,6 +645,10 @@ impl GpuMesh {
             edges: edges_buf,
             uniforms,
             bind_group,
+            white_group,
+            texture_group,
+            textured,
+            draw_vertex: d.vertex,
             index_count: tris.len() as u32,
             edge_count: edges.len() as u32,
             vertex_count: mesh.positions.len(),
@@ -546,19 +688,52 @@ impl GpuMesh {
         }
     }
 
-    /// Replace the per-vertex colours (writes the colour buffer only). Extra entries are ignored;
-    /// missing ones are left unchanged.
-    pub fn update_colors(&self, queue: &wgpu::Queue, colors: &[[f32; 3]]) {
-        let n = colors.len().min(self.vertex_count);
-        if n > 0 {
-            queue.write_buffer(&self.colors, 0, bytemuck::cast_slice(&colors[..n]));
+    /// Replace the per-vertex colours (writes the colour buffer only); with `textured`, a mesh
+    /// that has a texture draws it instead. Extra entries are ignored; missing ones are grey.
+    pub fn update_colors(&mut self, queue: &wgpu::Queue, colors: &[[f32; 3]], textured: bool) {
+        self.textured = textured && self.texture_group.is_some();
+        let cols = expand_colors(&self.draw_vertex, colors, self.textured, 0);
+        if !cols.is_empty() {
+            queue.write_buffer(&self.colors, 0, bytemuck::cast_slice(&cols));
         }
+    }
+
+    /// Whether the mesh's texture is drawn.
+    pub fn is_textured(&self) -> bool {
+        self.textured
     }
 
     /// Number of vertices uploaded.
     pub fn vertex_count(&self) -> usize {
         self.vertex_count
     }
+}
+
+/// Colours of the drawn vertices: white under a texture, else each one's mesh vertex colour;
+/// at least `min_len` entries.
+fn expand_colors(
+    draw_vertex: &[u32],
+    colors: &[[f32; 3]],
+    textured: bool,
+    min_len: usize,
+) -> Vec<[f32; 3]> {
+    let mut out: Vec<[f32; 3]> = draw_vertex
+        .iter()
+        .map(|&v| {
+            if textured {
+                [1.0; 3]
+            } else {
+                colors
+                    .get(v as usize)
+                    .copied()
+                    .unwrap_or(DEFAULT_VERTEX_COLOR)
+            }
+        })
+        .collect();
+    if out.len() < min_len {
+        out.resize(min_len, DEFAULT_VERTEX_COLOR);
+    }
+    out
 }
 
 /// An offscreen colour+depth target (with optional MSAA) that can be shown by egui or read back.

@@ -1,8 +1,10 @@
-//! Renderer: per-vertex-coloured meshes with headlight Lambert shading and optional wireframe,
-//! drawn with wgpu into offscreen targets. The app shows those targets in its viewports; the CLI's
+//! Renderer: meshes drawn through their texture (per pixel, mipmapped, sRGB-correct) or their
+//! vertex colours, with hard edges where the surface is sharp, headlight Lambert shading and
+//! optional wireframe, drawn with wgpu into offscreen targets. The app shows those targets in its viewports; the CLI's
 //! `render` command reads them back to PNG through the same code ([`render_image`]).
 
 pub mod camera;
+pub mod draw_mesh;
 pub mod gpu;
 
 use std::path::Path;
@@ -11,7 +13,10 @@ use std::sync::{Arc, OnceLock};
 use eframe::wgpu;
 
 pub use camera::{Camera, FOV_Y_DEG, Frame, Hit, fov_y, pick};
-pub use gpu::{DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, display_colors};
+pub use draw_mesh::{DrawMesh, SHARP_ANGLE_DEG, draw_mesh};
+pub use gpu::{
+    DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, display_colors, has_texture,
+};
 
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
@@ -132,7 +137,16 @@ impl Headless {
             )));
         }
         let cols = display_colors(mesh, colors);
-        let mut gpu_mesh = GpuMesh::new(&self.device, &self.renderer, mesh, &cols);
+        // The mesh's own signal: its texture per pixel when it has one.
+        let textured = colors.is_none() && has_texture(mesh);
+        let mut gpu_mesh = GpuMesh::new(
+            &self.device,
+            &self.queue,
+            &self.renderer,
+            mesh,
+            &cols,
+            textured,
+        );
         gpu_mesh.set_markers(&self.device, &self.queue, &opts.markers);
         let target = RenderTarget::new(&self.device, &self.renderer, opts.width, opts.height);
         let camera = Camera {

@@ -359,6 +359,7 @@ impl<P: AppParams> AppState<P> {
                     }
                     f2w
                 };
+                slot.own_signal = side == Side::Source;
                 slot.base_colors = match side {
                     Side::Source => crate::render::display_colors(&working, None),
                     Side::Target => {
@@ -454,6 +455,7 @@ impl<P: AppParams> AppState<P> {
             && signal.len() == slot.displayed().positions.len()
         {
             slot.base_colors = signal.to_vec();
+            slot.own_signal = false;
             slot.colors_dirty = true;
         }
     }

@@ -123,14 +123,18 @@ impl<P: AppParams> AppState<P> {
         }
         let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
         let m = match &res.layout {
-            Some(layout) => crate::meshmatch::deliver(
-                &slot.file,
-                layout,
-                &res.working_signal,
-                &res.file_signal,
-                ext,
-                EXPORT_TEXTURE_SIZE,
-            ),
+            Some(layout) => {
+                crate::meshmatch::deliver(
+                    &slot.file,
+                    layout,
+                    &res.working_signal,
+                    &res.file_signal,
+                    ext,
+                    EXPORT_TEXTURE_SIZE,
+                    &crate::work::CancelToken::new(),
+                )?
+                .mesh
+            }
             None => {
                 let mut m = (*slot.file).clone();
                 m.colors = Some(res.file_signal.clone());

@@ -20,6 +20,9 @@ pub struct MeshSlot {
     pub file_to_working: Option<Vec<u32>>,
     /// Base colours of the displayed mesh (before paint).
     pub base_colors: Vec<[f32; 3]>,
+    /// The base colours are the displayed mesh's own signal (not a result): a textured mesh is
+    /// then drawn through its texture.
+    pub own_signal: bool,
     /// Vertex normals of the displayed mesh (for marker visibility).
     pub normals: Vec<[f32; 3]>,
     /// Paint layer on the displayed mesh: RGB + coverage per vertex.
@@ -50,6 +53,7 @@ impl MeshSlot {
             working_to_file: None,
             file_to_working: None,
             base_colors,
+            own_signal: true,
             paint: None,
             geometry_dirty: true,
             colors_dirty: true,
@@ -84,6 +88,12 @@ impl MeshSlot {
     pub fn file_vertex_position(&self, f: u32) -> Option<[f32; 3]> {
         let d = self.to_displayed(f)?;
         self.displayed().positions.get(d as usize).copied()
+    }
+
+    /// Whether the view draws the displayed mesh's texture per pixel: it has one, shows its own
+    /// signal and carries no paint.
+    pub fn shows_texture(&self) -> bool {
+        self.own_signal && self.paint.is_none() && crate::render::has_texture(self.displayed())
     }
 
     /// Colours to draw: base colours with the paint layer composited.

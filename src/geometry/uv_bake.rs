@@ -1,0 +1,349 @@
+//! Baking a surface signal into a texture through per-corner UVs, and the texture's mip chain.
+//!
+//! [`bake_uv`] rasterises every UV triangle conservatively: a texel whose centre lies inside a
+//! triangle takes the signal there; a texel the triangle only touches (its centre within half a
+//! texel diagonal of the triangle) takes the signal at the triangle's nearest point, unless a
+//! triangle covers its centre. Thin and sliver triangles therefore leave no holes inside charts.
+//! [`fill_gutters`] then fills every texel outside the charts by pull-push (a weighted image
+//! pyramid, pulled up and pushed back down), so bilinear and mipmapped sampling never meets a
+//! background colour at chart borders: gutters carry the colour of the nearest charts.
+
+use rayon::prelude::*;
+
+/// A baked image in floating point with its coverage mask (row 0 at the top of the image).
+#[derive(Clone, Debug)]
+pub struct BakedImage {
+    /// Width in texels.
+    pub width: usize,
+    /// Height in texels.
+    pub height: usize,
+    /// Texel values, row-major.
+    pub pixels: Vec<[f32; 3]>,
+    /// Whether a UV triangle covers (or touches) each texel.
+    pub covered: Vec<bool>,
+}
+
+/// Rows of texels a worker rasterises at a time.
+const BAND_ROWS: usize = 32;
+/// Half the diagonal of a texel: how far outside a triangle a touched texel's centre may lie.
+const TOUCH: f32 = std::f32::consts::FRAC_1_SQRT_2;
+
+/// Rasterise `faces` triangles whose corners have UVs `uvs[3 * f + k]` (V up, `[0, 1]²`) into a
+/// `width × height` image; `sample(f, bary)` gives the signal at barycentric `bary` of face `f`.
+/// Texels no triangle touches stay zero and uncovered (see [`fill_gutters`]).
+pub fn bake_uv<F>(
+    uvs: &[[f32; 2]],
+    faces: usize,
+    width: usize,
+    height: usize,
+    sample: F,
+) -> BakedImage
+where
+    F: Fn(usize, [f32; 3]) -> [f32; 3] + Sync,
+{
+    let (w, h) = (width.max(1), height.max(1));
+    let faces = faces.min(uvs.len() / 3);
+    // Texel-space corners (x right, y down) of every face.
+    let corner = |f: usize, k: usize| {
+        let u = uvs[3 * f + k];
+        [u[0] * w as f32, (1.0 - u[1]) * h as f32]
+    };
+    // Faces per band of rows (CSR), by their bounding boxes grown by one texel.
+    let bands = h.div_ceil(BAND_ROWS);
+    let span = |f: usize| -> Option<(usize, usize)> {
+        let ys = [corner(f, 0)[1], corner(f, 1)[1], corner(f, 2)[1]];
+        if ys.iter().any(|y| !y.is_finite()) {
+            return None;
+        }
+        let lo = ys.iter().copied().fold(f32::INFINITY, f32::min) - 1.0;
+        let hi = ys.iter().copied().fold(f32::NEG_INFINITY, f32::max) + 1.0;
+        if hi < 0.0 || lo >= h as f32 {
+            return None;
+        }
+        let a = (lo.max(0.0) as usize / BAND_ROWS).min(bands - 1);
+        let b = ((hi.min(h as f32 - 1.0)).max(0.0) as usize / BAND_ROWS).min(bands - 1);
+        Some((a, b))
+    };
+    let mut off = vec![0usize; bands + 1];
+    for f in 0..faces {
+        if let Some((a, b)) = span(f) {
+            for band in a..=b {
+                off[band + 1] += 1;
+            }
+        }
+    }
+    for i in 0..bands {
+        off[i + 1] += off[i];
+    }
+    let mut list = vec![0u32; off[bands]];
+    let mut fill = off.clone();
+    for f in 0..faces {
+        if let Some((a, b)) = span(f) {
+            for band in a..=b {
+                list[fill[band]] = f as u32;
+                fill[band] += 1;
+            }
+        }
+    }
+    let mut pixels = vec![[0.0f32; 3]; w * h];
+    let mut covered = vec![false; w * h];
+    pixels
+        .par_chunks_mut(BAND_ROWS * w)
+        .zip(covered.par_chunks_mut(BAND_ROWS * w))
+        .enumerate()
+        .for_each(|(band, (px, cov))| {
+            let y0 = band * BAND_ROWS;
+            let rows = px.len() / w;
+            // Distance of the sample that set each texel (0 inside a triangle).
+            let mut best = vec![f32::INFINITY; rows * w];
+            for &f in &list[off[band]..off[band + 1]] {
+                let f = f as usize;
+                let t = [corner(f, 0), corner(f, 1), corner(f, 2)];
+                let det = (t[1][0] - t[0][0]) * (t[2][1] - t[0][1])
+                    - (t[2][0] - t[0][0]) * (t[1][1] - t[0][1]);
+                if !det.is_finite() || det.abs() < 1e-12 {
+                    continue;
+                }
+                let xs = [t[0][0], t[1][0], t[2][0]];
+                let ys = [t[0][1], t[1][1], t[2][1]];
+                let lo = |v: [f32; 3]| (v[0].min(v[1]).min(v[2]) - 1.0).floor().max(0.0) as usize;
+                let hi = |v: [f32; 3], n: usize| {
+                    ((v[0].max(v[1]).max(v[2]) + 1.0).ceil().max(0.0) as usize).min(n)
+                };
+                let (x0, x1) = (lo(xs), hi(xs, w));
+                let (ya, yb) = (lo(ys).max(y0), hi(ys, h).min(y0 + rows));
+                for y in ya..yb {
+                    for x in x0..x1 {
+                        let p = [x as f32 + 0.5, y as f32 + 0.5];
+                        let (d, bary) = locate(&t, det, p);
+                        let i = (y - y0) * w + x;
+                        if d < best[i] && d <= TOUCH {
+                            best[i] = d;
+                            px[i] = sample(f, bary);
+                            cov[i] = true;
+                        }
+                    }
+                }
+            }
+        });
+    BakedImage {
+        width: w,
+        height: h,
+        pixels,
+        covered,
+    }
+}
+
+/// Distance from `p` to triangle `t` (0 inside) and the barycentric coordinates of the nearest
+/// point of the triangle.
+fn locate(t: &[[f32; 2]; 3], det: f32, p: [f32; 2]) -> (f32, [f32; 3]) {
+    let b1 =
+        ((p[0] - t[0][0]) * (t[2][1] - t[0][1]) - (t[2][0] - t[0][0]) * (p[1] - t[0][1])) / det;
+    let b2 =
+        ((t[1][0] - t[0][0]) * (p[1] - t[0][1]) - (p[0] - t[0][0]) * (t[1][1] - t[0][1])) / det;
+    let b0 = 1.0 - b1 - b2;
+    if b0 >= 0.0 && b1 >= 0.0 && b2 >= 0.0 {
+        return (0.0, [b0, b1, b2]);
+    }
+    // Nearest point on the three edges.
+    let mut best = (f32::INFINITY, [1.0f32, 0.0, 0.0]);
+    for k in 0..3 {
+        let (a, b) = (t[k], t[(k + 1) % 3]);
+        let e = [b[0] - a[0], b[1] - a[1]];
+        let len2 = e[0] * e[0] + e[1] * e[1];
+        let s = if len2 > 0.0 {
+            (((p[0] - a[0]) * e[0] + (p[1] - a[1]) * e[1]) / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let q = [a[0] + s * e[0] - p[0], a[1] + s * e[1] - p[1]];
+        let d = (q[0] * q[0] + q[1] * q[1]).sqrt();
+        if d < best.0 {
+            let mut bary = [0.0f32; 3];
+            bary[k] = 1.0 - s;
+            bary[(k + 1) % 3] = s;
+            best = (d, bary);
+        }
+    }
+    best
+}
+
+/// Fill every uncovered texel of `img` from the covered ones by pull-push: each texel outside
+/// the charts takes the (bilinearly upsampled) weighted mean of the coarsest pyramid level that
+/// has coverage around it. Covered texels are unchanged. An image with no coverage is unchanged.
+pub fn fill_gutters(img: &mut BakedImage) {
+    let weights: Vec<f32> = img.covered.iter().map(|&c| c as u8 as f32).collect();
+    pull_push(&mut img.pixels, &weights, img.width, img.height);
+}
+
+fn pull_push(px: &mut [[f32; 3]], wt: &[f32], w: usize, h: usize) {
+    if w <= 1 && h <= 1 {
+        return;
+    }
+    let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
+    let mut cpx = vec![[0.0f32; 3]; cw * ch];
+    let mut cwt = vec![0.0f32; cw * ch];
+    for y in 0..ch {
+        for x in 0..cw {
+            let mut acc = [0.0f32; 3];
+            let mut s = 0.0f32;
+            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let (xx, yy) = (2 * x + dx, 2 * y + dy);
+                if xx < w && yy < h {
+                    let i = yy * w + xx;
+                    for c in 0..3 {
+                        acc[c] += wt[i] * px[i][c];
+                    }
+                    s += wt[i];
+                }
+            }
+            let j = y * cw + x;
+            if s > 0.0 {
+                cpx[j] = acc.map(|a| a / s);
+            }
+            cwt[j] = s.min(1.0);
+        }
+    }
+    if cwt.iter().all(|&s| s == 0.0) {
+        return;
+    }
+    pull_push(&mut cpx, &cwt, cw, ch);
+    // Push: uncovered fine texels (weight < 1) blend towards the bilinear coarse value.
+    px.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let fy = ((y as f32 + 0.5) / 2.0 - 0.5).clamp(0.0, (ch - 1) as f32);
+        let (y0, ty) = (fy.floor() as usize, fy.fract());
+        let y1 = (y0 + 1).min(ch - 1);
+        for (x, p) in row.iter_mut().enumerate() {
+            let wi = wt[y * w + x];
+            if wi >= 1.0 {
+                continue;
+            }
+            let fx = ((x as f32 + 0.5) / 2.0 - 0.5).clamp(0.0, (cw - 1) as f32);
+            let (x0, tx) = (fx.floor() as usize, fx.fract());
+            let x1 = (x0 + 1).min(cw - 1);
+            let mut q = [0.0f32; 3];
+            for c in 0..3 {
+                let a = cpx[y0 * cw + x0][c] * (1.0 - tx) + cpx[y0 * cw + x1][c] * tx;
+                let b = cpx[y1 * cw + x0][c] * (1.0 - tx) + cpx[y1 * cw + x1][c] * tx;
+                q[c] = a * (1.0 - ty) + b * ty;
+            }
+            for c in 0..3 {
+                p[c] = wi * p[c] + (1.0 - wi) * q[c];
+            }
+        }
+    });
+}
+
+/// The mip chain of an sRGB image down to 1×1: each level the 2×2 box average of the one above,
+/// averaged in linear light (odd sizes clamp at the border). Level 0 is `img` itself.
+pub fn mip_chain(img: &image::RgbaImage) -> Vec<image::RgbaImage> {
+    let mut levels = vec![img.clone()];
+    while let Some(top) = levels.last() {
+        let (w, h) = top.dimensions();
+        if w <= 1 && h <= 1 {
+            break;
+        }
+        let (nw, nh) = (w.div_ceil(2).max(1), h.div_ceil(2).max(1));
+        let mut next = image::RgbaImage::new(nw, nh);
+        for y in 0..nh {
+            for x in 0..nw {
+                let mut acc = [0.0f32; 4];
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let p = top
+                        .get_pixel((2 * x + dx).min(w - 1), (2 * y + dy).min(h - 1))
+                        .0;
+                    for c in 0..3 {
+                        acc[c] += crate::color::srgb_to_linear(p[c] as f32 / 255.0);
+                    }
+                    acc[3] += p[3] as f32 / 255.0;
+                }
+                let px = [
+                    crate::color::linear_to_srgb(acc[0] / 4.0),
+                    crate::color::linear_to_srgb(acc[1] / 4.0),
+                    crate::color::linear_to_srgb(acc[2] / 4.0),
+                    acc[3] / 4.0,
+                ];
+                next.put_pixel(
+                    x,
+                    y,
+                    image::Rgba(px.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)),
+                );
+            }
+        }
+        levels.push(next);
+    }
+    levels
+}
+
+/// Bilinear sample (sRGB values, interpolated in linear light) of `img` at `uv` (V up,
+/// clamp-to-edge), as a GPU samples one mip level.
+pub fn sample_bilinear(img: &image::RgbaImage, uv: [f32; 2]) -> [f32; 3] {
+    let (w, h) = img.dimensions();
+    let fx = (uv[0] * w as f32 - 0.5).clamp(0.0, (w - 1) as f32);
+    let fy = ((1.0 - uv[1]) * h as f32 - 0.5).clamp(0.0, (h - 1) as f32);
+    let (x0, y0) = (fx.floor() as u32, fy.floor() as u32);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (tx, ty) = (fx - x0 as f32, fy - y0 as f32);
+    let lin = |x: u32, y: u32, c: usize| {
+        crate::color::srgb_to_linear(img.get_pixel(x, y).0[c] as f32 / 255.0)
+    };
+    let mut out = [0.0f32; 3];
+    for (c, o) in out.iter_mut().enumerate() {
+        let a = lin(x0, y0, c) * (1.0 - tx) + lin(x1, y0, c) * tx;
+        let b = lin(x0, y1, c) * (1.0 - tx) + lin(x1, y1, c) * tx;
+        *o = crate::color::linear_to_srgb(a * (1.0 - ty) + b * ty);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sliver_triangle_leaves_no_hole_and_gutters_are_filled() {
+        // A needle triangle thinner than a texel, red, and a big green triangle elsewhere.
+        let uvs = vec![
+            [0.1, 0.1],
+            [0.9, 0.1005],
+            [0.9, 0.1],
+            [0.2, 0.5],
+            [0.8, 0.5],
+            [0.5, 0.9],
+        ];
+        let mut img = bake_uv(&uvs, 2, 64, 64, |f, _| {
+            if f == 0 {
+                [1.0, 0.0, 0.0]
+            } else {
+                [0.0, 1.0, 0.0]
+            }
+        });
+        // The needle's row is covered along its whole length.
+        let y = ((1.0 - 0.1) * 64.0) as usize;
+        let row: usize = (8..56)
+            .filter(|&x| img.covered[y * 64 + x] || img.covered[(y - 1) * 64 + x])
+            .count();
+        assert_eq!(row, 48, "needle covered at {row} of 48 columns");
+        fill_gutters(&mut img);
+        // Every texel now has a colour from a chart: no black left.
+        assert!(
+            img.pixels.iter().all(|p| p[0] + p[1] > 0.99),
+            "a texel stayed background"
+        );
+        // Covered texels were not changed by the fill.
+        let c = (0.5 * 64.0) as usize;
+        assert_eq!(img.pixels[(64 - c) * 64 + c], [0.0, 1.0, 0.0]);
+    }
+
+    #[test]
+    fn mips_average_in_linear_light() {
+        let mut img = image::RgbaImage::new(2, 2);
+        img.put_pixel(0, 0, image::Rgba([255, 255, 255, 255]));
+        img.put_pixel(1, 1, image::Rgba([255, 255, 255, 255]));
+        let m = mip_chain(&img);
+        assert_eq!(m.len(), 2);
+        // Half white, half black in linear light is sRGB 188, not 128.
+        let v = m[1].get_pixel(0, 0).0[0];
+        assert!((186..=190).contains(&v), "{v}");
+    }
+}
