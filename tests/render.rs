@@ -254,3 +254,139 @@ fn marker_spheres_show_in_front_and_faintly_through_the_mesh() {
         "hidden marker must not look unoccluded: {b:?}"
     );
 }
+
+/// A cube of 8 vertices whose six faces each carry the whole of a checkerboard texture.
+fn checker_cube() -> TriMesh {
+    let p: Vec<[f32; 3]> = (0..8)
+        .map(|i| {
+            [
+                (i & 1) as f32 - 0.5,
+                ((i >> 1) & 1) as f32 - 0.5,
+                ((i >> 2) & 1) as f32 - 0.5,
+            ]
+        })
+        .collect();
+    // Quads as (a, b, c, d) counter-clockwise seen from outside.
+    let quads = [
+        [4, 5, 7, 6], // +z
+        [1, 0, 2, 3], // -z
+        [5, 1, 3, 7], // +x
+        [0, 4, 6, 2], // -x
+        [6, 7, 3, 2], // +y
+        [0, 1, 5, 4], // -y
+    ];
+    let mut m = TriMesh::new(p, Vec::new());
+    let mut uvs = Vec::new();
+    let q = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    for [a, b, c, d] in quads {
+        m.faces.push([a, b, c]);
+        uvs.extend([q[0], q[1], q[2]]);
+        m.faces.push([a, c, d]);
+        uvs.extend([q[0], q[2], q[3]]);
+    }
+    m.uvs = Some(uvs);
+    let img = image::RgbImage::from_fn(64, 64, |x, y| {
+        if (x / 8 + y / 8) % 2 == 0 {
+            image::Rgb([240, 240, 240])
+        } else {
+            image::Rgb([20, 20, 20])
+        }
+    });
+    m.texture = Some(std::sync::Arc::new(meshmatch::mesh::Texture {
+        image: img,
+        path: None,
+    }));
+    m
+}
+
+#[test]
+fn a_checker_textured_cube_of_8_vertices_renders_its_checker_per_pixel() {
+    let cube = checker_cube();
+    let img = render_image(
+        &cube,
+        None,
+        &RenderOptions {
+            azimuth_deg: 0.0,
+            elevation_deg: 0.0,
+            width: 400,
+            height: 400,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    // The +z face fills the middle of the picture: light and dark squares, many transitions
+    // along a row through the middle of a band of squares (8 squares across the face).
+    let row = 183u32;
+    let lum = |x: u32, y: u32| img.get_pixel(x, y).0[0] as i32;
+    let (mut light, mut dark, mut flips) = (0, 0, 0);
+    let mut prev = None;
+    for x in 120..280 {
+        let l = lum(x, row);
+        let class = if l > 150 {
+            Some(true)
+        } else if l < 60 {
+            Some(false)
+        } else {
+            None
+        };
+        match class {
+            Some(true) => light += 1,
+            Some(false) => dark += 1,
+            None => {}
+        }
+        if class.is_some() {
+            if prev.is_some() && prev != class {
+                flips += 1;
+            }
+            prev = class;
+        }
+    }
+    assert!(light > 40 && dark > 40, "light {light}, dark {dark}");
+    assert!(flips >= 5, "{flips} light/dark transitions across the face");
+}
+
+#[test]
+fn a_cube_draws_flat_faces_with_sharp_edges() {
+    let mut cube = checker_cube();
+    cube.texture = None;
+    cube.uvs = None;
+    let white = vec![[1.0f32; 3]; 8];
+    let img = render_image(
+        &cube,
+        Some(&white),
+        &RenderOptions {
+            azimuth_deg: 30.0,
+            elevation_deg: 25.0,
+            width: 400,
+            height: 400,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    // Three faces show, each flat-shaded: along a row through the middle, the shading jumps
+    // where the +z face meets the +x face (vertex normals averaged across the edge would make
+    // it continuous), and nowhere else changes by more than a few levels per pixel.
+    let bg = img.get_pixel(0, 0).0;
+    let y = 230u32;
+    let inside: Vec<u32> = (0..400).filter(|&x| img.get_pixel(x, y).0 != bg).collect();
+    assert!(
+        inside.len() > 150,
+        "the cube covers {} pixels of the row",
+        inside.len()
+    );
+    let (x0, x1) = (inside[0] + 3, inside[inside.len() - 1] - 3);
+    let lum = |x: u32| img.get_pixel(x, y).0[0] as i32;
+    let jumps: Vec<(u32, i32)> = (x0..x1)
+        .map(|x| (x, (lum(x + 1) - lum(x)).abs()))
+        .filter(|&(_, d)| d > 12)
+        .collect();
+    assert!(
+        !jumps.is_empty(),
+        "no hard edge between the two visible side faces"
+    );
+    let span = jumps.last().unwrap().0 - jumps[0].0;
+    assert!(
+        span <= 2,
+        "shading changes sharply at {jumps:?}: expected one edge"
+    );
+}

@@ -140,10 +140,12 @@ pub fn uv_atlas(
             let v = &out.vertices[i as usize];
             let page = v.page.unwrap_or(0) as usize;
             let (gx, gy) = ((page % grid) as f32, (page / grid) as f32);
-            // The crate's V grows with the image row; the project's V points up.
+            // The crate lays charts out with V growing down the image; taken as the project's V
+            // (up), the layout is mirrored top to bottom as a whole and every chart keeps its
+            // orientation (counter-clockwise, not mirrored, as seen in the image).
             let u = gx * cell + v.uv[0] * sx;
-            let row = gy * cell + v.uv[1] * sy;
-            [u.clamp(0.0, 1.0), (1.0 - row).clamp(0.0, 1.0)]
+            let vv = gy * cell + v.uv[1] * sy;
+            [u.clamp(0.0, 1.0), vv.clamp(0.0, 1.0)]
         })
         .collect();
     // One page texel is `cell` texture texels along each axis.

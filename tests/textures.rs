@@ -1,0 +1,194 @@
+//! Textures as artists use them: a UV atlas generated for a mesh without UVs, a result baked
+//! into it and exported, read back and sampled where the surface is.
+
+use meshmatch::TriMesh;
+use meshmatch::geometry::{mip_chain, refine_to_density, sample_bilinear};
+use meshmatch::mesh::io;
+use meshmatch::meshmatch::{BakeLayout, deliver};
+use meshmatch::work::CancelToken;
+
+/// A smooth colour that is a known function of position (low frequency over the unit box).
+fn known(p: [f32; 3]) -> [f32; 3] {
+    [
+        0.5 + 0.4 * (3.0 * p[0]).sin(),
+        0.5 + 0.4 * (2.5 * p[1] + 1.0).sin(),
+        0.5 + 0.4 * (2.0 * p[2] + 2.0).cos(),
+    ]
+}
+
+/// Spot's geometry without its UVs and texture (a target as a scan would arrive), scaled into
+/// the unit box.
+fn bare_spot() -> TriMesh {
+    let path = meshmatch::testdata::data_path("spot/spot.obj");
+    let m = io::load(&path).expect("spot loads");
+    let mut bare = TriMesh::new(m.positions.clone(), m.faces.clone());
+    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+    for p in &bare.positions {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    let s = (0..3).map(|k| hi[k] - lo[k]).fold(0.0f32, f32::max);
+    for p in &mut bare.positions {
+        for k in 0..3 {
+            p[k] = (p[k] - lo[k]) / s;
+        }
+    }
+    bare
+}
+
+fn lerp3(a: [f32; 3], b: [f32; 3], c: [f32; 3], w: [f32; 3]) -> [f32; 3] {
+    [0, 1, 2].map(|k| w[0] * a[k] + w[1] * b[k] + w[2] * c[k])
+}
+
+#[test]
+fn atlas_bake_export_round_trip_reproduces_the_signal_on_a_mesh_without_uvs() {
+    let target = bare_spot();
+    assert!(target.uvs.is_none());
+    let refined = refine_to_density(&target, 20_000);
+    let layout = BakeLayout::of_refined(&target, &refined);
+    let working: Vec<[f32; 3]> = refined.mesh.positions.iter().map(|&p| known(p)).collect();
+    let file: Vec<[f32; 3]> = target.positions.iter().map(|&p| known(p)).collect();
+    let size = 1024;
+    let out = deliver(
+        &target,
+        &layout,
+        &working,
+        &file,
+        "glb",
+        size,
+        &CancelToken::new(),
+    )
+    .expect("deliver");
+    let atlas = out.atlas.as_ref().expect("an atlas was generated");
+    assert!(atlas.charts >= 2, "{} charts", atlas.charts);
+    assert!(
+        atlas.utilization > 0.3,
+        "atlas covers {:.2}",
+        atlas.utilization
+    );
+    // Exported as GLB with the texture and read back.
+    let dir = tempfile_dir("atlas_round_trip");
+    let path = dir.join("spot_baked.glb");
+    io::save(&out.mesh, &path).expect("save");
+    let back = io::load(&path).expect("load back");
+    let uvs = back.uvs.as_ref().expect("UVs in the file");
+    let tex = back.texture.as_ref().expect("texture in the file");
+    assert_eq!(tex.image.dimensions(), (size, size));
+    assert!(
+        back.colors.is_none(),
+        "a textured GLB carries no vertex colours"
+    );
+    let rgba = image::DynamicImage::ImageRgb8(tex.image.clone()).to_rgba8();
+    // Surface points (face, barycentric) across the whole mesh: the texture gives the signal.
+    let mut errs = Vec::new();
+    for f in (0..back.faces.len()).step_by(3) {
+        for w in [[1.0 / 3.0; 3], [0.6, 0.2, 0.2], [0.1, 0.1, 0.8]] {
+            let face = back.faces[f];
+            let p = lerp3(
+                back.positions[face[0] as usize],
+                back.positions[face[1] as usize],
+                back.positions[face[2] as usize],
+                w,
+            );
+            let uv3 = lerp3(
+                [uvs[3 * f][0], uvs[3 * f][1], 0.0],
+                [uvs[3 * f + 1][0], uvs[3 * f + 1][1], 0.0],
+                [uvs[3 * f + 2][0], uvs[3 * f + 2][1], 0.0],
+                w,
+            );
+            let got = sample_bilinear(&rgba, [uv3[0], uv3[1]]);
+            let want = known(p);
+            errs.push(
+                (0..3)
+                    .map(|k| (got[k] - want[k]).abs())
+                    .fold(0.0f32, f32::max),
+            );
+        }
+    }
+    errs.sort_by(f32::total_cmp);
+    let mean = errs.iter().sum::<f32>() / errs.len() as f32;
+    let p99 = errs[errs.len() * 99 / 100];
+    assert!(mean < 0.015, "mean error {mean:.4}");
+    assert!(p99 < 0.05, "99th percentile error {p99:.4}");
+}
+
+#[test]
+fn no_background_bleeds_at_chart_borders_at_mip_level_2() {
+    let target = bare_spot();
+    let refined = refine_to_density(&target, 8_000);
+    let layout = BakeLayout::of_refined(&target, &refined);
+    let red = [0.9f32, 0.1, 0.1];
+    let working = vec![red; refined.mesh.positions.len()];
+    let file = vec![red; target.positions.len()];
+    let out = deliver(
+        &target,
+        &layout,
+        &working,
+        &file,
+        "obj",
+        512,
+        &CancelToken::new(),
+    )
+    .expect("deliver");
+    let uvs = out.mesh.uvs.as_ref().expect("UVs");
+    let tex = out.mesh.texture.as_ref().expect("texture");
+    let rgba = image::DynamicImage::ImageRgb8(tex.image.clone()).to_rgba8();
+    let mips = mip_chain(&rgba);
+    assert!(mips.len() > 2);
+    // Every corner lies on its chart's border or inside; bilinear at mip 2 reaches about two
+    // texels of the full image past it. Nothing but the chart colour may show there.
+    let mut worst = 0.0f32;
+    for uv in uvs {
+        for level in 0..=2 {
+            let c = sample_bilinear(&mips[level], *uv);
+            let d = (0..3).map(|k| (c[k] - red[k]).abs()).fold(0.0f32, f32::max);
+            worst = worst.max(d);
+        }
+    }
+    assert!(
+        worst < 0.02,
+        "a chart border sample strays {worst:.3} from the chart colour"
+    );
+}
+
+#[test]
+fn a_target_that_has_uvs_keeps_them() {
+    let path = meshmatch::testdata::data_path("spot/spot.obj");
+    let spot = io::load(&path).expect("spot");
+    let refined = refine_to_density(&spot, 6_000);
+    let layout = BakeLayout::of_refined(&spot, &refined);
+    let working = vec![[0.2, 0.4, 0.6]; refined.mesh.positions.len()];
+    let file = vec![[0.2, 0.4, 0.6]; spot.positions.len()];
+    let out = deliver(
+        &spot,
+        &layout,
+        &working,
+        &file,
+        "glb",
+        256,
+        &CancelToken::new(),
+    )
+    .unwrap();
+    assert!(out.atlas.is_none());
+    assert_eq!(out.mesh.uvs, spot.uvs);
+    // PLY carries vertex colours only: no atlas, no texture.
+    let ply = deliver(
+        &spot,
+        &layout,
+        &working,
+        &file,
+        "ply",
+        256,
+        &CancelToken::new(),
+    )
+    .unwrap();
+    assert!(ply.mesh.texture.is_none() && ply.atlas.is_none());
+}
+
+fn tempfile_dir(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("meshmatch_textures_{name}_{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
