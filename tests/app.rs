@@ -660,7 +660,7 @@ fn paint_with_exemplar_streams_partials_resembles_the_exemplar_and_undo_restores
     };
     assert_eq!(settings.region, Region::Whole);
     assert_eq!(settings.side, Side::Target);
-    let ex = load_exemplar(&image, settings.pixels).unwrap();
+    let (ex, _) = load_exemplar(&image, settings.pixels).unwrap();
     assert_eq!(ex.width(), settings.pixels);
     let mean = |c: &[[f32; 3]]| {
         c.iter()

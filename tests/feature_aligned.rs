@@ -437,6 +437,7 @@ fn stripes_run_along_the_feature_field() {
             target: &mesh,
             exemplar: &ex,
             curves: None,
+            alpha: None,
         },
         &params,
         &no_events,

@@ -466,3 +466,87 @@ fn bad_inputs_are_errors() {
     let back: SynthParams = serde_json::from_str(&json).unwrap();
     assert_eq!(back.levels, 4);
 }
+
+/// A speckled green-blue exemplar with a transparent magenta disc in the middle.
+fn exemplar_with_hole(size: u32) -> (image::RgbImage, image::GrayImage) {
+    let c = size as f32 / 2.0;
+    let mut rgb = image::RgbImage::new(size, size);
+    let mut alpha = image::GrayImage::new(size, size);
+    for y in 0..size {
+        for x in 0..size {
+            let inside =
+                ((x as f32 - c).powi(2) + (y as f32 - c).powi(2)).sqrt() < size as f32 / 4.0;
+            let h = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) % 97;
+            let p = if inside {
+                [255, 0, 255]
+            } else {
+                [30 + h as u8, 140 + (h as u8 / 2), 60 + (97 - h as u8)]
+            };
+            rgb.put_pixel(x, y, image::Rgb(p));
+            alpha.put_pixel(x, y, image::Luma([if inside { 0 } else { 255 }]));
+        }
+    }
+    (rgb, alpha)
+}
+
+#[test]
+fn an_exemplars_transparent_hole_is_never_synthesized() {
+    let (rgb, alpha) = exemplar_with_hole(48);
+    let sphere = icosphere(3);
+    let params = SynthParams {
+        scale: Some(1.5),
+        levels: 3,
+        ..SynthParams::default()
+    };
+    let magenta = |c: &[f32; 3]| c[0] > 0.8 && c[1] < 0.25 && c[2] > 0.8;
+    let run_with = |a: Option<&image::GrayImage>| {
+        meshmatch::synthesis::wei_levoy::run(
+            &meshmatch::synthesis::wei_levoy::Input {
+                exemplar: &rgb,
+                target: &sphere,
+                mask: None,
+                alpha: a,
+            },
+            &params,
+            &no_events,
+            &CancelToken::new(),
+        )
+        .unwrap()
+    };
+    // Without the alpha, a sixth of the exemplar is the disc: its colour shows.
+    let plain = run_with(None);
+    let shown = plain
+        .mesh
+        .colors
+        .as_ref()
+        .unwrap()
+        .iter()
+        .filter(|c| magenta(c))
+        .count();
+    assert!(
+        shown > 50,
+        "the control run shows the disc colour at {shown} vertices"
+    );
+    // With it, never; and the result still carries the exemplar's opaque colours.
+    let r = run_with(Some(&alpha));
+    let cols = r.mesh.colors.as_ref().unwrap();
+    let bad = cols.iter().filter(|c| magenta(c)).count();
+    assert_eq!(
+        bad,
+        0,
+        "{bad} of {} vertices took the transparent colour",
+        cols.len()
+    );
+    for (v, s) in r.source.iter().enumerate() {
+        if s[0] != u32::MAX {
+            let a = alpha.get_pixel(s[0], s[1]).0[0];
+            assert!(a >= 128, "vertex {v} copies transparent pixel {s:?}");
+        }
+    }
+    let greenish = cols.iter().filter(|c| c[1] > c[0] && c[1] > 0.45).count();
+    assert!(
+        greenish * 10 > cols.len() * 9,
+        "{greenish} of {} vertices look like the exemplar",
+        cols.len()
+    );
+}

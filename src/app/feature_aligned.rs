@@ -111,11 +111,12 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
         let pixels = self.pixels;
         let n = mesh.num_vertices();
         let mut job = ToolJob::spawn("feature-aligned texture", wake, move |sink, cancel| {
-            let img = load_exemplar(&path, pixels)?;
+            let (img, alpha) = load_exemplar(&path, pixels)?;
             let input = feature_aligned::Input {
                 target: &mesh,
                 exemplar: &img,
                 curves: None,
+                alpha: alpha.as_ref(),
             };
             let out = feature_aligned::run(&input, &params, sink, cancel)?;
             let colors = out

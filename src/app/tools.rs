@@ -486,9 +486,15 @@ impl ExemplarSettings {
 }
 
 /// Load an exemplar image and shrink it to at most `pixels` wide (aspect kept).
-pub fn load_exemplar(path: &std::path::Path, pixels: u32) -> Result<image::RgbImage> {
-    let img = crate::mesh::io::load_texture(path)?.image;
-    Ok(crate::synthesis::wei_levoy::shrink_exemplar(img, pixels))
+pub fn load_exemplar(
+    path: &std::path::Path,
+    pixels: u32,
+) -> Result<(image::RgbImage, Option<image::GrayImage>)> {
+    use crate::synthesis::wei_levoy::{resize_alpha, shrink_exemplar};
+    let (tex, alpha) = crate::mesh::io::load_texture_with_alpha(path)?;
+    let img = shrink_exemplar(tex.image, pixels);
+    let alpha = alpha.map(|a| resize_alpha(a, img.width(), img.height()));
+    Ok((img, alpha))
 }
 
 /// Paint with exemplar: synthesize the image's texture over `mesh` (the displayed mesh of
@@ -539,11 +545,12 @@ pub fn exemplar_job(
     let pixels = settings.pixels;
     let n = mesh.num_vertices();
     let mut job = ToolJob::spawn("paint with exemplar", wake, move |sink, cancel| {
-        let img = load_exemplar(&path, pixels)?;
+        let (img, alpha) = load_exemplar(&path, pixels)?;
         let input = wei_levoy::Input {
             exemplar: &img,
             target: &mesh,
             mask: mask.as_deref(),
+            alpha: alpha.as_ref(),
         };
         let r = wei_levoy::run(&input, &params, sink, cancel)?;
         let colors = r
@@ -694,6 +701,11 @@ impl ExemplarDialog {
             .selected_text(s.orientation.as_str())
             .show_ui(ui, |ui| {
                 for (o, tip) in [
+                    (
+                        Orientation::Auto,
+                        "Chosen from the image: random for isotropic textures, a smooth 2-way \
+                         field for stripes, a 4-way one for grids and bricks",
+                    ),
                     (
                         Orientation::Random,
                         "Random direction per vertex: for isotropic textures (noise, gravel, fur)",

@@ -31,7 +31,8 @@ pub struct SynthArgs {
     /// the texel spacing fits this budget (stderr says what was chosen).
     #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET)]
     pub vertex_budget: usize,
-    /// Texture orientation field: random (isotropic textures; the library's default too), up
+    /// Texture orientation field: auto (from the exemplar's anisotropy: random, relax2 or
+    /// relax4; stderr says which), random (isotropic textures), up
     /// (projected +Y), relax2 (stripes), relax4 (grids) or features (along the mesh's salient
     /// curves: Xu et al. 2009's curve-guided field; the exemplar's x axis follows the curves).
     #[arg(long, default_value = crate::synthesis::Orientation::default().as_str())]
@@ -64,7 +65,7 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     use crate::synthesis::{Orientation, Search, SynthParams};
     let orientation: Orientation = a.orientation.parse().map_err(|_| {
         Error::InvalidInput(format!(
-            "--orientation {}: use random, up, relax2, relax4 or features",
+            "--orientation {}: use auto, random, up, relax2, relax4 or features",
             a.orientation
         ))
     })?;
@@ -86,7 +87,15 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     }
     let inputs = input_paths(&[Some(&a.exemplar), Some(&a.target), a.mask.as_ref()]);
     check_outputs(&inputs, &[("--out", &a.out, OutKind::Mesh)])?;
-    let mut exemplar = io::load_texture(&a.exemplar)?.image;
+    let (tex, alpha) = io::load_texture_with_alpha(&a.exemplar)?;
+    let mut exemplar = tex.image;
+    if let Some(al) = &alpha {
+        let clear = al.pixels().filter(|p| p.0[0] < 128).count();
+        eprintln!(
+            "the exemplar has {clear} transparent pixels ({:.0}%): they are never synthesized",
+            100.0 * clear as f64 / (al.width() as f64 * al.height() as f64)
+        );
+    }
     if let Some(w) = a.exemplar_width {
         if w < 8 {
             return Err(Error::InvalidInput(format!(
@@ -110,6 +119,9 @@ fn synth(a: &SynthArgs) -> Result<i32> {
             eprintln!("{n}");
         }
     }
+    let alpha = alpha.map(|al| {
+        crate::synthesis::wei_levoy::resize_alpha(al, exemplar.width(), exemplar.height())
+    });
     // The mask file numbers vertices as the file does; the synthesis takes one flag per vertex
     // of the loaded mesh (repair may have dropped unreferenced file vertices).
     let mask = match &a.mask {
@@ -139,6 +151,7 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         exemplar: &exemplar,
         target: &target,
         mask: mask.as_deref(),
+        alpha: alpha.as_ref(),
     };
     let r = crate::synthesis::wei_levoy::run(
         &input,
@@ -146,6 +159,16 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         &crate::work::no_events,
         &CancelToken::new(),
     )?;
+    if let Some(an) = r.anisotropy {
+        eprintln!(
+            "orientation auto: {} (the exemplar's gradient harmonics: 2-fold {:.2}, 4-fold {:.2}; \
+             oriented from {:.2})",
+            r.orientation_used.as_str(),
+            an.twofold,
+            an.fourfold,
+            crate::synthesis::wei_levoy::anisotropy::ORIENTED,
+        );
+    }
     eprintln!(
         "synthesized {} vertices in {:.2} s (search {:.2} s, {} search, orientation {}); \
          finest-level neighbourhood energy {:.5}",
@@ -153,7 +176,7 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         t.elapsed().as_secs_f64(),
         r.timings.search,
         search.as_str(),
-        orientation.as_str(),
+        r.orientation_used.as_str(),
         r.level_energy.first().copied().unwrap_or(0.0)
     );
     io::save(&r.mesh, &a.out)?;

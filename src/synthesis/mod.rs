@@ -21,5 +21,6 @@ pub mod quilting;
 pub mod wei_levoy;
 
 pub use wei_levoy::{
-    Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize, synthesize_with_field,
+    Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize, synthesize_with_alpha,
+    synthesize_with_field,
 };

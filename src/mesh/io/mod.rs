@@ -482,15 +482,40 @@ pub fn load_texture(path: &Path) -> Result<Texture> {
     Ok(tex)
 }
 
-/// Decode PNG/JPEG bytes into an RGB8 texture; `path` names the image in messages.
-fn decode_texture(bytes: &[u8], path: &Path) -> Result<Texture> {
-    let img = image::ImageReader::new(std::io::Cursor::new(bytes))
+/// Load an image file (PNG or JPEG) as an sRGB RGB8 texture and, when it has transparent pixels
+/// (alpha below one half), its alpha channel.
+pub fn load_texture_with_alpha(path: &Path) -> Result<(Texture, Option<image::GrayImage>)> {
+    let bytes =
+        read_regular_file(path, MAX_FILE_BYTES, "the image").map_err(|e| Error::io(path, e))?;
+    let img = decode_image(&bytes, path)?;
+    let alpha = img.color().has_alpha().then(|| {
+        let rgba = img.to_rgba8();
+        image::GrayImage::from_fn(rgba.width(), rgba.height(), |x, y| {
+            image::Luma([rgba.get_pixel(x, y).0[3]])
+        })
+    });
+    let alpha = alpha.filter(|a| a.pixels().any(|p| p.0[0] < 128));
+    Ok((
+        Texture {
+            image: img.to_rgb8(),
+            path: Some(path.to_path_buf()),
+        },
+        alpha,
+    ))
+}
+
+fn decode_image(bytes: &[u8], path: &Path) -> Result<image::DynamicImage> {
+    image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?
         .decode()
-        .map_err(|e| Error::format(path, format!("cannot decode image: {e}")))?;
+        .map_err(|e| Error::format(path, format!("cannot decode image: {e}")))
+}
+
+/// Decode PNG/JPEG bytes into an RGB8 texture; `path` names the image in messages.
+fn decode_texture(bytes: &[u8], path: &Path) -> Result<Texture> {
     Ok(Texture {
-        image: img.to_rgb8(),
+        image: decode_image(bytes, path)?.to_rgb8(),
         path: None,
     })
 }

@@ -42,6 +42,8 @@ pub struct Input<'a> {
     pub exemplar: &'a image::RgbImage,
     /// Curves to use instead of extracting them (e.g. edited or loaded).
     pub curves: Option<&'a [Curve]>,
+    /// The exemplar's alpha, if it has transparent pixels (never synthesized).
+    pub alpha: Option<&'a image::GrayImage>,
 }
 
 /// Seconds per stage.
@@ -126,8 +128,9 @@ pub fn run(
         orientation: Orientation::Features,
         ..params.synth.clone()
     };
-    let synth = wei_levoy::synthesize_with_field(
+    let synth = wei_levoy::synthesize_with_alpha(
         input.exemplar,
+        input.alpha,
         input.target,
         None,
         Some(&field.field),

@@ -10,6 +10,7 @@
 //! neighbourhood, flattened into its tangent frame and resampled on the template grid. Two passes
 //! per level: parent level only, then current + parent level.
 
+pub mod anisotropy;
 mod metrics;
 mod neigh;
 mod orient;
@@ -19,7 +20,7 @@ mod search;
 use std::sync::Arc;
 
 use glam::Vec3;
-use rand::{Rng, seq::SliceRandom};
+use rand::seq::SliceRandom;
 
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
@@ -32,6 +33,7 @@ pub use orient::orientation_energy;
 
 use crate::geometry::vertex_normals;
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
+pub use anisotropy::{Anisotropy, choose_orientation, exemplar_anisotropy};
 use neigh::{ExemplarLevel, Stencils, build_stencils};
 use pyramid::{Img, Level, aggregate_fixed, coarsen, image_pyramid, refine_edges, stage_rng};
 
@@ -39,8 +41,11 @@ use pyramid::{Img, Level, aggregate_fixed, coarsen, image_pyramid, refine_edges,
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Orientation {
-    /// Random direction per vertex (isotropic textures; Wei & Levoy §3.1).
+    /// Chosen from the exemplar ([`anisotropy::choose_orientation`]): random for isotropic
+    /// textures, `Relax2` for striped ones, `Relax4` for grids.
     #[default]
+    Auto,
+    /// Random direction per vertex (isotropic textures; Wei & Levoy §3.1).
     Random,
     /// Texture up = the +Y axis projected into the tangent plane.
     Up,
@@ -58,6 +63,7 @@ impl Orientation {
     /// The CLI spelling: `random`, `up`, `relax2`, `relax4`.
     pub fn as_str(self) -> &'static str {
         match self {
+            Orientation::Auto => "auto",
             Orientation::Random => "random",
             Orientation::Up => "up",
             Orientation::Relax2 => "relax2",
@@ -71,13 +77,14 @@ impl std::str::FromStr for Orientation {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
         match s {
+            "auto" => Ok(Orientation::Auto),
             "random" => Ok(Orientation::Random),
             "up" => Ok(Orientation::Up),
             "relax2" => Ok(Orientation::Relax2),
             "relax4" => Ok(Orientation::Relax4),
             "features" => Ok(Orientation::Features),
             _ => Err(Error::InvalidInput(format!(
-                "unknown orientation '{s}' (expected random, up, relax2, relax4 or features)"
+                "unknown orientation '{s}' (expected auto, random, up, relax2, relax4 or features)"
             ))),
         }
     }
@@ -133,6 +140,9 @@ pub struct Input<'a> {
     pub target: &'a TriMesh,
     /// Per vertex of `target`: true = synthesise, false = keep its colour (`None`: every vertex).
     pub mask: Option<&'a [bool]>,
+    /// The exemplar's alpha (same size), if it has transparent pixels: pixels under one half are
+    /// never candidates, so their colour is never synthesized.
+    pub alpha: Option<&'a image::GrayImage>,
 }
 
 /// The system's front door: [`synthesize`] on an [`Input`].
@@ -142,10 +152,12 @@ pub fn run(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<Output> {
-    synthesize(
+    synthesize_with_alpha(
         input.exemplar,
+        input.alpha,
         input.target,
         input.mask,
+        None,
         params,
         sink,
         cancel,
@@ -184,7 +196,7 @@ impl Default for SynthParams {
     fn default() -> Self {
         SynthParams {
             scale: None,
-            orientation: Orientation::Random,
+            orientation: Orientation::Auto,
             levels: 4,
             search: Search::Fast,
             seed: 0,
@@ -237,6 +249,10 @@ pub struct SynthResult {
     pub displacement: Option<Vec<f32>>,
     /// Stage timings.
     pub timings: SynthTimings,
+    /// The orientation field used (`Auto` resolved).
+    pub orientation_used: Orientation,
+    /// The exemplar's measured anisotropy, when `Auto` chose the field.
+    pub anisotropy: Option<Anisotropy>,
 }
 
 /// Shrink an exemplar to at most `width` pixels wide, keeping its aspect (Triangle filter); an
@@ -250,6 +266,14 @@ pub fn shrink_exemplar(img: image::RgbImage, width: u32) -> image::RgbImage {
     }
     let nh = ((h as f64 * width as f64 / w as f64).round() as u32).max(1);
     image::imageops::resize(&img, width, nh, image::imageops::FilterType::Triangle)
+}
+
+/// `alpha` resized to `width × height` (Triangle filter), as the exemplar it belongs to was.
+pub fn resize_alpha(alpha: image::GrayImage, width: u32, height: u32) -> image::GrayImage {
+    if alpha.dimensions() == (width, height) {
+        return alpha;
+    }
+    image::imageops::resize(&alpha, width, height, image::imageops::FilterType::Triangle)
 }
 
 /// Default vertex budget of a synthesis run chosen by [`fit_exemplar_to_budget`].
@@ -302,6 +326,46 @@ pub fn fit_exemplar_to_budget(
         estimate(out.width() as f64)
     );
     (out, Some(note))
+}
+
+/// The exemplar with its transparent pixels (alpha < 1/2) filled by pull-push from the opaque
+/// ones, and its alpha as an image (grey in all channels) for the pyramid. Refuses an exemplar
+/// with no opaque pixel, or an alpha of another size.
+fn transparent_filled(exemplar: &image::RgbImage, alpha: &image::GrayImage) -> Result<(Img, Img)> {
+    if alpha.dimensions() != exemplar.dimensions() {
+        return Err(Error::InvalidInput(format!(
+            "the exemplar's alpha is {:?}, its colours {:?}",
+            alpha.dimensions(),
+            exemplar.dimensions()
+        )));
+    }
+    let img = Img::from_rgb(exemplar);
+    let covered: Vec<bool> = alpha.pixels().map(|p| p.0[0] >= 128).collect();
+    if !covered.iter().any(|&c| c) {
+        return Err(Error::InvalidInput(
+            "the exemplar is transparent everywhere: nothing to synthesize from".into(),
+        ));
+    }
+    let mut baked = crate::geometry::BakedImage {
+        width: img.w,
+        height: img.h,
+        pixels: img.px,
+        covered,
+    };
+    crate::geometry::fill_gutters(&mut baked);
+    let a = Img {
+        w: img.w,
+        h: img.h,
+        px: alpha.pixels().map(|p| [p.0[0] as f32 / 255.0; 3]).collect(),
+    };
+    Ok((
+        Img {
+            w: img.w,
+            h: img.h,
+            px: baked.pixels,
+        },
+        a,
+    ))
 }
 
 /// Neighbourhood sizes of level `k` (0 = finest) in an `l`-level pyramid: current `NxN` and parent
@@ -367,6 +431,38 @@ pub fn synthesize_with_field(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<SynthResult> {
+    synthesize_with_alpha(exemplar, None, target, mask, field, params, sink, cancel)
+}
+
+/// [`synthesize_with_field`] for an exemplar with transparent pixels: where `alpha` (the
+/// exemplar's size) is under one half, pixels are never candidates, so their colour never
+/// appears in the result; their colour is first replaced by a pull-push fill from the opaque
+/// pixels around them, so neighbourhoods that overlap a hole compare against plausible colours.
+#[allow(clippy::too_many_arguments)]
+pub fn synthesize_with_alpha(
+    exemplar: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+    target: &TriMesh,
+    mask: Option<&[bool]>,
+    field: Option<&[[f32; 3]]>,
+    params: &SynthParams,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<SynthResult> {
+    // `Auto`: the field the exemplar's anisotropy asks for.
+    let (resolved, anisotropy);
+    let params = if params.orientation == Orientation::Auto {
+        let a = anisotropy::exemplar_anisotropy(exemplar, alpha);
+        anisotropy = Some(a);
+        resolved = SynthParams {
+            orientation: anisotropy::choose_orientation(a),
+            ..params.clone()
+        };
+        &resolved
+    } else {
+        anisotropy = None;
+        params
+    };
     let total = Stopwatch::start();
     let mut timings = SynthTimings::default();
     // ---- validate
@@ -537,7 +633,13 @@ pub fn synthesize_with_field(
         }
     }
     drop(hier);
-    let mut imgs = image_pyramid(Img::from_rgb(exemplar), nlev);
+    let (mut imgs, alphas) = match alpha {
+        None => (image_pyramid(Img::from_rgb(exemplar), nlev), None),
+        Some(a) => {
+            let (img, a) = transparent_filled(exemplar, a)?;
+            (image_pyramid(img, nlev), Some(image_pyramid(a, nlev)))
+        }
+    };
     let mesh_d = (2.0 * levels[0].mean_face_area()).sqrt() as f32;
     timings.prepare = sw.secs();
     sink(Event::StageTime("prepare", timings.prepare));
@@ -562,7 +664,9 @@ pub fn synthesize_with_field(
             Orientation::Random => orient::random_dirs(lev, &mut rng),
             Orientation::Up => orient::up_dirs(lev),
             _ if !field_dirs.is_empty() => std::mem::take(&mut field_dirs[k]),
-            Orientation::Features => unreachable!("the feature field is computed above"),
+            Orientation::Features | Orientation::Auto => {
+                unreachable!("the feature field is computed and auto resolved above")
+            }
             Orientation::Relax2 | Orientation::Relax4 => {
                 let nsym = if params.orientation == Orientation::Relax2 {
                     2
@@ -612,7 +716,10 @@ pub fn synthesize_with_field(
         let n = lev.num_vertices();
         let h = h0 * (1u32 << k) as f32;
         let has_parent = psize > 0;
-        let ex = ExemplarLevel::new(&imgs[k], has_parent.then(|| &imgs[k + 1]), size, psize);
+        let mut ex = ExemplarLevel::new(&imgs[k], has_parent.then(|| &imgs[k + 1]), size, psize);
+        if let Some(a) = &alphas {
+            ex.restrict_to_opaque(&a[k]);
+        }
         let cur_st = build_stencils(lev, &dirs[k], lev, None, h, size);
         let par_st: Option<Stencils> = has_parent.then(|| {
             build_stencils(
@@ -627,14 +734,13 @@ pub fn synthesize_with_field(
         neigh_secs += sw.secs();
         let sw = Stopwatch::start();
         // random initialisation from this level's exemplar (equalises histograms, §3.1)
-        let ncand = ex.num_candidates() as u32;
         let mut src = vec![u32::MAX; n];
         let mut col = vec![[0.0f32; 3]; n];
         for v in 0..n {
             if let Some(c) = lev.fixed[v] {
                 col[v] = c;
             } else {
-                let c = rng.random_range(0..ncand);
+                let c = ex.random_candidate(&mut rng);
                 src[v] = c;
                 col[v] = ex.color(c);
             }
@@ -691,7 +797,7 @@ pub fn synthesize_with_field(
                             has_parent.then(|| (&levels[k + 1], psrc, pex.expect("parent"))),
                         );
                         for _ in 0..params.random_candidates {
-                            cands.push(rng.random_range(0..ncand));
+                            cands.push(ex.random_candidate(&mut rng));
                         }
                         search::fast(&ex, &mut cands, q_cur, q_par, &mut rng)
                     }
@@ -782,6 +888,8 @@ pub fn synthesize_with_field(
         level_energy,
         displacement,
         timings,
+        orientation_used: params.orientation,
+        anisotropy,
     })
 }
 

@@ -263,6 +263,11 @@ pub(crate) struct ExemplarLevel {
     pub psize: usize,
     pub cur: Vec<f32>,
     pub par: Vec<f32>,
+    /// Candidates whose centre pixel is opaque (alpha >= 1/2), when the exemplar has
+    /// transparent pixels: the others are never chosen.
+    pub opaque: Option<Vec<bool>>,
+    /// The opaque candidates, for random picks.
+    pub opaque_list: Vec<u32>,
 }
 
 impl ExemplarLevel {
@@ -320,6 +325,42 @@ impl ExemplarLevel {
             psize: if parent.is_some() { psize } else { 0 },
             cur,
             par,
+            opaque: None,
+            opaque_list: Vec::new(),
+        }
+    }
+
+    /// Exclude candidates whose centre pixel has alpha (grey in `alpha`, this level's size)
+    /// under one half. A level with no opaque candidate keeps all (a coarse level of a sparse
+    /// exemplar; its colours are the pull-push fill, never the hole colour).
+    pub fn restrict_to_opaque(&mut self, alpha: &Img) {
+        let opaque: Vec<bool> = (0..self.num_candidates() as u32)
+            .map(|c| {
+                let (x, y) = self.pixel(c);
+                alpha.px[y * alpha.w + x][0] >= 0.5
+            })
+            .collect();
+        let list: Vec<u32> = (0..opaque.len() as u32)
+            .filter(|&c| opaque[c as usize])
+            .collect();
+        if !list.is_empty() {
+            self.opaque = Some(opaque);
+            self.opaque_list = list;
+        }
+    }
+
+    /// Whether candidate `c` may be chosen.
+    #[inline]
+    pub fn allowed(&self, c: u32) -> bool {
+        self.opaque.as_ref().is_none_or(|o| o[c as usize])
+    }
+
+    /// A uniformly random allowed candidate.
+    pub fn random_candidate(&self, rng: &mut impl rand::Rng) -> u32 {
+        if self.opaque.is_some() {
+            self.opaque_list[rng.random_range(0..self.opaque_list.len())]
+        } else {
+            rng.random_range(0..self.num_candidates() as u32)
         }
     }
 

@@ -16,6 +16,9 @@ pub(crate) fn dist(
     q_par: Option<&[f32]>,
     bound: f32,
 ) -> f32 {
+    if !ex.allowed(c) {
+        return f32::INFINITY;
+    }
     let c = c as usize;
     let mut d = 0.0f32;
     if let Some(q) = q_par {
