@@ -3,6 +3,7 @@
 //! One file per subcommand, each with an `Args` struct (clap) and `run(&self) -> Result<i32>`.
 //! A new subcommand is its file plus one line in the `commands!` list below.
 
+mod bake;
 mod bench;
 mod common;
 mod complete;
@@ -68,6 +69,9 @@ commands! {
     Info(info::InfoArgs),
     /// Convert a mesh between formats (by extension), keeping vertex order, UVs, colours, texture.
     Convert(convert::ConvertArgs),
+    /// Bake a coloured mesh (a dense synth, quilt or transfer result) into a texture on another
+    /// mesh of the same shape, through its UVs or a generated UV atlas.
+    Bake(bake::BakeArgs),
     /// Write the procedural demo scene (zebra, giraffe, cerberus, vase) as GLB files.
     Demo(demo::DemoArgs),
     /// Transfer a texture from a source mesh to a target mesh (MeshMatch).

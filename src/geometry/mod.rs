@@ -19,6 +19,7 @@
 //! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
 //! - [`uv_atlas`] (charts, LSCM + ARAP, packing: UVs for a mesh without them)
 //! - [`bake_uv`] / [`fill_gutters`] (conservative UV rasterisation, pull-push gutters),
+//!   [`bake_closest`] (another surface's colours by closest point),
 //!   [`mip_chain`], [`sample_bilinear`]
 
 mod basic;
@@ -59,4 +60,4 @@ pub use solid_angle_curvature::{
     SolidAngleTree, solid_angle_curvature, solid_angle_curvature_cancellable,
 };
 pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
-pub use uv_bake::{BakedImage, bake_uv, fill_gutters, mip_chain, sample_bilinear};
+pub use uv_bake::{BakedImage, bake_closest, bake_uv, fill_gutters, mip_chain, sample_bilinear};

@@ -134,6 +134,50 @@ where
     }
 }
 
+/// Bake the per-vertex colours of another surface into a mesh's UV layout, as DCC tools transfer
+/// maps from a high-resolution mesh: every texel's point on the mesh (`positions`, `faces`,
+/// per-corner `uvs`) takes the colour interpolated at the closest point of the source surface
+/// (`source` over `source_faces`, colours per source vertex). Gutters are filled by pull-push.
+pub fn bake_closest(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    uvs: &[[f32; 2]],
+    size: usize,
+    source: &super::TriangleBvh,
+    source_faces: &[[u32; 3]],
+    source_colors: &[[f32; 3]],
+) -> BakedImage {
+    let mut img = bake_uv(uvs, faces.len(), size, size, |f, b| {
+        let face = faces[f];
+        let mut p = [0.0f32; 3];
+        for k in 0..3 {
+            let q = positions[face[k] as usize];
+            for c in 0..3 {
+                p[c] += b[k] * q[c];
+            }
+        }
+        match source.closest_point(p) {
+            Some((sf, sb, _)) => {
+                let sface = source_faces[sf as usize];
+                let mut out = [0.0f32; 3];
+                for k in 0..3 {
+                    let col = source_colors
+                        .get(sface[k] as usize)
+                        .copied()
+                        .unwrap_or([0.0; 3]);
+                    for c in 0..3 {
+                        out[c] += sb[k] * col[c];
+                    }
+                }
+                out
+            }
+            None => [0.0; 3],
+        }
+    });
+    fill_gutters(&mut img);
+    img
+}
+
 /// Distance from `p` to triangle `t` (0 inside) and the barycentric coordinates of the nearest
 /// point of the triangle.
 fn locate(t: &[[f32; 2]; 3], det: f32, p: [f32; 2]) -> (f32, [f32; 3]) {

@@ -69,7 +69,7 @@ fn anisotropy_at(img: &image::RgbImage, alpha: Option<&image::GrayImage>) -> Ani
             blur[y as usize * w + x as usize] = s / 16.0;
         }
     }
-    let (mut s2, mut s4, mut total) = ([0.0f64; 2], [0.0f64; 2], 0.0f64);
+    let (mut s2, mut s4, mut total, mut total2) = ([0.0f64; 2], [0.0f64; 2], 0.0f64, 0.0f64);
     for y in 1..h as isize - 1 {
         for x in 1..w as isize - 1 {
             if let Some(a) = alpha
@@ -92,14 +92,21 @@ fn anisotropy_at(img: &image::RgbImage, alpha: Option<&image::GrayImage>) -> Ani
             s4[0] += (c2 * c2 - d2 * d2) / m2;
             s4[1] += 2.0 * c2 * d2 / m2;
             total += m2;
+            total2 += m2 * m2;
         }
     }
     if total <= 0.0 {
         return Anisotropy::default();
     }
+    // A harmonic of N independent random orientations has magnitude about 1/sqrt(N): below
+    // three times that it is noise, not structure (a tiny exemplar). N is the effective count of
+    // the weighted samples over the 3x3 footprint the blur and the differences correlate.
+    let n_eff = total * total / total2.max(f64::MIN_POSITIVE) / 9.0;
+    let floor = 3.0 / n_eff.sqrt();
+    let significant = |h: f64| if h >= floor { h as f32 } else { 0.0 };
     Anisotropy {
-        twofold: ((s2[0].hypot(s2[1])) / total) as f32,
-        fourfold: ((s4[0].hypot(s4[1])) / total) as f32,
+        twofold: significant(s2[0].hypot(s2[1]) / total),
+        fourfold: significant(s4[0].hypot(s4[1]) / total),
     }
 }
 
