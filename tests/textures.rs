@@ -192,3 +192,68 @@ fn tempfile_dir(name: &str) -> std::path::PathBuf {
     std::fs::create_dir_all(&d).unwrap();
     d
 }
+
+#[test]
+fn bake_command_puts_a_dense_result_into_a_generated_atlas() {
+    // A dense coloured sphere-like mesh (Spot refined, coloured by a known function) baked onto
+    // Spot's bare geometry: the output carries UVs, a texture, and the function.
+    let dir = tempfile_dir("bake_cmd");
+    let target = bare_spot();
+    let dense = refine_to_density(&target, 30_000).mesh;
+    let mut coloured = dense.clone();
+    coloured.colors = Some(dense.positions.iter().map(|&p| known(p)).collect());
+    let from = dir.join("dense.ply");
+    let to = dir.join("bare.obj");
+    let out = dir.join("baked.glb");
+    io::save(&coloured, &from).unwrap();
+    io::save(&target, &to).unwrap();
+    let st = std::process::Command::new(env!("CARGO_BIN_EXE_meshmatch"))
+        .args(["bake", "--texture-size", "512", "--from"])
+        .arg(&from)
+        .arg("--to")
+        .arg(&to)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    let back = io::load(&out).unwrap();
+    let uvs = back.uvs.as_ref().expect("UVs");
+    let rgba = image::DynamicImage::ImageRgb8(back.texture.as_ref().expect("texture").image.clone())
+        .to_rgba8();
+    let mut worst = 0.0f32;
+    let mut sum = 0.0f32;
+    for (f, face) in back.faces.iter().enumerate() {
+        let w = [1.0 / 3.0; 3];
+        let p = lerp3(
+            back.positions[face[0] as usize],
+            back.positions[face[1] as usize],
+            back.positions[face[2] as usize],
+            w,
+        );
+        let uv = lerp3(
+            [uvs[3 * f][0], uvs[3 * f][1], 0.0],
+            [uvs[3 * f + 1][0], uvs[3 * f + 1][1], 0.0],
+            [uvs[3 * f + 2][0], uvs[3 * f + 2][1], 0.0],
+            w,
+        );
+        let got = sample_bilinear(&rgba, [uv[0], uv[1]]);
+        let want = known(p);
+        let e = (0..3).map(|k| (got[k] - want[k]).abs()).fold(0.0f32, f32::max);
+        worst = worst.max(e);
+        sum += e;
+    }
+    let mean = sum / back.faces.len() as f32;
+    assert!(mean < 0.015 && worst < 0.08, "mean {mean:.4}, worst {worst:.4}");
+    // Refused: a PLY output cannot carry a texture.
+    let st = std::process::Command::new(env!("CARGO_BIN_EXE_meshmatch"))
+        .args(["bake", "--from"])
+        .arg(&from)
+        .arg("--to")
+        .arg(&to)
+        .arg("--out")
+        .arg(dir.join("x.ply"))
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(2), "{}", String::from_utf8_lossy(&st.stderr));
+}
