@@ -141,8 +141,8 @@ fn no_background_bleeds_at_chart_borders_at_mip_level_2() {
     // texels of the full image past it. Nothing but the chart colour may show there.
     let mut worst = 0.0f32;
     for uv in uvs {
-        for level in 0..=2 {
-            let c = sample_bilinear(&mips[level], *uv);
+        for mip in &mips[..=2] {
+            let c = sample_bilinear(mip, *uv);
             let d = (0..3).map(|k| (c[k] - red[k]).abs()).fold(0.0f32, f32::max);
             worst = worst.max(d);
         }
@@ -216,11 +216,16 @@ fn bake_command_puts_a_dense_result_into_a_generated_atlas() {
         .arg(&out)
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     let back = io::load(&out).unwrap();
     let uvs = back.uvs.as_ref().expect("UVs");
-    let rgba = image::DynamicImage::ImageRgb8(back.texture.as_ref().expect("texture").image.clone())
-        .to_rgba8();
+    let rgba =
+        image::DynamicImage::ImageRgb8(back.texture.as_ref().expect("texture").image.clone())
+            .to_rgba8();
     let mut worst = 0.0f32;
     let mut sum = 0.0f32;
     for (f, face) in back.faces.iter().enumerate() {
@@ -239,12 +244,17 @@ fn bake_command_puts_a_dense_result_into_a_generated_atlas() {
         );
         let got = sample_bilinear(&rgba, [uv[0], uv[1]]);
         let want = known(p);
-        let e = (0..3).map(|k| (got[k] - want[k]).abs()).fold(0.0f32, f32::max);
+        let e = (0..3)
+            .map(|k| (got[k] - want[k]).abs())
+            .fold(0.0f32, f32::max);
         worst = worst.max(e);
         sum += e;
     }
     let mean = sum / back.faces.len() as f32;
-    assert!(mean < 0.015 && worst < 0.08, "mean {mean:.4}, worst {worst:.4}");
+    assert!(
+        mean < 0.015 && worst < 0.08,
+        "mean {mean:.4}, worst {worst:.4}"
+    );
     // Refused: a PLY output cannot carry a texture.
     let st = std::process::Command::new(env!("CARGO_BIN_EXE_meshmatch"))
         .args(["bake", "--from"])
@@ -255,5 +265,10 @@ fn bake_command_puts_a_dense_result_into_a_generated_atlas() {
         .arg(dir.join("x.ply"))
         .output()
         .unwrap();
-    assert_eq!(st.status.code(), Some(2), "{}", String::from_utf8_lossy(&st.stderr));
+    assert_eq!(
+        st.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
 }
