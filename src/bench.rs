@@ -555,9 +555,100 @@ pub fn structure_row(n: usize, structure: Option<f32>) -> Result<SystemRow> {
     })
 }
 
-/// `meshmatch bench --system weather|quilt|map`: the rows of a synthesis system.
+/// `synth` with its defaults (vertex budget, auto orientation, alpha) of one shared texture on
+/// one shared mesh: what a user gets from `meshmatch synth --exemplar T --target M --out o.ply`.
+pub fn synth_row(mesh: &std::path::Path, texture: &std::path::Path) -> Result<SystemRow> {
+    use crate::synthesis::wei_levoy::{self, DEFAULT_VERTEX_BUDGET, SynthParams};
+    let t = Instant::now();
+    let mut target = crate::mesh::io::load(mesh)?;
+    target.repair()?;
+    let (tex, alpha) = crate::mesh::io::load_texture_with_alpha(texture)?;
+    let params = SynthParams::default();
+    let min = (4u32 << (params.levels.clamp(1, 8) - 1)).max(8);
+    let (ex, _) =
+        wei_levoy::fit_exemplar_to_budget(tex.image, &target, None, DEFAULT_VERTEX_BUDGET, min);
+    let alpha = alpha.map(|a| wei_levoy::resize_alpha(a, ex.width(), ex.height()));
+    let input = wei_levoy::Input {
+        exemplar: &ex,
+        target: &target,
+        mask: None,
+        alpha: alpha.as_ref(),
+    };
+    let r = wei_levoy::run(&input, &params, &|_| {}, &CancelToken::new())?;
+    let name = |p: &std::path::Path| {
+        p.file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    Ok(SystemRow {
+        case: format!(
+            "synth {} on {} ({}x{} px, {})",
+            name(texture),
+            name(mesh),
+            ex.width(),
+            ex.height(),
+            r.orientation_used.as_str()
+        ),
+        vertices: r.mesh.num_vertices(),
+        stages: vec![
+            ("prepare".into(), r.timings.prepare),
+            ("orientation".into(), r.timings.orientation),
+            ("neighbourhoods".into(), r.timings.neighbourhoods),
+            ("search".into(), r.timings.search),
+        ],
+        total_s: t.elapsed().as_secs_f64(),
+        faces: 0,
+        peak_rss_mb: peak_rss_mb(),
+    })
+}
+
+/// The shared meshes (one level of folders under the data directory, robustness cases left out)
+/// and textures (`textures/`), sorted.
+fn shared_meshes_and_textures() -> (Vec<std::path::PathBuf>, Vec<std::path::PathBuf>) {
+    let dir = crate::testdata::data_dir();
+    let ext = |p: &std::path::Path| {
+        p.extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .unwrap_or_default()
+    };
+    let mut meshes = Vec::new();
+    let mut textures = Vec::new();
+    for entry in std::fs::read_dir(&dir).into_iter().flatten().flatten() {
+        let sub = entry.path();
+        let robustness = sub.file_name().is_some_and(|n| n == "robustness");
+        for f in std::fs::read_dir(&sub).into_iter().flatten().flatten() {
+            let p = f.path();
+            match ext(&p).as_str() {
+                "obj" | "ply" | "glb" | "gltf" if !robustness => meshes.push(p),
+                "png" | "jpg" | "jpeg" if sub.file_name().is_some_and(|n| n == "textures") => {
+                    textures.push(p)
+                }
+                _ => {}
+            }
+        }
+    }
+    meshes.sort();
+    textures.sort();
+    (meshes, textures)
+}
+
+/// `meshmatch bench --system weather|quilt|map|synth`: the rows of a synthesis system.
 pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
     let rows: Vec<SystemRow> = match system {
+        "synth" => {
+            // Every shared mesh with every shared texture, printed as each finishes.
+            let (meshes, textures) = shared_meshes_and_textures();
+            for m in &meshes {
+                for t in &textures {
+                    match synth_row(m, t) {
+                        Ok(r) => print_rows(vec![r], json),
+                        Err(e) => println!("synth {} on {}: {e}", t.display(), m.display()),
+                    }
+                }
+            }
+            Vec::new()
+        }
         "weather" => sizes
             .iter()
             .map(|&n| weather_row(n))
@@ -578,10 +669,16 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
         }
         _ => {
             return Err(crate::error::Error::InvalidInput(format!(
-                "--system {system}: use meshmatch, weather, quilt or map"
+                "--system {system}: use meshmatch, weather, quilt, map or synth"
             )));
         }
     };
+    print_rows(rows, json);
+    Ok(())
+}
+
+/// Print system rows, as JSON lines or one sentence each.
+fn print_rows(rows: Vec<SystemRow>, json: bool) {
     for r in rows {
         if json {
             println!("{}", serde_json::to_string(&r).expect("serialisable"));
@@ -606,5 +703,4 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
             );
         }
     }
-    Ok(())
 }

@@ -1412,6 +1412,44 @@ fn export_delivers_like_transfer_out_a_baked_texture_in_glb_and_the_dense_mesh_i
     assert_eq!(m.num_vertices(), working.num_vertices());
     assert!(m.num_vertices() > target.num_vertices());
     assert!(m.colors.is_some());
+
+    // From the menu the export runs as a background job (a target without UVs gets an atlas):
+    // the window keeps pumping, the status bar says what was written.
+    let mut bare = (*target).clone();
+    bare.uvs = None;
+    bare.texture = None;
+    app.state.set_mesh(Side::Target, bare, false);
+    let t0 = Instant::now();
+    loop {
+        app.pump(Instant::now());
+        let s = &app.state;
+        if s.result.is_some() && !s.job.running && !s.restart_pending() {
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "no result on the bare target"
+        );
+        app.wait_events(Duration::from_millis(50));
+    }
+    let atlas_glb = dir.join("atlas.glb");
+    app.start_export(&atlas_glb);
+    let t0 = Instant::now();
+    while app.tool.is_some() {
+        app.poll_tool();
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "export never finished"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(
+        app.state.message.contains("exported") && app.state.message.contains("charts"),
+        "{}",
+        app.state.message
+    );
+    let m = meshmatch::mesh::io::load(&atlas_glb).unwrap();
+    assert!(m.uvs.is_some() && m.texture.is_some());
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -272,3 +272,75 @@ fn bake_command_puts_a_dense_result_into_a_generated_atlas() {
         String::from_utf8_lossy(&st.stderr)
     );
 }
+
+#[test]
+fn synth_with_defaults_stays_within_its_vertex_budget() {
+    use meshmatch::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET;
+    // The penguin with the bricks (transparent hole, oriented): the defaults a new user runs.
+    let row = meshmatch::bench::synth_row(
+        &meshmatch::testdata::data_path("penguin/penguin.obj"),
+        &meshmatch::testdata::data_path("textures/bricks.png"),
+    )
+    .expect("synth with defaults");
+    let budget = DEFAULT_VERTEX_BUDGET as f64;
+    assert!(
+        (row.vertices as f64) < 1.1 * budget && (row.vertices as f64) > 0.7 * budget,
+        "{} vertices for a budget of {budget}",
+        row.vertices
+    );
+    assert!(
+        row.case.contains("relax"),
+        "{}: bricks are oriented",
+        row.case
+    );
+}
+
+#[test]
+fn synth_to_glb_writes_the_target_with_a_baked_texture() {
+    let dir = tempfile_dir("synth_glb");
+    let out = dir.join("spot_water.glb");
+    let dense = dir.join("spot_water_dense.ply");
+    let st = std::process::Command::new(env!("CARGO_BIN_EXE_meshmatch"))
+        .args([
+            "synth",
+            "--vertex-budget",
+            "20000",
+            "--texture-size",
+            "256",
+            "--exemplar",
+        ])
+        .arg(meshmatch::testdata::data_path("textures/1.jpg"))
+        .arg("--target")
+        .arg(meshmatch::testdata::data_path("spot/spot.obj"))
+        .arg("--out")
+        .arg(&out)
+        .arg("--out-dense")
+        .arg(&dense)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let spot = io::load(&meshmatch::testdata::data_path("spot/spot.obj")).unwrap();
+    let back = io::load(&out).unwrap();
+    // The target's own faces and UVs (GLB splits vertices at UV seams), with a new texture that
+    // is the water (blue-green).
+    assert_eq!(back.num_faces(), spot.num_faces());
+    let (a, b) = (back.uvs.as_ref().unwrap(), spot.uvs.as_ref().unwrap());
+    assert_eq!(a.len(), b.len());
+    let off = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| (p[0] - q[0]).abs().max((p[1] - q[1]).abs()))
+        .fold(0.0f32, f32::max);
+    assert!(off < 1e-5, "UVs moved by {off}");
+    let tex = back.texture.as_ref().expect("texture");
+    assert_eq!(tex.image.dimensions(), (256, 256));
+    let blue = tex.image.pixels().filter(|p| p.0[2] > p.0[0] + 30).count();
+    assert!(blue > 256 * 256 / 2, "{blue} blue texels");
+    // And the dense mesh beside it.
+    let d = io::load(&dense).unwrap();
+    assert!(d.num_vertices() > 10_000 && d.colors.is_some());
+}

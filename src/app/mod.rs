@@ -316,6 +316,34 @@ where
         }
     }
 
+    /// Export the transfer result to `path` in the background (a texture bake, and an atlas for a
+    /// target without UVs, take seconds): progress in the status bar, cancel, no frozen window.
+    pub fn start_export(&mut self, path: &std::path::Path) {
+        if let Some(t) = &self.tool {
+            self.state.report(format!(
+                "{} is still running: wait for it or cancel it",
+                t.name
+            ));
+            return;
+        }
+        let task = match self.state.export_task(path) {
+            Ok(t) => t,
+            Err(e) => return self.state.report(e),
+        };
+        let ctx = self.repaint.clone();
+        let j = tools::ToolJob::spawn(
+            "export",
+            move || {
+                if let Some(c) = &ctx {
+                    c.request_repaint_after(WAKE_DELAY);
+                }
+            },
+            move |_sink, cancel| Ok(tools::ToolOutcome::Done(task(cancel)?)),
+        );
+        self.state.message = format!("exporting {}...", path.display());
+        self.tool = Some(j);
+    }
+
     /// Start the texture update: the source (textured, old geometry) onto `new` geometry.
     pub fn start_update(&mut self, new: crate::mesh::TriMesh) {
         if self.tool.is_some() {
@@ -471,7 +499,10 @@ where
                 correspondences: self.state.corr.clone(),
             }
             .save(&p),
-            A::ExportResult => self.state.export_result(&p),
+            A::ExportResult => {
+                self.start_export(&p);
+                Ok(())
+            }
             A::ExportDense => self.state.export_dense_result(&p),
             A::ExportPainted(side) => match self.state.painted_mesh(side) {
                 Some(m) => crate::mesh::io::save(&m, &p),

@@ -31,6 +31,8 @@ pub enum ToolOutcome {
     Mesh(Side, TriMesh, String),
     /// Suggested correspondences (file vertices) to add to the existing ones, as one undo step.
     Correspondences(Vec<crate::correspondence::Correspondence>, String),
+    /// Nothing to apply (a file was written): the status message to show.
+    Done(String),
 }
 
 /// A partial result: colours per vertex of the tool's working mesh.

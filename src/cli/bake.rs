@@ -6,8 +6,8 @@ use std::path::PathBuf;
 
 use super::common::*;
 use crate::error::{Error, Result};
-use crate::geometry::{AtlasParams, TriangleBvh, bake_closest, uv_atlas};
-use crate::mesh::{Texture, io};
+use crate::geometry::bake_onto;
+use crate::mesh::io;
 use crate::work::CancelToken;
 
 /// Arguments of `meshmatch bake`.
@@ -57,57 +57,36 @@ impl BakeArgs {
                 self.from.display()
             ))
         })?;
-        let mut target = load_usable(&self.to)?;
+        let target = load_usable(&self.to)?;
         let t = std::time::Instant::now();
-        if target.uvs.is_none() || self.new_atlas {
-            let params = AtlasParams {
-                texture_size: self.texture_size,
-                ..Default::default()
-            };
-            let bar = progress_bar();
-            bar.set_message("UV atlas");
-            let a = uv_atlas(
-                &target.positions,
-                &target.faces,
-                &params,
-                &|f| bar.set_position((f * 1000.0) as u64),
-                &CancelToken::new(),
-            )?;
-            bar.finish_and_clear();
+        let bar = progress_bar();
+        bar.set_message("UV atlas");
+        let (target, atlas) = bake_onto(
+            &target,
+            &src,
+            &colors,
+            self.texture_size,
+            self.new_atlas,
+            &|f| bar.set_position((f * 1000.0) as u64),
+            &CancelToken::new(),
+        )?;
+        bar.finish_and_clear();
+        if let Some(a) = atlas {
             eprintln!(
-                "generated a UV atlas: {} charts, {:.0}% of the texture, {:.1} texels per unit ({:.2} s)",
+                "generated a UV atlas: {} charts, {:.0}% of the texture, {:.1} texels per unit",
                 a.charts,
                 100.0 * a.utilization,
                 a.texels_per_unit,
-                t.elapsed().as_secs_f64()
             );
-            target.uvs = Some(a.uvs);
-        }
-        let t = std::time::Instant::now();
-        let bvh = TriangleBvh::new(&src.positions, &src.faces);
-        let size = self.texture_size as usize;
-        let baked = bake_closest(
-            &target.positions,
-            &target.faces,
-            target.uvs.as_deref().unwrap_or(&[]),
-            size,
-            &bvh,
-            &src.faces,
-            &colors,
-        );
-        let covered = baked.covered.iter().filter(|&&c| c).count();
-        let mut image = image::RgbImage::new(self.texture_size, self.texture_size);
-        for (p, c) in image.pixels_mut().zip(&baked.pixels) {
-            p.0 = crate::color::to_u8(*c);
         }
         eprintln!(
-            "baked {} of {} vertices' colours into {size}x{size} texels ({covered} on the surface) in {:.2} s",
+            "baked {} vertices' colours of {} into {}x{} texels in {:.2} s",
             src.num_vertices(),
             self.from.display(),
+            self.texture_size,
+            self.texture_size,
             t.elapsed().as_secs_f64()
         );
-        target.colors = None;
-        target.texture = Some(std::sync::Arc::new(Texture { image, path: None }));
         io::save(&target, &self.out)?;
         eprintln!("wrote {}", self.out.display());
         Ok(0)

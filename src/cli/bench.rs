@@ -16,8 +16,9 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 0)]
     pub cancel_probes: usize,
     /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
-    /// Spot -> horse at each size), quilt (chain mail on a plane and on the bunny) or map (the
-    /// global shape map man -> woman at each size, and a transfer with structure 0 and auto).
+    /// Spot -> horse at each size), quilt (chain mail on a plane and on the bunny), map (the
+    /// global shape map man -> woman at each size, and a transfer with structure 0 and auto) or
+    /// synth (`synth` with its defaults, every shared texture on every shared mesh).
     #[arg(long, default_value = "meshmatch")]
     pub system: String,
 }

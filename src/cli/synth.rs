@@ -16,9 +16,17 @@ pub struct SynthArgs {
     /// Mesh to texture.
     #[arg(long)]
     pub target: PathBuf,
-    /// Output mesh (.ply, .glb, .obj): the uniform-density synthesized mesh with vertex colours.
+    /// Output: .glb/.gltf/.obj = the target mesh with the result baked into a texture (through
+    /// its UVs, or a generated atlas); .ply = the uniform-density synthesized mesh with vertex
+    /// colours.
     #[arg(long)]
     pub out: PathBuf,
+    /// Also write the uniform-density synthesized mesh with vertex colours (any mesh format).
+    #[arg(long)]
+    pub out_dense: Option<PathBuf>,
+    /// Side of the baked texture in pixels (textured outputs).
+    #[arg(long, default_value_t = 2048)]
+    pub texture_size: u32,
     /// Mesh units spanned by the exemplar's width (default: a quarter of the bounding-box
     /// diagonal); positive, finite.
     #[arg(long)]
@@ -85,8 +93,13 @@ fn synth(a: &SynthArgs) -> Result<i32> {
             a.levels
         )));
     }
+    check_texture_size(a.texture_size)?;
     let inputs = input_paths(&[Some(&a.exemplar), Some(&a.target), a.mask.as_ref()]);
-    check_outputs(&inputs, &[("--out", &a.out, OutKind::Mesh)])?;
+    let mut outputs = vec![("--out", a.out.as_path(), OutKind::Mesh)];
+    if let Some(d) = &a.out_dense {
+        outputs.push(("--out-dense", d.as_path(), OutKind::Mesh));
+    }
+    check_outputs(&inputs, &outputs)?;
     let (tex, alpha) = io::load_texture_with_alpha(&a.exemplar)?;
     let mut exemplar = tex.image;
     if let Some(al) = &alpha {
@@ -179,7 +192,48 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         r.orientation_used.as_str(),
         r.level_energy.first().copied().unwrap_or(0.0)
     );
-    io::save(&r.mesh, &a.out)?;
+    let ext = a
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    // A texture on the target, unless the geometry is the result (displacement).
+    if !a.displace && matches!(ext.as_str(), "glb" | "gltf" | "obj") {
+        let colors = r
+            .mesh
+            .colors
+            .as_ref()
+            .ok_or_else(|| Error::InvalidInput("synthesis gave no colours".into()))?;
+        let (baked, atlas) = crate::geometry::bake_onto(
+            &target,
+            &r.mesh,
+            colors,
+            a.texture_size,
+            false,
+            &|_| {},
+            &CancelToken::new(),
+        )?;
+        if let Some(at) = atlas {
+            eprintln!(
+                "generated a UV atlas for the target: {} charts, {:.0}% of the texture",
+                at.charts,
+                100.0 * at.utilization
+            );
+        }
+        eprintln!(
+            "baked the result into a {0}x{0} texture on the target's {1} vertices",
+            a.texture_size,
+            baked.num_vertices()
+        );
+        io::save(&baked, &a.out)?;
+    } else {
+        io::save(&r.mesh, &a.out)?;
+    }
     eprintln!("wrote {}", a.out.display());
+    if let Some(d) = &a.out_dense {
+        io::save(&r.mesh, d)?;
+        eprintln!("wrote {}", d.display());
+    }
     Ok(0)
 }

@@ -60,4 +60,6 @@ pub use solid_angle_curvature::{
     SolidAngleTree, solid_angle_curvature, solid_angle_curvature_cancellable,
 };
 pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
-pub use uv_bake::{BakedImage, bake_closest, bake_uv, fill_gutters, mip_chain, sample_bilinear};
+pub use uv_bake::{
+    BakedImage, bake_closest, bake_onto, bake_uv, fill_gutters, mip_chain, sample_bilinear,
+};

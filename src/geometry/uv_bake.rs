@@ -178,6 +178,53 @@ pub fn bake_closest(
     img
 }
 
+/// `target` with the colours of `source` (another surface of the same shape, colours per source
+/// vertex) baked into a `size²` texture: through its own UVs, or through an atlas generated for
+/// it when it has none or `new_atlas` is set. Vertex colours are dropped. Returns the mesh and
+/// the atlas it generated, if any.
+pub fn bake_onto(
+    target: &crate::mesh::TriMesh,
+    source: &crate::mesh::TriMesh,
+    source_colors: &[[f32; 3]],
+    size: u32,
+    new_atlas: bool,
+    progress: &(dyn Fn(f32) + Sync),
+    cancel: &crate::work::CancelToken,
+) -> crate::error::Result<(crate::mesh::TriMesh, Option<super::UvAtlas>)> {
+    let mut out = target.clone();
+    let mut atlas = None;
+    if out.uvs.is_none() || new_atlas {
+        let params = super::AtlasParams {
+            texture_size: size,
+            ..Default::default()
+        };
+        let a = super::uv_atlas(&out.positions, &out.faces, &params, progress, cancel)?;
+        out.uvs = Some(a.uvs.clone());
+        atlas = Some(a);
+    }
+    cancel.check()?;
+    let bvh = super::TriangleBvh::new(&source.positions, &source.faces);
+    let baked = bake_closest(
+        &out.positions,
+        &out.faces,
+        out.uvs.as_deref().unwrap_or(&[]),
+        size as usize,
+        &bvh,
+        &source.faces,
+        source_colors,
+    );
+    let mut image = image::RgbImage::new(size, size);
+    for (p, c) in image.pixels_mut().zip(&baked.pixels) {
+        p.0 = crate::color::to_u8(*c);
+    }
+    out.colors = None;
+    out.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
+        image,
+        path: None,
+    }));
+    Ok((out, atlas))
+}
+
 /// Distance from `p` to triangle `t` (0 inside) and the barycentric coordinates of the nearest
 /// point of the triangle.
 fn locate(t: &[[f32; 2]; 3], det: f32, p: [f32; 2]) -> (f32, [f32; 3]) {

@@ -202,6 +202,7 @@ impl<P: AppParams> AppState<P> {
     pub fn apply_tool_outcome(&mut self, outcome: crate::app::tools::ToolOutcome) {
         use crate::app::tools::ToolOutcome;
         match outcome {
+            ToolOutcome::Done(message) => self.message = message,
             ToolOutcome::Colors(side, colors, message) => {
                 self.end_tool_preview();
                 let Some(n) = self.slot(side).map(|s| s.displayed().num_vertices()) else {

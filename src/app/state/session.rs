@@ -113,36 +113,57 @@ impl<P: AppParams> AppState<P> {
     }
 
     /// Write the transfer result on the target file mesh as `transfer --out` does (format by
-    /// extension; `.glb`/`.obj` of a target with UVs get a texture baked into its UV layout).
+    /// extension; `.glb`/`.obj` get a texture baked into the target's UV layout, or into an
+    /// atlas generated for a target without UVs).
     pub fn export_result(&self, path: &Path) -> Result<()> {
+        self.export_task(path)?(&crate::work::CancelToken::new()).map(|_| ())
+    }
+
+    /// [`Self::export_result`] as a task to run off the window's thread (generating an atlas
+    /// takes seconds on a large target): what it needs is captured by reference count; it returns
+    /// the status line to show.
+    pub fn export_task(
+        &self,
+        path: &Path,
+    ) -> Result<impl FnOnce(&crate::work::CancelToken) -> Result<String> + Send + 'static> {
         let (slot, res) = self.target_and_result()?;
         if res.file_signal.len() != slot.file.positions.len() {
             return Err(Error::InvalidInput(
                 "result does not match the target mesh".into(),
             ));
         }
-        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-        let m = match &res.layout {
-            Some(layout) => {
-                crate::meshmatch::deliver(
-                    &slot.file,
-                    layout,
-                    &res.working_signal,
-                    &res.file_signal,
-                    ext,
-                    EXPORT_TEXTURE_SIZE,
-                    &crate::work::CancelToken::new(),
-                )?
-                .mesh
-            }
-            None => {
-                let mut m = (*slot.file).clone();
-                m.colors = Some(res.file_signal.clone());
-                m.texture = None;
-                m
-            }
-        };
-        crate::mesh::io::save(&m, path)
+        let file = slot.file.clone();
+        let res = self.result.clone().expect("checked above");
+        let path = path.to_path_buf();
+        Ok(move |cancel: &crate::work::CancelToken| {
+            let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+            let (m, note) = match &res.layout {
+                Some(layout) => {
+                    let d = crate::meshmatch::deliver(
+                        &file,
+                        layout,
+                        &res.working_signal,
+                        &res.file_signal,
+                        ext,
+                        EXPORT_TEXTURE_SIZE,
+                        cancel,
+                    )?;
+                    let note = d.atlas_line(EXPORT_TEXTURE_SIZE);
+                    (d.mesh, note)
+                }
+                None => {
+                    let mut m = (*file).clone();
+                    m.colors = Some(res.file_signal.clone());
+                    m.texture = None;
+                    (m, None)
+                }
+            };
+            crate::mesh::io::save(&m, &path)?;
+            Ok(match note {
+                Some(n) => format!("exported {} ({n})", path.display()),
+                None => format!("exported {}", path.display()),
+            })
+        })
     }
 
     /// Write the transfer result on the dense working mesh (as `transfer --out-dense` does).

@@ -276,6 +276,11 @@ pub fn resize_alpha(alpha: image::GrayImage, width: u32, height: u32) -> image::
     image::imageops::resize(&alpha, width, height, image::imageops::FilterType::Triangle)
 }
 
+/// Vertices the uniform refinement makes per exemplar texel of surface area (`area / h0²`):
+/// edges end in (0.8 h0, 1.6 h0], slightly shorter than h0 on average. Measured: 1.22 (Spot),
+/// 1.28 (penguin).
+pub const REFINED_PER_TEXEL: f64 = 1.25;
+
 /// Default vertex budget of a synthesis run chosen by [`fit_exemplar_to_budget`].
 pub const DEFAULT_VERTEX_BUDGET: usize = 300_000;
 
@@ -300,7 +305,7 @@ pub fn fit_exemplar_to_budget(
     if !(scale.is_finite() && scale > 0.0) || w == 0 || budget == 0 {
         return (exemplar, None);
     }
-    let estimate = |width: f64| target.area() * (width / scale as f64).powi(2);
+    let estimate = |width: f64| REFINED_PER_TEXEL * target.area() * (width / scale as f64).powi(2);
     let before = estimate(w as f64);
     if before <= budget as f64 {
         return (exemplar, None);
@@ -521,7 +526,7 @@ pub fn synthesize_with_alpha(
     }
     let h0 = scale / ew as f32;
     let area = target.area();
-    let estimate = area / (h0 as f64 * h0 as f64);
+    let estimate = REFINED_PER_TEXEL * area / (h0 as f64 * h0 as f64);
     if estimate > params.max_vertices as f64 {
         return Err(Error::InvalidInput(format!(
             "scale {scale} needs about {estimate:.0} vertices (limit {}); use a larger scale or a \
