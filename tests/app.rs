@@ -1995,3 +1995,55 @@ fn suggest_adds_well_spread_pairs_from_the_map_and_one_undo_removes_them() {
     h.state_mut().state.undo();
     assert_eq!(h.state().state.corr.len(), 2);
 }
+
+#[test]
+fn a_textured_source_is_drawn_through_its_texture_before_and_after_preparation() {
+    use meshmatch::app::engine::MeshMatchEngine;
+    let spot = meshmatch::mesh::io::load(&meshmatch::testdata::data_path("spot/spot.obj")).unwrap();
+    let mut app = MeshMatchApp::new(MeshMatchEngine, None);
+    app.state.params.vertices = 8000;
+    app.state.set_mesh(Side::Source, spot, false);
+    assert!(app.state.slot(Side::Source).unwrap().shows_texture());
+    app.state.set_mesh(Side::Target, sphere(12, 16), false);
+    app.state
+        .set_correspondences(vec![Correspondence {
+            source_vertex: 0,
+            target_vertices: vec![0],
+        }])
+        .unwrap();
+    // Once the working mesh is prepared it carries the texture and UVs at every working corner.
+    let t0 = Instant::now();
+    while app.state.slot(Side::Source).unwrap().working.is_none() {
+        app.pump(Instant::now());
+        assert!(t0.elapsed() < Duration::from_secs(120), "never prepared");
+        app.wait_events(Duration::from_millis(50));
+    }
+    let slot = app.state.slot(Side::Source).unwrap();
+    let w = slot.working.as_ref().unwrap();
+    assert!(w.num_vertices() > slot.file.num_vertices());
+    assert_eq!(w.uvs.as_ref().map(Vec::len), Some(3 * w.num_faces()));
+    assert!(slot.shows_texture());
+    // The working UVs put every working vertex on the texture where the file mesh has it: the
+    // texture sampled at the working corners agrees with the working colours (sampled from the
+    // same texture at preparation).
+    let tex = &w.texture.as_ref().unwrap().image;
+    let uvs = w.uvs.as_ref().unwrap();
+    let cols = w.colors.as_ref().unwrap();
+    let mut far = 0;
+    for (f, face) in w.faces.iter().enumerate().step_by(7) {
+        let uv = uvs[3 * f];
+        let (x, y) = (
+            ((uv[0] * tex.width() as f32) as u32).min(tex.width() - 1),
+            (((1.0 - uv[1]) * tex.height() as f32) as u32).min(tex.height() - 1),
+        );
+        let t = tex.get_pixel(x, y).0.map(|c| c as f32 / 255.0);
+        let c = cols[face[0] as usize];
+        if (0..3).any(|k| (t[k] - c[k]).abs() > 0.25) {
+            far += 1;
+        }
+    }
+    assert!(
+        far * 20 < w.num_faces() / 7,
+        "{far} corners disagree with the texture"
+    );
+}
