@@ -1905,6 +1905,24 @@ fn feature_aligned_tool_textures_a_cube_along_its_creases_and_one_undo_restores(
         );
         std::thread::sleep(Duration::from_millis(10));
     }
+    // Let any transfer the meshes started finish first: its result would change the target's
+    // colours underneath the tool and the undo (a race on a loaded machine).
+    let t0 = Instant::now();
+    loop {
+        let st = &h.state().state;
+        let settled = st.job.outcome.starts_with("done")
+            || st.job.outcome.starts_with("failed")
+            || st.job.outcome == "cancelled";
+        if settled && !st.job.running && !st.restart_pending() {
+            break;
+        }
+        h.step();
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "transfer never settled"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
     h.run_steps(2);
     let before = h.state().state.slot(Side::Target).unwrap().display_colors();
     let i = system_index::<FeatureAlignedDialog>(&mut h);
