@@ -38,6 +38,43 @@ fn bare_spot() -> TriMesh {
     bare
 }
 
+/// Largest channel error between the texture of `m` (bilinear at the interpolated UV) and
+/// [`known`] at the surface point, for every `step`-th face and each barycentric weight.
+fn texture_errors(
+    m: &TriMesh,
+    rgba: &image::RgbaImage,
+    step: usize,
+    weights: &[[f32; 3]],
+) -> Vec<f32> {
+    let uvs = m.uvs.as_ref().expect("UVs");
+    let mut errs = Vec::new();
+    for f in (0..m.faces.len()).step_by(step) {
+        let face = m.faces[f];
+        for &w in weights {
+            let p = lerp3(
+                m.positions[face[0] as usize],
+                m.positions[face[1] as usize],
+                m.positions[face[2] as usize],
+                w,
+            );
+            let uv = lerp3(
+                [uvs[3 * f][0], uvs[3 * f][1], 0.0],
+                [uvs[3 * f + 1][0], uvs[3 * f + 1][1], 0.0],
+                [uvs[3 * f + 2][0], uvs[3 * f + 2][1], 0.0],
+                w,
+            );
+            let got = sample_bilinear(rgba, [uv[0], uv[1]]);
+            let want = known(p);
+            errs.push(
+                (0..3)
+                    .map(|k| (got[k] - want[k]).abs())
+                    .fold(0.0f32, f32::max),
+            );
+        }
+    }
+    errs
+}
+
 fn lerp3(a: [f32; 3], b: [f32; 3], c: [f32; 3], w: [f32; 3]) -> [f32; 3] {
     [0, 1, 2].map(|k| w[0] * a[k] + w[1] * b[k] + w[2] * c[k])
 }
@@ -73,7 +110,7 @@ fn atlas_bake_export_round_trip_reproduces_the_signal_on_a_mesh_without_uvs() {
     let path = dir.join("spot_baked.glb");
     io::save(&out.mesh, &path).expect("save");
     let back = io::load(&path).expect("load back");
-    let uvs = back.uvs.as_ref().expect("UVs in the file");
+    assert!(back.uvs.is_some(), "UVs in the file");
     let tex = back.texture.as_ref().expect("texture in the file");
     assert_eq!(tex.image.dimensions(), (size, size));
     assert!(
@@ -82,31 +119,12 @@ fn atlas_bake_export_round_trip_reproduces_the_signal_on_a_mesh_without_uvs() {
     );
     let rgba = image::DynamicImage::ImageRgb8(tex.image.clone()).to_rgba8();
     // Surface points (face, barycentric) across the whole mesh: the texture gives the signal.
-    let mut errs = Vec::new();
-    for f in (0..back.faces.len()).step_by(3) {
-        for w in [[1.0 / 3.0; 3], [0.6, 0.2, 0.2], [0.1, 0.1, 0.8]] {
-            let face = back.faces[f];
-            let p = lerp3(
-                back.positions[face[0] as usize],
-                back.positions[face[1] as usize],
-                back.positions[face[2] as usize],
-                w,
-            );
-            let uv3 = lerp3(
-                [uvs[3 * f][0], uvs[3 * f][1], 0.0],
-                [uvs[3 * f + 1][0], uvs[3 * f + 1][1], 0.0],
-                [uvs[3 * f + 2][0], uvs[3 * f + 2][1], 0.0],
-                w,
-            );
-            let got = sample_bilinear(&rgba, [uv3[0], uv3[1]]);
-            let want = known(p);
-            errs.push(
-                (0..3)
-                    .map(|k| (got[k] - want[k]).abs())
-                    .fold(0.0f32, f32::max),
-            );
-        }
-    }
+    let mut errs = texture_errors(
+        &back,
+        &rgba,
+        3,
+        &[[1.0 / 3.0; 3], [0.6, 0.2, 0.2], [0.1, 0.1, 0.8]],
+    );
     errs.sort_by(f32::total_cmp);
     let mean = errs.iter().sum::<f32>() / errs.len() as f32;
     let p99 = errs[errs.len() * 99 / 100];
@@ -222,35 +240,14 @@ fn bake_command_puts_a_dense_result_into_a_generated_atlas() {
         String::from_utf8_lossy(&st.stderr)
     );
     let back = io::load(&out).unwrap();
-    let uvs = back.uvs.as_ref().expect("UVs");
+    assert!(back.uvs.is_some());
     let rgba =
         image::DynamicImage::ImageRgb8(back.texture.as_ref().expect("texture").image.clone())
             .to_rgba8();
-    let mut worst = 0.0f32;
-    let mut sum = 0.0f32;
-    for (f, face) in back.faces.iter().enumerate() {
-        let w = [1.0 / 3.0; 3];
-        let p = lerp3(
-            back.positions[face[0] as usize],
-            back.positions[face[1] as usize],
-            back.positions[face[2] as usize],
-            w,
-        );
-        let uv = lerp3(
-            [uvs[3 * f][0], uvs[3 * f][1], 0.0],
-            [uvs[3 * f + 1][0], uvs[3 * f + 1][1], 0.0],
-            [uvs[3 * f + 2][0], uvs[3 * f + 2][1], 0.0],
-            w,
-        );
-        let got = sample_bilinear(&rgba, [uv[0], uv[1]]);
-        let want = known(p);
-        let e = (0..3)
-            .map(|k| (got[k] - want[k]).abs())
-            .fold(0.0f32, f32::max);
-        worst = worst.max(e);
-        sum += e;
-    }
-    let mean = sum / back.faces.len() as f32;
+    let errs = texture_errors(&back, &rgba, 1, &[[1.0 / 3.0; 3]]);
+    let worst = errs.iter().copied().fold(0.0f32, f32::max);
+    let sum: f32 = errs.iter().sum();
+    let mean = sum / errs.len() as f32;
     assert!(
         mean < 0.015 && worst < 0.08,
         "mean {mean:.4}, worst {worst:.4}"
