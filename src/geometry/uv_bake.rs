@@ -23,6 +23,17 @@ pub struct BakedImage {
     pub covered: Vec<bool>,
 }
 
+impl BakedImage {
+    /// The image as 8-bit sRGB.
+    pub fn to_rgb8(&self) -> image::RgbImage {
+        let mut img = image::RgbImage::new(self.width as u32, self.height as u32);
+        for (p, c) in img.pixels_mut().zip(&self.pixels) {
+            p.0 = crate::color::to_u8(*c);
+        }
+        img
+    }
+}
+
 /// Rows of texels a worker rasterises at a time.
 const BAND_ROWS: usize = 32;
 /// Half the diagonal of a texel: how far outside a triangle a touched texel's centre may lie.
@@ -213,10 +224,7 @@ pub fn bake_onto(
         &source.faces,
         source_colors,
     );
-    let mut image = image::RgbImage::new(size, size);
-    for (p, c) in image.pixels_mut().zip(&baked.pixels) {
-        p.0 = crate::color::to_u8(*c);
-    }
+    let image = baked.to_rgb8();
     out.colors = None;
     out.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
         image,

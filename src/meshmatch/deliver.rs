@@ -211,10 +211,5 @@ fn bake_layout(
     };
     let mut baked = crate::geometry::bake_uv(uvs, target.faces.len(), w, h, sample);
     crate::geometry::fill_gutters(&mut baked);
-    let acc = baked.pixels;
-    let mut img = image::RgbImage::new(size, size);
-    for (i, p) in img.pixels_mut().enumerate() {
-        p.0 = crate::color::to_u8(acc[i]);
-    }
-    img
+    baked.to_rgb8()
 }

@@ -55,29 +55,18 @@ pub fn draw_mesh(mesh: &TriMesh, with_uvs: bool) -> DrawMesh {
         .collect();
     let fdir: Vec<glam::Vec3> = fnorm.iter().map(|c| c.normalize_or_zero()).collect();
     // Vertex -> faces (CSR over the kept faces).
-    let mut off = vec![0u32; n + 1];
-    for (_, f) in &faces {
-        for &v in f {
-            off[v as usize + 1] += 1;
-        }
-    }
-    for i in 0..n {
-        off[i + 1] += off[i];
-    }
-    let mut fill = off.clone();
-    let mut vf = vec![0u32; off[n] as usize];
-    for (k, (_, f)) in faces.iter().enumerate() {
-        for &v in f {
-            vf[fill[v as usize] as usize] = k as u32;
-            fill[v as usize] += 1;
-        }
-    }
+    let mut pairs: Vec<(u32, u32)> = faces
+        .iter()
+        .enumerate()
+        .flat_map(|(k, (_, f))| f.map(|v| (v, k as u32)))
+        .collect();
+    let vf = crate::mesh::Csr::from_pairs(n, &mut pairs);
     let cos_sharp = SHARP_ANGLE_DEG.to_radians().cos();
     // Corner normals.
     let corner_normal = |k: usize, v: u32| -> glam::Vec3 {
         let own = fdir[k];
         let mut acc = glam::Vec3::ZERO;
-        for &g in &vf[off[v as usize] as usize..off[v as usize + 1] as usize] {
+        for &g in vf.row(v as usize) {
             let g = g as usize;
             if g == k || own == glam::Vec3::ZERO || fdir[g].dot(own) >= cos_sharp {
                 acc += fnorm[g];
