@@ -151,6 +151,23 @@ pub fn memory_limit() -> Option<u64> {
     }
 }
 
+/// Refuse work that needs more memory than this process may use ([`memory_limit`]), before any
+/// of it is allocated: `need` bytes for `what` ("400000 working vertices", "a 8192x8192
+/// texture"), with `advice` for the user ("use fewer --vertices"). Systems call it with their
+/// measured peak per unit of work plus a margin, so a size that cannot fit is a one-line error
+/// at once rather than an allocation failure halfway (or an abort).
+pub fn check_memory(need: u64, what: &str, advice: &str) -> crate::error::Result<()> {
+    match memory_limit() {
+        Some(limit) if need > limit => Err(crate::error::Error::InvalidInput(format!(
+            "{what} would take about {} MiB of memory, more than the {} MiB this process may use; \
+             {advice}",
+            need >> 20,
+            limit >> 20
+        ))),
+        _ => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -623,24 +623,67 @@ fn app_sessions_and_recent_lists_follow_the_regular_file_rule() {
 }
 
 #[test]
-fn a_working_size_beyond_the_memory_limit_is_refused_before_work() {
-    // Under a 4 GB address-space limit the largest working size cannot fit: a one-line error
-    // naming the memory, not an abort halfway through the preparation.
+fn work_beyond_the_memory_limit_is_refused_before_work_by_every_system() {
+    // Under an address-space limit the largest working sizes cannot fit: a one-line error
+    // naming the memory, at once, not an abort halfway through.
     let d = scene("memory");
-    let t0 = Instant::now();
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -v 4000000 && exec '{}' transfer --source src.ply --target tgt.ply --out o.ply --vertices 4000000",
-            env!("CARGO_BIN_EXE_meshmatch")
-        ))
-        .current_dir(&d)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    assert!(err.contains("MiB of memory"), "{err}");
-    assert!(t0.elapsed() < Duration::from_secs(10));
-    assert!(!d.join("o.ply").exists());
+    let mut img = image::RgbImage::new(32, 32);
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        *p = image::Rgb([(x * 8) as u8, (y * 8) as u8, 90]);
+    }
+    img.save(d.join("ex.png")).unwrap();
+    // (address-space limit in KB, command): the quilt's face cap keeps it under 2 GB.
+    let cases: &[(u32, &str)] = &[
+        (
+            2_000_000,
+            "transfer --source src.ply --target tgt.ply --out o.ply --vertices 4000000",
+        ),
+        (
+            2_000_000,
+            "weather --source src.ply --target tgt.ply --out o.ply --vertices 4000000",
+        ),
+        (
+            2_000_000,
+            "synth --target tgt.ply --exemplar ex.png --out o.ply --vertex-budget 2000000 \
+             --exemplar-width 32 --scale 0.04",
+        ),
+        (
+            2_000_000,
+            "bake --from src.ply --to tgt.ply --out o.glb --texture-size 8192",
+        ),
+        (
+            2_000_000,
+            "transfer --source src.ply --target tgt.ply --out o.glb --texture-size 8192",
+        ),
+        (
+            400_000,
+            "quilt --swatch chain --base tgt.ply --out o.ply --swatch-size 0.07",
+        ),
+    ];
+    for &(limit, args) in cases {
+        let t0 = Instant::now();
+        let out = Command::new("sh")
+            .arg("-c")
+            .arg(format!(
+                "ulimit -v {limit} && exec '{}' {args}",
+                env!("CARGO_BIN_EXE_meshmatch")
+            ))
+            .current_dir(&d)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args}: {err}");
+        let last = err.trim_end().lines().last().unwrap_or("");
+        assert!(last.contains("MiB of memory"), "{args}: {err}");
+        assert!(
+            err.lines()
+                .all(|l| !l.contains("panicked") && !l.contains("allocation")),
+            "{args}: {err}"
+        );
+        assert!(t0.elapsed() < Duration::from_secs(10), "{args}");
+        assert!(
+            !d.join("o.ply").exists() && !d.join("o.glb").exists(),
+            "{args}"
+        );
+    }
 }

@@ -269,7 +269,7 @@ pub fn check_texture_size(size: u32) -> Result<()> {
             "--texture-size {size}: use 1 to {MAX_TEXTURE_SIZE} pixels per side"
         )));
     }
-    Ok(())
+    crate::geometry::check_bake_memory(size)
 }
 
 /// A progress bar and the event sink that drives it (stage times printed above the bar).

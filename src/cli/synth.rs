@@ -36,7 +36,7 @@ pub struct SynthArgs {
     #[arg(long)]
     pub exemplar_width: Option<u32>,
     /// Most vertices to synthesize: without --exemplar-width, a larger exemplar is shrunk until
-    /// the texel spacing fits this budget (stderr says what was chosen).
+    /// the texel spacing fits this budget (stderr says what was chosen); 1,000 to 2,000,000.
     #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET)]
     pub vertex_budget: usize,
     /// Texture orientation field: auto (from the exemplar's anisotropy: random, relax2 or
@@ -69,6 +69,9 @@ impl SynthArgs {
     }
 }
 
+/// The smallest `--vertex-budget`: fewer vertices cannot show an exemplar's structure.
+const MIN_VERTEX_BUDGET: usize = 1000;
+
 fn synth(a: &SynthArgs) -> Result<i32> {
     use crate::synthesis::{Orientation, Search, SynthParams};
     let orientation: Orientation = a.orientation.parse().map_err(|_| {
@@ -94,6 +97,13 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         )));
     }
     check_texture_size(a.texture_size)?;
+    let max_budget = crate::synthesis::SynthParams::default().max_vertices;
+    if !(MIN_VERTEX_BUDGET..=max_budget).contains(&a.vertex_budget) {
+        return Err(Error::InvalidInput(format!(
+            "--vertex-budget {}: use {MIN_VERTEX_BUDGET} to {max_budget} vertices",
+            a.vertex_budget
+        )));
+    }
     let inputs = input_paths(&[Some(&a.exemplar), Some(&a.target), a.mask.as_ref()]);
     let mut outputs = vec![("--out", a.out.as_path(), OutKind::Mesh)];
     if let Some(d) = &a.out_dense {

@@ -61,5 +61,6 @@ pub use solid_angle_curvature::{
 };
 pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
 pub use uv_bake::{
-    BakedImage, bake_closest, bake_onto, bake_uv, fill_gutters, mip_chain, sample_bilinear,
+    BAKE_BYTES_PER_TEXEL, BakedImage, bake_closest, bake_onto, bake_uv, check_bake_memory,
+    fill_gutters, mip_chain, sample_bilinear,
 };

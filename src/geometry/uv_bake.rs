@@ -34,6 +34,21 @@ impl BakedImage {
     }
 }
 
+/// Peak bytes per texel of a bake: the linear image, coverage, per-band distances, the pull-push
+/// pyramid and the 8-bit copy (measured about 22 at 4096²; 40 leaves room for the meshes).
+pub const BAKE_BYTES_PER_TEXEL: u64 = 40;
+
+/// Refuse a `size²` bake that needs more memory than this process may use, before any of it
+/// is allocated.
+pub fn check_bake_memory(size: u32) -> crate::error::Result<()> {
+    let texels = (size as u64) * (size as u64);
+    crate::work::check_memory(
+        texels.saturating_mul(BAKE_BYTES_PER_TEXEL),
+        &format!("a {size}x{size} texture"),
+        "use a smaller --texture-size",
+    )
+}
+
 /// Rows of texels a worker rasterises at a time.
 const BAND_ROWS: usize = 32;
 /// Half the diagonal of a texel: how far outside a triangle a touched texel's centre may lie.
@@ -202,6 +217,7 @@ pub fn bake_onto(
     progress: &(dyn Fn(f32) + Sync),
     cancel: &crate::work::CancelToken,
 ) -> crate::error::Result<(crate::mesh::TriMesh, Option<super::UvAtlas>)> {
+    check_bake_memory(size)?;
     let mut out = target.clone();
     let mut atlas = None;
     if out.uvs.is_none() || new_atlas {

@@ -101,6 +101,9 @@ pub fn deliver(
     cancel: &crate::work::CancelToken,
 ) -> crate::error::Result<Delivered> {
     let ext = ext.to_ascii_lowercase();
+    if ext != "ply" {
+        crate::geometry::check_bake_memory(texture_size)?;
+    }
     let mut out = target.clone();
     out.colors = Some(file_signal.to_vec());
     out.texture = None;

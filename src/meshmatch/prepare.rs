@@ -156,17 +156,11 @@ pub fn prepare(
     // fan tables and fans; measured peak RSS is 2.4-4 KB per vertex, plus room for the address
     // space's overheads), rather than abort halfway on a failed allocation.
     let working = welded.positions.len().max(params.vertices) as u64;
-    let need = working.saturating_mul(WORKING_VERTEX_BYTES);
-    if let Some(limit) = crate::work::memory_limit()
-        && need > limit
-    {
-        return Err(Error::InvalidInput(format!(
-            "{working} working vertices need about {} MiB of memory, more than the {} MiB this \
-             process may use; use fewer --vertices",
-            need >> 20,
-            limit >> 20
-        )));
-    }
+    crate::work::check_memory(
+        working.saturating_mul(WORKING_VERTEX_BYTES),
+        &format!("{working} working vertices"),
+        "use fewer --vertices",
+    )?;
     // Refine the bare welded surface (the signal is sampled below from the input itself).
     let bare = TriMesh::new(welded.positions.clone(), welded.faces.clone());
     let r = crate::geometry::refine_to_density(&bare, params.vertices);

@@ -379,6 +379,16 @@ pub fn run(
     let (src, tgt) = (input.source, input.target);
     validate(src, "source")?;
     validate(tgt, "target")?;
+    // Measured peak: about 1.3 KB per working vertex for source and target together (refined
+    // meshes, pyramids, 12-D features, guidance, BVHs); 3 KB leaves room for the inputs.
+    let working = params
+        .working_vertices
+        .max(src.num_vertices().max(tgt.num_vertices())) as u64;
+    crate::work::check_memory(
+        working.saturating_mul(3 << 10),
+        &format!("{working} working vertices"),
+        "use fewer --vertices",
+    )?;
     if src.vertex_signal().is_none() {
         return Err(Error::InvalidInput(
             "source mesh has no colours or texture to transfer".into(),

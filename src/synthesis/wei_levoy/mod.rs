@@ -534,6 +534,14 @@ pub fn synthesize_with_alpha(
             params.max_vertices
         )));
     }
+    // Measured peak: about 1.8 KB per synthesized vertex (mesh pyramid, frames, neighbourhood
+    // vectors, search structures); 4 KB leaves room for the input and the exemplar pyramid.
+    let working = estimate.max(nv as f64) as u64;
+    crate::work::check_memory(
+        working.saturating_mul(4 << 10),
+        &format!("{working} synthesized vertices"),
+        "use a larger --scale or a smaller --vertex-budget",
+    )?;
     let nlev = params.levels;
     let passes = params.passes.max(1);
 
