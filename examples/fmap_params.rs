@@ -16,6 +16,13 @@ fn main() {
     let variants: Vec<(&str, FmapParams)> = vec![
         ("default", FmapParams::default()),
         (
+            "HKS 16",
+            FmapParams {
+                hks: 16,
+                ..FmapParams::default()
+            },
+        ),
+        (
             "step 5",
             FmapParams {
                 k_step: 5,
@@ -44,12 +51,30 @@ fn main() {
             },
         ),
     ];
-    for (name, p) in variants {
+    // The first two (without and with HKS) also without landmarks, where only the descriptors
+    // and the orientation term decide; then other HKS counts.
+    let runs = variants
+        .iter()
+        .map(|(n, p)| (n.to_string(), p.clone(), true))
+        .chain(
+            variants
+                .iter()
+                .take(2)
+                .map(|(n, p)| (format!("{n}, no landmarks"), p.clone(), false)),
+        )
+        .chain([4usize, 8, 32].into_iter().map(|h| {
+            let p = FmapParams {
+                hks: h,
+                ..FmapParams::default()
+            };
+            (format!("hks {h}, no landmarks"), p, false)
+        }));
+    for (name, p, with_landmarks) in runs {
         let t = Instant::now();
         let m = shape_map(
             (&man.positions, &man.faces),
             (&woman.positions, &woman.faces),
-            &lm,
+            if with_landmarks { &lm } else { &[] },
             &p,
             &CancelToken::new(),
         )

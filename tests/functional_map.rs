@@ -74,21 +74,31 @@ fn man_to_woman_beats_nearest_point() {
         100.0 * fb
     );
     let mut results = Vec::new();
-    for lm in [&[][..], &EXTREMITIES[..]] {
+    // WKS alone without and with landmarks, then WKS + HKS with landmarks.
+    let with_hks = FmapParams {
+        hks: 16,
+        ..FmapParams::default()
+    };
+    for (lm, params) in [
+        (&[][..], &params),
+        (&EXTREMITIES[..], &params),
+        (&EXTREMITIES[..], &with_hks),
+    ] {
         let pairs: Vec<(u32, u32)> = lm.iter().map(|&v| (v, v)).collect();
         let t0 = Instant::now();
         let m = shape_map(
             (&man.positions, &man.faces),
             (&woman.positions, &woman.faces),
             &pairs,
-            &params,
+            params,
             &cancel,
         )
         .expect("shape map");
         let (f, e) = accuracy(&man.positions, &m.target_to_source, &man.positions, tol);
         eprintln!(
-            "fmap + zoomout, {} landmarks: {:.1}% within 0.1 sqrt(A), mean error {e:.4}, {:.2}s {:?}",
+            "fmap + zoomout, {} landmarks, {} HKS: {:.1}% within 0.1 sqrt(A), mean error {e:.4}, {:.2}s {:?}",
             pairs.len(),
+            params.hks,
             100.0 * f,
             t0.elapsed().as_secs_f64(),
             m.timings
@@ -96,6 +106,11 @@ fn man_to_woman_beats_nearest_point() {
         results.push(f);
     }
     assert!(results[1] > 0.8, "with landmarks: {:.3}", results[1]);
+    assert!(
+        results[2] > 0.97,
+        "with landmarks and HKS: {:.3}",
+        results[2]
+    );
     assert!(
         results[1] > fb,
         "map {:.3} vs nearest point {fb:.3}",
