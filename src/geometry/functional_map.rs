@@ -105,6 +105,22 @@ pub struct Spectrum {
     /// Positions rescaled to unit area, and the faces (for the orientation operators).
     pub positions: Vec<[f64; 3]>,
     pub faces: Vec<[u32; 3]>,
+    /// Per-face gradients of the leading basis functions, made on first use (the orientation
+    /// operators of every descriptor and every landmark edit share them).
+    face_basis: std::sync::OnceLock<FaceBasis>,
+}
+
+/// Per face of a [`Spectrum`]: the gradient operator (unit normal and the three corner
+/// gradient vectors `n × e / 2A`) and, for the first `k` basis functions, their gradients
+/// (`grads[f * k + j]`) and area-lumped corner sums (`lumped`, column-major `F × k`:
+/// `A/3 · Σ_corners φ_j`).
+#[derive(Clone, Debug)]
+struct FaceBasis {
+    k: usize,
+    gradient: Vec<[[f64; 3]; 3]>,
+    normal: Vec<[f64; 3]>,
+    grads: Vec<[f64; 3]>,
+    lumped: Vec<f64>,
 }
 
 impl Spectrum {
@@ -155,12 +171,24 @@ impl Spectrum {
             area,
             positions,
             faces: faces.to_vec(),
+            face_basis: std::sync::OnceLock::new(),
         })
     }
 
     /// Eigenpairs held.
     pub fn k(&self) -> usize {
         self.evals.len()
+    }
+
+    /// The per-face basis gradients for `k` functions: made once (other threads wait for it),
+    /// or afresh for another `k`.
+    fn face_basis(&self, k: usize) -> std::borrow::Cow<'_, FaceBasis> {
+        let b = self.face_basis.get_or_init(|| FaceBasis::new(self, k));
+        if b.k == k {
+            std::borrow::Cow::Borrowed(b)
+        } else {
+            std::borrow::Cow::Owned(FaceBasis::new(self, k))
+        }
     }
 
     fn phi(&self, i: usize) -> &[f64] {
@@ -456,58 +484,98 @@ fn cholesky_solve(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
     Some(y)
 }
 
-/// `X_f = Φᵀ M O_f Φ` (`k × k`, row-major) for the orientation operator
-/// `O_f(g) = ⟨n × ∇f, ∇g⟩` (Ren, Poulenard, Liu, Ovsjanikov 2018), per face, lumped to the
-/// corners with a third of the face area.
-fn orientation_operator(sp: &Spectrum, f: &[f64], k: usize) -> Vec<f64> {
-    let mut x = vec![0.0; k * k];
-    let sub = |a: [f64; 3], b: [f64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    let cross = |a: [f64; 3], b: [f64; 3]| {
-        [
-            a[1] * b[2] - a[2] * b[1],
-            a[2] * b[0] - a[0] * b[2],
-            a[0] * b[1] - a[1] * b[0],
-        ]
-    };
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let mut grad_j = vec![[0.0f64; 3]; k];
-    for face in &sp.faces {
-        let v = face.map(|i| i as usize);
-        let p = v.map(|i| sp.positions[i]);
-        let nn = cross(sub(p[1], p[0]), sub(p[2], p[0]));
-        let a2 = dot(nn, nn).sqrt();
-        if a2 <= 1e-300 {
-            continue;
-        }
-        let n = nn.map(|c| c / a2);
-        // n × e_v / (2A), e_v the edge opposite corner v (counter-clockwise)
-        let basis: [[f64; 3]; 3] = std::array::from_fn(|c| {
-            let e = sub(p[(c + 2) % 3], p[(c + 1) % 3]);
-            cross(n, e).map(|x| x / a2)
-        });
-        let grad = |vals: [f64; 3]| {
-            let mut g = [0.0; 3];
-            for c in 0..3 {
-                for d in 0..3 {
-                    g[d] += vals[c] * basis[c][d];
-                }
+fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn dot3(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+impl FaceBasis {
+    fn new(sp: &Spectrum, k: usize) -> FaceBasis {
+        let nf = sp.faces.len();
+        let mut gradient = vec![[[0.0; 3]; 3]; nf];
+        let mut normal = vec![[0.0; 3]; nf];
+        let mut area3 = vec![0.0; nf];
+        for (fi, face) in sp.faces.iter().enumerate() {
+            let p = face.map(|i| sp.positions[i as usize]);
+            let nn = cross3(sub3(p[1], p[0]), sub3(p[2], p[0]));
+            let a2 = dot3(nn, nn).sqrt();
+            if a2 <= 1e-300 {
+                continue; // zero gradients and weight: the face adds nothing
             }
-            g
-        };
-        let rot = cross(n, grad(v.map(|i| f[i])));
-        for (j, gj) in grad_j.iter_mut().enumerate() {
+            let n = nn.map(|c| c / a2);
+            normal[fi] = n;
+            // n × e_c / (2A), e_c the edge opposite corner c (counter-clockwise)
+            gradient[fi] = std::array::from_fn(|c| {
+                cross3(n, sub3(p[(c + 2) % 3], p[(c + 1) % 3])).map(|x| x / a2)
+            });
+            area3[fi] = a2 / 6.0;
+        }
+        let mut grads = vec![[0.0; 3]; nf * k];
+        let mut lumped = vec![0.0; nf * k];
+        for j in 0..k {
             let phi = sp.phi(j);
-            *gj = grad(v.map(|i| phi[i]));
-        }
-        let w = a2 / 6.0; // area / 3
-        for i in 0..k {
-            let phi = sp.phi(i);
-            let ci = w * (phi[v[0]] + phi[v[1]] + phi[v[2]]);
-            for (j, gj) in grad_j.iter().enumerate() {
-                x[i * k + j] += ci * dot(rot, *gj);
+            for (fi, face) in sp.faces.iter().enumerate() {
+                let v = face.map(|i| phi[i as usize]);
+                grads[fi * k + j] = apply_gradient(&gradient[fi], v);
+                lumped[j * nf + fi] = area3[fi] * (v[0] + v[1] + v[2]);
             }
+        }
+        FaceBasis {
+            k,
+            gradient,
+            normal,
+            grads,
+            lumped,
         }
     }
+}
+
+fn apply_gradient(basis: &[[f64; 3]; 3], vals: [f64; 3]) -> [f64; 3] {
+    let mut g = [0.0; 3];
+    for c in 0..3 {
+        for d in 0..3 {
+            g[d] += vals[c] * basis[c][d];
+        }
+    }
+    g
+}
+
+/// `X_f = Φᵀ M O_f Φ` (`k × k`, row-major) for the orientation operator
+/// `O_f(g) = ⟨n × ∇f, ∇g⟩` (Ren, Poulenard, Liu, Ovsjanikov 2018), per face, lumped to the
+/// corners with a third of the face area: `X = Lᵀ G` with `L` the lumped basis and
+/// `G[f, j] = (n × ∇f) · ∇φ_j` on face `f`.
+fn orientation_operator(sp: &Spectrum, f: &[f64], k: usize) -> Vec<f64> {
+    let fb = sp.face_basis(k);
+    let nf = sp.faces.len();
+    let mut g = vec![0.0; nf * k];
+    for (fi, face) in sp.faces.iter().enumerate() {
+        let rot = cross3(
+            fb.normal[fi],
+            apply_gradient(&fb.gradient[fi], face.map(|i| f[i as usize])),
+        );
+        for j in 0..k {
+            g[j * nf + fi] = dot3(rot, fb.grads[fi * k + j]);
+        }
+    }
+    // x (row-major k × k) = Lᵀ G, written as the column-major transpose xᵀ = Gᵀ L
+    let mut x = vec![0.0; k * k];
+    matmul(
+        MatMut::from_column_major_slice_mut(&mut x, k, k),
+        Accum::Replace,
+        MatRef::from_column_major_slice(&g, nf, k).transpose(),
+        MatRef::from_column_major_slice(&fb.lumped, nf, k),
+        1.0f64,
+        Par::Seq,
+    );
     x
 }
 
@@ -697,10 +765,11 @@ fn nearest_rows(src: &[f32], ns: usize, tgt: &[f32], nt: usize, k: usize) -> Vec
 /// Point map from a `k × k` functional map: nearest neighbours of `Φ_t C` among `Φ_s`.
 fn point_map(ss: &Spectrum, st: &Spectrum, c: &[f64], k: usize, fixed: &[(u32, u32)]) -> Vec<u32> {
     let all: Vec<u32> = (0..st.n as u32).collect();
-    point_map_rows(ss, st, c, k, fixed, &all)
+    point_map_rows(ss, st, c, k, fixed, &all, None)
 }
 
-/// [`point_map`] for the target vertices `rows` only (the result is per row).
+/// [`point_map`] for the target vertices `rows` only (the result is per row), against every
+/// source vertex or the source vertices `cols` only.
 fn point_map_rows(
     ss: &Spectrum,
     st: &Spectrum,
@@ -708,6 +777,7 @@ fn point_map_rows(
     k: usize,
     fixed: &[(u32, u32)],
     rows: &[u32],
+    cols: Option<&[u32]>,
 ) -> Vec<u32> {
     // ZoomOut's point map (Melzi et al. 2019, eq. 3): every target row Φ_t(x) against the source
     // rows mapped into the target basis, Φ_s(y) Cᵀ (which, unlike comparing Φ_t(x) C with
@@ -722,18 +792,35 @@ fn point_map_rows(
                 *o = phi[r as usize] as f32;
             }
         });
-    let mut src = vec![0.0f32; ss.n * k];
-    src.par_chunks_mut(ss.n).enumerate().for_each(|(i, col)| {
-        for (j, w) in (0..k).map(|j| (j, c[i * k + j])) {
-            if w == 0.0 {
-                continue;
-            }
-            for (o, p) in col.iter_mut().zip(ss.phi(j)) {
-                *o += (w * p) as f32;
-            }
+    // Φ_s[cols, :k] Cᵀ: C row-major is Cᵀ column-major.
+    let gathered: Vec<f64>;
+    let (phi_s, ns) = match cols {
+        None => (&ss.evecs[..ss.n * k], ss.n),
+        Some(cols) => {
+            gathered = (0..k)
+                .flat_map(|i| {
+                    let phi = ss.phi(i);
+                    cols.iter().map(move |&v| phi[v as usize])
+                })
+                .collect();
+            (&gathered[..], cols.len())
         }
-    });
-    let mut map = nearest_rows(&src, ss.n, &tgt, m, k);
+    };
+    let mut src64 = vec![0.0f64; ns * k];
+    matmul(
+        MatMut::from_column_major_slice_mut(&mut src64, ns, k),
+        Accum::Replace,
+        MatRef::from_column_major_slice(phi_s, ns, k),
+        MatRef::from_column_major_slice(&c[..k * k], k, k),
+        1.0f64,
+        Par::rayon(0),
+    );
+    let src: Vec<f32> = src64.iter().map(|&x| x as f32).collect();
+    drop(src64);
+    let mut map = nearest_rows(&src, ns, &tgt, m, k);
+    if let Some(cols) = cols {
+        map.iter_mut().for_each(|s| *s = cols[*s as usize]);
+    }
     for &(s, t) in fixed {
         if let Ok(r) = rows.binary_search(&t) {
             map[r] = s;
@@ -742,44 +829,70 @@ fn point_map_rows(
     map
 }
 
-/// Largest target the intermediate ZoomOut steps use whole; bigger ones use a random sample of
-/// about this many vertices (plus the landmarks), the integrals of `C` estimated from it, and
-/// only the last step maps every vertex.
+/// Largest mesh the intermediate ZoomOut steps use whole; bigger ones use a random sample of
+/// about this many vertices (plus the landmarks): target rows for the integrals of `C`, source
+/// rows as the candidates. Only the last step maps every target vertex among every source
+/// vertex.
 pub const ZOOMOUT_SAMPLE: usize = 4_000;
 
-/// [`map_to_fmap`] from a sample: `map[r]` is the source vertex of target vertex `rows[r]`; the
-/// sample's masses are rescaled to the whole surface's.
+/// `C` (row-major `k × k`) estimated from the target vertices `rows` and their images `map`:
+/// `C ≈ w Φ_t[rows, :k]ᵀ M_t Φ_s[map, :k]`, with `w` the total mass over the sampled mass.
 fn map_to_fmap_rows(ss: &Spectrum, st: &Spectrum, rows: &[u32], map: &[u32], k: usize) -> Vec<f64> {
     let total: f64 = st.mass.iter().sum();
     let sampled: f64 = rows.iter().map(|&t| st.mass[t as usize]).sum();
     let w = if sampled > 0.0 { total / sampled } else { 1.0 };
-    let mut c = vec![0.0; k * k];
-    c.par_chunks_mut(k).enumerate().for_each(|(i, row)| {
-        let pt = st.phi(i);
-        for (j, r) in row.iter_mut().enumerate() {
-            let ps = ss.phi(j);
-            *r = w * rows
-                .iter()
-                .zip(map)
-                .map(|(&t, &s)| pt[t as usize] * st.mass[t as usize] * ps[s as usize])
-                .sum::<f64>();
-        }
-    });
-    c
+    fmap_from_pairs(
+        ss,
+        st,
+        rows.iter().copied().zip(map.iter().copied()),
+        rows.len(),
+        k,
+        w,
+    )
 }
 
 /// `C = Φ_t[:, :k]ᵀ M_t Π Φ_s[:, :k]` (row-major) for a point map target → source.
 fn map_to_fmap(ss: &Spectrum, st: &Spectrum, map: &[u32], k: usize) -> Vec<f64> {
-    let mut c = vec![0.0; k * k];
-    c.par_chunks_mut(k).enumerate().for_each(|(i, row)| {
-        let pt = st.phi(i);
-        for (j, r) in row.iter_mut().enumerate() {
-            let ps = ss.phi(j);
-            *r = (0..st.n)
-                .map(|t| pt[t] * st.mass[t] * ps[map[t] as usize])
-                .sum();
+    fmap_from_pairs(
+        ss,
+        st,
+        (0..st.n as u32).zip(map.iter().copied()),
+        st.n,
+        k,
+        1.0,
+    )
+}
+
+/// `w Σ_(t, s) M_t[t] Φ_t[t, i] Φ_s[s, j]` over `m` (target, source) pairs, as one product of
+/// the gathered rows (row-major `k × k`).
+fn fmap_from_pairs(
+    ss: &Spectrum,
+    st: &Spectrum,
+    pairs: impl Iterator<Item = (u32, u32)> + Clone,
+    m: usize,
+    k: usize,
+    w: f64,
+) -> Vec<f64> {
+    let mut a = vec![0.0f64; m * k];
+    let mut b = vec![0.0f64; m * k];
+    for i in 0..k {
+        let (pt, ps) = (st.phi(i), ss.phi(i));
+        let (ca, cb) = (&mut a[i * m..(i + 1) * m], &mut b[i * m..(i + 1) * m]);
+        for (r, (t, s)) in pairs.clone().enumerate() {
+            ca[r] = pt[t as usize] * st.mass[t as usize];
+            cb[r] = ps[s as usize];
         }
-    });
+    }
+    // c[i k + j] = C[i, j] is the column-major Cᵀ = w Bᵀ A.
+    let mut c = vec![0.0f64; k * k];
+    matmul(
+        MatMut::from_column_major_slice_mut(&mut c, k, k),
+        Accum::Replace,
+        MatRef::from_column_major_slice(&b, m, k).transpose(),
+        MatRef::from_column_major_slice(&a, m, k),
+        w,
+        Par::rayon(0),
+    );
     c
 }
 
@@ -838,16 +951,23 @@ pub fn functional_map(
     let step = params.k_step.max(1);
     let mut k = k0;
     // intermediate steps on a sample of a large target (deterministic: a hash of the index)
-    let rows: Option<Vec<u32>> = (st.n > ZOOMOUT_SAMPLE * 3 / 2).then(|| {
-        let keep = (ZOOMOUT_SAMPLE as u64).saturating_mul(1 << 32) / st.n as u64;
-        let mut lm: Vec<u32> = landmarks.iter().map(|l| l.1).collect();
-        lm.sort_unstable();
-        (0..st.n as u32)
-            .filter(|&v| {
-                (v.wrapping_mul(2_654_435_761) as u64) < keep || lm.binary_search(&v).is_ok()
-            })
-            .collect()
-    });
+    // Intermediate steps on samples of large meshes (deterministic: a hash of the index; the
+    // landmarks always in): every target row's image among the sampled source rows.
+    let sample = |n: usize, keep_too: Vec<u32>| -> Option<Vec<u32>> {
+        (n > ZOOMOUT_SAMPLE * 3 / 2).then(|| {
+            let keep = (ZOOMOUT_SAMPLE as u64).saturating_mul(1 << 32) / n as u64;
+            let mut lm = keep_too;
+            lm.sort_unstable();
+            (0..n as u32)
+                .filter(|&v| {
+                    (v.wrapping_mul(2_654_435_761) as u64) < keep || lm.binary_search(&v).is_ok()
+                })
+                .collect()
+        })
+    };
+    let rows = sample(st.n, landmarks.iter().map(|l| l.1).collect());
+    let cols = sample(ss.n, landmarks.iter().map(|l| l.0).collect());
+    let rows = rows.or_else(|| cols.as_ref().map(|_| (0..st.n as u32).collect()));
     let map = loop {
         if k >= kf {
             break point_map(ss, st, &c, k, landmarks);
@@ -855,7 +975,7 @@ pub fn functional_map(
         let next = (k + step).min(kf);
         c = match &rows {
             Some(r) => {
-                let m = point_map_rows(ss, st, &c, k, landmarks, r);
+                let m = point_map_rows(ss, st, &c, k, landmarks, r, cols.as_deref());
                 map_to_fmap_rows(ss, st, r, &m, next)
             }
             None => map_to_fmap(ss, st, &point_map(ss, st, &c, k, landmarks), next),

@@ -140,7 +140,7 @@ pub(crate) fn exact_distances(ctx: &Ctx, targets: &[usize]) -> Vec<f32> {
 
 /// Rotation index of an angle in radians.
 #[inline]
-fn rot_index(angle: f32) -> u8 {
+pub(crate) fn rot_index(angle: f32) -> u8 {
     ((angle / STEP).round() as i64).rem_euclid(FAN_ANGLES as i64) as u8
 }
 

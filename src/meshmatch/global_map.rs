@@ -21,9 +21,11 @@ use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 
+use crate::features::Frames;
 use crate::geometry::{FmapParams, Spectrum, functional_map, shape_map};
-use crate::hierarchy::Hierarchy;
+use crate::hierarchy::{Hierarchy, Level};
 use crate::work::{CancelToken, Stopwatch};
+use glam::Vec3;
 
 /// Largest hierarchy level on which the map is computed.
 pub(super) const MAP_LEVEL_VERTICES: usize = 8_000;
@@ -70,10 +72,62 @@ pub(super) struct GlobalMap {
     /// Source centroid and `1 / sqrt(mean squared distance to it)` (unit variance).
     pub centre: [f32; 3],
     pub scale: f32,
-    /// Wall time, seconds.
+    /// Wall time, seconds, and its parts (eigenpairs, fit, ZoomOut, carrying it to the levels).
     pub seconds: f64,
+    pub stages: Vec<(&'static str, f64)>,
     /// The map's isometry score ([`crate::geometry::MapQuality::score`]).
     pub score: f64,
+}
+
+impl GlobalMap {
+    /// The rotation of each coarsest-level match from the map's transport of the local frame:
+    /// every edge `(v, u)` of target vertex `v` has an angle in `v`'s frame and a mapped
+    /// displacement `T(u) - T(v)` on the source, whose angle in the matched source vertex's frame
+    /// is measured; the rotation index is the circular mean of the differences, weighted by the
+    /// mapped edge lengths (a tangent direction at angle `φ` on the target arrives at `φ + k·step`
+    /// on the source, as in the upsampling). Locked entries, and vertices whose mapped
+    /// neighbourhood collapses, keep their rotation.
+    pub(super) fn transport_rotations(
+        &self,
+        lt: &Level,
+        ft: &Frames,
+        fs: &Frames,
+        nnf: &mut [(u32, u8)],
+        locked: &[Option<u32>],
+    ) {
+        let Some(mapped) = self.target_pos.last() else {
+            return;
+        };
+        if mapped.len() != lt.len() {
+            return;
+        }
+        nnf.par_iter_mut().enumerate().for_each(|(v, e)| {
+            if locked[v].is_some() {
+                return;
+            }
+            let s = e.0 as usize;
+            let (pv, mv) = (Vec3::from(lt.positions[v]), Vec3::from(mapped[v]));
+            let (mut cx, mut cy) = (0.0f32, 0.0f32);
+            for &u in lt.adjacency.row(v) {
+                let dt = Vec3::from(lt.positions[u as usize]) - pv;
+                let at = dt
+                    .dot(Vec3::from(ft.t2[v]))
+                    .atan2(dt.dot(Vec3::from(ft.t1[v])));
+                let ds = Vec3::from(mapped[u as usize]) - mv;
+                let (x, y) = (ds.dot(Vec3::from(fs.t1[s])), ds.dot(Vec3::from(fs.t2[s])));
+                let len = x.hypot(y);
+                if !(len > 0.0 && at.is_finite()) {
+                    continue;
+                }
+                let d = y.atan2(x) - at;
+                cx += len * d.cos();
+                cy += len * d.sin();
+            }
+            if cx.hypot(cy) > 0.0 && cx.is_finite() && cy.is_finite() {
+                e.1 = super::em::rot_index(cy.atan2(cx));
+            }
+        });
+    }
 }
 
 /// Finest level with at most `MAP_LEVEL_VERTICES` vertices (at most `nl - 1`).
@@ -131,8 +185,10 @@ pub(super) fn global_map(
         || target.map_cache.spectrum(ht, lt, k),
     );
     let (ss, st) = (ss?, st?);
+    let eigen_s = sw.secs();
     cancel.check()?;
     let m = functional_map(&ss, &st, &landmarks, &params, cancel)?;
+    let fit_s = sw.secs();
     // mapped source positions on the map level, then every target level
     let base: Vec<[f32; 3]> = m
         .target_to_source
@@ -211,6 +267,12 @@ pub(super) fn global_map(
         centre: c.map(|x| x as f32),
         scale,
         seconds: sw.secs(),
+        stages: vec![
+            ("map eigen", eigen_s),
+            ("map fit", m.timings.first().map_or(0.0, |t| t.1)),
+            ("map zoomout", m.timings.get(1).map_or(0.0, |t| t.1)),
+            ("map levels", sw.secs() - fit_s),
+        ],
         score: m.quality.score(),
     });
     if let Ok(mut c) = target.map_cache.map.lock() {
@@ -470,4 +532,75 @@ pub fn map_meshes(
         map_vertices: (ms.len(), mt.len()),
         timings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES};
+
+    /// A flat grid mapped onto itself turned by `turn` degrees about its normal, with the
+    /// source frames turned by `frame` degrees: a target direction at angle φ lands at
+    /// φ + turn - frame in the source frame.
+    fn rotations(turn: f32, frame: f32) -> Vec<u8> {
+        let n = 6;
+        let mut positions = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                positions.push([i as f32, j as f32, 0.0]);
+            }
+        }
+        let mut faces = Vec::new();
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let a = (j * n + i) as u32;
+                faces.push([a, a + 1, a + n as u32 + 1]);
+                faces.push([a, a + n as u32 + 1, a + n as u32]);
+            }
+        }
+        let level = Level::new(positions.clone(), faces);
+        let (s, c) = turn.to_radians().sin_cos();
+        let mapped: Vec<[f32; 3]> = positions
+            .iter()
+            .map(|p| [c * p[0] - s * p[1], s * p[0] + c * p[1], 0.0])
+            .collect();
+        let nv = positions.len();
+        let ft = Frames {
+            t1: vec![[1.0, 0.0, 0.0]; nv],
+            t2: vec![[0.0, 1.0, 0.0]; nv],
+        };
+        let (fs_, fc) = frame.to_radians().sin_cos();
+        let fs = Frames {
+            t1: vec![[fc, fs_, 0.0]; nv],
+            t2: vec![[-fs_, fc, 0.0]; nv],
+        };
+        let g = GlobalMap {
+            target_pos: vec![mapped],
+            top_init: (0..nv as u32).collect(),
+            centre: [0.0; 3],
+            scale: 1.0,
+            seconds: 0.0,
+            stages: Vec::new(),
+            score: 1.0,
+        };
+        let mut nnf: Vec<(u32, u8)> = (0..nv as u32).map(|v| (v, 0)).collect();
+        let mut locked = vec![None; nv];
+        locked[0] = Some(0);
+        g.transport_rotations(&level, &ft, &fs, &mut nnf, &locked);
+        assert_eq!(nnf[0].1, 0, "a locked entry keeps its rotation");
+        nnf[1..].iter().map(|e| e.1).collect()
+    }
+
+    #[test]
+    fn start_rotations_follow_the_maps_transport_of_the_frame() {
+        let step = ANGLE_STEP_DEG;
+        for (turn, frame) in [(3.0 * step, 0.0), (3.0 * step, step), (-2.0 * step, 0.0)] {
+            let want = (((turn - frame) / step).round() as i64).rem_euclid(FAN_ANGLES as i64) as u8;
+            let got = rotations(turn, frame);
+            assert!(
+                got.iter().all(|&k| k == want),
+                "turn {turn} frame {frame}: {got:?}, want {want}"
+            );
+        }
+    }
 }

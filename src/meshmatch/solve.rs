@@ -84,12 +84,14 @@ pub fn solve_constrained(
     let mut notices = Vec::new();
     let mut gmap = None;
     let mut map_secs = None;
+    let mut map_stages = Vec::new();
     let mut structure = params.structure.unwrap_or(0.0);
     let mut map_score = None;
     if params.structure != Some(0.0) {
         match global_map::global_map(source, target, &pairs, nl, cancel) {
             Ok(g) => {
                 map_secs = Some(g.seconds);
+                map_stages = g.stages.clone();
                 map_score = Some(g.score);
                 if params.structure.is_none() {
                     structure = super::auto_structure(g.score);
@@ -139,7 +141,7 @@ pub fn solve_constrained(
             .map(|l| ht.levels[l].len() as f64 * (params.iterations + 1) as f64)
             .sum(),
         done_work: 0.0,
-        top_init: gmap.map(|g| g.top_init.clone()),
+        gmap,
         notices,
         nnf: Vec::new(),
         signal: Vec::new(),
@@ -151,6 +153,9 @@ pub fn solve_constrained(
     };
     if let Some(t) = map_secs {
         run.stage("global map", t);
+        for (name, t) in map_stages {
+            run.stage(name, t);
+        }
     }
     run.stage("affinities", sw.secs());
     cancel.check()?;
@@ -324,8 +329,8 @@ struct Levels<'a> {
     exhaustive_top: bool,
     total_work: f64,
     done_work: f64,
-    /// Coarsest-level start from the global map (source vertex per target vertex).
-    top_init: Option<Vec<u32>>,
+    /// The global map, when the structure value uses it: the coarsest level's start.
+    gmap: Option<std::sync::Arc<super::global_map::GlobalMap>>,
     notices: Vec<String>,
     nnf: Vec<(u32, u8)>,
     signal: Vec<[f32; 3]>,
@@ -443,15 +448,11 @@ impl<'a> Levels<'a> {
                     ),
                 })
                 .collect();
-            if let Some(init) = &self.top_init {
-                // the global map's start: the mapped source vertex, best rotation there
-                let ctx = self.ctx(l, fans_t, 0.0);
+            if let Some(g) = &self.gmap {
+                // the global map's start: the mapped source vertex
                 for (v, e) in nnf.iter_mut().enumerate() {
                     if self.locked[l][v].is_none() {
-                        let s = init[v];
-                        let (d, k) = ctx.best_rotation(v, s as usize, f32::INFINITY);
-                        *e = (s, k);
-                        dist[v] = d;
+                        e.0 = g.top_init[v];
                     }
                 }
             }
@@ -460,6 +461,21 @@ impl<'a> Levels<'a> {
                 let ctx = self.ctx(l, fans_t, 0.0);
                 em::exhaustive(&ctx, &mut nnf, dist, &self.locked[l], self.cancel)?;
                 self.t.search += sw.secs();
+            }
+            if let Some(g) = &self.gmap {
+                // Rotations from the map's transport of the local frame: the shape-only search
+                // above cannot tell them (its distance is the same for every rotation).
+                g.transport_rotations(
+                    lt,
+                    &self.target.frames[l],
+                    &self.source.frames[l],
+                    &mut nnf,
+                    &self.locked[l],
+                );
+                let ctx = self.ctx(l, fans_t, 0.0);
+                for (v, e) in nnf.iter().enumerate() {
+                    dist[v] = ctx.dist(v, e.0 as usize, e.1 as usize, f32::INFINITY);
+                }
             }
             self.nnf = nnf;
         } else {
