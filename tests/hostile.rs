@@ -687,3 +687,149 @@ fn work_beyond_the_memory_limit_is_refused_before_work_by_every_system() {
         );
     }
 }
+
+/// Every other command's numeric flags with hostile values: exit 0 or a one-line error (2), never
+/// a panic, an abort or a run past the bound.
+#[test]
+fn numeric_flags_of_every_system_accept_or_refuse_cleanly() {
+    let d = scene("sweep_systems");
+    let mut img = image::RgbImage::new(24, 24);
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        *p = image::Rgb([((x / 4) * 40) as u8, ((y / 4) * 40) as u8, 120]);
+    }
+    img.save(d.join("ex.png")).unwrap();
+    let values = [
+        "0",
+        "-1",
+        "NaN",
+        "inf",
+        "1e39",
+        "1e-30",
+        "1000000000000",
+        "18446744073709551615",
+    ];
+    let cases: &[(&[&str], &[&str])] = &[
+        (
+            &[
+                "weather",
+                "--source",
+                "src.ply",
+                "--target",
+                "tgt.ply",
+                "--out",
+                "o.ply",
+                "--vertices",
+                "300",
+                "--rays",
+                "8",
+                "--clusters",
+                "4",
+            ],
+            &[
+                "--vertices",
+                "--rays",
+                "--clusters",
+                "--seed",
+                "--texture-size",
+            ],
+        ),
+        (
+            &[
+                "synth",
+                "--target",
+                "tgt.ply",
+                "--exemplar",
+                "ex.png",
+                "--out",
+                "o.ply",
+                "--vertex-budget",
+                "2000",
+                "--levels",
+                "2",
+            ],
+            &[
+                "--scale",
+                "--exemplar-width",
+                "--vertex-budget",
+                "--levels",
+                "--seed",
+                "--texture-size",
+            ],
+        ),
+        (
+            &[
+                "quilt", "--swatch", "studs", "--base", "tgt.ply", "--out", "o.ply",
+            ],
+            &["--swatch-size", "--thickness", "--seed"],
+        ),
+        (
+            &[
+                "bake",
+                "--from",
+                "src.ply",
+                "--to",
+                "tgt.ply",
+                "--out",
+                "o.glb",
+                "--texture-size",
+                "64",
+            ],
+            &["--texture-size"],
+        ),
+        (
+            &["curves", "tgt.ply", "--out", "c.obj"],
+            &["--threshold", "--min-length", "--crease-angle"],
+        ),
+        (
+            &["features", "tgt.ply", "--out", "f.ply", "--rays", "8"],
+            &["--rays", "--seed"],
+        ),
+        (
+            &[
+                "detail",
+                "--source",
+                "src.ply",
+                "--target",
+                "tgt.ply",
+                "--out",
+                "o.ply",
+                "--vertices",
+                "300",
+                "--iterations",
+                "1",
+                "--levels",
+                "2",
+            ],
+            &["--strength"],
+        ),
+    ];
+    let mut failures = Vec::new();
+    for (base, flags) in cases {
+        for flag in *flags {
+            for v in values {
+                // The base settings keep an accepted run short; the flag under test replaces its own.
+                let mut args: Vec<&str> = Vec::new();
+                let mut i = 0;
+                while i < base.len() {
+                    if base[i] == *flag {
+                        i += 2;
+                        continue;
+                    }
+                    args.push(base[i]);
+                    i += 1;
+                }
+                let kv = format!("{flag}={v}");
+                args.push(&kv);
+                let (code, err) = run_in(&d, &args, Duration::from_secs(30));
+                let clean = (code == 0 || code == 2)
+                    && !err.contains("internal error")
+                    && !err.contains("panicked")
+                    && (code == 0 || err.trim_end().lines().count() == 1);
+                if !clean {
+                    failures.push(format!("{} {kv}: exit {code}: {err}", base[0]));
+                }
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -281,6 +281,15 @@ pub fn resize_alpha(alpha: image::GrayImage, width: u32, height: u32) -> image::
 /// 1.28 (penguin).
 pub const REFINED_PER_TEXEL: f64 = 1.25;
 
+/// A vertex count for a message: digits, or a power of ten when absurd.
+fn count(x: f64) -> String {
+    if x < 1e12 {
+        format!("{x:.0}")
+    } else {
+        format!("{x:.1e}")
+    }
+}
+
 /// Default vertex budget of a synthesis run chosen by [`fit_exemplar_to_budget`].
 pub const DEFAULT_VERTEX_BUDGET: usize = 300_000;
 
@@ -319,6 +328,10 @@ pub fn fit_exemplar_to_budget(
     };
     let width = fit.max(min_w).min(w);
     if width >= w {
+        return (exemplar, None);
+    }
+    if estimate(width as f64) > SynthParams::default().max_vertices as f64 {
+        // Even the smallest exemplar cannot fit: the synthesis refuses the scale in one line.
         return (exemplar, None);
     }
     let out = shrink_exemplar(exemplar, width);
@@ -529,8 +542,14 @@ pub fn synthesize_with_alpha(
     let estimate = REFINED_PER_TEXEL * area / (h0 as f64 * h0 as f64);
     if estimate > params.max_vertices as f64 {
         return Err(Error::InvalidInput(format!(
-            "scale {scale} needs about {estimate:.0} vertices (limit {}); use a larger scale or a \
-             smaller exemplar",
+            "scale {} needs about {} vertices (limit {}); use a larger scale or a smaller \
+             exemplar",
+            if (1e-4..1e6).contains(&scale) {
+                format!("{scale}")
+            } else {
+                format!("{scale:e}")
+            },
+            count(estimate),
             params.max_vertices
         )));
     }
