@@ -21,11 +21,41 @@ pub struct BenchArgs {
     /// synth (`synth` with its defaults, every shared texture on every shared mesh).
     #[arg(long, default_value = "meshmatch")]
     pub system: String,
+    /// Worker threads, one run of the whole table per count, e.g. `1,2` for the parallel
+    /// scaling of every stage (default: every core).
+    #[arg(long)]
+    pub threads: Option<String>,
 }
 
 impl BenchArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
+        let Some(list) = &self.threads else {
+            return self.run_once();
+        };
+        let mut counts = Vec::new();
+        for t in list.split(',') {
+            match t.trim().parse::<usize>() {
+                Ok(n) if (1..=256).contains(&n) => counts.push(n),
+                _ => {
+                    return Err(crate::error::Error::InvalidInput(format!(
+                        "--threads {list}: use thread counts from 1 to 256, e.g. 1,2"
+                    )));
+                }
+            }
+        }
+        for n in counts {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| crate::error::Error::InvalidInput(format!("--threads {n}: {e}")))?;
+            println!("threads: {n}");
+            pool.install(|| self.run_once())?;
+        }
+        Ok(0)
+    }
+
+    fn run_once(&self) -> Result<i32> {
         if self.cancel_probes > 1000 {
             return Err(crate::error::Error::InvalidInput(format!(
                 "--cancel-probes {}: use 0 to 1000",
