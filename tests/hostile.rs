@@ -833,3 +833,31 @@ fn numeric_flags_of_every_system_accept_or_refuse_cleanly() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+#[test]
+fn a_ply_within_budget_but_beyond_the_memory_limit_is_an_error_not_an_abort() {
+    // 19M vertices is within the loaders' 20M budget; under a 400 MB address-space limit their
+    // arrays cannot be had: a one-line error, not "memory allocation failed" and an abort.
+    let d = tmpdir("ply_memory");
+    let header = "ply\nformat binary_little_endian 1.0\nelement vertex 19000000\n\
+                  property float x\nproperty float y\nproperty float z\n\
+                  property uchar red\nproperty uchar green\nproperty uchar blue\n\
+                  element face 0\nproperty list uchar int vertex_indices\nend_header\n";
+    let f = std::fs::File::create(d.join("big.ply")).unwrap();
+    std::io::Write::write_all(&mut &f, header.as_bytes()).unwrap();
+    f.set_len(300_000_000).unwrap(); // sparse: zeros on disk cost nothing
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 400000 && exec '{}' info big.ply",
+            env!("CARGO_BIN_EXE_meshmatch")
+        ))
+        .current_dir(&d)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("not enough memory"), "{err}");
+    let _ = std::fs::remove_file(d.join("big.ply"));
+}

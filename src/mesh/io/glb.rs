@@ -215,7 +215,9 @@ fn read_accessor(acc: &gltf::Accessor, buffers: &Buffers, path: &Path) -> Result
                 )));
             }
         }
-        out = Vec::with_capacity(count * m);
+        out = Vec::new();
+        out.try_reserve_exact(count * m)
+            .map_err(|_| bad(format!("not enough memory for {count} elements")))?;
         for i in 0..count {
             let base = acc.offset() + i * stride;
             for c in 0..m {

@@ -456,15 +456,19 @@ pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         let want_c = is_vertex && (0..3).all(|k| has(&|r| r == Role::Color(k)));
         let want_uv = is_vertex && (0..2).all(|k| has(&|r| r == Role::Uv(k)));
         if is_vertex {
-            positions.reserve(el.count);
+            // An allocation failure is an error, not an abort (the count is within budget, but
+            // the process may have less memory than the budget needs).
+            let no_memory =
+                |_| Error::format(path, format!("not enough memory for {} vertices", el.count));
+            positions.try_reserve(el.count).map_err(no_memory)?;
             if want_n {
-                normals.reserve(el.count);
+                normals.try_reserve(el.count).map_err(no_memory)?;
             }
             if want_c {
-                colors.reserve(el.count);
+                colors.try_reserve(el.count).map_err(no_memory)?;
             }
             if want_uv {
-                vuv.reserve(el.count);
+                vuv.try_reserve(el.count).map_err(no_memory)?;
             }
         }
         if el.props.is_empty() {
