@@ -861,3 +861,35 @@ fn a_ply_within_budget_but_beyond_the_memory_limit_is_an_error_not_an_abort() {
     assert!(err.contains("not enough memory"), "{err}");
     let _ = std::fs::remove_file(d.join("big.ply"));
 }
+
+#[test]
+fn hostile_exemplar_images_are_refused_in_one_line() {
+    let d = scene("exemplars");
+    std::fs::write(d.join("empty.png"), b"").unwrap();
+    std::fs::write(d.join("text.png"), b"hello").unwrap();
+    image::RgbImage::new(1, 1).save(d.join("one.png")).unwrap();
+    image::RgbaImage::new(64, 64)
+        .save(d.join("clear.png"))
+        .unwrap(); // alpha 0 everywhere
+    for (file, mention) in [
+        ("empty.png", "cannot decode"),
+        ("text.png", "cannot decode"),
+        ("one.png", "too small"),
+        ("clear.png", "transparent everywhere"),
+        ("missing.png", "missing.png"),
+    ] {
+        refused(
+            &d,
+            &[
+                "synth",
+                "--target",
+                "tgt.ply",
+                "--exemplar",
+                file,
+                "--out",
+                "o.ply",
+            ],
+            mention,
+        );
+    }
+}

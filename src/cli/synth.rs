@@ -114,6 +114,12 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     let mut exemplar = tex.image;
     if let Some(al) = &alpha {
         let clear = al.pixels().filter(|p| p.0[0] < 128).count();
+        if clear as u64 == al.width() as u64 * al.height() as u64 {
+            return Err(Error::InvalidInput(format!(
+                "{}: the exemplar is transparent everywhere: nothing to synthesize from",
+                a.exemplar.display()
+            )));
+        }
         eprintln!(
             "the exemplar has {clear} transparent pixels ({:.0}%): they are never synthesized",
             100.0 * clear as f64 / (al.width() as f64 * al.height() as f64)
