@@ -42,6 +42,13 @@ pub struct FieldParams {
     pub alpha: f64,
     /// Release a junction vertex when the mean of its oriented unit tangents is shorter.
     pub junction_release: f64,
+    /// Curves oriented per greedy step, as a fraction of those still unoriented (at least one):
+    /// 0 is the paper's one curve per step, one numeric factorisation each; the default 1/8
+    /// takes, besides the best, those of the best eighth whose direction the field has already
+    /// decided (its two scores differ by half their sum). Measured (`examples/field_batch`): the demo giraffe's 235
+    /// curves on 46K vertices take 49 s in 235 steps one by one, 7.9 s in 37 steps batched,
+    /// every curve oriented the same way; Spot's 35 curves end with a field 0.8% rougher.
+    pub batch: f64,
 }
 
 impl Default for FieldParams {
@@ -49,9 +56,14 @@ impl Default for FieldParams {
         FieldParams {
             alpha: 1e8,
             junction_release: 0.3,
+            batch: 0.125,
         }
     }
 }
+
+/// A curve joins a batch of [`FieldParams::batch`] only when its two orientation scores differ
+/// by at least this fraction of their sum.
+const DECIDED_MARGIN: f64 = 0.5;
 
 /// The constrained harmonic solver of one mesh: cotan Laplacian and one symbolic Cholesky
 /// analysis; [`HarmonicFieldSolver::solve`] refactorises numerically for each constraint set.
@@ -296,19 +308,46 @@ pub fn oriented_curve_field(
                 let u = raw[v as usize];
                 u - u.dot(nv) * nv
             };
-            let mut best: Option<(f64, usize, bool)> = None;
-            for &c in &remaining {
-                let f: Vec<DVec3> = curves[c].vertices.iter().map(|&v| proj(v)).collect();
-                let (g0, g1) = score_terms(&tangents[c], &f);
-                let (g, fwd) = if g0 >= g1 { (g0, true) } else { (g1, false) };
-                if best.is_none_or(|b| g > b.0) {
-                    best = Some((g, c, fwd));
-                }
+            // Score every remaining curve against the field; orient the best one (or the best
+            // batch), best first.
+            let mut scored: Vec<(f64, usize, bool, f64)> = remaining
+                .iter()
+                .map(|&c| {
+                    let f: Vec<DVec3> = curves[c].vertices.iter().map(|&v| proj(v)).collect();
+                    let (g0, g1) = score_terms(&tangents[c], &f);
+                    // how decided the field already is about this curve's direction
+                    let margin = (g0 - g1).abs() / (g0 + g1).max(1e-300);
+                    if g0 >= g1 {
+                        (g0, c, true, margin)
+                    } else {
+                        (g1, c, false, margin)
+                    }
+                })
+                .collect();
+            scored.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+            let room = ((remaining.len() as f64 * params.batch.clamp(0.0, 1.0)).ceil() as usize)
+                .clamp(1, remaining.len());
+            // The best curve always; more of the best only where the field has decided them
+            // (an undecided curve waits for a solve that includes its neighbours).
+            let take = 1 + scored[1..room]
+                .iter()
+                .filter(|x| x.3 >= DECIDED_MARGIN)
+                .count();
+            let chosen: Vec<(f64, usize, bool, f64)> = std::iter::once(scored[0])
+                .chain(
+                    scored[1..room]
+                        .iter()
+                        .copied()
+                        .filter(|x| x.3 >= DECIDED_MARGIN),
+                )
+                .collect();
+            debug_assert_eq!(chosen.len(), take);
+            for &(_, c, fwd, _) in &chosen {
+                forward[c] = fwd;
+                oriented.push((c, fwd));
             }
-            let (_, c, fwd) = best.expect("remaining is not empty");
-            forward[c] = fwd;
-            oriented.push((c, fwd));
-            remaining.retain(|&r| r != c);
+            let done: Vec<usize> = chosen.iter().map(|x| x.1).collect();
+            remaining.retain(|r| !done.contains(r));
             step_secs.push(sw.secs());
         }
     }
