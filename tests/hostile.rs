@@ -893,3 +893,49 @@ fn hostile_exemplar_images_are_refused_in_one_line() {
         );
     }
 }
+
+#[test]
+fn word_flags_are_checked_before_work() {
+    let d = scene("words");
+    refused(
+        &d,
+        &[
+            "features",
+            "tgt.ply",
+            "--out",
+            "f.ply",
+            "--feature",
+            "bogus",
+        ],
+        "unknown feature",
+    );
+    refused(
+        &d,
+        &[
+            "features",
+            "tgt.ply",
+            "--out",
+            "f.ply",
+            "--feature",
+            "curvature:9",
+        ],
+        "unknown feature",
+    );
+    // The up axis is checked for the built-in swatches too, where it is not used.
+    refused(
+        &d,
+        &[
+            "quilt",
+            "--swatch",
+            "chain",
+            "--base",
+            "tgt.ply",
+            "--out",
+            "q.ply",
+            "--swatch-up",
+            "w",
+        ],
+        "--swatch-up",
+    );
+    assert!(!d.join("f.ply").exists() && !d.join("q.ply").exists());
+}

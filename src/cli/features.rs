@@ -47,6 +47,7 @@ impl FeaturesArgs {
             seed: self.seed,
             ..Params::default()
         };
+        mertens::check_feature_name(&self.feature, params.curvature_radii.len())?;
         let t = std::time::Instant::now();
         let fs = mertens::features(&mesh.positions, &mesh.faces, &params, &CancelToken::new())?;
         let field = mertens::feature_field(&fs, &self.feature)?;

@@ -53,9 +53,6 @@ fn positive(name: &str, v: Option<f32>) -> Result<()> {
 
 /// A built-in swatch by name, or a swatch mesh file with `up` as its up axis.
 fn load_any_swatch(spec: &str, up: &str, seed: u64) -> Result<Swatch> {
-    if let Ok(kind) = SwatchKind::parse(spec) {
-        return Ok(quilting::swatch(kind, seed));
-    }
     let up = match up.to_ascii_lowercase().as_str() {
         "x" => Axis::X,
         "y" => Axis::Y,
@@ -66,6 +63,9 @@ fn load_any_swatch(spec: &str, up: &str, seed: u64) -> Result<Swatch> {
             )));
         }
     };
+    if let Ok(kind) = SwatchKind::parse(spec) {
+        return Ok(quilting::swatch(kind, seed));
+    }
     let path = Path::new(spec);
     if !path.exists() {
         return Err(Error::InvalidInput(format!(

@@ -58,6 +58,18 @@ pub fn feature_names(radii: usize) -> Vec<String> {
     v
 }
 
+/// Refuse an unknown feature name before any feature is computed (`radii` curvature radii).
+pub fn check_feature_name(name: &str, radii: usize) -> Result<()> {
+    let names = feature_names(radii);
+    if names.contains(&canonical_name(name)) {
+        return Ok(());
+    }
+    Err(Error::InvalidInput(format!(
+        "unknown feature '{name}' (expected one of: {}; curvature:<i> works too)",
+        names.join(", ")
+    )))
+}
+
 fn canonical_name(name: &str) -> String {
     let n = name
         .trim()

@@ -36,7 +36,8 @@ use crate::stats::{Cca, PdfTransferParams, cca, pdf_transfer};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
 pub use features::{
-    FeatureSet, feature_field, feature_names, features, normalised_height, wound_inwards,
+    FeatureSet, check_feature_name, feature_field, feature_names, features, normalised_height,
+    wound_inwards,
 };
 
 /// The vertical axis (for the normalised-height feature).
