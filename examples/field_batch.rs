@@ -14,13 +14,7 @@ fn main() {
     for (name, mesh) in [("giraffe", meshmatch::demo::giraffe()), ("spot", spot)] {
         let curves =
             salient_curves(&mesh.positions, &mesh.faces, &CurveParams::default()).expect("curves");
-        let fc: Vec<FieldCurve> = curves
-            .iter()
-            .map(|c| FieldCurve {
-                vertices: c.vertices.clone(),
-                closed: c.closed,
-            })
-            .collect();
+        let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
         let mut reference: Option<Vec<bool>> = None;
         for batch in [0.0, 0.125, 0.25] {
             let t = Instant::now();

@@ -229,13 +229,7 @@ fn field_alignment(mesh: &TriMesh, curves: &[Curve], field: &[[f32; 3]]) -> (f64
 }
 
 fn field_of(mesh: &TriMesh, curves: &[Curve]) -> meshmatch::geometry::CurveField {
-    let fc: Vec<FieldCurve> = curves
-        .iter()
-        .map(|c| FieldCurve {
-            vertices: c.vertices.clone(),
-            closed: c.closed,
-        })
-        .collect();
+    let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
     oriented_curve_field(
         &mesh.positions,
         &mesh.faces,

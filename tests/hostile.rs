@@ -46,6 +46,42 @@ fn run_in(dir: &Path, args: &[&str], limit: Duration) -> (i32, String) {
     (status.code().unwrap_or(-1), stderr)
 }
 
+/// Numeric values every sweep sends through each flag.
+const HOSTILE_VALUES: [&str; 9] = [
+    "0",
+    "-1",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e39",
+    "1e-30",
+    "1000000000000",
+    "18446744073709551615",
+];
+
+/// `meshmatch <args>` (split on spaces by the shell) in `dir` under an address-space limit of
+/// `limit_kb` KB (`ulimit -v`).
+fn run_under_memory_limit(dir: &Path, limit_kb: u32, args: &str) -> std::process::Output {
+    Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v {limit_kb} && exec '{}' {args}",
+            env!("CARGO_BIN_EXE_meshmatch")
+        ))
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+/// A `size²` two-colour-ramp exemplar, `ex.png` in `dir`.
+fn exemplar_png(dir: &Path, size: u32) {
+    let mut img = image::RgbImage::new(size, size);
+    for (x, y, p) in img.enumerate_pixels_mut() {
+        *p = image::Rgb([(x * 255 / size) as u8, (y * 255 / size) as u8, 90]);
+    }
+    img.save(dir.join("ex.png")).unwrap();
+}
+
 fn run(dir: &Path, args: &[&str]) -> (i32, String) {
     run_in(dir, args, Duration::from_secs(20))
 }
@@ -494,17 +530,7 @@ fn render_needs_a_png_output_and_finite_angles() {
 #[test]
 fn numeric_flags_accept_or_refuse_cleanly() {
     let d = scene("sweep");
-    let values = [
-        "0",
-        "-1",
-        "NaN",
-        "inf",
-        "-inf",
-        "1e39",
-        "1e-30",
-        "1000000000000",
-        "18446744073709551615",
-    ];
+    let values = HOSTILE_VALUES;
     let flags = [
         "--vertices",
         "--levels",
@@ -627,11 +653,7 @@ fn work_beyond_the_memory_limit_is_refused_before_work_by_every_system() {
     // Under an address-space limit the largest working sizes cannot fit: a one-line error
     // naming the memory, at once, not an abort halfway through.
     let d = scene("memory");
-    let mut img = image::RgbImage::new(32, 32);
-    for (x, y, p) in img.enumerate_pixels_mut() {
-        *p = image::Rgb([(x * 8) as u8, (y * 8) as u8, 90]);
-    }
-    img.save(d.join("ex.png")).unwrap();
+    exemplar_png(&d, 32);
     // (address-space limit in KB, command): the quilt's face cap keeps it under 2 GB.
     let cases: &[(u32, &str)] = &[
         (
@@ -662,15 +684,7 @@ fn work_beyond_the_memory_limit_is_refused_before_work_by_every_system() {
     ];
     for &(limit, args) in cases {
         let t0 = Instant::now();
-        let out = Command::new("sh")
-            .arg("-c")
-            .arg(format!(
-                "ulimit -v {limit} && exec '{}' {args}",
-                env!("CARGO_BIN_EXE_meshmatch")
-            ))
-            .current_dir(&d)
-            .output()
-            .unwrap();
+        let out = run_under_memory_limit(&d, limit, args);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{args}: {err}");
         let last = err.trim_end().lines().last().unwrap_or("");
@@ -693,21 +707,8 @@ fn work_beyond_the_memory_limit_is_refused_before_work_by_every_system() {
 #[test]
 fn numeric_flags_of_every_system_accept_or_refuse_cleanly() {
     let d = scene("sweep_systems");
-    let mut img = image::RgbImage::new(24, 24);
-    for (x, y, p) in img.enumerate_pixels_mut() {
-        *p = image::Rgb([((x / 4) * 40) as u8, ((y / 4) * 40) as u8, 120]);
-    }
-    img.save(d.join("ex.png")).unwrap();
-    let values = [
-        "0",
-        "-1",
-        "NaN",
-        "inf",
-        "1e39",
-        "1e-30",
-        "1000000000000",
-        "18446744073709551615",
-    ];
+    exemplar_png(&d, 24);
+    let values = HOSTILE_VALUES;
     let cases: &[(&[&str], &[&str])] = &[
         (
             &[
@@ -846,15 +847,7 @@ fn a_ply_within_budget_but_beyond_the_memory_limit_is_an_error_not_an_abort() {
     let f = std::fs::File::create(d.join("big.ply")).unwrap();
     std::io::Write::write_all(&mut &f, header.as_bytes()).unwrap();
     f.set_len(300_000_000).unwrap(); // sparse: zeros on disk cost nothing
-    let out = Command::new("sh")
-        .arg("-c")
-        .arg(format!(
-            "ulimit -v 400000 && exec '{}' info big.ply",
-            env!("CARGO_BIN_EXE_meshmatch")
-        ))
-        .current_dir(&d)
-        .output()
-        .unwrap();
+    let out = run_under_memory_limit(&d, 400_000, "info big.ply");
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");

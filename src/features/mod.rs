@@ -615,20 +615,7 @@ mod tests {
     use super::*;
 
     fn grid(n: usize) -> Level {
-        let mut p = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                p.push([i as f32, j as f32, 0.0]);
-            }
-        }
-        let mut f = Vec::new();
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let a = (j * n + i) as u32;
-                f.push([a, a + 1, a + n as u32 + 1]);
-                f.push([a, a + n as u32 + 1, a + n as u32]);
-            }
-        }
+        let (p, f) = crate::testdata::grid(n);
         Level::new(p, f)
     }
 

@@ -208,6 +208,16 @@ pub struct FieldCurve {
     pub closed: bool,
 }
 
+impl From<&super::crest_lines::Curve> for FieldCurve {
+    /// A salient curve's snapped vertex path.
+    fn from(c: &super::crest_lines::Curve) -> Self {
+        FieldCurve {
+            vertices: c.vertices.clone(),
+            closed: c.closed,
+        }
+    }
+}
+
 /// Gather the constraints of the oriented curves (junctions averaged or released).
 fn constraints(
     tangents: &[Vec<DVec3>],
@@ -390,21 +400,7 @@ mod tests {
     use super::*;
 
     fn grid(m: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let mut pos = Vec::new();
-        for y in 0..m {
-            for x in 0..m {
-                pos.push([x as f32, y as f32, 0.0]);
-            }
-        }
-        let mut faces = Vec::new();
-        for y in 0..m - 1 {
-            for x in 0..m - 1 {
-                let i = y * m + x;
-                faces.push([i, i + 1, i + m + 1]);
-                faces.push([i, i + m + 1, i + m]);
-            }
-        }
-        (pos, faces)
+        crate::testdata::grid(m as usize)
     }
 
     #[test]

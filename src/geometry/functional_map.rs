@@ -310,15 +310,21 @@ pub fn shape_map(
     Ok(m)
 }
 
+/// The smallest non-zero and the largest eigenvalue of a spectrum (`λ_1`, `λ_max`).
+fn nonzero_range(v: &[f64]) -> (f64, f64) {
+    let lmax = v.iter().copied().fold(0.0f64, f64::max);
+    let l1 = v
+        .iter()
+        .copied()
+        .filter(|&l| l > 1e-9 * lmax)
+        .fold(f64::INFINITY, f64::min);
+    (l1, lmax)
+}
+
 /// Log-energies and σ of the WKS over the non-zero eigenvalues of both spectra (`kd` pairs).
 fn wks_energies(a: &[f64], b: &[f64], count: usize) -> (Vec<f64>, f64) {
     let pos = |v: &[f64]| -> (f64, f64) {
-        let lmax = v.iter().copied().fold(0.0f64, f64::max);
-        let l1 = v
-            .iter()
-            .copied()
-            .filter(|&l| l > 1e-9 * lmax)
-            .fold(f64::INFINITY, f64::min);
+        let (l1, lmax) = nonzero_range(v);
         (l1.ln(), lmax.ln())
     };
     let (a0, a1) = pos(a);
@@ -336,16 +342,7 @@ fn hks_times(a: &[f64], b: &[f64], count: usize) -> Vec<f64> {
     if count == 0 {
         return Vec::new();
     }
-    let range = |v: &[f64]| -> (f64, f64) {
-        let lmax = v.iter().copied().fold(0.0f64, f64::max);
-        let l1 = v
-            .iter()
-            .copied()
-            .filter(|&l| l > 1e-9 * lmax)
-            .fold(f64::INFINITY, f64::min);
-        (l1, lmax)
-    };
-    let ((a1, an), (b1, bn)) = (range(a), range(b));
+    let ((a1, an), (b1, bn)) = (nonzero_range(a), nonzero_range(b));
     let (l1, ln) = (a1.max(b1), an.min(bn));
     if !(l1.is_finite() && ln > l1) {
         return Vec::new();

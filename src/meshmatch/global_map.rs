@@ -543,21 +543,7 @@ mod tests {
     /// source frames turned by `frame` degrees: a target direction at angle φ lands at
     /// φ + turn - frame in the source frame.
     fn rotations(turn: f32, frame: f32) -> Vec<u8> {
-        let n = 6;
-        let mut positions = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                positions.push([i as f32, j as f32, 0.0]);
-            }
-        }
-        let mut faces = Vec::new();
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let a = (j * n + i) as u32;
-                faces.push([a, a + 1, a + n as u32 + 1]);
-                faces.push([a, a + n as u32 + 1, a + n as u32]);
-            }
-        }
+        let (positions, faces) = crate::testdata::grid(6);
         let level = Level::new(positions.clone(), faces);
         let (s, c) = turn.to_radians().sin_cos();
         let mapped: Vec<[f32; 3]> = positions

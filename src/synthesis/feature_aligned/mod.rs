@@ -86,13 +86,7 @@ pub fn curves_and_field(
     t.curves = sw.secs();
     cancel.check()?;
     let sw = Stopwatch::start();
-    let fc: Vec<FieldCurve> = curves
-        .iter()
-        .map(|c| FieldCurve {
-            vertices: c.vertices.clone(),
-            closed: c.closed,
-        })
-        .collect();
+    let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
     let field = oriented_curve_field(&target.positions, &target.faces, &fc, &params.field, cancel)?;
     t.field = sw.secs();
     Ok((curves, field, t))

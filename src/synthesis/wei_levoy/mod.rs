@@ -418,13 +418,7 @@ pub fn feature_field(target: &TriMesh, cancel: &CancelToken) -> Result<Vec<[f32;
         CurveParams, FieldCurve, FieldParams, oriented_curve_field, salient_curves,
     };
     let curves = salient_curves(&target.positions, &target.faces, &CurveParams::default())?;
-    let fc: Vec<FieldCurve> = curves
-        .into_iter()
-        .map(|c| FieldCurve {
-            vertices: c.vertices,
-            closed: c.closed,
-        })
-        .collect();
+    let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
     Ok(oriented_curve_field(
         &target.positions,
         &target.faces,
