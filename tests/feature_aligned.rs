@@ -432,6 +432,7 @@ fn stripes_run_along_the_feature_field() {
             exemplar: &ex,
             curves: None,
             alpha: None,
+            feature_mask: None,
         },
         &params,
         &no_events,
@@ -599,4 +600,95 @@ fn field_solve_residual_and_step_timing() {
     eprintln!("relative residual {rel:.2e}, worst constraint error {worst:.2e}");
     assert!(rel < 1e-8, "{rel}");
     assert!(worst < 1e-5);
+}
+
+/// A light 32x32 exemplar with mild texture and one dark horizontal band two pixels thick
+/// (rows 15 and 16), as an artist's "line" exemplar.
+fn dark_line_exemplar() -> image::RgbImage {
+    image::RgbImage::from_fn(32, 32, |x, y| {
+        let n = ((x * 7 + y * 13) % 5) as u8 * 6;
+        if (15..17).contains(&y) {
+            image::Rgb([30 + n, 25, 25])
+        } else {
+            image::Rgb([200 + n, 190 + n, 160])
+        }
+    })
+}
+
+/// Mean lightness of the synthesized vertices within `tol` of a cube edge, and elsewhere.
+fn crease_and_rest_lightness(out: &feature_aligned::Output, tol: f32) -> (f64, f64) {
+    let mesh = &out.synth.mesh;
+    let col = mesh.colors.as_ref().unwrap();
+    let (mut on, mut non, mut off, mut noff) = (0.0, 0usize, 0.0, 0usize);
+    for (p, c) in mesh.positions.iter().zip(col) {
+        let near1 = p.iter().filter(|x| (x.abs() - 1.0).abs() < tol).count();
+        let l = (c[0] + c[1] + c[2]) as f64 / 3.0;
+        if near1 >= 2 {
+            on += l;
+            non += 1;
+        } else if p.iter().filter(|x| (x.abs() - 1.0).abs() < 0.3).count() < 2 {
+            off += l;
+            noff += 1;
+        }
+    }
+    (on / non.max(1) as f64, off / noff.max(1) as f64)
+}
+
+#[test]
+fn aligned_features_put_the_exemplar_line_on_the_creases() {
+    let mesh = cube(12, |p| p);
+    let ex = dark_line_exemplar();
+    let band = (30.0 + 25.0 + 25.0 + 12.0) / 3.0 / 255.0; // the band's mean lightness, roughly
+    let run = |align: bool| {
+        let params = Params {
+            synth: SynthParams {
+                scale: Some(1.0),
+                levels: 3,
+                seed: 3,
+                ..SynthParams::default()
+            },
+            method: meshmatch::synthesis::Method::Optimize,
+            align_features: align,
+            ..Params::default()
+        };
+        let t = Instant::now();
+        let out = feature_aligned::run(
+            &Input {
+                target: &mesh,
+                exemplar: &ex,
+                curves: None,
+                alpha: None,
+                feature_mask: None,
+            },
+            &params,
+            &no_events,
+            &CancelToken::new(),
+        )
+        .unwrap();
+        (out, t.elapsed().as_secs_f64())
+    };
+    let (with, t_with) = run(true);
+    let (without, t_without) = run(false);
+    let h = with.synth.spacing;
+    let (on_w, rest_w) = crease_and_rest_lightness(&with, 0.5 * h);
+    let (on_wo, rest_wo) = crease_and_rest_lightness(&without, 0.5 * h);
+    let rep = with.optimization.as_ref().unwrap();
+    eprintln!(
+        "line on cube creases: {} vertices, h {h:.4}; with the constraint {t_with:.1} s, crease \
+         lightness {on_w:.3}, faces {rest_w:.3}; without {t_without:.1} s, crease {on_wo:.3}, faces \
+         {rest_wo:.3}; band {band:.3}; scales {:?}",
+        with.synth.mesh.num_vertices(),
+        rep.scales
+            .iter()
+            .map(|s| (s.patch, s.samples, s.constrained, s.energy.len()))
+            .collect::<Vec<_>>()
+    );
+    assert!(!with.exemplar_turned);
+    assert!(rep.scales.iter().all(|s| s.constrained > 0));
+    // the dark line sits on the creases: crease vertices close to the band's colour
+    assert!(on_w < band + 0.15, "crease lightness {on_w} vs band {band}");
+    // and the faces away from them keep the light ground
+    assert!(rest_w > 0.55, "faces {rest_w}");
+    // without the constraint the creases are not dark
+    assert!(on_wo > on_w + 0.2, "without {on_wo} vs with {on_w}");
 }

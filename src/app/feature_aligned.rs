@@ -117,6 +117,7 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
                 exemplar: &img,
                 curves: None,
                 alpha: alpha.as_ref(),
+                feature_mask: None,
             };
             let out = feature_aligned::run(&input, &params, sink, cancel)?;
             let colors = out

@@ -60,6 +60,21 @@ pub struct SynthArgs {
     /// Treat the exemplar as a grey displacement map and displace the surface along its normals.
     #[arg(long)]
     pub displace: bool,
+    /// neighbourhood (Wei-Levoy, coarse to fine) or optimize (then surface texture optimisation,
+    /// Kwatra et al. 2005: whole 32- and 16-texel patches blended along the field, which keeps
+    /// structured exemplars whole; slower).
+    #[arg(long, default_value = crate::synthesis::Method::default().as_str())]
+    pub method: String,
+    /// Put the exemplar's principal line (its darkest or brightest thin horizontal stroke, or
+    /// --feature-mask) exactly on the mesh's salient curves (Xu et al. 2009 §5.2). Implies
+    /// --method optimize and --orientation features; an exemplar whose lines are vertical is
+    /// turned a quarter turn.
+    #[arg(long)]
+    pub align_features: bool,
+    /// The exemplar's line features for --align-features: an image of the exemplar's size, white
+    /// lines on black (default: detected).
+    #[arg(long)]
+    pub feature_mask: Option<PathBuf>,
 }
 
 impl SynthArgs {
@@ -83,6 +98,43 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     let search: Search = a.search.parse().map_err(|_| {
         Error::InvalidInput(format!("--search {}: use exhaustive or fast", a.search))
     })?;
+    let mut method: crate::synthesis::Method = a.method.parse().map_err(|_| {
+        Error::InvalidInput(format!(
+            "--method {}: use neighbourhood or optimize",
+            a.method
+        ))
+    })?;
+    let mut orientation = orientation;
+    if a.feature_mask.is_some() && !a.align_features {
+        return Err(Error::InvalidInput(
+            "--feature-mask is read by --align-features: add it".into(),
+        ));
+    }
+    if a.align_features {
+        match orientation {
+            Orientation::Features => {}
+            Orientation::Auto => orientation = Orientation::Features,
+            o => {
+                return Err(Error::InvalidInput(format!(
+                    "--align-features places lines along the salient curves: use --orientation \
+                     features, not {}",
+                    o.as_str()
+                )));
+            }
+        }
+        method = crate::synthesis::Method::Optimize;
+    }
+    let optimise = method == crate::synthesis::Method::Optimize;
+    if optimise && a.displace {
+        return Err(Error::InvalidInput(
+            "--method optimize makes colours: it does not combine with --displace".into(),
+        ));
+    }
+    if optimise && a.mask.is_some() {
+        return Err(Error::InvalidInput(
+            "--method optimize rewrites every vertex: it does not combine with --mask".into(),
+        ));
+    }
     if let Some(s) = a.scale
         && !(s.is_finite() && s > 0.0)
     {
@@ -104,7 +156,12 @@ fn synth(a: &SynthArgs) -> Result<i32> {
             a.vertex_budget
         )));
     }
-    let inputs = input_paths(&[Some(&a.exemplar), Some(&a.target), a.mask.as_ref()]);
+    let inputs = input_paths(&[
+        Some(&a.exemplar),
+        Some(&a.target),
+        a.mask.as_ref(),
+        a.feature_mask.as_ref(),
+    ]);
     let mut outputs = vec![("--out", a.out.as_path(), OutKind::Mesh)];
     if let Some(d) = &a.out_dense {
         outputs.push(("--out-dense", d.as_path(), OutKind::Mesh));
@@ -175,19 +232,96 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         displace: a.displace,
         ..SynthParams::default()
     };
-    let t = std::time::Instant::now();
-    let input = crate::synthesis::wei_levoy::Input {
-        exemplar: &exemplar,
-        target: &target,
-        mask: mask.as_deref(),
-        alpha: alpha.as_ref(),
+    let feature_mask = match &a.feature_mask {
+        Some(p) => Some(image::DynamicImage::ImageRgb8(io::load_texture(p)?.image).to_luma8()),
+        None => None,
     };
-    let r = crate::synthesis::wei_levoy::run(
-        &input,
-        &params,
-        &crate::work::no_events,
-        &CancelToken::new(),
-    )?;
+    let t = std::time::Instant::now();
+    let cancel = CancelToken::new();
+    let r = if orientation == Orientation::Features {
+        // Through feature-aligned texturing: the curves are needed to align features.
+        let fa = crate::synthesis::feature_aligned::Params {
+            synth: params.clone(),
+            method,
+            align_features: a.align_features,
+            ..Default::default()
+        };
+        let input = crate::synthesis::feature_aligned::Input {
+            target: &target,
+            exemplar: &exemplar,
+            curves: None,
+            alpha: alpha.as_ref(),
+            feature_mask: feature_mask.as_ref(),
+        };
+        if let Some(m) = mask.as_deref() {
+            // a mask keeps colours: the plain field-driven synthesis honours it
+            let field = crate::synthesis::wei_levoy::feature_field(&target, &cancel)?;
+            crate::synthesis::wei_levoy::synthesize_with_alpha(
+                &exemplar,
+                alpha.as_ref(),
+                &target,
+                Some(m),
+                Some(&field),
+                &params,
+                &crate::work::no_events,
+                &cancel,
+            )?
+        } else {
+            let out = crate::synthesis::feature_aligned::run(
+                &input,
+                &fa,
+                &crate::work::no_events,
+                &cancel,
+            )?;
+            eprintln!(
+                "{} salient curves (curves {:.2} s, field {:.2} s)",
+                out.curves.len(),
+                out.timings.curves,
+                out.timings.field
+            );
+            if out.exemplar_turned {
+                eprintln!(
+                    "the exemplar's lines are vertical: turned it a quarter turn to run along the curves"
+                );
+            }
+            if let Some(l) = &out.lines {
+                eprintln!(
+                    "the exemplar's principal lines: {} centre-line pixels",
+                    l.centre.iter().filter(|&&c| c).count()
+                );
+            }
+            if let Some(rep) = &out.optimization {
+                print_optimization(rep);
+            }
+            out.synth
+        }
+    } else {
+        let input = crate::synthesis::wei_levoy::Input {
+            exemplar: &exemplar,
+            target: &target,
+            mask: mask.as_deref(),
+            alpha: alpha.as_ref(),
+        };
+        let mut r =
+            crate::synthesis::wei_levoy::run(&input, &params, &crate::work::no_events, &cancel)?;
+        if optimise {
+            let rep = crate::synthesis::texture_optimization::optimize_result(
+                &mut r,
+                &target,
+                &exemplar,
+                alpha.as_ref(),
+                None,
+                &crate::synthesis::texture_optimization::Params {
+                    seed: a.seed,
+                    ..Default::default()
+                },
+                &crate::work::no_events,
+                &cancel,
+            )?;
+            print_optimization(&rep);
+        }
+        r
+    };
     if let Some(an) = r.anisotropy {
         eprintln!(
             "orientation auto: {} (the exemplar's gradient harmonics: 2-fold {:.2}, 4-fold {:.2}; \
@@ -199,13 +333,14 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         );
     }
     eprintln!(
-        "synthesized {} vertices in {:.2} s (search {:.2} s, {} search, orientation {}); \
-         finest-level neighbourhood energy {:.5}",
+        "synthesized {} vertices in {:.2} s (search {:.2} s, {} search, orientation {}, method \
+         {}); finest-level neighbourhood energy {:.5}",
         r.mesh.num_vertices(),
         t.elapsed().as_secs_f64(),
         r.timings.search,
         search.as_str(),
         r.orientation_used.as_str(),
+        method.as_str(),
         r.level_energy.first().copied().unwrap_or(0.0)
     );
     let ext = a
@@ -252,4 +387,21 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         eprintln!("wrote {}", d.display());
     }
     Ok(0)
+}
+
+/// The texture optimisation's numbers on stderr.
+fn print_optimization(rep: &crate::synthesis::texture_optimization::Report) {
+    for s in &rep.scales {
+        eprintln!(
+            "texture optimisation, {0}x{0} patches: {1} samples ({2} on or near curves), {3} \
+             iterations, patch distance {4:.4} -> {5:.4}",
+            s.patch,
+            s.samples,
+            s.constrained,
+            s.energy.len(),
+            s.energy.first().copied().unwrap_or(0.0),
+            s.energy.last().copied().unwrap_or(0.0)
+        );
+    }
+    eprintln!("texture optimisation took {:.2} s", rep.seconds);
 }

@@ -15,6 +15,7 @@
 //! - [`principal_curvatures`] (tensor averaging), [`salient_curves`] (crest lines after
 //!   Yoshizawa et al. 2005, creases by dihedral angle; Xu et al. 2009 §4.1 grouping)
 //! - [`oriented_curve_field`] (Xu et al. 2009 greedy curve orientation + harmonic diffusion)
+//! - [`distance_to_polylines`] (surface distance to salient curves: Euclidean near, edge paths far)
 //! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1)
 //! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
 //! - [`uv_atlas`] (charts, LSCM + ARAP, packing: UVs for a mesh without them)
@@ -26,6 +27,7 @@ mod basic;
 mod bvh;
 mod crest_lines;
 mod curvature;
+mod curve_distance;
 mod curve_guided_field;
 mod eigen;
 mod expmap;
@@ -44,6 +46,7 @@ pub(crate) use bvh::BARY_EPS;
 pub use bvh::TriangleBvh;
 pub use crest_lines::{Curve, CurveKind, CurveParams, salient_curves};
 pub use curvature::{PrincipalCurvatures, principal_curvatures};
+pub use curve_distance::{Polyline, distance_to_polylines};
 pub use curve_guided_field::{
     CurveField, FieldCurve, FieldParams, HarmonicFieldSolver, curve_tangents, oriented_curve_field,
     score_terms,

@@ -5,12 +5,13 @@
 //! creases, grouped and broken; [`crate::geometry::salient_curves`]) -> greedy curve orientation
 //! with the score of eq. (1) -> constrained harmonic vector diffusion `(L + P) x = P b`, eq. (2),
 //! projected on the tangent planes ([`crate::geometry::oriented_curve_field`]) -> texture
-//! synthesis driven by that field. The synthesis here is the Wei-Levoy system
-//! ([`super::wei_levoy::synthesize_with_field`]) with the field as texture "right" direction: the
-//! exemplar's x axis runs along the curves, so put the exemplar's principal line horizontal.
-//!
-//! Not implemented: the surface texture optimisation of §5.1 (Kwatra et al.) and the
-//! feature-to-feature constraint of §5.2 (eq. 3, 4: exemplar lines placed exactly on the curves).
+//! synthesis driven by that field: the Wei-Levoy system
+//! ([`super::wei_levoy::synthesize_with_field`]) with the field as texture "right" direction (the
+//! exemplar's x axis runs along the curves), then with [`Method::Optimize`] the surface texture
+//! optimisation of §5.1 (eq. 3; [`super::texture_optimization`]) and, with
+//! [`Params::align_features`], the feature-to-feature constraint of §5.2 (eq. 4): the exemplar's
+//! principal line (detected, or from a mask) is placed on the curves. An exemplar whose lines are
+//! vertical is turned a quarter turn first so that they run along the curves.
 
 use crate::error::{Error, Result};
 use crate::geometry::{
@@ -19,6 +20,7 @@ use crate::geometry::{
 use crate::mesh::TriMesh;
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
+use super::texture_optimization::{self as opt, ExemplarLines, Method};
 use super::wei_levoy::{self, Orientation, SynthParams, SynthResult};
 
 /// Parameters (paper defaults: α = 1e8; curve thresholds are the guide's proposals).
@@ -31,6 +33,12 @@ pub struct Params {
     pub field: FieldParams,
     /// The synthesis driven by the field (its `orientation` is ignored: the field is used).
     pub synth: SynthParams,
+    /// Neighbourhood synthesis only, or followed by the texture optimisation.
+    pub method: Method,
+    /// Place the exemplar's principal line on the salient curves (§5.2; implies the optimisation).
+    pub align_features: bool,
+    /// The texture optimisation's parameters.
+    pub optimization: opt::Params,
 }
 
 /// What the system works on.
@@ -44,6 +52,9 @@ pub struct Input<'a> {
     pub curves: Option<&'a [Curve]>,
     /// The exemplar's alpha, if it has transparent pixels (never synthesized).
     pub alpha: Option<&'a image::GrayImage>,
+    /// The exemplar's line features (white on black, the exemplar's size) for
+    /// [`Params::align_features`]; detected when `None`.
+    pub feature_mask: Option<&'a image::GrayImage>,
 }
 
 /// Seconds per stage.
@@ -55,6 +66,8 @@ pub struct Timings {
     pub field: f64,
     /// Synthesis.
     pub synthesis: f64,
+    /// Texture optimisation.
+    pub optimization: f64,
 }
 
 /// The system's output.
@@ -68,6 +81,12 @@ pub struct Output {
     pub synth: SynthResult,
     /// Stage timings.
     pub timings: Timings,
+    /// The texture optimisation's report, when it ran.
+    pub optimization: Option<opt::Report>,
+    /// The exemplar's principal lines (in the exemplar as used), with the constraint.
+    pub lines: Option<ExemplarLines>,
+    /// Whether the exemplar was turned a quarter turn (its lines were vertical).
+    pub exemplar_turned: bool,
 }
 
 /// The salient curves and the oriented field of a mesh (the first two stages of [`run`]).
@@ -117,14 +136,34 @@ pub fn run(
             "no salient curve on the target: lower the threshold or the crease angle".into(),
         ));
     }
+    let optimise = params.align_features || params.method == Method::Optimize;
+    if optimise && params.synth.displace {
+        return Err(Error::InvalidInput(
+            "the texture optimisation makes colours: it does not combine with displacement".into(),
+        ));
+    }
+    // The exemplar's principal lines, turned to run along x if they are vertical.
+    let (mut lines, mut turned) = (None, false);
+    let (mut ex_turned, mut alpha_turned) = (None, None);
+    if params.align_features {
+        let (l, t) = opt::find_principal_lines(input.exemplar, input.alpha, input.feature_mask)?;
+        lines = Some(l);
+        turned = t;
+        if t {
+            ex_turned = Some(image::imageops::rotate90(input.exemplar));
+            alpha_turned = input.alpha.map(image::imageops::rotate90);
+        }
+    }
+    let exemplar = ex_turned.as_ref().unwrap_or(input.exemplar);
+    let alpha = alpha_turned.as_ref().or(input.alpha);
     let sw = Stopwatch::start();
     let sp = SynthParams {
         orientation: Orientation::Features,
         ..params.synth.clone()
     };
-    let synth = wei_levoy::synthesize_with_alpha(
-        input.exemplar,
-        input.alpha,
+    let mut synth = wei_levoy::synthesize_with_alpha(
+        exemplar,
+        alpha,
         input.target,
         None,
         Some(&field.field),
@@ -133,10 +172,29 @@ pub fn run(
         cancel,
     )?;
     timings.synthesis = sw.secs();
+    let mut optimization = None;
+    if optimise {
+        let sw = Stopwatch::start();
+        let report = opt::optimize_result(
+            &mut synth,
+            input.target,
+            exemplar,
+            alpha,
+            lines.as_ref().map(|l| (&curves[..], l)),
+            &params.optimization,
+            sink,
+            cancel,
+        )?;
+        timings.optimization = sw.secs();
+        optimization = Some(report);
+    }
     Ok(Output {
         curves,
         field,
         synth,
         timings,
+        optimization,
+        lines,
+        exemplar_turned: turned,
     })
 }

@@ -349,7 +349,10 @@ pub fn fit_exemplar_to_budget(
 /// The exemplar with its transparent pixels (alpha < 1/2) filled by pull-push from the opaque
 /// ones, and its alpha as an image (grey in all channels) for the pyramid. Refuses an exemplar
 /// with no opaque pixel, or an alpha of another size.
-fn transparent_filled(exemplar: &image::RgbImage, alpha: &image::GrayImage) -> Result<(Img, Img)> {
+pub(crate) fn transparent_filled(
+    exemplar: &image::RgbImage,
+    alpha: &image::GrayImage,
+) -> Result<(Img, Img)> {
     if alpha.dimensions() != exemplar.dimensions() {
         return Err(Error::InvalidInput(format!(
             "the exemplar's alpha is {:?}, its colours {:?}",

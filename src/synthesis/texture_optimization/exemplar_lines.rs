@@ -1,0 +1,359 @@
+//! The exemplar's line features for the feature-to-feature constraint (Xu et al. 2009 §5.2):
+//! a line mask (detected as thin dark or bright valleys of lightness, as Wu & Yu 2004's
+//! curvilinear feature maps, or given by the user), thinned to the centre lines of its
+//! horizontal strokes (the principal lines: the field runs along the exemplar's x axis), and the
+//! exact Euclidean distance of every pixel to them (Felzenszwalb & Huttenlocher 2012).
+
+use crate::error::{Error, Result};
+
+/// Principal line features of an exemplar.
+#[derive(Clone, Debug)]
+pub struct ExemplarLines {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Centre-line pixels of the principal (horizontal) lines, row-major.
+    pub centre: Vec<bool>,
+    /// Per pixel, the distance in pixels to the nearest centre-line pixel.
+    pub distance: Vec<f32>,
+}
+
+/// Lightness in [0, 1] (Rec. 709 luma of the sRGB values).
+fn luma(p: &image::Rgb<u8>) -> f32 {
+    (0.2126 * p.0[0] as f32 + 0.7152 * p.0[1] as f32 + 0.0722 * p.0[2] as f32) / 255.0
+}
+
+/// Box mean of `v` (w × h, row-major) over a (2r+1)² window clamped at the borders.
+fn box_mean(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    let mut sat = vec![0.0f64; (w + 1) * (h + 1)];
+    for y in 0..h {
+        let mut row = 0.0f64;
+        for x in 0..w {
+            row += v[y * w + x] as f64;
+            sat[(y + 1) * (w + 1) + x + 1] = sat[y * (w + 1) + x + 1] + row;
+        }
+    }
+    let mut out = vec![0.0f32; w * h];
+    for y in 0..h {
+        let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
+        for x in 0..w {
+            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+            let s = sat[y1 * (w + 1) + x1] - sat[y0 * (w + 1) + x1] - sat[y1 * (w + 1) + x0]
+                + sat[y0 * (w + 1) + x0];
+            out[y * w + x] = (s / ((x1 - x0) * (y1 - y0)) as f64) as f32;
+        }
+    }
+    out
+}
+
+/// Detect thin line features: pixels darker (or brighter, whichever carries more contrast) than
+/// their neighbourhood's mean by more than half the 99th percentile of that contrast. Transparent
+/// pixels (alpha < 1/2) are never features.
+pub fn detect_line_mask(img: &image::RgbImage, alpha: Option<&image::GrayImage>) -> Vec<bool> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let l: Vec<f32> = img.pixels().map(luma).collect();
+    let r = (w.min(h) / 12).max(3);
+    let b = box_mean(&l, w, h, r);
+    let res: Vec<f32> = l.iter().zip(&b).map(|(a, m)| a - m).collect();
+    let opaque = |i: usize| alpha.is_none_or(|a| a.as_raw()[i] >= 128);
+    let mut mags: Vec<f32> = (0..w * h)
+        .filter(|&i| opaque(i))
+        .map(|i| res[i].abs())
+        .collect();
+    if mags.is_empty() {
+        return vec![false; w * h];
+    }
+    let k = ((mags.len() as f64 * 0.99) as usize).min(mags.len() - 1);
+    let (_, q, _) = mags.select_nth_unstable_by(k, f32::total_cmp);
+    let tau = (0.5 * *q).max(0.04);
+    let (mut dark, mut bright) = (0.0f64, 0.0f64);
+    for i in (0..w * h).filter(|&i| opaque(i)) {
+        if res[i] < -tau {
+            dark -= res[i] as f64;
+        } else if res[i] > tau {
+            bright += res[i] as f64;
+        }
+    }
+    let sign = if dark >= bright { -1.0 } else { 1.0 };
+    (0..w * h)
+        .map(|i| opaque(i) && sign * res[i] > tau)
+        .collect()
+}
+
+/// A user's feature mask: pixels lighter than mid-grey are features. Resized (nearest) to the
+/// exemplar's size when it differs.
+pub fn mask_from_image(mask: &image::GrayImage, width: u32, height: u32) -> Vec<bool> {
+    let m = if mask.dimensions() == (width, height) {
+        mask.clone()
+    } else {
+        image::imageops::resize(mask, width, height, image::imageops::FilterType::Nearest)
+    };
+    m.pixels().map(|p| p.0[0] >= 128).collect()
+}
+
+/// The centre lines of the mask's horizontal strokes: per column, the middle pixel of every run
+/// no thicker than a sixth of the height, kept where its 8-connected piece spans at least a
+/// quarter of the width (a line, not a blot).
+pub fn horizontal_centre_lines(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
+    let mut centre = vec![false; w * h];
+    let max_run = (h / 6).max(2);
+    for x in 0..w {
+        let mut y = 0;
+        while y < h {
+            if !mask[y * w + x] {
+                y += 1;
+                continue;
+            }
+            let y0 = y;
+            while y < h && mask[y * w + x] {
+                y += 1;
+            }
+            if y - y0 <= max_run {
+                centre[((y0 + y - 1) / 2) * w + x] = true;
+            }
+        }
+    }
+    // 8-connected pieces by flood fill; keep the wide ones.
+    let mut label = vec![u32::MAX; w * h];
+    let mut keep = vec![false; w * h];
+    let mut stack = Vec::new();
+    let mut piece = Vec::new();
+    for start in 0..w * h {
+        if !centre[start] || label[start] != u32::MAX {
+            continue;
+        }
+        label[start] = start as u32;
+        stack.push(start);
+        piece.clear();
+        let (mut xmin, mut xmax) = (usize::MAX, 0usize);
+        while let Some(i) = stack.pop() {
+            piece.push(i);
+            let (x, y) = (i % w, i / w);
+            xmin = xmin.min(x);
+            xmax = xmax.max(x);
+            for dy in -1i64..=1 {
+                for dx in -1i64..=1 {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                        continue;
+                    }
+                    let j = ny as usize * w + nx as usize;
+                    if centre[j] && label[j] == u32::MAX {
+                        label[j] = start as u32;
+                        stack.push(j);
+                    }
+                }
+            }
+        }
+        if xmax + 1 - xmin >= (w / 4).max(4) {
+            for &i in &piece {
+                keep[i] = true;
+            }
+        }
+    }
+    keep
+}
+
+/// Exact Euclidean distance (pixels) of every pixel to the nearest `true` pixel; `f32::INFINITY`
+/// everywhere when there is none.
+pub fn distance_transform(seeds: &[bool], w: usize, h: usize) -> Vec<f32> {
+    const BIG: f32 = 1e20;
+    let mut g: Vec<f32> = seeds.iter().map(|&s| if s { 0.0 } else { BIG }).collect();
+    let mut f = vec![0.0f32; w.max(h)];
+    let mut d = vec![0.0f32; w.max(h)];
+    let mut v = vec![0usize; w.max(h)];
+    let mut z = vec![0.0f32; w.max(h) + 1];
+    for x in 0..w {
+        for y in 0..h {
+            f[y] = g[y * w + x];
+        }
+        edt_1d(&f[..h], &mut d[..h], &mut v, &mut z);
+        for y in 0..h {
+            g[y * w + x] = d[y];
+        }
+    }
+    for y in 0..h {
+        f[..w].copy_from_slice(&g[y * w..(y + 1) * w]);
+        edt_1d(&f[..w], &mut d[..w], &mut v, &mut z);
+        g[y * w..(y + 1) * w].copy_from_slice(&d[..w]);
+    }
+    g.iter()
+        .map(|&s| {
+            if s >= BIG * 0.5 {
+                f32::INFINITY
+            } else {
+                s.sqrt()
+            }
+        })
+        .collect()
+}
+
+/// Squared-distance transform of a sampled function along one line (lower envelope of parabolas).
+fn edt_1d(f: &[f32], d: &mut [f32], v: &mut [usize], z: &mut [f32]) {
+    let n = f.len();
+    if n == 0 {
+        return;
+    }
+    let mut k = 0usize;
+    v[0] = 0;
+    z[0] = f32::NEG_INFINITY;
+    z[1] = f32::INFINITY;
+    for q in 1..n {
+        loop {
+            let p = v[k];
+            let s = ((f[q] + (q * q) as f32) - (f[p] + (p * p) as f32)) / (2.0 * (q - p) as f32);
+            if s <= z[k] && k > 0 {
+                k -= 1;
+                continue;
+            }
+            if s <= z[k] {
+                // k == 0 and the new parabola dominates from -inf
+                v[0] = q;
+                z[0] = f32::NEG_INFINITY;
+                z[1] = f32::INFINITY;
+            } else {
+                k += 1;
+                v[k] = q;
+                z[k] = s;
+                z[k + 1] = f32::INFINITY;
+            }
+            break;
+        }
+    }
+    k = 0;
+    for (q, dq) in d.iter_mut().enumerate().take(n) {
+        while z[k + 1] < q as f32 {
+            k += 1;
+        }
+        let p = v[k];
+        *dq = (q as f32 - p as f32).powi(2) + f[p];
+    }
+}
+
+/// The principal lines of an exemplar from a mask (detected or the user's).
+pub fn principal_lines(mask: &[bool], w: usize, h: usize) -> ExemplarLines {
+    let centre = horizontal_centre_lines(mask, w, h);
+    let distance = distance_transform(&centre, w, h);
+    ExemplarLines {
+        width: w,
+        height: h,
+        centre,
+        distance,
+    }
+}
+
+/// The exemplar's principal lines, and whether the exemplar must be turned a quarter turn so
+/// that they run along its x axis (the mask's strokes are vertical). Refuses an exemplar
+/// without a line feature in either direction, in one line.
+pub fn find_principal_lines(
+    img: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+    user_mask: Option<&image::GrayImage>,
+) -> Result<(ExemplarLines, bool)> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let mask = match user_mask {
+        Some(m) => mask_from_image(m, img.width(), img.height()),
+        None => detect_line_mask(img, alpha),
+    };
+    let lines = principal_lines(&mask, w, h);
+    let along: usize = lines.centre.iter().filter(|&&c| c).count();
+    // The same mask turned a quarter turn clockwise (as `image::imageops::rotate90`).
+    let mut turned = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            // rotate90: (x, y) -> (h - 1 - y, x) in a h-wide, w-high image
+            turned[x * h + (h - 1 - y)] = mask[y * w + x];
+        }
+    }
+    let across = principal_lines(&turned, h, w);
+    let n_across: usize = across.centre.iter().filter(|&&c| c).count();
+    if along == 0 && n_across == 0 {
+        return Err(Error::InvalidInput(format!(
+            "no line feature found in the {w}x{h} exemplar{}: give one with --feature-mask \
+             (white lines on black, the exemplar's size)",
+            if user_mask.is_some() { " mask" } else { "" }
+        )));
+    }
+    // Turn only when the vertical strokes clearly dominate.
+    if n_across > 2 * along {
+        Ok((across, true))
+    } else {
+        Ok((lines, false))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distance_transform_is_exact() {
+        let (w, h) = (23, 17);
+        let mut seeds = vec![false; w * h];
+        let pts = [(3usize, 4usize), (17, 12), (10, 0)];
+        for &(x, y) in &pts {
+            seeds[y * w + x] = true;
+        }
+        let d = distance_transform(&seeds, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                let truth = pts
+                    .iter()
+                    .map(|&(a, b)| {
+                        ((x as f32 - a as f32).powi(2) + (y as f32 - b as f32).powi(2)).sqrt()
+                    })
+                    .fold(f32::INFINITY, f32::min);
+                assert!(
+                    (d[y * w + x] - truth).abs() < 1e-4,
+                    "({x},{y}): {} vs {truth}",
+                    d[y * w + x]
+                );
+            }
+        }
+    }
+
+    /// A light exemplar with a dark 3-pixel horizontal band at rows 20..23 and a mild texture.
+    fn band_exemplar(vertical: bool) -> image::RgbImage {
+        let (w, h) = if vertical { (48, 64) } else { (64, 48) };
+        image::RgbImage::from_fn(w, h, |x, y| {
+            let (x, y) = if vertical { (y, x) } else { (x, y) };
+            let noise = ((x * 7 + y * 13) % 5) as u8 * 4;
+            if (20..23).contains(&y) {
+                image::Rgb([40 + noise, 30, 30])
+            } else {
+                image::Rgb([200 + noise, 190, 170])
+            }
+        })
+    }
+
+    #[test]
+    fn a_dark_band_is_found_at_its_centre_row() {
+        let img = band_exemplar(false);
+        let (lines, turned) = find_principal_lines(&img, None, None).unwrap();
+        assert!(!turned);
+        for x in 0..64 {
+            assert!(lines.centre[21 * 64 + x], "column {x}");
+            assert!(lines.distance[30 * 64 + x] == 9.0);
+        }
+        let n: usize = lines.centre.iter().filter(|&&c| c).count();
+        assert_eq!(n, 64, "one centre row only");
+    }
+
+    #[test]
+    fn a_vertical_band_asks_for_a_quarter_turn_and_a_plain_image_is_refused() {
+        let img = band_exemplar(true);
+        assert_eq!((img.width(), img.height()), (48, 64));
+        let (lines, turned) = find_principal_lines(&img, None, None).unwrap();
+        assert!(turned);
+        let turned_img = image::imageops::rotate90(&img);
+        let (again, t2) = find_principal_lines(&turned_img, None, None).unwrap();
+        assert!(!t2);
+        assert_eq!(lines.centre, again.centre);
+        let plain = image::RgbImage::from_pixel(32, 32, image::Rgb([120, 120, 120]));
+        let e = find_principal_lines(&plain, None, None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no line feature"), "{e}");
+    }
+}
