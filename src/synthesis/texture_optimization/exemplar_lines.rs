@@ -49,8 +49,12 @@ fn box_mean(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
 
 /// Detect thin line features: pixels darker (or brighter, whichever carries more contrast) than
 /// their neighbourhood's mean by more than half the 99th percentile of that contrast. Transparent
-/// pixels (alpha < 1/2) are never features.
-pub fn detect_line_mask(img: &image::RgbImage, alpha: Option<&image::GrayImage>) -> Vec<bool> {
+/// pixels (alpha < 1/2) are never features. Returns the mask and every pixel's contrast (its
+/// lightness difference to the neighbourhood mean, signed so that features are positive).
+pub fn detect_line_mask(
+    img: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+) -> (Vec<bool>, Vec<f32>) {
     let (w, h) = (img.width() as usize, img.height() as usize);
     let l: Vec<f32> = img.pixels().map(luma).collect();
     let r = (w.min(h) / 12).max(3);
@@ -62,7 +66,7 @@ pub fn detect_line_mask(img: &image::RgbImage, alpha: Option<&image::GrayImage>)
         .map(|i| res[i].abs())
         .collect();
     if mags.is_empty() {
-        return vec![false; w * h];
+        return (vec![false; w * h], vec![0.0; w * h]);
     }
     let k = ((mags.len() as f64 * 0.99) as usize).min(mags.len() - 1);
     let (_, q, _) = mags.select_nth_unstable_by(k, f32::total_cmp);
@@ -76,9 +80,10 @@ pub fn detect_line_mask(img: &image::RgbImage, alpha: Option<&image::GrayImage>)
         }
     }
     let sign = if dark >= bright { -1.0 } else { 1.0 };
-    (0..w * h)
+    let mask = (0..w * h)
         .map(|i| opaque(i) && sign * res[i] > tau)
-        .collect()
+        .collect();
+    (mask, res.iter().map(|r| sign * r).collect())
 }
 
 /// A user's feature mask: pixels lighter than mid-grey are features. Resized (nearest) to the
@@ -92,10 +97,21 @@ pub fn mask_from_image(mask: &image::GrayImage, width: u32, height: u32) -> Vec<
     m.pixels().map(|p| p.0[0] >= 128).collect()
 }
 
+/// Pieces whose mean contrast is below this fraction of the strongest piece's are secondary
+/// lines, not principal ones.
+const PRINCIPAL_CONTRAST: f32 = 0.7;
+
 /// The centre lines of the mask's horizontal strokes: per column, the middle pixel of every run
 /// no thicker than a sixth of the height, kept where its 8-connected piece spans at least a
-/// quarter of the width (a line, not a blot).
-pub fn horizontal_centre_lines(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
+/// quarter of the width (a line, not a blot). With `contrast` (per pixel, features positive), only
+/// the principal pieces are kept: those whose mean contrast along the centre line reaches
+/// [`PRINCIPAL_CONTRAST`] of the strongest piece's (a dark groove, not the faint grain beside it).
+pub fn horizontal_centre_lines(
+    mask: &[bool],
+    contrast: Option<&[f32]>,
+    w: usize,
+    h: usize,
+) -> Vec<bool> {
     let mut centre = vec![false; w * h];
     let max_run = (h / 6).max(2);
     for x in 0..w {
@@ -119,6 +135,8 @@ pub fn horizontal_centre_lines(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
     let mut keep = vec![false; w * h];
     let mut stack = Vec::new();
     let mut piece = Vec::new();
+    // (mean contrast, pixels) of every wide piece
+    let mut pieces: Vec<(f32, Vec<usize>)> = Vec::new();
     for start in 0..w * h {
         if !centre[start] || label[start] != u32::MAX {
             continue;
@@ -147,7 +165,16 @@ pub fn horizontal_centre_lines(mask: &[bool], w: usize, h: usize) -> Vec<bool> {
             }
         }
         if xmax + 1 - xmin >= (w / 4).max(4) {
-            for &i in &piece {
+            let c = contrast.map_or(1.0, |c| {
+                piece.iter().map(|&i| c[i]).sum::<f32>() / piece.len() as f32
+            });
+            pieces.push((c, piece.clone()));
+        }
+    }
+    let best = pieces.iter().map(|p| p.0).fold(f32::NEG_INFINITY, f32::max);
+    for (c, piece) in &pieces {
+        if *c >= PRINCIPAL_CONTRAST * best {
+            for &i in piece {
                 keep[i] = true;
             }
         }
@@ -232,8 +259,13 @@ fn edt_1d(f: &[f32], d: &mut [f32], v: &mut [usize], z: &mut [f32]) {
 }
 
 /// The principal lines of an exemplar from a mask (detected or the user's).
-pub fn principal_lines(mask: &[bool], w: usize, h: usize) -> ExemplarLines {
-    let centre = horizontal_centre_lines(mask, w, h);
+pub fn principal_lines(
+    mask: &[bool],
+    contrast: Option<&[f32]>,
+    w: usize,
+    h: usize,
+) -> ExemplarLines {
+    let centre = horizontal_centre_lines(mask, contrast, w, h);
     let distance = distance_transform(&centre, w, h);
     ExemplarLines {
         width: w,
@@ -252,21 +284,33 @@ pub fn find_principal_lines(
     user_mask: Option<&image::GrayImage>,
 ) -> Result<(ExemplarLines, bool)> {
     let (w, h) = (img.width() as usize, img.height() as usize);
-    let mask = match user_mask {
-        Some(m) => mask_from_image(m, img.width(), img.height()),
-        None => detect_line_mask(img, alpha),
+    let (mask, contrast) = match user_mask {
+        Some(m) => (mask_from_image(m, img.width(), img.height()), None),
+        None => {
+            let (m, c) = detect_line_mask(img, alpha);
+            (m, Some(c))
+        }
     };
-    let lines = principal_lines(&mask, w, h);
+    let lines = principal_lines(&mask, contrast.as_deref(), w, h);
     let along: usize = lines.centre.iter().filter(|&&c| c).count();
     // The same mask turned a quarter turn clockwise (as `image::imageops::rotate90`).
     let mut turned = vec![false; w * h];
+    let mut turned_contrast = vec![0.0f32; w * h];
     for y in 0..h {
         for x in 0..w {
             // rotate90: (x, y) -> (h - 1 - y, x) in a h-wide, w-high image
             turned[x * h + (h - 1 - y)] = mask[y * w + x];
+            if let Some(c) = &contrast {
+                turned_contrast[x * h + (h - 1 - y)] = c[y * w + x];
+            }
         }
     }
-    let across = principal_lines(&turned, h, w);
+    let across = principal_lines(
+        &turned,
+        contrast.as_ref().map(|_| turned_contrast.as_slice()),
+        h,
+        w,
+    );
     let n_across: usize = across.centre.iter().filter(|&&c| c).count();
     if along == 0 && n_across == 0 {
         return Err(Error::InvalidInput(format!(
@@ -355,5 +399,25 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("no line feature"), "{e}");
+    }
+
+    #[test]
+    fn the_dark_groove_is_principal_and_the_faint_grain_beside_it_is_not() {
+        let img = image::RgbImage::from_fn(96, 96, |x, y| {
+            let noise = ((x * 5 + y * 11) % 7) as u8 * 2;
+            let v = match y {
+                45..=50 => 40,
+                14 | 15 | 78 | 79 => 140,
+                _ => 205,
+            };
+            image::Rgb([v + noise, v, v])
+        });
+        let (lines, turned) = find_principal_lines(&img, None, None).unwrap();
+        assert!(!turned);
+        let rows: std::collections::BTreeSet<usize> = (0..96 * 96)
+            .filter(|&i| lines.centre[i])
+            .map(|i| i / 96)
+            .collect();
+        assert_eq!(rows.into_iter().collect::<Vec<_>>(), vec![47]);
     }
 }
