@@ -51,6 +51,8 @@ pub use exemplar_lines::{ExemplarLines, find_principal_lines};
 const CELLS: usize = 8;
 /// Patches verified on every cell after the PCA search.
 const VERIFY: usize = 4;
+/// Shifts (texels, each axis) tried around the best patch at full resolution.
+const REFINE: isize = 2;
 
 /// Parameters (Xu et al. 2009 §5 and the guide's proposals: `w = 16`, `r = 0.25`, robust
 /// `r = 0.8`, `ε₀ = 1e-6`, constraint tolerance 1 texel, at most 10 iterations, stop under 1%).
@@ -215,6 +217,13 @@ impl Exemplar {
             + t[y0 * s + x0].into()
     }
 
+    /// The pixel nearest continuous coordinates (centres at integers), clamped.
+    fn nearest(&self, x: f32, y: f32) -> [f32; 3] {
+        let xi = (x.round() as isize).clamp(0, self.w as isize - 1) as usize;
+        let yi = (y.round() as isize).clamp(0, self.h as isize - 1) as usize;
+        self.px[yi * self.w + xi]
+    }
+
     /// Bilinear lookup at continuous pixel coordinates (centres at integers), clamped.
     fn bilinear(&self, x: f32, y: f32) -> [f32; 3] {
         let (x0, y0) = (x.floor(), y.floor());
@@ -260,6 +269,8 @@ impl Exemplar {
 struct Index {
     /// Valid centres as pixel indices `cy * W + cx`.
     centres: Vec<u32>,
+    /// Per exemplar pixel, its index in `centres` (`u32::MAX`: not a valid centre).
+    slot: Vec<u32>,
     mean: Vec<f32>,
     /// `dim × k`, row-major by input dimension.
     basis: Vec<f32>,
@@ -368,8 +379,13 @@ impl Index {
                 bins
             }
         };
+        let mut slot = vec![u32::MAX; ex.w * ex.h];
+        for (i, &c) in centres.iter().enumerate() {
+            slot[c as usize] = i as u32;
+        }
         Ok(Index {
             centres,
+            slot,
             mean,
             basis,
             k,
@@ -740,7 +756,38 @@ pub fn optimize(
                                 best = (c, d);
                             }
                         }
-                        best
+                        if best.0 == u32::MAX {
+                            return best;
+                        }
+                        // Register at full resolution: the cells see the patch at w/8 texels,
+                        // so its phase is found among the shifts within a cell.
+                        let pix = index.centres[best.0 as usize] as usize;
+                        let (bx, by) = ((pix % ex.w) as isize, (pix / ex.w) as isize);
+                        let mut fine = (best.0, f32::INFINITY);
+                        for dy in -REFINE..=REFINE {
+                            for dx in -REFINE..=REFINE {
+                                let (x, y) = (bx + dx, by + dy);
+                                if x < 0 || y < 0 || x >= ex.w as isize || y >= ex.h as isize {
+                                    continue;
+                                }
+                                let q = y as usize * ex.w + x as usize;
+                                let c = index.slot[q];
+                                if c == u32::MAX {
+                                    continue;
+                                }
+                                if let Some(dt) = target_d[s]
+                                    && (lines.expect("lines").distance[q] - dt).abs()
+                                        >= params.feature_tolerance
+                                {
+                                    continue;
+                                }
+                                let d = full_rms(&reg, s, colors, &ex, x as f32, y as f32, fine.1);
+                                if d < fine.1 {
+                                    fine = (c, d);
+                                }
+                            }
+                        }
+                        if fine.1.is_finite() { fine } else { best }
                     },
                 )
                 .collect();
@@ -803,7 +850,24 @@ pub fn optimize(
                         }
                     }
                     if wsum > 0.0 {
-                        *col = acc.map(|a| (a / wsum) as f32);
+                        let mean = acc.map(|a| (a / wsum) as f32);
+                        // The prediction nearest the weighted mean (the vote's mode, as
+                        // Wexler et al. 2007): an exemplar colour, not a blend of misregistered
+                        // patches.
+                        let mut pick = (f32::INFINITY, mean);
+                        for &e in &reg.cover[reg.cover_start[v]..reg.cover_start[v + 1]] {
+                            let s = reg.owner[e as usize] as usize;
+                            if weight[s] <= 0.0 {
+                                continue;
+                            }
+                            let o = reg.offset[e as usize];
+                            let c = ex.nearest(centre_xy[s][0] + o[0], centre_xy[s][1] + o[1]);
+                            let d = (0..3).map(|k| (c[k] - mean[k]).powi(2)).sum::<f32>();
+                            if d < pick.0 {
+                                pick = (d, c);
+                            }
+                        }
+                        *col = pick.1;
                         *src = strongest.1;
                     }
                 });
@@ -873,6 +937,43 @@ fn patch_cells(
             };
         }
     }
+}
+
+/// RMS colour difference between sample `s`'s patch and the exemplar patch centred at
+/// `(cx, cy)`, every covered vertex against its nearest exemplar pixel; stops early (returning
+/// infinity) once the sum exceeds `bound`'s.
+fn full_rms(
+    reg: &Regions,
+    s: usize,
+    colors: &[[f32; 3]],
+    ex: &Exemplar,
+    cx: f32,
+    cy: f32,
+    bound: f32,
+) -> f32 {
+    let (lo, hi) = (reg.start[s], reg.start[s + 1]);
+    let m = (hi - lo).max(1) as f32 * 3.0;
+    let cap = if bound.is_finite() {
+        bound * bound * m
+    } else {
+        f32::INFINITY
+    };
+    let mut sum = 0.0f32;
+    for e in lo..hi {
+        let o = reg.offset[e];
+        let x = ((cx + o[0]).round() as isize).clamp(0, ex.w as isize - 1) as usize;
+        let y = ((cy + o[1]).round() as isize).clamp(0, ex.h as isize - 1) as usize;
+        let a = ex.px[y * ex.w + x];
+        let b = colors[reg.vertex[e] as usize];
+        for k in 0..3 {
+            let d = a[k] - b[k];
+            sum += d * d;
+        }
+        if sum > cap {
+            return f32::INFINITY;
+        }
+    }
+    (sum / m).sqrt()
 }
 
 /// RMS difference over the filled cells.
