@@ -16,7 +16,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 0)]
     pub cancel_probes: usize,
     /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
-    /// Spot -> horse at each size), quilt (chain mail on a plane and on the bunny), map (the
+    /// Spot -> horse at each size), features (feature-aligned texturing of a cube of each size,
+    /// curves, field, synthesis and optimisation at that many vertices), quilt (chain mail on a plane and on the bunny), map (the
     /// global shape map man -> woman at each size, and a transfer with structure 0 and auto) or
     /// synth (`synth` with its defaults, every shared texture on every shared mesh).
     #[arg(long, default_value = "meshmatch")]
