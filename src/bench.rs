@@ -555,62 +555,14 @@ pub fn structure_row(n: usize, structure: Option<f32>) -> Result<SystemRow> {
     })
 }
 
-/// A unit cube subdivided `n` times per edge (welded): twelve straight creases, eight corners.
-pub fn crease_cube(n: usize) -> TriMesh {
-    let n = n.max(1);
-    let mut index = std::collections::HashMap::new();
-    let mut positions: Vec<[f32; 3]> = Vec::new();
-    let mut faces = Vec::new();
-    // (axis of the normal, sign)
-    for (axis, sign) in [(0, 1.0f32), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)] {
-        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
-        let mut id = |i: usize, j: usize| -> u32 {
-            let mut p = [0.0f32; 3];
-            p[axis] = 0.5 * sign;
-            p[u] = i as f32 / n as f32 - 0.5;
-            p[v] = j as f32 / n as f32 - 0.5;
-            let key = p.map(|c| ((c + 0.5) * n as f32).round() as i64);
-            *index.entry(key).or_insert_with(|| {
-                positions.push(p);
-                (positions.len() - 1) as u32
-            })
-        };
-        for j in 0..n {
-            for i in 0..n {
-                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
-                if sign > 0.0 {
-                    faces.push([a, b, c]);
-                    faces.push([a, c, d]);
-                } else {
-                    faces.push([a, c, b]);
-                    faces.push([a, d, c]);
-                }
-            }
-        }
-    }
-    TriMesh::new(positions, faces)
-}
-
-/// A 64-pixel line exemplar: light grain with a dark 4-pixel groove across its middle.
-pub fn line_exemplar() -> image::RgbImage {
-    image::RgbImage::from_fn(64, 64, |x, y| {
-        let grain = ((x.wrapping_mul(7919) ^ y.wrapping_mul(104_729)) % 17) as u8;
-        match y {
-            30..=33 => image::Rgb([50 + grain, 34, 26]),
-            10 | 52 => image::Rgb([150 + grain, 120, 90]),
-            _ => image::Rgb([205 + grain, 190, 160]),
-        }
-    })
-}
-
 /// Feature-aligned texturing (Xu et al. 2009) of a subdivided cube of about `n` vertices with
-/// [`line_exemplar`]: salient curves, oriented field, field-driven synthesis of about `n`
+/// [`crate::demo::line_exemplar`]: salient curves, oriented field, field-driven synthesis of about `n`
 /// vertices and the texture optimisation with the feature-to-feature constraint.
 pub fn features_row(n: usize) -> Result<SystemRow> {
     use crate::synthesis::feature_aligned;
     let k = ((n as f64 / 6.0).sqrt().round() as usize).max(2);
-    let target = crease_cube(k);
-    let exemplar = line_exemplar();
+    let target = crate::demo::crease_cube(k);
+    let exemplar = crate::demo::line_exemplar();
     // about 4.5 area / h^2 synthesized vertices: h for n of them on the cube's area 6
     let h = (4.5 * 6.0 / n as f64).sqrt() as f32;
     let params = feature_aligned::Params {

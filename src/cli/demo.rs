@@ -43,6 +43,21 @@ fn demo(out: &Path) -> Result<i32> {
             mesh.num_faces()
         );
     }
+    // Feature-aligned texturing: a block with straight and circular crests and a line exemplar.
+    let block = crate::demo::crest_block(48);
+    let path = out.join("block.obj");
+    io::save(&block, &path)?;
+    println!(
+        "{} ({} vertices, {} faces)",
+        path.display(),
+        block.num_vertices(),
+        block.num_faces()
+    );
+    let path = out.join("line.png");
+    crate::demo::line_exemplar()
+        .save(&path)
+        .map_err(|e| Error::InvalidInput(format!("{}: {e}", path.display())))?;
+    println!("{}", path.display());
     // The default correspondences the app starts with, for `meshmatch transfer --correspondences`.
     let zebra_marks = crate::demo::landmarks_zebra();
     for (name, mesh, marks) in [
