@@ -27,6 +27,10 @@ pub struct FeatureAlignedDialog {
     pub pixels: u32,
     /// Random seed.
     pub seed: u64,
+    /// Follow the neighbourhood synthesis with the texture optimisation (whole patches).
+    pub optimize: bool,
+    /// Put the image's principal line exactly on the curves (implies the optimisation).
+    pub align_features: bool,
 }
 
 impl Default for FeatureAlignedDialog {
@@ -37,6 +41,8 @@ impl Default for FeatureAlignedDialog {
             scale: 0.2,
             pixels: 64,
             seed: 0,
+            optimize: false,
+            align_features: true,
         }
     }
 }
@@ -78,6 +84,23 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
             .on_hover_text("The image's width on the surface, as a fraction of the diagonal");
         ui.add(egui::Slider::new(&mut self.pixels, 16..=256).text("exemplar pixels"))
             .on_hover_text("The image is shrunk to this width first: it sets the vertex count");
+        ui.checkbox(
+            &mut self.align_features,
+            "Put the image's line on the curves",
+        )
+        .on_hover_text(
+            "The image's strongest thin horizontal stroke (a groove, a seam) is laid exactly \
+                 on every crest, crease and rim (texture optimisation with the feature-to-feature \
+                 constraint); an image whose strokes are vertical is turned",
+        );
+        ui.add_enabled(
+            !self.align_features,
+            egui::Checkbox::new(
+                &mut self.optimize,
+                "Optimise whole patches (keeps structure, slower)",
+            ),
+        )
+        .on_hover_text("Texture optimisation after the synthesis, without the line constraint");
         ui.add(egui::DragValue::new(&mut self.seed).prefix("seed "));
         let ready = self.image.is_some() && state.slot(Side::Target).is_some();
         ui.horizontal(|ui| {
@@ -108,6 +131,11 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
         let mut params = Params::default();
         params.synth.scale = Some(self.scale * diag);
         params.synth.seed = self.seed;
+        params.align_features = self.align_features;
+        params.optimization.seed = self.seed;
+        if self.align_features || self.optimize {
+            params.method = crate::synthesis::texture_optimization::Method::Optimize;
+        }
         let pixels = self.pixels;
         let n = mesh.num_vertices();
         let mut job = ToolJob::spawn("feature-aligned texture", wake, move |sink, cancel| {
