@@ -284,6 +284,13 @@ fn synth(a: &SynthArgs) -> Result<i32> {
                     "the exemplar's lines are vertical: turned it a quarter turn to run along the curves"
                 );
             }
+            if out.exemplar_rolled > 0 {
+                eprintln!(
+                    "the exemplar's line lies on its border: rolled it down {} rows (wrapping) so \
+                     whole patches centre on it",
+                    out.exemplar_rolled
+                );
+            }
             if let Some(l) = &out.lines {
                 eprintln!(
                     "the exemplar's principal lines: {} centre-line pixels",

@@ -87,6 +87,9 @@ pub struct Output {
     pub lines: Option<ExemplarLines>,
     /// Whether the exemplar was turned a quarter turn (its lines were vertical).
     pub exemplar_turned: bool,
+    /// Rows the exemplar (as turned) was rolled down by, wrapping, to bring its principal lines
+    /// away from its top and bottom borders (0: not rolled).
+    pub exemplar_rolled: usize,
 }
 
 /// The salient curves and the oriented field of a mesh (the first two stages of [`run`]).
@@ -142,20 +145,56 @@ pub fn run(
             "the texture optimisation makes colours: it does not combine with displacement".into(),
         ));
     }
-    // The exemplar's principal lines, turned to run along x if they are vertical.
+    // The exemplar's principal lines, turned to run along x if they are vertical, and rolled
+    // away from the top and bottom borders so that whole patches can be centred on them.
     let (mut lines, mut turned) = (None, false);
-    let (mut ex_turned, mut alpha_turned) = (None, None);
+    let (mut ex_own, mut alpha_own) = (None, None);
+    let mut rolled = 0usize;
     if params.align_features {
         let (l, t) = opt::find_principal_lines(input.exemplar, input.alpha, input.feature_mask)?;
-        lines = Some(l);
         turned = t;
-        if t {
-            ex_turned = Some(image::imageops::rotate90(input.exemplar));
-            alpha_turned = input.alpha.map(image::imageops::rotate90);
+        let turn = |i: &image::RgbImage| image::imageops::rotate90(i);
+        let turn_g = |i: &image::GrayImage| image::imageops::rotate90(i);
+        let (ex_t, alpha_t, mask_t) = if t {
+            (
+                Some(turn(input.exemplar)),
+                input.alpha.map(turn_g),
+                input.feature_mask.map(turn_g),
+            )
+        } else {
+            (None, None, None)
+        };
+        let ex_ref = ex_t.as_ref().unwrap_or(input.exemplar);
+        let alpha_ref = alpha_t.as_ref().or(input.alpha);
+        let mask_ref = mask_t.as_ref().or(input.feature_mask);
+        let margin = params.optimization.patch.max(8);
+        match opt::exemplar_lines::border_roll(&l, margin) {
+            Some(dy) => {
+                let ex_r = opt::exemplar_lines::roll_rows(ex_ref, dy);
+                let alpha_r = alpha_ref.map(|a| opt::exemplar_lines::roll_rows(a, dy));
+                let mask_r = mask_ref.map(|m| opt::exemplar_lines::roll_rows(m, dy));
+                let (l2, t2) = opt::find_principal_lines(&ex_r, alpha_r.as_ref(), mask_r.as_ref())?;
+                if t2 {
+                    // the roll changed the reading: keep the unrolled lines
+                    lines = Some(l);
+                    ex_own = ex_t;
+                    alpha_own = alpha_t;
+                } else {
+                    rolled = dy;
+                    lines = Some(l2);
+                    ex_own = Some(ex_r);
+                    alpha_own = alpha_r;
+                }
+            }
+            None => {
+                lines = Some(l);
+                ex_own = ex_t;
+                alpha_own = alpha_t;
+            }
         }
     }
-    let exemplar = ex_turned.as_ref().unwrap_or(input.exemplar);
-    let alpha = alpha_turned.as_ref().or(input.alpha);
+    let exemplar = ex_own.as_ref().unwrap_or(input.exemplar);
+    let alpha = alpha_own.as_ref().or(input.alpha);
     let sw = Stopwatch::start();
     let sp = SynthParams {
         orientation: Orientation::Features,
@@ -196,5 +235,6 @@ pub fn run(
         optimization,
         lines,
         exemplar_turned: turned,
+        exemplar_rolled: rolled,
     })
 }

@@ -327,6 +327,50 @@ pub fn find_principal_lines(
     }
 }
 
+/// The roll (rows down, wrapping) that brings the principal lines at least `margin` rows away
+/// from the top and bottom borders, putting the image's new border in the middle of the widest
+/// band free of lines; `None` when they are already clear of the borders (or cannot be).
+/// A line on the border of a tileable exemplar (a tile's grout) otherwise has no whole patch
+/// centred on it.
+pub fn border_roll(lines: &ExemplarLines, margin: usize) -> Option<usize> {
+    let (w, h) = (lines.width, lines.height);
+    let rows: Vec<usize> = (0..h)
+        .filter(|&y| lines.centre[y * w..(y + 1) * w].iter().any(|&c| c))
+        .collect();
+    if rows.is_empty() || h < 2 * margin + 1 {
+        return None;
+    }
+    if rows.iter().all(|&y| y >= margin && y + margin < h) {
+        return None;
+    }
+    // widest circular gap between consecutive line rows
+    let mut best = (0usize, rows[0]);
+    for (i, &y) in rows.iter().enumerate() {
+        let next = if i + 1 < rows.len() {
+            rows[i + 1]
+        } else {
+            rows[0] + h
+        };
+        if next - y > best.0 {
+            best = (next - y, y);
+        }
+    }
+    let cut = (best.1 + best.0 / 2) % h;
+    let dy = (h - cut) % h;
+    (dy != 0).then_some(dy)
+}
+
+/// The image rolled down by `dy` rows, wrapping (row `y` moves to `(y + dy) % h`).
+pub fn roll_rows<P: image::Pixel>(
+    img: &image::ImageBuffer<P, Vec<P::Subpixel>>,
+    dy: usize,
+) -> image::ImageBuffer<P, Vec<P::Subpixel>> {
+    let h = img.height() as usize;
+    image::ImageBuffer::from_fn(img.width(), img.height(), |x, y| {
+        *img.get_pixel(x, ((y as usize + h - dy % h) % h) as u32)
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -419,5 +463,27 @@ mod tests {
             .map(|i| i / 96)
             .collect();
         assert_eq!(rows.into_iter().collect::<Vec<_>>(), vec![47]);
+    }
+
+    #[test]
+    fn a_line_on_the_border_is_rolled_to_the_middle() {
+        // a tile whose dark grout runs along the top and bottom rows
+        let img = image::RgbImage::from_fn(64, 64, |x, y| {
+            let noise = ((x * 5 + y * 11) % 7) as u8 * 2;
+            let v = if !(2..=61).contains(&y) { 40 } else { 205 };
+            image::Rgb([v + noise, v, v])
+        });
+        let (lines, _) = find_principal_lines(&img, None, None).unwrap();
+        let dy = border_roll(&lines, 16).expect("the grout is on the border");
+        let rolled = roll_rows(&img, dy);
+        let (again, _) = find_principal_lines(&rolled, None, None).unwrap();
+        assert_eq!(border_roll(&again, 16), None);
+        let rows: Vec<usize> = (0..64)
+            .filter(|&y| again.centre[y * 64..(y + 1) * 64].iter().any(|&c| c))
+            .collect();
+        assert!(rows.iter().all(|&y| (24..40).contains(&y)), "{rows:?}");
+        // a line already in the middle is left alone
+        let (mid, _) = find_principal_lines(&band_exemplar(false), None, None).unwrap();
+        assert_eq!(border_roll(&mid, 16), None);
     }
 }
