@@ -932,3 +932,55 @@ fn word_flags_are_checked_before_work() {
     );
     assert!(!d.join("f.ply").exists() && !d.join("q.ply").exists());
 }
+
+#[test]
+fn texture_optimisation_flags_are_checked_in_one_line() {
+    let d = scene("optimise");
+    exemplar_png(&d, 32);
+    grid_ply(&d.join("flat.ply"), 10, false, |i, j| {
+        format!("{} {} 0", i as f32 / 9.0, j as f32 / 9.0)
+    });
+    meshmatch::mesh::io::save(&meshmatch::demo::crest_block(6), &d.join("block.obj")).unwrap();
+    meshmatch::demo::line_exemplar()
+        .save(d.join("line.png"))
+        .unwrap();
+    image::RgbImage::from_pixel(32, 32, image::Rgb([128, 128, 128]))
+        .save(d.join("plain.png"))
+        .unwrap();
+    let synth = |extra: &[&'static str], target: &'static str, ex: &'static str| {
+        let mut a = vec![
+            "synth",
+            "--target",
+            target,
+            "--exemplar",
+            ex,
+            "--out",
+            "o.ply",
+        ];
+        a.extend_from_slice(extra);
+        a
+    };
+    for (extra, mention) in [
+        (&["--method", "bogus"][..], "--method"),
+        (
+            &["--align-features", "--orientation", "random"][..],
+            "--orientation features",
+        ),
+        (&["--feature-mask", "plain.png"][..], "--align-features"),
+        (&["--method", "optimize", "--displace"][..], "--displace"),
+    ] {
+        refused(&d, &synth(extra, "block.obj", "line.png"), mention);
+    }
+    // an exemplar without any line, a target without any curve
+    refused(
+        &d,
+        &synth(&["--align-features"], "block.obj", "plain.png"),
+        "no line feature",
+    );
+    refused(
+        &d,
+        &synth(&["--align-features"], "flat.ply", "line.png"),
+        "no salient curve",
+    );
+    assert!(!d.join("o.ply").exists());
+}
