@@ -1870,25 +1870,9 @@ fn grid_cube(n: i32) -> TriMesh {
     TriMesh::new(pos, faces)
 }
 
-#[test]
-fn feature_aligned_tool_textures_a_cube_along_its_creases_and_one_undo_restores() {
-    use meshmatch::app::feature_aligned::FeatureAlignedDialog;
-    // Horizontal stripes: the exemplar's x axis (its lines) should follow the cube's edges.
-    let dir = temp_dir("feature_aligned_tool");
-    let image = dir.join("stripes.png");
-    image::RgbImage::from_fn(64, 64, |_, y| {
-        if (y / 8) % 2 == 0 {
-            image::Rgb([20, 20, 20])
-        } else {
-            image::Rgb([230, 230, 230])
-        }
-    })
-    .save(&image)
-    .unwrap();
-    let mut app = App::new(TestEngine::default(), None);
-    app.state.set_mesh(Side::Source, sphere(12, 16), false);
-    app.state.set_mesh(Side::Target, grid_cube(16), false);
-    let mut h = harness(app);
+/// Wait until the target is prepared and any transfer the meshes started has finished (its
+/// result would change the target's colours underneath a tool and its undo).
+fn settle_target(h: &mut Harness<'static, App>) {
     let t0 = Instant::now();
     while h
         .state()
@@ -1923,6 +1907,108 @@ fn feature_aligned_tool_textures_a_cube_along_its_creases_and_one_undo_restores(
         );
         std::thread::sleep(Duration::from_millis(10));
     }
+}
+
+#[test]
+fn feature_aligned_tool_shows_the_found_curves_and_uses_only_the_kept_ones() {
+    use meshmatch::app::feature_aligned::FeatureAlignedDialog;
+    let dir = temp_dir("feature_aligned_curves");
+    let image = dir.join("line.png");
+    meshmatch::demo::line_exemplar().save(&image).unwrap();
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state
+        .set_mesh(Side::Target, meshmatch::demo::crest_block(10), false);
+    let mut h = harness(app);
+    settle_target(&mut h);
+    let i = system_index::<FeatureAlignedDialog>(&mut h);
+    {
+        let d = h.state_mut().system_mut::<FeatureAlignedDialog>().unwrap();
+        d.open = true;
+        d.image = Some(image);
+        d.scale = 0.3;
+        d.pixels = 32;
+    }
+    h.run_steps(2);
+    h.get_by_label("Find curves").click();
+    h.run_steps(3);
+    let found = {
+        let d = h.state_mut().system_mut::<FeatureAlignedDialog>().unwrap();
+        d.found.clone().expect("curves found")
+    };
+    // a cube's 12 creases and a cylinder's two rims
+    assert_eq!(found.curves.len(), 14, "{:?}", h.state().state.errors);
+    assert!(h.state().state.overlay.is_some(), "the curves are drawn");
+    // orange strokes in the target view
+    let img = h.render().expect("render");
+    let orange = img
+        .pixels()
+        .filter(|p| p[0] > 220 && p[1] > 110 && p[1] < 190 && p[2] < 80)
+        .count();
+    if let Ok(dir) = std::env::var("MESHMATCH_SHOT_DIR") {
+        img.save(std::path::Path::new(&dir).join("feature_aligned_curves.png"))
+            .unwrap();
+    }
+    assert!(orange > 200, "{orange} orange pixels");
+    // keep only the longest curve and run: the message names one curve
+    {
+        let d = h.state_mut().system_mut::<FeatureAlignedDialog>().unwrap();
+        let f = d.found.as_mut().unwrap();
+        for k in f.kept.iter_mut().skip(1) {
+            *k = false;
+        }
+    }
+    h.state_mut().start_system(i);
+    assert!(h.state().tool.is_some(), "{:?}", h.state().state.errors);
+    wait_tool(&mut h, Duration::from_secs(120));
+    let st = &h.state().state;
+    assert!(st.errors.is_empty(), "{:?}", st.errors);
+    assert!(
+        st.message.contains("along 1 salient curves"),
+        "{}",
+        st.message
+    );
+    // dropping every curve is refused in one line
+    {
+        let d = h.state_mut().system_mut::<FeatureAlignedDialog>().unwrap();
+        d.found
+            .as_mut()
+            .unwrap()
+            .kept
+            .iter_mut()
+            .for_each(|k| *k = false);
+    }
+    h.state_mut().start_system(i);
+    assert!(h.state().tool.is_none());
+    let errors = &h.state().state.errors;
+    assert!(
+        errors
+            .last()
+            .is_some_and(|e| e.contains("every curve is dropped")),
+        "{errors:?}"
+    );
+}
+
+#[test]
+fn feature_aligned_tool_textures_a_cube_along_its_creases_and_one_undo_restores() {
+    use meshmatch::app::feature_aligned::FeatureAlignedDialog;
+    // Horizontal stripes: the exemplar's x axis (its lines) should follow the cube's edges.
+    let dir = temp_dir("feature_aligned_tool");
+    let image = dir.join("stripes.png");
+    image::RgbImage::from_fn(64, 64, |_, y| {
+        if (y / 8) % 2 == 0 {
+            image::Rgb([20, 20, 20])
+        } else {
+            image::Rgb([230, 230, 230])
+        }
+    })
+    .save(&image)
+    .unwrap();
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.set_mesh(Side::Target, grid_cube(16), false);
+    let mut h = harness(app);
+    settle_target(&mut h);
     h.run_steps(2);
     let before = h.state().state.slot(Side::Target).unwrap().display_colors();
     let i = system_index::<FeatureAlignedDialog>(&mut h);

@@ -4,14 +4,16 @@
 
 use std::any::Any;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use eframe::egui;
 
-use super::state::{AppParams, AppState};
+use super::state::{AppParams, AppState, CurveOverlay};
 use super::systems::{FilePrompt, SystemTool, ToolAction, Wake};
 use super::tools::{ToolJob, ToolOutcome, image_chooser, load_exemplar};
 use crate::correspondence::Side;
 use crate::error::{Error, Result};
+use crate::geometry::{Curve, CurveKind, CurveParams, salient_curves};
 use crate::synthesis::feature_aligned::{self, Params};
 
 /// The "Feature-aligned texture" window.
@@ -31,6 +33,75 @@ pub struct FeatureAlignedDialog {
     pub optimize: bool,
     /// Put the image's principal line exactly on the curves (implies the optimisation).
     pub align_features: bool,
+    /// The target's salient curves found with "Find curves", each kept or dropped by the user.
+    pub found: Option<FoundCurves>,
+    /// Draw the found curves over the target view.
+    pub show_curves: bool,
+    /// Why the last "Find curves" found nothing.
+    pub find_error: Option<String>,
+}
+
+/// Salient curves found on the target, with the user's choice of which to use.
+#[derive(Clone, Debug)]
+pub struct FoundCurves {
+    /// The curves, longest first.
+    pub curves: Vec<Curve>,
+    /// Per curve, whether the synthesis uses it.
+    pub kept: Vec<bool>,
+    /// The target's vertex count when they were found (a different mesh makes them stale).
+    pub vertices: usize,
+    overlay: Arc<CurveOverlay>,
+}
+
+impl FoundCurves {
+    fn new(mut curves: Vec<Curve>, vertices: usize) -> FoundCurves {
+        curves.sort_by(|a, b| length(b).total_cmp(&length(a)));
+        let kept = vec![true; curves.len()];
+        let mut f = FoundCurves {
+            curves,
+            kept,
+            vertices,
+            overlay: Arc::default(),
+        };
+        f.refresh();
+        f
+    }
+
+    /// Rebuild the overlay after a keep/drop change.
+    fn refresh(&mut self) {
+        self.overlay = Arc::new(CurveOverlay {
+            side: Some(Side::Target),
+            lines: self
+                .curves
+                .iter()
+                .map(|c| (c.points.clone(), c.closed))
+                .collect(),
+            kept: self.kept.clone(),
+        });
+    }
+
+    /// The kept curves.
+    pub fn kept_curves(&self) -> Vec<Curve> {
+        self.curves
+            .iter()
+            .zip(&self.kept)
+            .filter(|(_, k)| **k)
+            .map(|(c, _)| c.clone())
+            .collect()
+    }
+}
+
+/// Polyline length of a curve (closing segment included).
+fn length(c: &Curve) -> f32 {
+    let p = &c.points;
+    let mut l: f32 = p
+        .windows(2)
+        .map(|w| glam::Vec3::from(w[0]).distance(glam::Vec3::from(w[1])))
+        .sum();
+    if c.closed && p.len() > 2 {
+        l += glam::Vec3::from(p[0]).distance(glam::Vec3::from(p[p.len() - 1]));
+    }
+    l
 }
 
 impl Default for FeatureAlignedDialog {
@@ -43,6 +114,35 @@ impl Default for FeatureAlignedDialog {
             seed: 0,
             optimize: false,
             align_features: true,
+            found: None,
+            show_curves: true,
+            find_error: None,
+        }
+    }
+}
+
+impl FeatureAlignedDialog {
+    /// Find the target's salient curves (on the UI thread: a fraction of a second at 100K
+    /// vertices), all kept.
+    pub fn find_curves<P: AppParams>(&mut self, state: &AppState<P>) {
+        self.find_error = None;
+        let Some(mesh) = state.painted_mesh(Side::Target) else {
+            self.find_error = Some("open a target mesh first".into());
+            return;
+        };
+        match salient_curves(&mesh.positions, &mesh.faces, &CurveParams::default()) {
+            Ok(c) if c.is_empty() => {
+                self.found = None;
+                self.find_error = Some("no salient curve on the target".into());
+            }
+            Ok(c) => {
+                self.found = Some(FoundCurves::new(c, mesh.num_vertices()));
+                self.show_curves = true;
+            }
+            Err(e) => {
+                self.found = None;
+                self.find_error = Some(e.to_string());
+            }
         }
     }
 }
@@ -73,6 +173,17 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
     }
     fn ui(&mut self, ui: &mut egui::Ui, state: &AppState<P>, busy: bool) -> ToolAction {
         let mut action = ToolAction::None;
+        // Curves found on another target are stale.
+        let target_vertices = state
+            .slot(Side::Target)
+            .map(|s| s.displayed().num_vertices());
+        if self
+            .found
+            .as_ref()
+            .is_some_and(|f| Some(f.vertices) != target_vertices)
+        {
+            self.found = None;
+        }
         if image_chooser(
             ui,
             self.image.as_deref(),
@@ -102,6 +213,58 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
         )
         .on_hover_text("Texture optimisation after the synthesis, without the line constraint");
         ui.add(egui::DragValue::new(&mut self.seed).prefix("seed "));
+        ui.separator();
+        ui.horizontal(|ui| {
+            if ui
+                .add_enabled(
+                    state.slot(Side::Target).is_some(),
+                    egui::Button::new("Find curves"),
+                )
+                .on_hover_text(
+                    "Find the target's crests, creases and rims now, to see them and choose which \
+                     ones the texture follows (without this, Run finds and uses them all)",
+                )
+                .clicked()
+            {
+                self.find_curves(state);
+            }
+            if self.found.is_some() {
+                ui.checkbox(&mut self.show_curves, "Show on the target");
+            }
+        });
+        if let Some(e) = &self.find_error {
+            ui.colored_label(egui::Color32::from_rgb(230, 120, 90), e);
+        }
+        if let Some(f) = &mut self.found {
+            let kept = f.kept.iter().filter(|k| **k).count();
+            ui.label(format!(
+                "{} salient curves, {kept} kept (orange; dropped ones grey)",
+                f.curves.len()
+            ));
+            let mut changed = false;
+            egui::ScrollArea::vertical()
+                .max_height(140.0)
+                .show(ui, |ui| {
+                    for (i, c) in f.curves.iter().enumerate() {
+                        let kind = match c.kind {
+                            CurveKind::Ridge => "ridge",
+                            CurveKind::Ravine => "ravine",
+                            CurveKind::Crease => "crease",
+                        };
+                        let text = format!(
+                            "{:>2}. {kind}{}, length {:.3}",
+                            i + 1,
+                            if c.closed { " (closed)" } else { "" },
+                            length(c)
+                        );
+                        changed |= ui.checkbox(&mut f.kept[i], text).changed();
+                    }
+                });
+            if changed {
+                f.refresh();
+            }
+        }
+        ui.separator();
         let ready = self.image.is_some() && state.slot(Side::Target).is_some();
         ui.horizontal(|ui| {
             if ui
@@ -116,6 +279,12 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
             }
         });
         action
+    }
+    fn overlay(&self) -> Option<Arc<CurveOverlay>> {
+        self.found
+            .as_ref()
+            .filter(|_| self.show_curves)
+            .map(|f| f.overlay.clone())
     }
     fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob> {
         let path = self.image.clone().ok_or_else(|| {
@@ -138,12 +307,26 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
         }
         let pixels = self.pixels;
         let n = mesh.num_vertices();
+        // The user's choice of curves, when they were found on this target.
+        let chosen: Option<Vec<Curve>> = match &self.found {
+            Some(f) if f.vertices == n => {
+                let kept = f.kept_curves();
+                if kept.is_empty() {
+                    return Err(Error::InvalidInput(
+                        "every curve is dropped: keep at least one, or find the curves again"
+                            .into(),
+                    ));
+                }
+                Some(kept)
+            }
+            _ => None,
+        };
         let mut job = ToolJob::spawn("feature-aligned texture", wake, move |sink, cancel| {
             let (img, alpha) = load_exemplar(&path, pixels)?;
             let input = feature_aligned::Input {
                 target: &mesh,
                 exemplar: &img,
-                curves: None,
+                curves: chosen.as_deref(),
                 alpha: alpha.as_ref(),
                 feature_mask: None,
             };

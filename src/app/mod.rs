@@ -1010,6 +1010,11 @@ where
         egui::Panel::right("side")
             .default_size(300.0)
             .show(ui, |ui| self.side_panel(ui));
+        self.state.overlay = self
+            .systems
+            .iter()
+            .filter(|t| t.is_open())
+            .find_map(|t| t.overlay());
         let dropped = egui::CentralPanel::no_frame()
             .show(ui, |ui| self.views.show(ui, rs, &mut self.state))
             .inner;

@@ -48,6 +48,10 @@ pub trait SystemTool<P: AppParams>: Any {
     fn ui(&mut self, ui: &mut egui::Ui, state: &AppState<P>, busy: bool) -> ToolAction;
     /// Start the job on its own thread with the current settings.
     fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob>;
+    /// Polylines to draw over a view while the window is open.
+    fn overlay(&self) -> Option<std::sync::Arc<super::state::CurveOverlay>> {
+        None
+    }
     /// For callers that know the concrete tool (tests, scripts).
     fn as_any_mut(&mut self) -> &mut dyn Any;
 }

@@ -286,6 +286,7 @@ impl Views {
                 Color32::from_gray(230),
             );
             self.handle_input(ui, &resp, rect, side, state);
+            self.draw_overlay(&painter, rect, side, state);
             self.draw_marker_labels(&painter, rect, side, state, tex.is_some());
             if self.tool == Tool::Paint
                 && let Some(p) = resp.hover_pos()
@@ -609,6 +610,64 @@ impl Views {
                 state.select(Some(sel));
             } else if let Some(hit) = self.pick_at(state, side, rect, pos) {
                 state.click_vertex(side, hit.nearest_vertex, mods.shift);
+            }
+        }
+    }
+
+    /// The open tool's polylines over this view: kept ones orange, dropped ones grey, both
+    /// faint where the mesh hides them.
+    fn draw_overlay<P: AppParams>(
+        &self,
+        painter: &egui::Painter,
+        rect: Rect,
+        side: Side,
+        state: &AppState<P>,
+    ) {
+        let Some(o) = &state.overlay else {
+            return;
+        };
+        if o.side != Some(side) {
+            return;
+        }
+        let Some(frame) = self.frame_of(state, side) else {
+            return;
+        };
+        let size = GVec2::new(rect.width(), rect.height());
+        let cam = &self.cameras[side_index(side)];
+        let (eye, _) = cam.eye_target(&frame);
+        let bvh = self.gpu[side_index(side)].bvh.as_ref();
+        let seen = |p: glam::Vec3| {
+            bvh.is_none_or(|b| {
+                let d = p - eye;
+                b.ray_hit(eye.to_array(), d.to_array())
+                    .is_none_or(|(_, _, t)| t >= 0.995)
+            })
+        };
+        for (k, (points, closed)) in o.lines.iter().enumerate() {
+            let kept = o.kept.get(k).copied().unwrap_or(true);
+            let n = points.len();
+            let segs = if *closed { n } else { n.saturating_sub(1) };
+            let screen: Vec<Option<(Pos2, bool)>> = points
+                .iter()
+                .map(|&p| {
+                    let p = glam::Vec3::from(p);
+                    cam.project(&frame, p, size)
+                        .map(|s| (Pos2::new(rect.min.x + s.x, rect.min.y + s.y), seen(p)))
+                })
+                .collect();
+            for i in 0..segs {
+                let (Some((a, va)), Some((b, vb))) = (screen[i], screen[(i + 1) % n]) else {
+                    continue;
+                };
+                let visible = va || vb;
+                let colour = match (kept, visible) {
+                    (true, true) => Color32::from_rgb(255, 150, 30),
+                    (true, false) => Color32::from_rgba_unmultiplied(255, 150, 30, 60),
+                    (false, true) => Color32::from_gray(150),
+                    (false, false) => Color32::from_rgba_unmultiplied(150, 150, 150, 40),
+                };
+                let width = if kept && visible { 2.5 } else { 1.5 };
+                painter.line_segment([a, b], Stroke::new(width, colour));
             }
         }
     }

@@ -100,6 +100,8 @@ pub struct AppState<P: AppParams> {
     pub recent_store: Option<PathBuf>,
     /// Built-in scenes by name, so sessions saved from them can be reopened.
     pub scenes: Vec<super::SceneEntry>,
+    /// Polylines an open tool draws over a view (the feature-aligned tool's salient curves).
+    pub overlay: Option<std::sync::Arc<CurveOverlay>>,
     undo: Vec<Snapshot>,
     redo: Vec<Snapshot>,
     /// Paint layer kept aside while a tool previews partial results: side, mesh id, paint.
@@ -140,6 +142,7 @@ impl<P: AppParams> AppState<P> {
             recent: Vec::new(),
             recent_store: None,
             scenes: Vec::new(),
+            overlay: None,
             undo: Vec::new(),
             redo: Vec::new(),
             preview_backup: None,
@@ -489,3 +492,14 @@ pub fn mesh_usable(mesh: &TriMesh) -> Result<()> {
 }
 
 pub use crate::render::marker_color;
+
+/// Polylines drawn over one view, in the mesh's coordinates: kept ones bright, dropped ones faint.
+#[derive(Clone, Debug, Default)]
+pub struct CurveOverlay {
+    /// The view they belong to.
+    pub side: Option<Side>,
+    /// The polylines and whether each closes on itself.
+    pub lines: Vec<(Vec<[f32; 3]>, bool)>,
+    /// Per polyline, whether it is kept.
+    pub kept: Vec<bool>,
+}
