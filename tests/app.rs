@@ -2151,3 +2151,16 @@ fn a_textured_source_is_drawn_through_its_texture_before_and_after_preparation()
         "{far} corners disagree with the texture"
     );
 }
+
+#[test]
+fn view_menu_opens_the_geometric_feature_window() {
+    use meshmatch::app::weather::FeatureDialog;
+    let mut h = harness(app_with_spheres());
+    h.run_steps(2);
+    assert!(!h.state().system::<FeatureDialog>().unwrap().open);
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("Show geometric feature...").click();
+    h.run_steps(2);
+    assert!(h.state().system::<FeatureDialog>().unwrap().open);
+}

@@ -720,6 +720,19 @@ where
                     self.views.invalidate();
                 }
                 ui.checkbox(&mut self.views.lock_cameras, "Lock cameras");
+                if ui
+                    .button("Show geometric feature...")
+                    .on_hover_text(
+                        "Colour either view by ambient occlusion, curvature at a radius, height \
+                         or the weathering guidance (the same window as under Tools)",
+                    )
+                    .clicked()
+                {
+                    if let Some(d) = self.system_mut::<weather::FeatureDialog>() {
+                        d.open = true;
+                    }
+                    ui.close();
+                }
                 if ui.button("Frame all  (F)").clicked() {
                     self.views.frame_all();
                 }
