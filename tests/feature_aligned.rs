@@ -692,3 +692,60 @@ fn aligned_features_put_the_exemplar_line_on_the_creases() {
     // without the constraint the creases are not dark
     assert!(on_wo > on_w + 0.2, "without {on_wo} vs with {on_w}");
 }
+
+/// The greedy orientation run on a coarse level (here at 12K of the horse's 48K vertices) decides
+/// the curves as the full-resolution greedy does, and the full-resolution field still follows
+/// the curves.
+#[test]
+fn coarse_greedy_orients_the_curves_as_the_full_greedy() {
+    use meshmatch::geometry::{FieldParams, oriented_curve_field};
+    let mut mesh =
+        meshmatch::mesh::io::load(&meshmatch::testdata::data_path("horse/horse.ply")).unwrap();
+    mesh.repair().unwrap();
+    let params = feature_aligned::Params {
+        coarse_greedy_above: Some(24_000),
+        ..Default::default()
+    };
+    assert!(mesh.num_vertices() > 24_000);
+    let t = std::time::Instant::now();
+    let (curves, coarse, _) =
+        feature_aligned::curves_and_field(&mesh, None, &params, &CancelToken::new()).unwrap();
+    let coarse_s = t.elapsed().as_secs_f64();
+    let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
+    let t = std::time::Instant::now();
+    let full = oriented_curve_field(
+        &mesh.positions,
+        &mesh.faces,
+        &fc,
+        &FieldParams::default(),
+        &CancelToken::new(),
+    )
+    .unwrap();
+    let full_s = t.elapsed().as_secs_f64();
+    // agreement weighted by curve length
+    let len = |c: &Curve| {
+        c.points
+            .windows(2)
+            .map(|w| Vec3::from(w[0]).distance(Vec3::from(w[1])))
+            .sum::<f32>()
+    };
+    let total: f32 = curves.iter().map(len).sum();
+    let same: f32 = curves
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| coarse.forward[*i] == full.forward[*i])
+        .map(|(_, c)| len(c))
+        .sum();
+    let (_, mean_c) = field_alignment(&mesh, &curves, &coarse.field);
+    let (_, mean_f) = field_alignment(&mesh, &curves, &full.field);
+    println!(
+        "horse: {} curves; coarse greedy {coarse_s:.2} s ({} steps), full {full_s:.2} s ({} steps); \
+         same orientation for {:.1}% of the curve length; |cos| at curve vertices {mean_c:.4} vs {mean_f:.4}",
+        curves.len(),
+        coarse.step_secs.len(),
+        full.step_secs.len(),
+        100.0 * same / total
+    );
+    assert!(same >= 0.85 * total, "{same} of {total}");
+    assert!(mean_c > 0.95, "{mean_c}");
+}

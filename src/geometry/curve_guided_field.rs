@@ -366,8 +366,30 @@ pub fn oriented_curve_field(
             .into_iter()
             .map(|(v, _)| v)
             .collect();
+    Ok(finish(
+        &raw,
+        &normals,
+        forward,
+        oriented.iter().map(|o| o.0).collect(),
+        constrained,
+        step_secs,
+        setup_secs,
+    ))
+}
+
+/// Project the raw field to the tangent planes and normalise it (a fixed tangent where it
+/// vanishes, listed as singular).
+fn finish(
+    raw: &[DVec3],
+    normals: &[[f32; 3]],
+    forward: Vec<bool>,
+    order: Vec<usize>,
+    constrained: Vec<u32>,
+    step_secs: Vec<f64>,
+    setup_secs: f64,
+) -> CurveField {
     let mut singular = Vec::new();
-    let field: Vec<[f32; 3]> = (0..n)
+    let field: Vec<[f32; 3]> = (0..raw.len())
         .map(|i| {
             let nv = d3(normals[i]);
             let u = raw[i] - raw[i].dot(nv) * nv;
@@ -384,15 +406,74 @@ pub fn oriented_curve_field(
             }
         })
         .collect();
-    Ok(CurveField {
+    CurveField {
         field,
         forward,
-        order: oriented.iter().map(|o| o.0).collect(),
+        order,
         singular,
         constrained,
         step_secs,
         setup_secs,
-    })
+    }
+}
+
+/// The field of curves whose orientations are already decided (`forward[c]`: kept as given;
+/// `order`: the greedy order, kept in the result): one constrained harmonic solve. With
+/// [`oriented_curve_field`] run on a coarser mesh of the same shape, this gives the greedy's
+/// decisions at the coarse cost and the field at full resolution.
+pub fn curve_field_with_orientations(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    curves: &[FieldCurve],
+    forward: &[bool],
+    order: Vec<usize>,
+    params: &FieldParams,
+) -> Result<CurveField> {
+    let n = positions.len();
+    if forward.len() != curves.len() {
+        return Err(Error::InvalidInput(
+            "one orientation per curve is needed".into(),
+        ));
+    }
+    if curves
+        .iter()
+        .flat_map(|c| &c.vertices)
+        .any(|&v| v as usize >= n)
+    {
+        return Err(Error::InvalidInput(
+            "a curve refers to a missing vertex".into(),
+        ));
+    }
+    let sw = Stopwatch::start();
+    let solver = HarmonicFieldSolver::new(positions, faces, params.alpha)?;
+    let setup_secs = sw.secs();
+    let normals = solver.normals().to_vec();
+    let tangents: Vec<Vec<DVec3>> = curves
+        .iter()
+        .map(|c| curve_tangents(positions, &normals, &c.vertices, c.closed))
+        .collect();
+    let oriented: Vec<(usize, bool)> = (0..curves.len())
+        .filter(|&c| !curves[c].vertices.is_empty())
+        .map(|c| (c, forward[c]))
+        .collect();
+    let sw = Stopwatch::start();
+    let cons = constraints(&tangents, curves, &oriented, params.junction_release, n);
+    let raw = if cons.is_empty() {
+        vec![DVec3::ZERO; n]
+    } else {
+        solver.solve(&cons)?
+    };
+    let step = sw.secs();
+    let constrained = cons.into_iter().map(|(v, _)| v).collect();
+    Ok(finish(
+        &raw,
+        &normals,
+        forward.to_vec(),
+        order,
+        constrained,
+        vec![step],
+        setup_secs,
+    ))
 }
 
 #[cfg(test)]
