@@ -374,6 +374,29 @@ fn rounded_block_crest_lines_are_recovered() {
 }
 
 /// Horizontal stripes: colour varies along y only, so they run along the exemplar's x axis.
+/// Feature-aligned texturing of `mesh` with `ex` (curves found), and its wall time.
+fn run_timed(
+    mesh: &TriMesh,
+    ex: &image::RgbImage,
+    params: &Params,
+) -> (feature_aligned::Output, f64) {
+    let t = Instant::now();
+    let out = feature_aligned::run(
+        &Input {
+            target: mesh,
+            exemplar: ex,
+            curves: None,
+            alpha: None,
+            feature_mask: None,
+        },
+        params,
+        &no_events,
+        &CancelToken::new(),
+    )
+    .unwrap();
+    (out, t.elapsed().as_secs_f64())
+}
+
 fn stripes(w: u32, period: u32) -> image::RgbImage {
     image::RgbImage::from_fn(w, w, |_, y| {
         if (y / (period / 2)).is_multiple_of(2) {
@@ -425,21 +448,7 @@ fn stripes_run_along_the_feature_field() {
         },
         ..Params::default()
     };
-    let t = Instant::now();
-    let out = feature_aligned::run(
-        &Input {
-            target: &mesh,
-            exemplar: &ex,
-            curves: None,
-            alpha: None,
-            feature_mask: None,
-        },
-        &params,
-        &no_events,
-        &CancelToken::new(),
-    )
-    .unwrap();
-    let secs = t.elapsed().as_secs_f64();
+    let (out, secs) = run_timed(&mesh, &ex, &params);
     let (along, across) = along_across(&out.synth.mesh, &out.synth.orientation);
     // circumferential reference direction on the synthesized mesh
     let around: Vec<[f32; 3]> = out
@@ -651,21 +660,7 @@ fn aligned_features_put_the_exemplar_line_on_the_creases() {
             align_features: align,
             ..Params::default()
         };
-        let t = Instant::now();
-        let out = feature_aligned::run(
-            &Input {
-                target: &mesh,
-                exemplar: &ex,
-                curves: None,
-                alpha: None,
-                feature_mask: None,
-            },
-            &params,
-            &no_events,
-            &CancelToken::new(),
-        )
-        .unwrap();
-        (out, t.elapsed().as_secs_f64())
+        run_timed(&mesh, &ex, &params)
     };
     let (with, t_with) = run(true);
     let (without, t_without) = run(false);

@@ -50,34 +50,26 @@ pub struct FoundCurves {
     pub kept: Vec<bool>,
     /// The target's vertex count when they were found (a different mesh makes them stale).
     pub vertices: usize,
-    overlay: Arc<CurveOverlay>,
+    /// The curves' polylines as the overlay draws them.
+    lines: Arc<Vec<(Vec<[f32; 3]>, bool)>>,
 }
 
 impl FoundCurves {
     fn new(mut curves: Vec<Curve>, vertices: usize) -> FoundCurves {
         curves.sort_by(|a, b| length(b).total_cmp(&length(a)));
         let kept = vec![true; curves.len()];
-        let mut f = FoundCurves {
-            curves,
-            kept,
-            vertices,
-            overlay: Arc::default(),
-        };
-        f.refresh();
-        f
-    }
-
-    /// Rebuild the overlay after a keep/drop change.
-    fn refresh(&mut self) {
-        self.overlay = Arc::new(CurveOverlay {
-            side: Some(Side::Target),
-            lines: self
-                .curves
+        let lines = Arc::new(
+            curves
                 .iter()
                 .map(|c| (c.points.clone(), c.closed))
                 .collect(),
-            kept: self.kept.clone(),
-        });
+        );
+        FoundCurves {
+            curves,
+            kept,
+            vertices,
+            lines,
+        }
     }
 
     /// The kept curves.
@@ -241,7 +233,6 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
                 "{} salient curves, {kept} kept (orange; dropped ones grey)",
                 f.curves.len()
             ));
-            let mut changed = false;
             egui::ScrollArea::vertical()
                 .max_height(140.0)
                 .show(ui, |ui| {
@@ -257,12 +248,9 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
                             if c.closed { " (closed)" } else { "" },
                             length(c)
                         );
-                        changed |= ui.checkbox(&mut f.kept[i], text).changed();
+                        ui.checkbox(&mut f.kept[i], text);
                     }
                 });
-            if changed {
-                f.refresh();
-            }
         }
         ui.separator();
         let ready = self.image.is_some() && state.slot(Side::Target).is_some();
@@ -281,10 +269,12 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
         action
     }
     fn overlay(&self) -> Option<Arc<CurveOverlay>> {
-        self.found
-            .as_ref()
-            .filter(|_| self.show_curves)
-            .map(|f| f.overlay.clone())
+        let f = self.found.as_ref().filter(|_| self.show_curves)?;
+        Some(Arc::new(CurveOverlay {
+            side: Some(Side::Target),
+            lines: f.lines.clone(),
+            kept: f.kept.clone(),
+        }))
     }
     fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob> {
         let path = self.image.clone().ok_or_else(|| {

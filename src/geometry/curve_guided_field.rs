@@ -255,14 +255,22 @@ fn constraints(
         .collect()
 }
 
-/// Greedy orientation of `curves` (Xu et al. §4.1) and the final projected, normalised field.
-pub fn oriented_curve_field(
+/// What the field's front doors share: the solver, its normals, the curves' tangents.
+struct Prepared {
+    solver: HarmonicFieldSolver,
+    normals: Vec<[f32; 3]>,
+    tangents: Vec<Vec<DVec3>>,
+    /// Seconds for the symbolic analysis.
+    setup_secs: f64,
+}
+
+/// Build the solver and the curves' tangents; refuses curves that name missing vertices.
+fn prepare(
     positions: &[[f32; 3]],
     faces: &[[u32; 3]],
     curves: &[FieldCurve],
     params: &FieldParams,
-    cancel: &CancelToken,
-) -> Result<CurveField> {
+) -> Result<Prepared> {
     let n = positions.len();
     if curves
         .iter()
@@ -281,6 +289,29 @@ pub fn oriented_curve_field(
         .iter()
         .map(|c| curve_tangents(positions, &normals, &c.vertices, c.closed))
         .collect();
+    Ok(Prepared {
+        solver,
+        normals,
+        tangents,
+        setup_secs,
+    })
+}
+
+/// Greedy orientation of `curves` (Xu et al. §4.1) and the final projected, normalised field.
+pub fn oriented_curve_field(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    curves: &[FieldCurve],
+    params: &FieldParams,
+    cancel: &CancelToken,
+) -> Result<CurveField> {
+    let n = positions.len();
+    let Prepared {
+        solver,
+        normals,
+        tangents,
+        setup_secs,
+    } = prepare(positions, faces, curves, params)?;
     let lengths: Vec<f64> = curves
         .iter()
         .map(|c| {
@@ -435,23 +466,12 @@ pub fn curve_field_with_orientations(
             "one orientation per curve is needed".into(),
         ));
     }
-    if curves
-        .iter()
-        .flat_map(|c| &c.vertices)
-        .any(|&v| v as usize >= n)
-    {
-        return Err(Error::InvalidInput(
-            "a curve refers to a missing vertex".into(),
-        ));
-    }
-    let sw = Stopwatch::start();
-    let solver = HarmonicFieldSolver::new(positions, faces, params.alpha)?;
-    let setup_secs = sw.secs();
-    let normals = solver.normals().to_vec();
-    let tangents: Vec<Vec<DVec3>> = curves
-        .iter()
-        .map(|c| curve_tangents(positions, &normals, &c.vertices, c.closed))
-        .collect();
+    let Prepared {
+        solver,
+        normals,
+        tangents,
+        setup_secs,
+    } = prepare(positions, faces, curves, params)?;
     let oriented: Vec<(usize, bool)> = (0..curves.len())
         .filter(|&c| !curves[c].vertices.is_empty())
         .map(|c| (c, forward[c]))

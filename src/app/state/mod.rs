@@ -498,8 +498,8 @@ pub use crate::render::marker_color;
 pub struct CurveOverlay {
     /// The view they belong to.
     pub side: Option<Side>,
-    /// The polylines and whether each closes on itself.
-    pub lines: Vec<(Vec<[f32; 3]>, bool)>,
+    /// The polylines and whether each closes on itself (shared with the tool that found them).
+    pub lines: std::sync::Arc<Vec<(Vec<[f32; 3]>, bool)>>,
     /// Per polyline, whether it is kept.
     pub kept: Vec<bool>,
 }

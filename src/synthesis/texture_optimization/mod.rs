@@ -398,6 +398,14 @@ impl Index {
 
 fn project(v: &[f32], mean: &[f32], basis: &[f32], k: usize) -> Vec<f32> {
     let mut o = vec![0.0f32; k];
+    project_into(v, mean, basis, &mut o);
+    o
+}
+
+/// [`project`] into `o` (its length is the number of dimensions).
+fn project_into(v: &[f32], mean: &[f32], basis: &[f32], o: &mut [f32]) {
+    let k = o.len();
+    o.iter_mut().for_each(|a| *a = 0.0);
     for i in 0..DIM {
         let d = v[i] - mean[i];
         let row = &basis[i * k..(i + 1) * k];
@@ -405,7 +413,6 @@ fn project(v: &[f32], mean: &[f32], basis: &[f32], k: usize) -> Vec<f32> {
             *a += d * b;
         }
     }
-    o
 }
 
 /// Patch regions of the samples: per sample, (vertex, x offset, y offset) in texels, and per
@@ -713,24 +720,28 @@ pub fn optimize(
                             vec![0u32; CELLS * CELLS],
                             Vec::new(),
                             vec![0.0f32; DIM],
+                            vec![0.0f32; index.k],
+                            Vec::with_capacity(VERIFY + 1),
+                            Vec::with_capacity(VERIFY + 1),
                         )
                     },
-                    |(cells, cnt, knn, exv), s| {
+                    |(cells, cnt, knn, exv, q, cands, best_k), s| {
                         patch_cells(&reg, s, colors, w, cells, cnt);
-                        let q = project(cells, &index.mean, &index.basis, index.k);
-                        let mut cands: Vec<u32> = Vec::with_capacity(VERIFY + 1);
+                        project_into(cells, &index.mean, &index.basis, q);
+                        cands.clear();
                         if let Some(dt) = target_d[s] {
                             constrained_knn(
                                 &index,
                                 lines.expect("lines"),
-                                &q,
+                                q,
                                 dt,
                                 params.feature_tolerance,
-                                &mut cands,
+                                best_k,
+                                cands,
                             );
                         }
                         if cands.is_empty() {
-                            index.tree.knn(&q, VERIFY, knn);
+                            index.tree.knn(q, VERIFY, knn);
                             cands.extend(knn.iter().map(|&(_, i)| i));
                         }
                         if z[s] != u32::MAX && !cands.contains(&z[s]) {
@@ -748,7 +759,7 @@ pub fn optimize(
                             }
                         }
                         let mut best = (u32::MAX, f32::INFINITY);
-                        for &c in &cands {
+                        for &c in cands.iter() {
                             let pix = index.centres[c as usize] as usize;
                             ex.cells(pix % ex.w, pix / ex.w, w, exv);
                             let d = masked_rms(cells, exv, cnt);
@@ -1000,10 +1011,11 @@ fn constrained_knn(
     q: &[f32],
     dt: f32,
     tol: f32,
+    best: &mut Vec<(f32, u32)>,
     out: &mut Vec<u32>,
 ) {
     let b = (dt.round() as usize).min(index.bins.len() - 1);
-    let mut best: Vec<(f32, u32)> = Vec::with_capacity(VERIFY + 1);
+    best.clear();
     for &i in &index.bins[b] {
         let c = index.centres[i as usize] as usize;
         if (lines.distance[c] - dt).abs() >= tol {
@@ -1017,7 +1029,7 @@ fn constrained_knn(
             best.truncate(VERIFY);
         }
     }
-    out.extend(best.into_iter().map(|(_, i)| i));
+    out.extend(best.iter().map(|&(_, i)| i));
 }
 
 /// How `synth` and feature-aligned texturing make their texture.

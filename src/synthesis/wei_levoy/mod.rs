@@ -416,20 +416,11 @@ pub fn synthesize(
 
 /// The curve-guided orientation field of `target` with default thresholds (Xu et al. 2009):
 /// salient curves, greedy orientation, harmonic diffusion; unit tangents per target vertex.
+/// The same field as feature-aligned texturing ([`super::feature_aligned::curves_and_field`]).
 pub fn feature_field(target: &TriMesh, cancel: &CancelToken) -> Result<Vec<[f32; 3]>> {
-    use crate::geometry::{
-        CurveParams, FieldCurve, FieldParams, oriented_curve_field, salient_curves,
-    };
-    let curves = salient_curves(&target.positions, &target.faces, &CurveParams::default())?;
-    let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
-    Ok(oriented_curve_field(
-        &target.positions,
-        &target.faces,
-        &fc,
-        &FieldParams::default(),
-        cancel,
-    )?
-    .field)
+    let params = super::feature_aligned::Params::default();
+    let (_, field, _) = super::feature_aligned::curves_and_field(target, None, &params, cancel)?;
+    Ok(field.field)
 }
 
 /// [`synthesize`] with an explicit texture "right" direction per target vertex (`field`, one per
