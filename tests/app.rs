@@ -1990,6 +1990,119 @@ fn feature_aligned_tool_shows_the_found_curves_and_uses_only_the_kept_ones() {
 }
 
 #[test]
+fn feature_aligned_tool_draws_the_field_and_a_click_on_a_curve_drops_it() {
+    use meshmatch::app::feature_aligned::FeatureAlignedDialog;
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state
+        .set_mesh(Side::Target, meshmatch::demo::crest_block(10), false);
+    let mut h = harness(app);
+    settle_target(&mut h);
+    h.state_mut()
+        .system_mut::<FeatureAlignedDialog>()
+        .unwrap()
+        .open = true;
+    h.run_steps(2);
+    h.get_by_label("Find curves").click();
+    h.run_steps(3);
+    h.get_by_label("Show the field").click();
+    // the field arrives from its own thread
+    let wait_field = |h: &mut Harness<'static, App>| {
+        let t0 = Instant::now();
+        loop {
+            h.step();
+            let d = h.state_mut().system_mut::<FeatureAlignedDialog>().unwrap();
+            let kept = d.found.as_ref().unwrap().kept.clone();
+            if d.field.as_ref().is_some_and(|f| f.kept == kept) && !d.field_running() {
+                return d.field.clone().unwrap();
+            }
+            assert!(t0.elapsed() < Duration::from_secs(60), "no field");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    let field = wait_field(&mut h);
+    let found = h
+        .state_mut()
+        .system_mut::<FeatureAlignedDialog>()
+        .unwrap()
+        .found
+        .clone()
+        .unwrap();
+    assert!(field.arrows.len() > 100, "{} arrows", field.arrows.len());
+    // next to a crease, the arrows run along it
+    let mut checked = 0;
+    let mut worst: f32 = 1.0;
+    let block = meshmatch::demo::crest_block(10);
+    let h_edge = meshmatch::geometry::mean_edge_length(&block.positions, &block.faces);
+    for c in found.curves.iter().filter(|c| !c.closed) {
+        // away from the corners, where three creases meet and the field is released
+        let n = c.points.len();
+        for w in c.points[2.min(n)..n.saturating_sub(2).max(2.min(n))].windows(2) {
+            let (a, b) = (glam::Vec3::from(w[0]), glam::Vec3::from(w[1]));
+            let mid = (a + b) * 0.5;
+            let t = (b - a).normalize();
+            for [s, e] in field.arrows.iter() {
+                let (s, e) = (glam::Vec3::from(*s), glam::Vec3::from(*e));
+                if ((s + e) * 0.5).distance(mid) < 0.5 * h_edge {
+                    worst = worst.min((e - s).normalize().dot(t).abs());
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked >= 10, "{checked} arrows on creases");
+    assert!(worst > 0.9, "an arrow on a crease crosses it: |cos| {worst}");
+    h.run_steps(2);
+    let img = h.render().expect("render");
+    let cyan = img
+        .pixels()
+        .filter(|p| p[2] as i32 > p[0] as i32 + 60 && p[1] as i32 > p[0] as i32 + 50)
+        .count();
+    if let Ok(dir) = std::env::var("MESHMATCH_SHOT_DIR") {
+        img.save(std::path::Path::new(&dir).join("feature_aligned_field.png"))
+            .unwrap();
+    }
+    assert!(cyan > 200, "{cyan} cyan pixels");
+    // click the middle of a curve in sight, outside any window: it is dropped, the field follows
+    let pick = {
+        let app = h.state();
+        found.curves.iter().enumerate().find_map(|(k, c)| {
+            let mid = c.points[c.points.len() / 2];
+            let (pos, hidden) = app.views.project_point(&app.state, Side::Target, mid)?;
+            let free = h
+                .ctx
+                .layer_id_at(pos)
+                .is_none_or(|l| l.order == egui::Order::Background);
+            (!hidden && free && app.views.rects[1].shrink(10.0).contains(pos)).then_some((k, pos))
+        })
+    };
+    let (k, pos) = pick.expect("a curve in sight");
+    click(&mut h, pos, egui::Modifiers::NONE);
+    let kept = |h: &mut Harness<'static, App>| {
+        h.state_mut()
+            .system_mut::<FeatureAlignedDialog>()
+            .unwrap()
+            .found
+            .as_ref()
+            .unwrap()
+            .kept
+            .clone()
+    };
+    let after = kept(&mut h);
+    assert!(!after[k], "curve {k} still kept after a click on it");
+    assert_eq!(after.iter().filter(|x| !**x).count(), 1, "{after:?}");
+    assert!(
+        h.state().state.corr.is_empty() && h.state().state.selected.is_none(),
+        "the click also acted on the correspondences"
+    );
+    let refreshed = wait_field(&mut h);
+    assert_eq!(refreshed.kept, after);
+    // a second click keeps it again
+    click(&mut h, pos, egui::Modifiers::NONE);
+    assert!(kept(&mut h)[k]);
+}
+
+#[test]
 fn feature_aligned_tool_textures_a_cube_along_its_creases_and_one_undo_restores() {
     use meshmatch::app::feature_aligned::FeatureAlignedDialog;
     // Horizontal stripes: the exemplar's x axis (its lines) should follow the cube's edges.

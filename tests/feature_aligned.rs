@@ -697,11 +697,8 @@ fn coarse_greedy_orients_the_curves_as_the_full_greedy() {
     let mut mesh =
         meshmatch::mesh::io::load(&meshmatch::testdata::data_path("horse/horse.ply")).unwrap();
     mesh.repair().unwrap();
-    let params = feature_aligned::Params {
-        coarse_greedy_above: Some(24_000),
-        ..Default::default()
-    };
-    assert!(mesh.num_vertices() > 24_000);
+    let params = feature_aligned::Params::default();
+    assert!(mesh.num_vertices() > feature_aligned::COARSE_GREEDY);
     let t = std::time::Instant::now();
     let (curves, coarse, _) =
         feature_aligned::curves_and_field(&mesh, None, &params, &CancelToken::new()).unwrap();
@@ -743,4 +740,19 @@ fn coarse_greedy_orients_the_curves_as_the_full_greedy() {
     );
     assert!(same >= 0.85 * total, "{same} of {total}");
     assert!(mean_c > 0.95, "{mean_c}");
+    // the field the user sees is as smooth as the full greedy's (mean |f_a - f_b|² on edges)
+    let rough = |f: &[[f32; 3]]| {
+        let (mut e, mut m) = (0.0f64, 0usize);
+        for t in &mesh.faces {
+            for k in 0..3 {
+                let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+                e += (Vec3::from(f[a]) - Vec3::from(f[b])).length_squared() as f64;
+                m += 1;
+            }
+        }
+        e / m as f64
+    };
+    let (rc, rf) = (rough(&coarse.field), rough(&full.field));
+    println!("roughness: coarse greedy {rc:.5}, full greedy {rf:.5}");
+    assert!(rc <= 1.1 * rf, "coarse greedy field rougher: {rc} vs {rf}");
 }

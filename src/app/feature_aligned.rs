@@ -13,7 +13,10 @@ use super::systems::{FilePrompt, SystemTool, ToolAction, Wake};
 use super::tools::{ToolJob, ToolOutcome, image_chooser, load_exemplar};
 use crate::correspondence::Side;
 use crate::error::{Error, Result};
+use crate::geometry::vertex_normals;
 use crate::geometry::{Curve, CurveKind, CurveParams, salient_curves};
+use crate::mesh::TriMesh;
+use crate::work::CancelToken;
 use crate::synthesis::feature_aligned::{self, Params};
 
 /// The "Feature-aligned texture" window.
@@ -39,6 +42,61 @@ pub struct FeatureAlignedDialog {
     pub show_curves: bool,
     /// Why the last "Find curves" found nothing.
     pub find_error: Option<String>,
+    /// Draw the oriented field of the kept curves over the target view (computed on its own
+    /// thread, again after every keep or drop).
+    pub show_field: bool,
+    /// The field last computed, for the kept flags it was computed with.
+    pub field: Option<FieldPreview>,
+    /// The field being computed.
+    field_job: Option<FieldJob>,
+    /// Why the last field failed.
+    pub field_error: Option<String>,
+}
+
+/// The oriented field of one choice of kept curves, as arrows for the overlay.
+#[derive(Clone, Debug)]
+pub struct FieldPreview {
+    /// The kept flags it was computed for.
+    pub kept: Vec<bool>,
+    /// Arrows (start, end) along the field, about 40 across the target.
+    pub arrows: Arc<Vec<[[f32; 3]; 2]>>,
+}
+
+/// A field being computed on its own thread.
+#[derive(Clone, Debug)]
+struct FieldJob {
+    kept: Vec<bool>,
+    rx: crossbeam_channel::Receiver<Result<FieldPreview>>,
+    cancel: CancelToken,
+}
+
+/// Arrows along a unit tangent field for drawing: one at the first vertex met in each cell of a
+/// grid `cells` across the bounding box's longest side, `0.7` cells long, centred on the vertex
+/// and lifted off the surface by a hundredth of a cell along its normal.
+pub fn field_arrows(mesh: &TriMesh, field: &[[f32; 3]], cells: usize) -> Vec<[[f32; 3]; 2]> {
+    let Some((lo, hi)) = mesh.bounds() else {
+        return Vec::new();
+    };
+    let (lo, hi) = (glam::Vec3::from(lo), glam::Vec3::from(hi));
+    let cell = ((hi - lo).max_element() / cells.max(1) as f32).max(1e-12);
+    let normals = vertex_normals(&mesh.positions, &mesh.faces);
+    let mut seen = std::collections::HashSet::new();
+    let mut out = Vec::new();
+    for (i, (&p, &u)) in mesh.positions.iter().zip(field).enumerate() {
+        let p = glam::Vec3::from(p);
+        let key = ((p - lo) / cell).floor().as_ivec3();
+        if !seen.insert(key) {
+            continue;
+        }
+        let u = glam::Vec3::from(u);
+        if u.length_squared() < 0.5 {
+            continue;
+        }
+        let lift = glam::Vec3::from(normals[i]) * (0.01 * cell);
+        let half = u * (0.35 * cell);
+        out.push([(p + lift - half).to_array(), (p + lift + half).to_array()]);
+    }
+    out
 }
 
 /// Salient curves found on the target, with the user's choice of which to use.
@@ -109,6 +167,10 @@ impl Default for FeatureAlignedDialog {
             found: None,
             show_curves: true,
             find_error: None,
+            show_field: false,
+            field: None,
+            field_job: None,
+            field_error: None,
         }
     }
 }
@@ -136,6 +198,77 @@ impl FeatureAlignedDialog {
                 self.find_error = Some(e.to_string());
             }
         }
+    }
+}
+
+impl FeatureAlignedDialog {
+    /// Collect a finished field, and start one when the kept curves changed since the last.
+    fn update_field<P: AppParams>(&mut self, ctx: &egui::Context, state: &AppState<P>) {
+        if let Some(j) = &self.field_job
+            && let Ok(res) = j.rx.try_recv()
+        {
+            match res {
+                Ok(f) => {
+                    self.field = Some(f);
+                    self.field_error = None;
+                }
+                Err(e) => {
+                    self.field = None;
+                    self.field_error = Some(e.to_string());
+                }
+            }
+            self.field_job = None;
+        }
+        let Some(found) = self.found.as_ref().filter(|_| self.show_field) else {
+            if let Some(j) = self.field_job.take() {
+                j.cancel.cancel();
+            }
+            return;
+        };
+        let current = self.field.as_ref().is_some_and(|f| f.kept == found.kept);
+        let running = self.field_job.as_ref().is_some_and(|j| j.kept == found.kept);
+        if current || running {
+            return;
+        }
+        if let Some(j) = self.field_job.take() {
+            j.cancel.cancel();
+        }
+        let kept = found.kept_curves();
+        if kept.is_empty() {
+            self.field = None;
+            self.field_error = Some("every curve is dropped: no field".into());
+            return;
+        }
+        let Some(mesh) = state.painted_mesh(Side::Target) else {
+            return;
+        };
+        let (tx, rx) = crossbeam_channel::bounded(1);
+        let cancel = CancelToken::new();
+        let job = FieldJob {
+            kept: found.kept.clone(),
+            rx,
+            cancel: cancel.clone(),
+        };
+        let flags = found.kept.clone();
+        let ctx = ctx.clone();
+        std::thread::spawn(move || {
+            let res = feature_aligned::curves_and_field(&mesh, Some(&kept), &Params::default(), &cancel)
+                .map(|(_, field, _)| FieldPreview {
+                    kept: flags,
+                    arrows: Arc::new(field_arrows(&mesh, &field.field, 40)),
+                });
+            if !cancel.is_cancelled() {
+                let _ = tx.send(res);
+                ctx.request_repaint();
+            }
+        });
+        self.field_job = Some(job);
+        self.field_error = None;
+    }
+
+    /// Whether a field is being computed.
+    pub fn field_running(&self) -> bool {
+        self.field_job.is_some()
     }
 }
 
@@ -222,15 +355,32 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
             }
             if self.found.is_some() {
                 ui.checkbox(&mut self.show_curves, "Show on the target");
+                ui.checkbox(&mut self.show_field, "Show the field")
+                    .on_hover_text(
+                        "Arrows along the field the texture will follow, oriented by the kept \
+                         curves (recomputed after every keep or drop)",
+                    );
             }
         });
+        self.update_field(ui.ctx(), state);
+        if self.show_field && self.found.is_some() {
+            if self.field_job.is_some() {
+                ui.horizontal(|ui| {
+                    ui.spinner();
+                    ui.label("orienting the curves and diffusing the field...");
+                });
+            } else if let Some(e) = &self.field_error {
+                ui.colored_label(egui::Color32::from_rgb(230, 120, 90), e);
+            }
+        }
         if let Some(e) = &self.find_error {
             ui.colored_label(egui::Color32::from_rgb(230, 120, 90), e);
         }
         if let Some(f) = &mut self.found {
             let kept = f.kept.iter().filter(|k| **k).count();
             ui.label(format!(
-                "{} salient curves, {kept} kept (orange; dropped ones grey)",
+                "{} salient curves, {kept} kept (orange; dropped ones grey). Click a curve in \
+                 the view, or tick it here, to keep or drop it",
                 f.curves.len()
             ));
             egui::ScrollArea::vertical()
@@ -269,12 +419,30 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
         action
     }
     fn overlay(&self) -> Option<Arc<CurveOverlay>> {
-        let f = self.found.as_ref().filter(|_| self.show_curves)?;
+        let f = self.found.as_ref()?;
+        if !self.show_curves && !self.show_field {
+            return None;
+        }
+        let arrows = match &self.field {
+            Some(p) if self.show_field => p.arrows.clone(),
+            _ => Arc::new(Vec::new()),
+        };
+        let (lines, kept) = if self.show_curves {
+            (f.lines.clone(), f.kept.clone())
+        } else {
+            (Arc::new(Vec::new()), Vec::new())
+        };
         Some(Arc::new(CurveOverlay {
             side: Some(Side::Target),
-            lines: f.lines.clone(),
-            kept: f.kept.clone(),
+            lines,
+            kept,
+            arrows,
         }))
+    }
+    fn overlay_clicked(&mut self, line: usize) {
+        if let Some(k) = self.found.as_mut().and_then(|f| f.kept.get_mut(line)) {
+            *k = !*k;
+        }
     }
     fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob> {
         let path = self.image.clone().ok_or_else(|| {

@@ -1031,6 +1031,14 @@ where
         let dropped = egui::CentralPanel::no_frame()
             .show(ui, |ui| self.views.show(ui, rs, &mut self.state))
             .inner;
+        if let Some(line) = self.state.overlay_clicked.take()
+            && let Some(t) = self
+                .systems
+                .iter_mut()
+                .find(|t| t.is_open() && t.overlay().is_some())
+        {
+            t.overlay_clicked(line);
+        }
         if let Some((side, path)) = dropped {
             if let Err(e) = self.state.open_any(side, &path) {
                 self.state.report(e);

@@ -52,6 +52,8 @@ pub trait SystemTool<P: AppParams>: Any {
     fn overlay(&self) -> Option<std::sync::Arc<super::state::CurveOverlay>> {
         None
     }
+    /// The user clicked polyline `line` of [`SystemTool::overlay`] in its view.
+    fn overlay_clicked(&mut self, _line: usize) {}
     /// For callers that know the concrete tool (tests, scripts).
     fn as_any_mut(&mut self) -> &mut dyn Any;
 }

@@ -47,6 +47,29 @@ struct MarkerView {
     visible: bool,
 }
 
+/// How near (points) a click must land to an overlay polyline to keep or drop it.
+pub const OVERLAY_PICK_RADIUS: f32 = 8.0;
+
+/// The overlay projected into one view.
+struct OverlayOnScreen {
+    /// Per polyline, per point: screen position and whether it is in sight.
+    lines: Vec<Vec<Option<(Pos2, bool)>>>,
+    /// Per field arrow: its ends and whether its middle is in sight.
+    arrows: Vec<(Pos2, Pos2, bool)>,
+}
+
+/// Distance from `p` to the segment `a b` (screen points).
+fn point_segment_distance(p: Pos2, a: Pos2, b: Pos2) -> f32 {
+    let ab = b - a;
+    let l2 = ab.length_sq();
+    let t = if l2 > 0.0 {
+        ((p - a).dot(ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + ab * t).distance(p)
+}
+
 /// The viewports' state: cameras, GPU resources and interaction.
 pub struct Views {
     renderer: Option<MeshRenderer>,
@@ -589,8 +612,18 @@ impl Views {
             self.dragging_marker = None;
             self.painting = false;
         }
+        // Click on an overlay polyline: the open tool keeps or drops it (before any other click).
+        let on_overlay = resp.clicked()
+            && !mods.alt
+            && !mods.shift
+            && resp.interact_pointer_pos().is_some_and(|pos| {
+                self.overlay_line_at(rect, side, state, pos)
+                    .map(|k| state.overlay_clicked = Some(k))
+                    .is_some()
+            });
         // Click in Paint mode: one dab (its own undo step).
         if resp.clicked()
+            && !on_overlay
             && self.tool == Tool::Paint
             && !mods.alt
             && !mods.shift
@@ -601,6 +634,7 @@ impl Views {
         }
         // Click: select a marker, or pick a vertex.
         if resp.clicked()
+            && !on_overlay
             && self.tool == Tool::Correspond
             && let Some(pos) = resp.interact_pointer_pos()
         {
@@ -614,24 +648,20 @@ impl Views {
         }
     }
 
-    /// The open tool's polylines over this view: kept ones orange, dropped ones grey, both
-    /// faint where the mesh hides them.
-    fn draw_overlay<P: AppParams>(
+    /// The open tool's overlay as this view shows it: per polyline, per point, the screen
+    /// position and whether the point is in sight (not hidden by the mesh); per field arrow, its
+    /// two ends and whether its middle is in sight. `None` when the overlay is for the other view.
+    fn overlay_on_screen<P: AppParams>(
         &self,
-        painter: &egui::Painter,
         rect: Rect,
         side: Side,
         state: &AppState<P>,
-    ) {
-        let Some(o) = &state.overlay else {
-            return;
-        };
+    ) -> Option<OverlayOnScreen> {
+        let o = state.overlay.as_ref()?;
         if o.side != Some(side) {
-            return;
+            return None;
         }
-        let Some(frame) = self.frame_of(state, side) else {
-            return;
-        };
+        let frame = self.frame_of(state, side)?;
         let size = GVec2::new(rect.width(), rect.height());
         let cam = &self.cameras[side_index(side)];
         let (eye, _) = cam.eye_target(&frame);
@@ -643,20 +673,132 @@ impl Views {
                     .is_none_or(|(_, _, t)| t >= 0.995)
             })
         };
-        for (k, (points, closed)) in o.lines.iter().enumerate() {
-            let kept = o.kept.get(k).copied().unwrap_or(true);
-            let n = points.len();
+        let to_screen = |p: glam::Vec3| {
+            cam.project(&frame, p, size)
+                .map(|s| Pos2::new(rect.min.x + s.x, rect.min.y + s.y))
+        };
+        let lines = o
+            .lines
+            .iter()
+            .map(|(points, _)| {
+                points
+                    .iter()
+                    .map(|&p| {
+                        let p = glam::Vec3::from(p);
+                        to_screen(p).map(|s| (s, seen(p)))
+                    })
+                    .collect()
+            })
+            .collect();
+        let arrows = o
+            .arrows
+            .iter()
+            .filter_map(|[a, b]| {
+                let (a, b) = (glam::Vec3::from(*a), glam::Vec3::from(*b));
+                Some((to_screen(a)?, to_screen(b)?, seen((a + b) * 0.5)))
+            })
+            .collect();
+        Some(OverlayOnScreen { lines, arrows })
+    }
+
+    /// Screen position of a point of `side`'s mesh space, and whether the mesh hides it.
+    pub fn project_point(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+        p: [f32; 3],
+    ) -> Option<(Pos2, bool)> {
+        let rect = self.rects[side_index(side)];
+        let frame = self.frame_of(state, side)?;
+        let cam = &self.cameras[side_index(side)];
+        let p = glam::Vec3::from(p);
+        let s = cam.project(&frame, p, GVec2::new(rect.width(), rect.height()))?;
+        let (eye, _) = cam.eye_target(&frame);
+        let hidden = self.gpu[side_index(side)].bvh.as_ref().is_some_and(|b| {
+            b.ray_hit(eye.to_array(), (p - eye).to_array())
+                .is_some_and(|(_, _, t)| t < 0.995)
+        });
+        Some((Pos2::new(rect.min.x + s.x, rect.min.y + s.y), hidden))
+    }
+
+    /// The overlay polyline under a click at `pos`: the nearest segment in sight within
+    /// [`OVERLAY_PICK_RADIUS`] points.
+    fn overlay_line_at<P: AppParams>(
+        &self,
+        rect: Rect,
+        side: Side,
+        state: &AppState<P>,
+        pos: Pos2,
+    ) -> Option<usize> {
+        let o = state.overlay.as_ref()?;
+        let screen = self.overlay_on_screen(rect, side, state)?;
+        let mut best: Option<(f32, usize)> = None;
+        for (k, (pts, (_, closed))) in screen.lines.iter().zip(o.lines.iter()).enumerate() {
+            let n = pts.len();
             let segs = if *closed { n } else { n.saturating_sub(1) };
-            let screen: Vec<Option<(Pos2, bool)>> = points
-                .iter()
-                .map(|&p| {
-                    let p = glam::Vec3::from(p);
-                    cam.project(&frame, p, size)
-                        .map(|s| (Pos2::new(rect.min.x + s.x, rect.min.y + s.y), seen(p)))
-                })
-                .collect();
+            if n == 1
+                && let Some((a, true)) = pts[0]
+            {
+                let d = a.distance(pos);
+                if d <= OVERLAY_PICK_RADIUS && best.is_none_or(|(bd, _)| d < bd) {
+                    best = Some((d, k));
+                }
+            }
             for i in 0..segs {
-                let (Some((a, va)), Some((b, vb))) = (screen[i], screen[(i + 1) % n]) else {
+                let (Some((a, va)), Some((b, vb))) = (pts[i], pts[(i + 1) % n]) else {
+                    continue;
+                };
+                if !(va || vb) {
+                    continue;
+                }
+                let d = point_segment_distance(pos, a, b);
+                if d <= OVERLAY_PICK_RADIUS && best.is_none_or(|(bd, _)| d < bd) {
+                    best = Some((d, k));
+                }
+            }
+        }
+        best.map(|(_, k)| k)
+    }
+
+    /// The open tool's overlay over this view: kept polylines orange, dropped ones grey, both
+    /// faint where the mesh hides them; field arrows cyan where in sight.
+    fn draw_overlay<P: AppParams>(
+        &self,
+        painter: &egui::Painter,
+        rect: Rect,
+        side: Side,
+        state: &AppState<P>,
+    ) {
+        let (Some(o), Some(screen)) = (
+            state.overlay.as_ref(),
+            self.overlay_on_screen(rect, side, state),
+        ) else {
+            return;
+        };
+        for (a, b, seen) in &screen.arrows {
+            if !seen {
+                continue;
+            }
+            let colour = Color32::from_rgb(60, 210, 235);
+            painter.line_segment([*a, *b], Stroke::new(1.5, colour));
+            // a head at the arrow's end: the field's direction, not only its line
+            let d = *b - *a;
+            let len = d.length();
+            if len > 4.0 {
+                let u = d / len;
+                let side_v = egui::vec2(-u.y, u.x);
+                let h = (0.35 * len).min(5.0);
+                let back = *b - u * h;
+                painter.line_segment([*b, back + side_v * h * 0.5], Stroke::new(1.5, colour));
+                painter.line_segment([*b, back - side_v * h * 0.5], Stroke::new(1.5, colour));
+            }
+        }
+        for (k, (pts, (_, closed))) in screen.lines.iter().zip(o.lines.iter()).enumerate() {
+            let kept = o.kept.get(k).copied().unwrap_or(true);
+            let n = pts.len();
+            let segs = if *closed { n } else { n.saturating_sub(1) };
+            for i in 0..segs {
+                let (Some((a, va)), Some((b, vb))) = (pts[i], pts[(i + 1) % n]) else {
                     continue;
                 };
                 let visible = va || vb;

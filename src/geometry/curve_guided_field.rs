@@ -460,8 +460,26 @@ pub fn curve_field_with_orientations(
     order: Vec<usize>,
     params: &FieldParams,
 ) -> Result<CurveField> {
+    let decided = vec![true; curves.len()];
+    curve_field_completing_orientations(positions, faces, curves, forward, &decided, order, params)
+}
+
+/// As [`curve_field_with_orientations`], for curves of which only some are decided
+/// (`decided[c]`): one solve with the decided ones, every undecided curve oriented at once by
+/// the winning term of eq. (1) against that field, then the solve with all of them (two solves
+/// on one factorisation's symbolic analysis). A coarse greedy leaves a curve undecided when it
+/// shrank to fewer than three coarse vertices (its tangent, hence its score, is lost there).
+pub fn curve_field_completing_orientations(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    curves: &[FieldCurve],
+    forward: &[bool],
+    decided: &[bool],
+    order: Vec<usize>,
+    params: &FieldParams,
+) -> Result<CurveField> {
     let n = positions.len();
-    if forward.len() != curves.len() {
+    if forward.len() != curves.len() || decided.len() != curves.len() {
         return Err(Error::InvalidInput(
             "one orientation per curve is needed".into(),
         ));
@@ -472,26 +490,57 @@ pub fn curve_field_with_orientations(
         tangents,
         setup_secs,
     } = prepare(positions, faces, curves, params)?;
+    let mut forward = forward.to_vec();
+    let usable = |c: usize| !curves[c].vertices.is_empty();
+    let pending: Vec<usize> = (0..curves.len())
+        .filter(|&c| usable(c) && !decided[c])
+        .collect();
+    let mut steps = Vec::new();
+    let solve = |oriented: &[(usize, bool)]| -> Result<(Vec<DVec3>, Vec<u32>)> {
+        let cons = constraints(&tangents, curves, oriented, params.junction_release, n);
+        let raw = if cons.is_empty() {
+            vec![DVec3::ZERO; n]
+        } else {
+            solver.solve(&cons)?
+        };
+        Ok((raw, cons.into_iter().map(|(v, _)| v).collect()))
+    };
+    let decided_set: Vec<(usize, bool)> = (0..curves.len())
+        .filter(|&c| usable(c) && decided[c])
+        .map(|c| (c, forward[c]))
+        .collect();
+    if !pending.is_empty() && !decided_set.is_empty() {
+        let sw = Stopwatch::start();
+        let (raw, _) = solve(&decided_set)?;
+        for &c in &pending {
+            let f: Vec<DVec3> = curves[c]
+                .vertices
+                .iter()
+                .map(|&v| {
+                    let nv = d3(normals[v as usize]);
+                    let u = raw[v as usize];
+                    u - u.dot(nv) * nv
+                })
+                .collect();
+            let (g0, g1) = score_terms(&tangents[c], &f);
+            forward[c] = g0 >= g1;
+        }
+        steps.push(sw.secs());
+    }
     let oriented: Vec<(usize, bool)> = (0..curves.len())
-        .filter(|&c| !curves[c].vertices.is_empty())
+        .filter(|&c| usable(c))
         .map(|c| (c, forward[c]))
         .collect();
     let sw = Stopwatch::start();
-    let cons = constraints(&tangents, curves, &oriented, params.junction_release, n);
-    let raw = if cons.is_empty() {
-        vec![DVec3::ZERO; n]
-    } else {
-        solver.solve(&cons)?
-    };
-    let step = sw.secs();
-    let constrained = cons.into_iter().map(|(v, _)| v).collect();
+    let (raw, constrained) = solve(&oriented)?;
+    steps.push(sw.secs());
     Ok(finish(
         &raw,
         &normals,
-        forward.to_vec(),
+        forward,
         order,
         constrained,
-        vec![step],
+        steps,
         setup_secs,
     ))
 }

@@ -48,7 +48,8 @@ pub use crest_lines::{Curve, CurveKind, CurveParams, salient_curves};
 pub use curvature::{PrincipalCurvatures, principal_curvatures};
 pub use curve_distance::{Polyline, distance_to_polylines};
 pub use curve_guided_field::{
-    CurveField, FieldCurve, FieldParams, HarmonicFieldSolver, curve_field_with_orientations,
+    CurveField, FieldCurve, FieldParams, HarmonicFieldSolver, curve_field_completing_orientations,
+    curve_field_with_orientations,
     curve_tangents, oriented_curve_field, score_terms,
 };
 pub use eigen::{hks, hks_times, laplacian_eigen};

@@ -102,6 +102,9 @@ pub struct AppState<P: AppParams> {
     pub scenes: Vec<super::SceneEntry>,
     /// Polylines an open tool draws over a view (the feature-aligned tool's salient curves).
     pub overlay: Option<std::sync::Arc<CurveOverlay>>,
+    /// An overlay polyline the user clicked in its view this frame (the open tool keeps or
+    /// drops it).
+    pub overlay_clicked: Option<usize>,
     undo: Vec<Snapshot>,
     redo: Vec<Snapshot>,
     /// Paint layer kept aside while a tool previews partial results: side, mesh id, paint.
@@ -143,6 +146,7 @@ impl<P: AppParams> AppState<P> {
             recent_store: None,
             scenes: Vec::new(),
             overlay: None,
+            overlay_clicked: None,
             undo: Vec::new(),
             redo: Vec::new(),
             preview_backup: None,
@@ -502,4 +506,6 @@ pub struct CurveOverlay {
     pub lines: std::sync::Arc<Vec<(Vec<[f32; 3]>, bool)>>,
     /// Per polyline, whether it is kept.
     pub kept: Vec<bool>,
+    /// Short arrows along a tangent field (start, end), in the mesh's coordinates.
+    pub arrows: std::sync::Arc<Vec<[[f32; 3]; 2]>>,
 }

@@ -15,7 +15,7 @@
 
 use crate::error::{Error, Result};
 use crate::geometry::{
-    Curve, CurveField, CurveParams, FieldCurve, FieldParams, curve_field_with_orientations,
+    Curve, CurveField, CurveParams, FieldCurve, FieldParams, curve_field_completing_orientations,
     oriented_curve_field, salient_curves,
 };
 use crate::mesh::TriMesh;
@@ -41,9 +41,12 @@ pub struct Params {
     /// The texture optimisation's parameters.
     pub optimization: opt::Params,
     /// Above this many target vertices the greedy orientation runs on a coarse level of the
-    /// mesh (half as many vertices or fewer), then one solve at full resolution; `None`: the
-    /// default, [`COARSE_GREEDY`].
+    /// mesh ([`Params::greedy_vertices`]), then at full resolution; `None`: the default,
+    /// [`COARSE_GREEDY`].
     pub coarse_greedy_above: Option<usize>,
+    /// Vertices of the coarse level the greedy orientation runs on (at most; 0: the default,
+    /// [`GREEDY_VERTICES`]).
+    pub greedy_vertices: usize,
 }
 
 /// What the system works on.
@@ -116,7 +119,12 @@ pub fn curves_and_field(
     let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
     let above = params.coarse_greedy_above.unwrap_or(COARSE_GREEDY);
     let field = if target.num_vertices() > above {
-        coarse_greedy_field(target, &fc, &params.field, above / 2, cancel)?
+        let coarse = if params.greedy_vertices == 0 {
+            GREEDY_VERTICES
+        } else {
+            params.greedy_vertices
+        };
+        coarse_greedy_field(target, &fc, &params.field, coarse, cancel)?
     } else {
         oriented_curve_field(&target.positions, &target.faces, &fc, &params.field, cancel)?
     };
@@ -125,17 +133,25 @@ pub fn curves_and_field(
 }
 
 /// Above this many vertices the greedy orientation runs on a coarser level of the mesh by
-/// default. Measured: a 100K-vertex cube's field takes 1.1 s instead of 5.0 s; on the 48K horse
-/// (294 curves) the greedy at 12K vertices is no faster (per-step cost grows slower than the
-/// vertex count there), hence the threshold well above it.
-pub const COARSE_GREEDY: usize = 64_000;
+/// default: below it a full-resolution greedy step (one numeric factorisation, three solves,
+/// the scoring) already takes about 50 ms or less.
+pub const COARSE_GREEDY: usize = 16_000;
+
+/// The coarse level's size for the greedy orientation. Measured
+/// (`cargo run --release --example field_steps`, 2 cores), horse (48K vertices, 294 curves):
+/// a full-resolution greedy step takes 231 ms; at 24K vertices 83 ms, at 12K 33 ms, at 8K 16 ms,
+/// at 4K 4 ms, with the same orientation as the full greedy for 94%, 90%, 90% and 79% of the
+/// curves' length: 8K keeps the decisions of 12K at half the cost per step.
+pub const GREEDY_VERTICES: usize = 8_000;
 
 /// The greedy orientation (Xu et al. §4.1) on a coarse level of the mesh's hierarchy (at most
 /// `coarse` vertices, shortest-edge collapses), the curves carried down to their
-/// vertices' ancestors; then one solve at full resolution with the orientations found. Each
-/// greedy step then costs a coarse factorisation (about 30 ms at 12K vertices) instead of a full
-/// one (0.4 s at 100K); the orientation decisions need the field's sign along each curve, which
-/// the coarse field gives (on the horse, the same decisions for 90% of the curve length).
+/// vertices' ancestors; then at full resolution: curves that shrank below three coarse vertices
+/// (their coarse tangent, hence their score, is lost) are oriented against the fine field of the
+/// others, and one last solve takes them all
+/// ([`crate::geometry::curve_field_completing_orientations`]). Each greedy step then costs a
+/// coarse factorisation ([`GREEDY_VERTICES`]) instead of a full one (0.5 s at 100K); the
+/// orientation decisions need the field's sign along each curve, which the coarse field gives.
 fn coarse_greedy_field(
     target: &TriMesh,
     curves: &[FieldCurve],
@@ -177,11 +193,13 @@ fn coarse_greedy_field(
         cancel,
     )?;
     cancel.check()?;
-    let mut fine = curve_field_with_orientations(
+    let decided: Vec<bool> = coarse_curves.iter().map(|c| c.vertices.len() >= 3).collect();
+    let mut fine = curve_field_completing_orientations(
         &target.positions,
         &target.faces,
         curves,
         &coarse.forward,
+        &decided,
         coarse.order.clone(),
         params,
     )?;

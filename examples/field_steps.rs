@@ -1,0 +1,95 @@
+//! Greedy steps of the curve-guided field at several working sizes:
+//! `cargo run --release --example field_steps`. For the shared horse and a 100K-vertex cube,
+//! prints the time per greedy step (mean, max), the whole field's time, and how much of the
+//! curves' length ends up oriented as the full-resolution greedy orients it.
+use meshmatch::geometry::{
+    Curve, CurveParams, FieldCurve, FieldParams, oriented_curve_field, salient_curves,
+};
+use meshmatch::synthesis::feature_aligned;
+use meshmatch::work::CancelToken;
+use std::time::Instant;
+
+fn len(c: &Curve) -> f32 {
+    c.points
+        .windows(2)
+        .map(|w| glam::Vec3::from(w[0]).distance(glam::Vec3::from(w[1])))
+        .sum()
+}
+
+fn main() {
+    let mut horse =
+        meshmatch::mesh::io::load(&meshmatch::testdata::data_path("horse/horse.ply")).unwrap();
+    horse.repair().unwrap();
+    let sizes: Vec<usize> = std::env::args()
+        .nth(1)
+        .map(|s| s.split(',').map(|x| x.parse().unwrap()).collect())
+        .unwrap_or(vec![24_000, 12_000, 8_000, 4_000]);
+    for (name, mesh) in [
+        ("horse", horse),
+        ("cube", meshmatch::demo::crease_cube(129)),
+    ] {
+        let curves =
+            salient_curves(&mesh.positions, &mesh.faces, &CurveParams::default()).unwrap();
+        let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
+        let t = Instant::now();
+        let full = oriented_curve_field(
+            &mesh.positions,
+            &mesh.faces,
+            &fc,
+            &FieldParams::default(),
+            &CancelToken::new(),
+        )
+        .unwrap();
+        let report = |label: String, f: &meshmatch::geometry::CurveField, secs: f64, greedy: usize| {
+            let total: f32 = curves.iter().map(len).sum();
+            let same: f32 = curves
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| f.forward[*i] == full.forward[*i])
+                .map(|(_, c)| len(c))
+                .sum();
+            let steps = &f.step_secs[..greedy.min(f.step_secs.len())];
+            let mean = steps.iter().sum::<f64>() / steps.len().max(1) as f64;
+            // roughness of the unit field: mean |f_a - f_b|^2 over the edges
+            let (mut e, mut m) = (0.0f64, 0usize);
+            for tri in &mesh.faces {
+                for k in 0..3 {
+                    let (a, b) = (tri[k] as usize, tri[(k + 1) % 3] as usize);
+                    e += (0..3)
+                        .map(|d| ((f.field[a][d] - f.field[b][d]) as f64).powi(2))
+                        .sum::<f64>();
+                    m += 1;
+                }
+            }
+            let rough = e / m.max(1) as f64;
+            let max = steps.iter().cloned().fold(0.0, f64::max);
+            println!(
+                "{name} {} v, {} curves, {label}: {secs:.2} s, {} greedy steps, mean {:.0} ms, max {:.0} ms, same orientation {:.1}%, roughness {rough:.5}",
+                mesh.num_vertices(),
+                curves.len(),
+                steps.len(),
+                mean * 1e3,
+                max * 1e3,
+                100.0 * same / total
+            );
+        };
+        report("full".into(), &full, t.elapsed().as_secs_f64(), full.step_secs.len());
+        for &s in &sizes {
+            if s >= mesh.num_vertices() {
+                continue;
+            }
+            let params = feature_aligned::Params {
+                coarse_greedy_above: Some(s),
+                greedy_vertices: s,
+                ..Default::default()
+            };
+            let t = Instant::now();
+            let (_, f, _) =
+                feature_aligned::curves_and_field(&mesh, Some(&curves), &params, &CancelToken::new())
+                    .unwrap();
+            // the last fine solve (and the one before it when short curves were completed)
+            let n = f.step_secs.len().saturating_sub(2);
+            report(format!("greedy at <= {s}"), &f, t.elapsed().as_secs_f64(), n);
+        }
+    }
+}
