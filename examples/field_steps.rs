@@ -87,8 +87,7 @@ fn main() {
             let (_, f, _) =
                 feature_aligned::curves_and_field(&mesh, Some(&curves), &params, &CancelToken::new())
                     .unwrap();
-            // the last fine solve (and the one before it when short curves were completed)
-            let n = f.step_secs.len().saturating_sub(2);
+            let n = f.step_secs.len();
             report(format!("greedy at <= {s}"), &f, t.elapsed().as_secs_f64(), n);
         }
     }

@@ -593,6 +593,14 @@ pub fn features_row(n: usize) -> Result<SystemRow> {
         stages: vec![
             ("curves".into(), out.timings.curves),
             ("field".into(), out.timings.field),
+            (
+                "greedy step (mean)".into(),
+                out.field.step_secs.iter().sum::<f64>() / out.field.step_secs.len().max(1) as f64,
+            ),
+            (
+                "greedy step (max)".into(),
+                out.field.step_secs.iter().cloned().fold(0.0, f64::max),
+            ),
             ("synthesis".into(), out.timings.synthesis),
             ("optimisation".into(), out.timings.optimization),
         ],

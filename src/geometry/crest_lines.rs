@@ -590,39 +590,61 @@ fn break_at_turns(positions: &[[f32; 3]], c: Curve, max_deg: f32) -> Vec<Curve> 
 
 /// Join curve ends closer than `dist` whose continuing tangents differ by less than `deg`
 /// (closest pairs first), bridging the snapped paths along mesh edges.
+///
+/// A join leaves the other ends of both curves as they were, so the closest-first greedy is one
+/// pass over the candidate pairs sorted by distance (ends found through a grid of cell `dist`):
+/// a pair links when both ends are still free and the curves are not already one chain (a curve
+/// never closes on itself here). Then the chains are assembled. `O(m log m)` in the number of
+/// ends, where recomputing every pair after each join was cubic (minutes on a rounded box's
+/// thousands of crest fragments).
 fn join_curves(
     positions: &[[f32; 3]],
     adj: &crate::mesh::Csr,
-    mut curves: Vec<Curve>,
+    curves: Vec<Curve>,
     dist: f32,
     deg: f32,
 ) -> Vec<Curve> {
     let cos_t = deg.to_radians().cos();
-    loop {
-        // ends: (curve, at_end) with position and outward tangent
-        let end = |c: &Curve, at_end: bool| -> (Vec3, Vec3) {
-            let m = c.points.len();
-            let (p, q) = if at_end {
-                (c.points[m - 1], c.points[m.saturating_sub(3)])
-            } else {
-                (c.points[0], c.points[2.min(m - 1)])
-            };
-            let p = Vec3::from(p);
-            (p, (p - Vec3::from(q)).normalize_or_zero())
+    let m = curves.len();
+    let joinable = |c: &Curve| !c.closed && c.points.len() >= 2;
+    // end e = 2 c + s (s = 0: the first point, 1: the last): position and outward tangent
+    let end = |e: usize| -> (Vec3, Vec3) {
+        let c = &curves[e / 2];
+        let k = c.points.len();
+        let (p, q) = if e % 2 == 1 {
+            (c.points[k - 1], c.points[k.saturating_sub(3)])
+        } else {
+            (c.points[0], c.points[2.min(k - 1)])
         };
-        let mut best: Option<(f32, usize, bool, usize, bool)> = None;
-        for i in 0..curves.len() {
-            if curves[i].closed || curves[i].points.len() < 2 {
-                continue;
-            }
-            for j in i + 1..curves.len() {
-                if curves[j].closed || curves[j].points.len() < 2 {
-                    continue;
-                }
-                for ai in [false, true] {
-                    for aj in [false, true] {
-                        let (pi, ti) = end(&curves[i], ai);
-                        let (pj, tj) = end(&curves[j], aj);
+        let p = Vec3::from(p);
+        (p, (p - Vec3::from(q)).normalize_or_zero())
+    };
+    let cell = dist.max(1e-12);
+    let key = |p: Vec3| (p / cell).floor().as_ivec3();
+    let mut grid: HashMap<glam::IVec3, Vec<usize>> = HashMap::new();
+    for e in 0..2 * m {
+        if joinable(&curves[e / 2]) {
+            grid.entry(key(end(e).0)).or_default().push(e);
+        }
+    }
+    let mut pairs: Vec<(f32, usize, usize)> = Vec::new();
+    for e in 0..2 * m {
+        if !joinable(&curves[e / 2]) {
+            continue;
+        }
+        let (pi, ti) = end(e);
+        let k = key(pi);
+        for dx in -1..=1 {
+            for dy in -1..=1 {
+                for dz in -1..=1 {
+                    let Some(list) = grid.get(&(k + glam::IVec3::new(dx, dy, dz))) else {
+                        continue;
+                    };
+                    for &f in list {
+                        if f / 2 <= e / 2 {
+                            continue;
+                        }
+                        let (pj, tj) = end(f);
                         let d = pi.distance(pj);
                         if d > dist {
                             continue;
@@ -632,73 +654,122 @@ fn join_curves(
                         let ok_t = -ti.dot(tj) > cos_t;
                         let gap = (pj - pi).try_normalize();
                         let ok_g = gap.is_none_or(|g| g.dot(ti) > cos_t && -g.dot(tj) > cos_t);
-                        if ok_t && ok_g && best.is_none_or(|b| d < b.0) {
-                            best = Some((d, i, ai, j, aj));
+                        if ok_t && ok_g {
+                            pairs.push((d, e, f));
                         }
                     }
                 }
             }
         }
-        let Some((_, i, ai, j, aj)) = best else {
-            return curves;
+    }
+    pairs.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let mut link: Vec<Option<usize>> = vec![None; 2 * m];
+    let mut root: Vec<usize> = (0..m).collect();
+    fn find(root: &mut [usize], mut x: usize) -> usize {
+        while root[x] != x {
+            root[x] = root[root[x]];
+            x = root[x];
+        }
+        x
+    }
+    for &(_, e, f) in &pairs {
+        if link[e].is_some() || link[f].is_some() {
+            continue;
+        }
+        let (a, b) = (find(&mut root, e / 2), find(&mut root, f / 2));
+        if a == b {
+            continue;
+        }
+        root[a] = b;
+        link[e] = Some(f);
+        link[f] = Some(e);
+    }
+    // assemble: start at a curve with a free end, walk the links
+    let mut slots: Vec<Option<Curve>> = curves.into_iter().map(Some).collect();
+    let mut out = Vec::new();
+    for c in 0..m {
+        if slots[c].is_none() {
+            continue;
+        }
+        let free = if link[2 * c].is_none() {
+            0
+        } else if link[2 * c + 1].is_none() {
+            1
+        } else {
+            // an inner curve of a chain: reached from that chain's first curve
+            continue;
         };
-        let mut b = curves.swap_remove(j);
-        let a = &mut curves[i];
-        if !ai {
-            a.points.reverse();
-            a.edges.reverse();
-            a.vertices.reverse();
+        let mut a = slots[c].take().expect("unvisited");
+        if free == 1 {
+            reverse(&mut a);
         }
-        if aj {
-            b.points.reverse();
-            b.edges.reverse();
-            b.vertices.reverse();
-        }
-        // bridge a's last vertex to b's first along mesh edges (greedy descent on distance)
-        let from = *a.vertices.last().expect("snapped");
-        let to = b.vertices[0];
-        let mut cur = from;
-        let target = Vec3::from(positions[to as usize]);
-        for _ in 0..64 {
-            if cur == to {
-                break;
+        let mut out_end = 2 * c + (1 - free);
+        while let Some(f) = link[out_end] {
+            let c2 = f / 2;
+            let mut b = slots[c2].take().expect("a chain visits each curve once");
+            if f % 2 == 1 {
+                reverse(&mut b);
             }
-            let next = adj
-                .row(cur as usize)
-                .iter()
-                .copied()
-                .min_by(|&x, &y| {
-                    Vec3::from(positions[x as usize])
-                        .distance_squared(target)
-                        .total_cmp(&Vec3::from(positions[y as usize]).distance_squared(target))
-                })
-                .unwrap_or(to);
-            if Vec3::from(positions[next as usize]).distance_squared(target)
-                >= Vec3::from(positions[cur as usize]).distance_squared(target)
-            {
-                break;
-            }
-            cur = next;
-            if cur != to {
-                a.vertices.push(cur);
-                a.points.push(positions[cur as usize]);
-                a.edges.push([cur, cur]);
-            }
+            append(positions, adj, &mut a, b);
+            out_end = 2 * c2 + (1 - f % 2);
         }
-        a.points.extend(b.points);
-        a.edges.extend(b.edges);
-        for v in b.vertices {
-            if a.vertices.last() != Some(&v) {
-                a.vertices.push(v);
-            }
+        out.push(a);
+    }
+    out
+}
+
+fn reverse(c: &mut Curve) {
+    c.points.reverse();
+    c.edges.reverse();
+    c.vertices.reverse();
+}
+
+/// Append `b` to `a` (`a`'s last point meets `b`'s first), bridging the snapped paths along
+/// mesh edges (greedy descent on distance).
+fn append(positions: &[[f32; 3]], adj: &crate::mesh::Csr, a: &mut Curve, b: Curve) {
+    let from = *a.vertices.last().expect("snapped");
+    let to = b.vertices[0];
+    let mut cur = from;
+    let target = Vec3::from(positions[to as usize]);
+    for _ in 0..64 {
+        if cur == to {
+            break;
         }
-        a.strength += b.strength;
-        if a.kind != b.kind {
-            a.kind = if a.kind == CurveKind::Crease || b.kind == CurveKind::Crease {
-                CurveKind::Crease
-            } else {
-                a.kind
-            };
+        let next = adj
+            .row(cur as usize)
+            .iter()
+            .copied()
+            .min_by(|&x, &y| {
+                Vec3::from(positions[x as usize])
+                    .distance_squared(target)
+                    .total_cmp(&Vec3::from(positions[y as usize]).distance_squared(target))
+            })
+            .unwrap_or(to);
+        if Vec3::from(positions[next as usize]).distance_squared(target)
+            >= Vec3::from(positions[cur as usize]).distance_squared(target)
+        {
+            break;
         }
+        cur = next;
+        if cur != to {
+            a.vertices.push(cur);
+            a.points.push(positions[cur as usize]);
+            a.edges.push([cur, cur]);
+        }
+    }
+    a.points.extend(b.points);
+    a.edges.extend(b.edges);
+    for v in b.vertices {
+        if a.vertices.last() != Some(&v) {
+            a.vertices.push(v);
+        }
+    }
+    a.strength += b.strength;
+    if a.kind != b.kind {
+        a.kind = if a.kind == CurveKind::Crease || b.kind == CurveKind::Crease {
+            CurveKind::Crease
+        } else {
+            a.kind
+        };
     }
 }

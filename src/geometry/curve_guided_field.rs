@@ -197,6 +197,9 @@ pub struct CurveField {
     pub step_secs: Vec<f64>,
     /// Seconds for the symbolic analysis.
     pub setup_secs: f64,
+    /// Seconds of the full-resolution solves after a coarse greedy (0 when the greedy ran at
+    /// full resolution: its last step is the final solve).
+    pub final_solve_secs: f64,
 }
 
 /// One curve as the field sees it: its snapped vertex path and whether it closes.
@@ -445,6 +448,7 @@ fn finish(
         constrained,
         step_secs,
         setup_secs,
+        final_solve_secs: 0.0,
     }
 }
 

@@ -203,9 +203,8 @@ fn coarse_greedy_field(
         coarse.order.clone(),
         params,
     )?;
-    let mut steps = coarse.step_secs;
-    steps.extend(fine.step_secs);
-    fine.step_secs = steps;
+    fine.final_solve_secs = fine.step_secs.iter().sum();
+    fine.step_secs = coarse.step_secs;
     Ok(fine)
 }
 
