@@ -28,8 +28,7 @@ fn main() {
         ("horse", horse),
         ("cube", meshmatch::demo::crease_cube(129)),
     ] {
-        let curves =
-            salient_curves(&mesh.positions, &mesh.faces, &CurveParams::default()).unwrap();
+        let curves = salient_curves(&mesh.positions, &mesh.faces, &CurveParams::default()).unwrap();
         let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
         let t = Instant::now();
         let full = oriented_curve_field(
@@ -40,7 +39,10 @@ fn main() {
             &CancelToken::new(),
         )
         .unwrap();
-        let report = |label: String, f: &meshmatch::geometry::CurveField, secs: f64, greedy: usize| {
+        let report = |label: String,
+                      f: &meshmatch::geometry::CurveField,
+                      secs: f64,
+                      greedy: usize| {
             let total: f32 = curves.iter().map(len).sum();
             let same: f32 = curves
                 .iter()
@@ -73,7 +75,12 @@ fn main() {
                 100.0 * same / total
             );
         };
-        report("full".into(), &full, t.elapsed().as_secs_f64(), full.step_secs.len());
+        report(
+            "full".into(),
+            &full,
+            t.elapsed().as_secs_f64(),
+            full.step_secs.len(),
+        );
         for &s in &sizes {
             if s >= mesh.num_vertices() {
                 continue;
@@ -84,11 +91,20 @@ fn main() {
                 ..Default::default()
             };
             let t = Instant::now();
-            let (_, f, _) =
-                feature_aligned::curves_and_field(&mesh, Some(&curves), &params, &CancelToken::new())
-                    .unwrap();
+            let (_, f, _) = feature_aligned::curves_and_field(
+                &mesh,
+                Some(&curves),
+                &params,
+                &CancelToken::new(),
+            )
+            .unwrap();
             let n = f.step_secs.len();
-            report(format!("greedy at <= {s}"), &f, t.elapsed().as_secs_f64(), n);
+            report(
+                format!("greedy at <= {s}"),
+                &f,
+                t.elapsed().as_secs_f64(),
+                n,
+            );
         }
     }
 }

@@ -2051,7 +2051,10 @@ fn feature_aligned_tool_draws_the_field_and_a_click_on_a_curve_drops_it() {
         }
     }
     assert!(checked >= 10, "{checked} arrows on creases");
-    assert!(worst > 0.9, "an arrow on a crease crosses it: |cos| {worst}");
+    assert!(
+        worst > 0.9,
+        "an arrow on a crease crosses it: |cos| {worst}"
+    );
     h.run_steps(2);
     let img = h.render().expect("render");
     let cyan = img

@@ -373,6 +373,71 @@ fn rounded_block_crest_lines_are_recovered() {
     assert!(mean > 0.95);
 }
 
+#[test]
+fn constant_radius_fillets_give_their_middle_lines() {
+    // a unit box whose 12 edges are rounded with radius 0.12 (about six edge lengths): k is flat
+    // across each fillet, the crest is its middle line
+    let r = 0.12f32;
+    let half = Vec3::splat(0.5);
+    let f = move |p: Vec3| {
+        let q = p.abs() - (half - Vec3::splat(r));
+        q.max(Vec3::ZERO).length() + q.max_element().min(0.0) - r
+    };
+    let mut mesh = meshmatch::demo::sdf::mesh_sdf(&f, Vec3::splat(-0.6), Vec3::splat(0.6), 0.02);
+    meshmatch::demo::sdf::relax(&mut mesh, &f, 5, 1e-4);
+    let h = mean_edge_length(&mesh.positions, &mesh.faces);
+    let curves = salient_curves(&mesh.positions, &mesh.faces, &CurveParams::default()).unwrap();
+    // the middle lines, over the straight part of each edge
+    let c = 0.5 - r + r * std::f32::consts::FRAC_1_SQRT_2;
+    let mut truth = Vec::new();
+    for axis in 0..3 {
+        for (sa, sb) in [(1.0f32, 1.0f32), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+            truth.push(
+                (0..=64)
+                    .map(|i| {
+                        let mut p = [0.0f32; 3];
+                        p[axis] = (0.5 - r) * (-1.0 + 2.0 * i as f32 / 64.0);
+                        p[(axis + 1) % 3] = sa * c;
+                        p[(axis + 2) % 3] = sb * c;
+                        Vec3::from(p)
+                    })
+                    .collect::<Vec<_>>(),
+            );
+        }
+    }
+    let (p, rc) = precision_recall(&curves, &truth, 2.0 * h);
+    for cv in &curves {
+        let (pp, _) = precision_recall(std::slice::from_ref(cv), &truth, 2.0 * h);
+        let far = cv
+            .points
+            .iter()
+            .map(|q| {
+                let q = Vec3::from(*q).abs();
+                (0..3)
+                    .map(|a| ((q[(a + 1) % 3] - c).powi(2) + (q[(a + 2) % 3] - c).powi(2)).sqrt())
+                    .fold(f32::INFINITY, f32::min)
+            })
+            .fold(0.0f32, f32::max);
+        eprintln!(
+            "  {:?} {} points, length {:.3}, strength {:.1}: {:.0}% near, farthest from a middle line {:.1} h",
+            cv.kind,
+            cv.points.len(),
+            cv.length(),
+            cv.strength,
+            100.0 * pp,
+            far / h
+        );
+    }
+    eprintln!(
+        "filleted box: {} vertices, r = {:.1} h, {} curves, precision {p:.3}, recall {rc:.3}",
+        mesh.num_vertices(),
+        r / h,
+        curves.len()
+    );
+    assert!(rc > 0.85, "recall {rc}");
+    assert!(p > 0.8, "precision {p}");
+}
+
 /// Horizontal stripes: colour varies along y only, so they run along the exemplar's x axis.
 /// Feature-aligned texturing of `mesh` with `ex` (curves found), and its wall time.
 fn run_timed(

@@ -16,8 +16,8 @@ use crate::error::{Error, Result};
 use crate::geometry::vertex_normals;
 use crate::geometry::{Curve, CurveKind, CurveParams, salient_curves};
 use crate::mesh::TriMesh;
-use crate::work::CancelToken;
 use crate::synthesis::feature_aligned::{self, Params};
+use crate::work::CancelToken;
 
 /// The "Feature-aligned texture" window.
 #[derive(Clone, Debug)]
@@ -226,7 +226,10 @@ impl FeatureAlignedDialog {
             return;
         };
         let current = self.field.as_ref().is_some_and(|f| f.kept == found.kept);
-        let running = self.field_job.as_ref().is_some_and(|j| j.kept == found.kept);
+        let running = self
+            .field_job
+            .as_ref()
+            .is_some_and(|j| j.kept == found.kept);
         if current || running {
             return;
         }
@@ -252,11 +255,12 @@ impl FeatureAlignedDialog {
         let flags = found.kept.clone();
         let ctx = ctx.clone();
         std::thread::spawn(move || {
-            let res = feature_aligned::curves_and_field(&mesh, Some(&kept), &Params::default(), &cancel)
-                .map(|(_, field, _)| FieldPreview {
-                    kept: flags,
-                    arrows: Arc::new(field_arrows(&mesh, &field.field, 40)),
-                });
+            let res =
+                feature_aligned::curves_and_field(&mesh, Some(&kept), &Params::default(), &cancel)
+                    .map(|(_, field, _)| FieldPreview {
+                        kept: flags,
+                        arrows: Arc::new(field_arrows(&mesh, &field.field, 40)),
+                    });
             if !cancel.is_cancelled() {
                 let _ = tx.send(res);
                 ctx.request_repaint();

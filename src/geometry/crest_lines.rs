@@ -13,6 +13,17 @@
 //! (dimensionless); lines under the threshold are dropped. Faces touching a sharp crease are left
 //! to the crease detector.
 //!
+//! Rounded edges of constant radius (CAD fillets) have `k` flat across them, so `e` is noise
+//! there and the crest would land anywhere on the fillet (or, from the estimate's overshoot, at
+//! its borders). On such plateaus (`k` over the two-ring within the prominence) two walks along
+//! `±t` measure the distances `a, b` to where `k` halves; where both end, the crest function is
+//! `k (1 + c)` with the centrality `c = 1 - |a - b| / (a + b)`, and crossings keep only the
+//! band's middle (`c >= 0.75`), so the crest is the fillet's middle line. Measured
+//! (`examples/rounded_edges`, relaxed meshes of a unit box, fillet radii of 2 to 24 edge
+//! lengths): the middle line of all 12 edges at every radius and nothing else up to 12 edge
+//! lengths (12 stray lines at 24), where the extremality alone found no middle line above 2
+//! edge lengths; the shared horse keeps 276 of its 293 curves.
+//!
 //! Creases. Interior edges whose dihedral angle (between the face normals) exceeds
 //! `crease_angle_deg`, chained through vertices with two crease edges; strength `Σ θ_e |e| / h`
 //! (h: mean edge length), the same unit as `∫ |k| ds` since a crease of angle θ spread over one
@@ -329,7 +340,37 @@ fn crest_lines(
         }
         g
     };
-    let gk = grad_of(&k);
+    // Bands: a constant-radius fillet has k flat across it, so its extremality is noise and its
+    // crest would land anywhere on it; there the ridge is the band's middle line.
+    // plateau vertices: k over the two-ring within the prominence (the extremality is noise)
+    let flat: Vec<bool> = {
+        let kmin1: Vec<f32> = (0..n)
+            .map(|i| {
+                adj.row(i)
+                    .iter()
+                    .map(|&v| k[v as usize])
+                    .fold(k[i], f32::min)
+            })
+            .collect();
+        (0..n)
+            .map(|i| {
+                let kring = adj
+                    .row(i)
+                    .iter()
+                    .map(|&v| kmin1[v as usize])
+                    .fold(kmin1[i], f32::min);
+                valid[i] && k[i] - kring < min_prominence * k[i]
+            })
+            .collect()
+    };
+    let band = band_centrality(positions, adj, &k, &t, &flat);
+    let kc: Vec<f32> = (0..n)
+        .map(|i| match band[i] {
+            Some(c) => k[i] * (1.0 + BAND_GAIN * c),
+            None => k[i],
+        })
+        .collect();
+    let gk = grad_of(&kc);
     let normals = &pc.normals;
     let e: Vec<f32> = (0..n)
         .map(|i| {
@@ -393,8 +434,18 @@ fn crest_lines(
             .chain(adj.row(bi))
             .map(|&v| kmin1[v as usize])
             .fold(f32::INFINITY, f32::min);
-        if kk - kring < min_prominence * kk {
-            return None;
+        // inside a band the centrality makes the crest: no prominence asked, but only its
+        // middle part holds crests (off it, the maxima are the estimate's overshoot at the
+        // band's borders, one each side of the true crest)
+        let centre = match (band[ai], band[bi]) {
+            (Some(ca), Some(cb)) => Some(ca * (1.0 - w) + cb * w),
+            _ => None,
+        };
+        match centre {
+            Some(c) if c < BAND_MIDDLE => return None,
+            Some(_) => {}
+            None if kk - kring < min_prominence * kk => return None,
+            None => {}
         }
         let pa = Vec3::from(positions[ai]);
         let pb = Vec3::from(positions[bi]);
@@ -505,6 +556,91 @@ fn crest_lines(
         }
     }
     out
+}
+
+/// Weight of the band centrality in the crest function: `k (1 + BAND_GAIN c)`, `c` in `[0, 1]`.
+const BAND_GAIN: f32 = 1.0;
+/// Bands narrower than this many edge lengths are left to the extremality alone.
+const BAND_MIN_WIDTH: f32 = 4.0;
+/// Crossings inside a band keep only its middle part: centrality at least this.
+const BAND_MIDDLE: f32 = 0.75;
+/// Steps a band walk takes at most on each side.
+const BAND_STEPS: usize = 96;
+/// A band's walk ends where `k` falls below this fraction of the start's.
+const BAND_DROP: f32 = 0.5;
+
+/// Per vertex, its centrality across a band of high `k`, or `None` outside bands. From each
+/// plateau vertex (`flat`: `k` over its two-ring within the prominence, where the extremality is
+/// noise), two walks follow `±t` (the curvature line across a fillet: at each step the
+/// neighbour furthest along the current direction, `t` re-signed to it) until `k` falls below
+/// [`BAND_DROP`] of the start's value; lengths `a` and `b`. A vertex whose walks both end within
+/// [`BAND_STEPS`] steps, in a band at least [`BAND_MIN_WIDTH`] of its own edge lengths wide, gets
+/// `c = 1 - |a - b| / (a + b)` (1 on the middle line, 0 at the borders). A cylinder's side is
+/// no band (walking around it never finds lower `k`); a ridge whose `k` peaks sharply keeps its
+/// peak (the centrality only adds `BAND_GAIN` at the middle of its half-width).
+fn band_centrality(
+    positions: &[[f32; 3]],
+    adj: &crate::mesh::Csr,
+    k: &[f32],
+    t: &[Vec3],
+    flat: &[bool],
+) -> Vec<Option<f32>> {
+    use rayon::prelude::*;
+    let n = positions.len();
+
+    let p = |i: usize| Vec3::from(positions[i]);
+    let walk = |start: usize, sign: f32| -> Option<f32> {
+        let limit = BAND_DROP * k[start];
+        let mut cur = start;
+        let mut dir = t[start] * sign;
+        let mut len = 0.0f32;
+        for _ in 0..BAND_STEPS {
+            let pc = p(cur);
+            let mut best: Option<(f32, usize)> = None;
+            for &w in adj.row(cur) {
+                let d = p(w as usize) - pc;
+                let l = d.length();
+                if l <= 0.0 {
+                    continue;
+                }
+                let along = d.dot(dir) / l;
+                if along > 0.5 && best.is_none_or(|(b, _)| along > b) {
+                    best = Some((along, w as usize));
+                }
+            }
+            let (_, w) = best?;
+            let d = p(w) - pc;
+            len += d.length();
+            if k[w] < limit || !k[w].is_finite() {
+                return Some(len - 0.5 * d.length());
+            }
+            let tw = t[w];
+            dir = if tw.dot(dir) >= 0.0 { tw } else { -tw };
+            cur = w;
+        }
+        None
+    };
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            if !flat[i] || k[i] <= 0.0 || t[i].length_squared() < 0.5 {
+                return None;
+            }
+            let a = walk(i, 1.0)?;
+            let b = walk(i, -1.0)?;
+            // the mean edge length around the vertex
+            let row = adj.row(i);
+            let h = row
+                .iter()
+                .map(|&w| p(w as usize).distance(p(i)))
+                .sum::<f32>()
+                / row.len().max(1) as f32;
+            if a + b < BAND_MIN_WIDTH * h {
+                return None;
+            }
+            Some(1.0 - (a - b).abs() / (a + b))
+        })
+        .collect()
 }
 
 /// Nearest end of each point's edge, consecutive duplicates removed.

@@ -193,7 +193,10 @@ fn coarse_greedy_field(
         cancel,
     )?;
     cancel.check()?;
-    let decided: Vec<bool> = coarse_curves.iter().map(|c| c.vertices.len() >= 3).collect();
+    let decided: Vec<bool> = coarse_curves
+        .iter()
+        .map(|c| c.vertices.len() >= 3)
+        .collect();
     let mut fine = curve_field_completing_orientations(
         &target.positions,
         &target.faces,
