@@ -138,11 +138,12 @@ pub fn curves_and_field(
 pub const COARSE_GREEDY: usize = 16_000;
 
 /// The coarse level's size for the greedy orientation. Measured
-/// (`cargo run --release --example field_steps`, 2 cores), horse (48K vertices, 294 curves):
-/// a full-resolution greedy step takes 231 ms; at 24K vertices 83 ms, at 12K 33 ms, at 8K 16 ms,
-/// at 4K 4 ms, with the same orientation as the full greedy for 94%, 90%, 90% and 79% of the
-/// curves' length: 8K keeps the decisions of 12K at half the cost per step.
-pub const GREEDY_VERTICES: usize = 8_000;
+/// (`cargo run --release --example field_steps`, 2 cores), horse (48K vertices, 276 curves):
+/// a full-resolution greedy step takes 169 ms; at 24K vertices 68 ms, at 16K 59 ms, at 12K
+/// 36 ms, at 8K 11 ms, orienting 97%, 92%, 92% and 77% of the curves' length as the full greedy
+/// does, with fields 3%, 1%, 4% and 5% rougher: 12K is the smallest level that keeps the
+/// decisions within the 50 ms a step.
+pub const GREEDY_VERTICES: usize = 12_000;
 
 /// The greedy orientation (Xu et al. §4.1) on a coarse level of the mesh's hierarchy (at most
 /// `coarse` vertices, shortest-edge collapses), the curves carried down to their
