@@ -274,6 +274,97 @@ fn cube_creases_are_recovered_and_the_field_follows_them() {
     assert!(min > 0.95, "min |cos| {min}");
 }
 
+/// An L-shaped prism (the profile [0,2]x[0,1] + [0,1]x[1,2], z in [0,1]) with `n` grid cells per
+/// unit: 18 sharp edges, one of them concave (the inner corner's vertical edge).
+fn l_block(n: u32) -> TriMesh {
+    let mut pos: Vec<[f32; 3]> = Vec::new();
+    let mut faces: Vec<[u32; 3]> = Vec::new();
+    // a rectangle from `o` spanning `a` then `b` (integers, in units); a x b is the outward normal
+    let mut rect = |o: Vec3, a: Vec3, b: Vec3| {
+        let (na, nb) = (
+            (a.length() * n as f32).round() as u32,
+            (b.length() * n as f32).round() as u32,
+        );
+        let base = pos.len() as u32;
+        for j in 0..=nb {
+            for i in 0..=na {
+                let p = o + a * (i as f32 / na as f32) + b * (j as f32 / nb as f32);
+                // on the grid exactly, so shared edges weld
+                pos.push((p * n as f32).round().to_array().map(|c| c / n as f32));
+            }
+        }
+        let id = |i: u32, j: u32| base + j * (na + 1) + i;
+        for j in 0..nb {
+            for i in 0..na {
+                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+    };
+    let (x, y, z) = (Vec3::X, Vec3::Y, Vec3::Z);
+    let v = |a: f32, b: f32, c: f32| Vec3::new(a, b, c);
+    // bottom (normal -z) and top (+z), each as two rectangles
+    rect(v(0.0, 0.0, 0.0), y, 2.0 * x);
+    rect(v(0.0, 1.0, 0.0), y, x);
+    rect(v(0.0, 0.0, 1.0), 2.0 * x, y);
+    rect(v(0.0, 1.0, 1.0), x, y);
+    // sides
+    rect(v(0.0, 0.0, 0.0), 2.0 * x, z); // y = 0, normal -y
+    rect(v(2.0, 0.0, 0.0), y, z); // x = 2, +x
+    rect(v(2.0, 1.0, 0.0), -x, z); // y = 1 (x in [1,2]), +y
+    rect(v(1.0, 1.0, 0.0), y, z); // x = 1 (y in [1,2]), +x
+    rect(v(1.0, 2.0, 0.0), -x, z); // y = 2, +y
+    rect(v(0.0, 2.0, 0.0), -2.0 * y, z); // x = 0, -x
+    let (m, _) = meshmatch::geometry::weld(&TriMesh::new(pos, faces));
+    m
+}
+
+#[test]
+fn fandisk_like_part_gives_its_convex_and_concave_creases() {
+    let mesh = l_block(12);
+    let h = mean_edge_length(&mesh.positions, &mesh.faces);
+    let curves = salient_curves(&mesh.positions, &mesh.faces, &CurveParams::default()).unwrap();
+    // the 18 edges: the profile's 6 edges at z = 0 and z = 1, and its 6 corners extruded
+    let profile = [
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(2.0, 0.0, 0.0),
+        Vec3::new(2.0, 1.0, 0.0),
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(1.0, 2.0, 0.0),
+        Vec3::new(0.0, 2.0, 0.0),
+    ];
+    let seg =
+        |a: Vec3, b: Vec3| -> Vec<Vec3> { (0..=48).map(|i| a.lerp(b, i as f32 / 48.0)).collect() };
+    let mut truth = Vec::new();
+    for k in 0..6 {
+        let (a, b) = (profile[k], profile[(k + 1) % 6]);
+        truth.push(seg(a, b));
+        truth.push(seg(a + Vec3::Z, b + Vec3::Z));
+        truth.push(seg(a, a + Vec3::Z));
+    }
+    let (p, r) = precision_recall(&curves, &truth, 1.5 * h);
+    for t in &truth {
+        let (_, rt) = precision_recall(&curves, std::slice::from_ref(t), 1.5 * h);
+        if rt < 0.95 {
+            eprintln!("  edge {:?} -> {:?}: recall {rt:.3}", t[0], t[t.len() - 1]);
+        }
+    }
+    // the concave edge on its own
+    let concave = vec![seg(profile[3], profile[3] + Vec3::Z)];
+    let (_, rc) = precision_recall(&curves, &concave, 1.5 * h);
+    eprintln!(
+        "L-block: {} vertices, {} curves, precision {p:.3}, recall {r:.3}, concave edge recall {rc:.3}",
+        mesh.num_vertices(),
+        curves.len()
+    );
+    assert!(p > 0.99 && r > 0.95, "precision {p}, recall {r}");
+    assert!(rc > 0.95, "the concave crease: recall {rc}");
+    let f = field_of(&mesh, &curves);
+    let (min, mean) = field_alignment(&mesh, &curves, &f.field);
+    eprintln!("L-block field: |cos| min {min:.4} mean {mean:.4}");
+    assert!(mean > 0.95, "mean |cos| {mean}");
+}
+
 #[test]
 fn cylinder_rims_are_recovered_without_spurious_lines() {
     let mesh = cylinder(64, 20, 8);
