@@ -3,7 +3,7 @@
 //! steps and how many curves end up oriented as the one-per-step run orients them (up to one
 //! global flip) and the field's roughness, on the demo giraffe and Spot.
 use meshmatch::geometry::{
-    CurveParams, FieldCurve, FieldParams, oriented_curve_field, salient_curves,
+    CurveParams, FieldCurve, FieldParams, field_roughness, oriented_curve_field, salient_curves,
 };
 use meshmatch::work::CancelToken;
 use std::time::Instant;
@@ -30,18 +30,8 @@ fn main() {
             )
             .expect("field");
             let secs = t.elapsed().as_secs_f64();
-            // Roughness of the unit field: mean |f_a - f_b|² over the edges (lower is smoother,
-            // a consistent orientation).
-            let (mut e, mut m) = (0.0f64, 0usize);
-            for tri in &mesh.faces {
-                for k in 0..3 {
-                    let (a, b) = (tri[k] as usize, tri[(k + 1) % 3] as usize);
-                    e += (0..3)
-                        .map(|d| ((f.field[a][d] - f.field[b][d]) as f64).powi(2))
-                        .sum::<f64>();
-                    m += 1;
-                }
-            }
+            // Roughness of the unit field (lower is smoother, a consistent orientation).
+            let rough = field_roughness(&mesh.faces, &f.field);
             let agree = reference.as_ref().map(|r| {
                 let same = r.iter().zip(&f.forward).filter(|(a, b)| a == b).count();
                 same.max(r.len() - same)
@@ -53,7 +43,7 @@ fn main() {
                 fc.len(),
                 f.step_secs.len(),
                 agree,
-                e / m.max(1) as f64
+                rough
             );
             if reference.is_none() {
                 reference = Some(f.forward.clone());

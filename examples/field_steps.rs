@@ -9,13 +9,6 @@ use meshmatch::synthesis::feature_aligned;
 use meshmatch::work::CancelToken;
 use std::time::Instant;
 
-fn len(c: &Curve) -> f32 {
-    c.points
-        .windows(2)
-        .map(|w| glam::Vec3::from(w[0]).distance(glam::Vec3::from(w[1])))
-        .sum()
-}
-
 fn main() {
     let mut horse =
         meshmatch::mesh::io::load(&meshmatch::testdata::data_path("horse/horse.ply")).unwrap();
@@ -43,27 +36,16 @@ fn main() {
                       f: &meshmatch::geometry::CurveField,
                       secs: f64,
                       greedy: usize| {
-            let total: f32 = curves.iter().map(len).sum();
+            let total: f32 = curves.iter().map(Curve::length).sum();
             let same: f32 = curves
                 .iter()
                 .enumerate()
                 .filter(|(i, _)| f.forward[*i] == full.forward[*i])
-                .map(|(_, c)| len(c))
+                .map(|(_, c)| c.length())
                 .sum();
             let steps = &f.step_secs[..greedy.min(f.step_secs.len())];
             let mean = steps.iter().sum::<f64>() / steps.len().max(1) as f64;
-            // roughness of the unit field: mean |f_a - f_b|^2 over the edges
-            let (mut e, mut m) = (0.0f64, 0usize);
-            for tri in &mesh.faces {
-                for k in 0..3 {
-                    let (a, b) = (tri[k] as usize, tri[(k + 1) % 3] as usize);
-                    e += (0..3)
-                        .map(|d| ((f.field[a][d] - f.field[b][d]) as f64).powi(2))
-                        .sum::<f64>();
-                    m += 1;
-                }
-            }
-            let rough = e / m.max(1) as f64;
+            let rough = meshmatch::geometry::field_roughness(&mesh.faces, &f.field);
             let max = steps.iter().cloned().fold(0.0, f64::max);
             println!(
                 "{name} {} v, {} curves, {label}: {secs:.2} s, {} greedy steps, mean {:.0} ms, max {:.0} ms, same orientation {:.1}%, roughness {rough:.5}",

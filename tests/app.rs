@@ -1909,18 +1909,25 @@ fn settle_target(h: &mut Harness<'static, App>) {
     }
 }
 
-#[test]
-fn feature_aligned_tool_shows_the_found_curves_and_uses_only_the_kept_ones() {
-    use meshmatch::app::feature_aligned::FeatureAlignedDialog;
-    let dir = temp_dir("feature_aligned_curves");
-    let image = dir.join("line.png");
-    meshmatch::demo::line_exemplar().save(&image).unwrap();
+/// The app with a sphere as source and the demo block (a cube and a cylinder: 14 creases and
+/// rims) as target, prepared and settled.
+fn block_harness() -> Harness<'static, App> {
     let mut app = App::new(TestEngine::default(), None);
     app.state.set_mesh(Side::Source, sphere(12, 16), false);
     app.state
         .set_mesh(Side::Target, meshmatch::demo::crest_block(10), false);
     let mut h = harness(app);
     settle_target(&mut h);
+    h
+}
+
+#[test]
+fn feature_aligned_tool_shows_the_found_curves_and_uses_only_the_kept_ones() {
+    use meshmatch::app::feature_aligned::FeatureAlignedDialog;
+    let dir = temp_dir("feature_aligned_curves");
+    let image = dir.join("line.png");
+    meshmatch::demo::line_exemplar().save(&image).unwrap();
+    let mut h = block_harness();
     let i = system_index::<FeatureAlignedDialog>(&mut h);
     {
         let d = h.state_mut().system_mut::<FeatureAlignedDialog>().unwrap();
@@ -1992,12 +1999,7 @@ fn feature_aligned_tool_shows_the_found_curves_and_uses_only_the_kept_ones() {
 #[test]
 fn feature_aligned_tool_draws_the_field_and_a_click_on_a_curve_drops_it() {
     use meshmatch::app::feature_aligned::FeatureAlignedDialog;
-    let mut app = App::new(TestEngine::default(), None);
-    app.state.set_mesh(Side::Source, sphere(12, 16), false);
-    app.state
-        .set_mesh(Side::Target, meshmatch::demo::crest_block(10), false);
-    let mut h = harness(app);
-    settle_target(&mut h);
+    let mut h = block_harness();
     h.state_mut()
         .system_mut::<FeatureAlignedDialog>()
         .unwrap()

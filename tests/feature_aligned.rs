@@ -871,18 +871,12 @@ fn coarse_greedy_orients_the_curves_as_the_full_greedy() {
     .unwrap();
     let full_s = t.elapsed().as_secs_f64();
     // agreement weighted by curve length
-    let len = |c: &Curve| {
-        c.points
-            .windows(2)
-            .map(|w| Vec3::from(w[0]).distance(Vec3::from(w[1])))
-            .sum::<f32>()
-    };
-    let total: f32 = curves.iter().map(len).sum();
+    let total: f32 = curves.iter().map(Curve::length).sum();
     let same: f32 = curves
         .iter()
         .enumerate()
         .filter(|(i, _)| coarse.forward[*i] == full.forward[*i])
-        .map(|(_, c)| len(c))
+        .map(|(_, c)| c.length())
         .sum();
     let (_, mean_c) = field_alignment(&mesh, &curves, &coarse.field);
     let (_, mean_f) = field_alignment(&mesh, &curves, &full.field);
@@ -897,17 +891,7 @@ fn coarse_greedy_orients_the_curves_as_the_full_greedy() {
     assert!(same >= 0.85 * total, "{same} of {total}");
     assert!(mean_c > 0.95, "{mean_c}");
     // the field the user sees is as smooth as the full greedy's (mean |f_a - f_b|² on edges)
-    let rough = |f: &[[f32; 3]]| {
-        let (mut e, mut m) = (0.0f64, 0usize);
-        for t in &mesh.faces {
-            for k in 0..3 {
-                let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
-                e += (Vec3::from(f[a]) - Vec3::from(f[b])).length_squared() as f64;
-                m += 1;
-            }
-        }
-        e / m as f64
-    };
+    let rough = |f: &[[f32; 3]]| meshmatch::geometry::field_roughness(&mesh.faces, f);
     let (rc, rf) = (rough(&coarse.field), rough(&full.field));
     println!("roughness: coarse greedy {rc:.5}, full greedy {rf:.5}");
     assert!(rc <= 1.1 * rf, "coarse greedy field rougher: {rc} vs {rf}");

@@ -114,7 +114,7 @@ pub struct FoundCurves {
 
 impl FoundCurves {
     fn new(mut curves: Vec<Curve>, vertices: usize) -> FoundCurves {
-        curves.sort_by(|a, b| length(b).total_cmp(&length(a)));
+        curves.sort_by(|a, b| b.length().total_cmp(&a.length()));
         let kept = vec![true; curves.len()];
         let lines = Arc::new(
             curves
@@ -139,19 +139,6 @@ impl FoundCurves {
             .map(|(c, _)| c.clone())
             .collect()
     }
-}
-
-/// Polyline length of a curve (closing segment included).
-fn length(c: &Curve) -> f32 {
-    let p = &c.points;
-    let mut l: f32 = p
-        .windows(2)
-        .map(|w| glam::Vec3::from(w[0]).distance(glam::Vec3::from(w[1])))
-        .sum();
-    if c.closed && p.len() > 2 {
-        l += glam::Vec3::from(p[0]).distance(glam::Vec3::from(p[p.len() - 1]));
-    }
-    l
 }
 
 impl Default for FeatureAlignedDialog {
@@ -400,7 +387,7 @@ impl<P: AppParams> SystemTool<P> for FeatureAlignedDialog {
                             "{:>2}. {kind}{}, length {:.3}",
                             i + 1,
                             if c.closed { " (closed)" } else { "" },
-                            length(c)
+                            c.length()
                         );
                         ui.checkbox(&mut f.kept[i], text);
                     }

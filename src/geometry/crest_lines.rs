@@ -340,29 +340,28 @@ fn crest_lines(
         }
         g
     };
-    // Bands: a constant-radius fillet has k flat across it, so its extremality is noise and its
-    // crest would land anywhere on it; there the ridge is the band's middle line.
-    // plateau vertices: k over the two-ring within the prominence (the extremality is noise)
-    let flat: Vec<bool> = {
-        let kmin1: Vec<f32> = (0..n)
-            .map(|i| {
-                adj.row(i)
-                    .iter()
-                    .map(|&v| k[v as usize])
-                    .fold(k[i], f32::min)
-            })
-            .collect();
-        (0..n)
-            .map(|i| {
-                let kring = adj
-                    .row(i)
-                    .iter()
-                    .map(|&v| kmin1[v as usize])
-                    .fold(kmin1[i], f32::min);
-                valid[i] && k[i] - kring < min_prominence * k[i]
-            })
-            .collect()
-    };
+    // smallest k over each closed one-ring (plateaus and crossings compare with the two-ring)
+    let kmin1: Vec<f32> = (0..n)
+        .map(|i| {
+            adj.row(i)
+                .iter()
+                .map(|&v| k[v as usize])
+                .fold(k[i], f32::min)
+        })
+        .collect();
+    // Bands: a constant-radius fillet has k flat across it (k over the two-ring within the
+    // prominence), so its extremality is noise and its crest would land anywhere on it; there
+    // the ridge is the band's middle line.
+    let flat: Vec<bool> = (0..n)
+        .map(|i| {
+            let kring = adj
+                .row(i)
+                .iter()
+                .map(|&v| kmin1[v as usize])
+                .fold(kmin1[i], f32::min);
+            valid[i] && k[i] - kring < min_prominence * k[i]
+        })
+        .collect();
     let band = band_centrality(positions, adj, &k, &t, &flat);
     let kc: Vec<f32> = (0..n)
         .map(|i| match band[i] {
@@ -396,15 +395,6 @@ fn crest_lines(
         .iter()
         .zip(&wsum)
         .map(|(&x, &w)| if w > 0.0 { x / w } else { 0.0 })
-        .collect();
-    // smallest k over each closed one-ring (crossings compare with the two-ring)
-    let kmin1: Vec<f32> = (0..n)
-        .map(|i| {
-            adj.row(i)
-                .iter()
-                .map(|&v| k[v as usize])
-                .fold(k[i], f32::min)
-        })
         .collect();
     // crossings per edge
     let mut points: Vec<[f32; 3]> = Vec::new();

@@ -180,6 +180,39 @@ pub fn score_terms(tangents: &[DVec3], field: &[DVec3]) -> (f64, f64) {
     g
 }
 
+/// The two terms of eq. (1) for a curve against a raw (unprojected) field: the field is
+/// projected on the tangent planes at the curve's vertices first.
+fn curve_scores(
+    raw: &[DVec3],
+    normals: &[[f32; 3]],
+    tangents: &[DVec3],
+    vertices: &[u32],
+) -> (f64, f64) {
+    let f: Vec<DVec3> = vertices
+        .iter()
+        .map(|&v| {
+            let nv = d3(normals[v as usize]);
+            let u = raw[v as usize];
+            u - u.dot(nv) * nv
+        })
+        .collect();
+    score_terms(tangents, &f)
+}
+
+/// Roughness of a unit tangent field: the mean of `|f_a - f_b|²` over the faces' edges (each
+/// interior edge counted twice). Lower is smoother; a field whose curves disagree in
+/// orientation is rougher.
+pub fn field_roughness(faces: &[[u32; 3]], field: &[[f32; 3]]) -> f64 {
+    let mut e = 0.0f64;
+    for t in faces {
+        for k in 0..3 {
+            let (a, b) = (field[t[k] as usize], field[t[(k + 1) % 3] as usize]);
+            e += (0..3).map(|d| ((a[d] - b[d]) as f64).powi(2)).sum::<f64>();
+        }
+    }
+    e / (3 * faces.len()).max(1) as f64
+}
+
 /// An oriented curve-guided field.
 #[derive(Clone, Debug, Default)]
 pub struct CurveField {
@@ -347,18 +380,12 @@ pub fn oriented_curve_field(
                 step_secs.push(sw.secs());
                 break;
             }
-            let proj = |v: u32| {
-                let nv = d3(normals[v as usize]);
-                let u = raw[v as usize];
-                u - u.dot(nv) * nv
-            };
             // Score every remaining curve against the field; orient the best one (or the best
             // batch), best first.
             let mut scored: Vec<(f64, usize, bool, f64)> = remaining
                 .iter()
                 .map(|&c| {
-                    let f: Vec<DVec3> = curves[c].vertices.iter().map(|&v| proj(v)).collect();
-                    let (g0, g1) = score_terms(&tangents[c], &f);
+                    let (g0, g1) = curve_scores(&raw, &normals, &tangents[c], &curves[c].vertices);
                     // how decided the field already is about this curve's direction
                     let margin = (g0 - g1).abs() / (g0 + g1).max(1e-300);
                     if g0 >= g1 {
@@ -452,24 +479,11 @@ fn finish(
     }
 }
 
-/// The field of curves whose orientations are already decided (`forward[c]`: kept as given;
-/// `order`: the greedy order, kept in the result): one constrained harmonic solve. With
-/// [`oriented_curve_field`] run on a coarser mesh of the same shape, this gives the greedy's
-/// decisions at the coarse cost and the field at full resolution.
-pub fn curve_field_with_orientations(
-    positions: &[[f32; 3]],
-    faces: &[[u32; 3]],
-    curves: &[FieldCurve],
-    forward: &[bool],
-    order: Vec<usize>,
-    params: &FieldParams,
-) -> Result<CurveField> {
-    let decided = vec![true; curves.len()];
-    curve_field_completing_orientations(positions, faces, curves, forward, &decided, order, params)
-}
-
-/// As [`curve_field_with_orientations`], for curves of which only some are decided
-/// (`decided[c]`): one solve with the decided ones, every undecided curve oriented at once by
+/// The field of curves whose orientations are given (`forward[c]`: kept as given; `order`: the
+/// greedy order, kept in the result), of which only some are decided (`decided[c]`; all of
+/// them: one constrained harmonic solve). With [`oriented_curve_field`] run on a coarser mesh of
+/// the same shape, this gives the greedy's decisions at the coarse cost and the field at full
+/// resolution. Undecided curves: one solve with the decided ones, every undecided curve oriented at once by
 /// the winning term of eq. (1) against that field, then the solve with all of them (two solves
 /// on one factorisation's symbolic analysis). A coarse greedy leaves a curve undecided when it
 /// shrank to fewer than three coarse vertices (its tangent, hence its score, is lost there).
@@ -517,16 +531,7 @@ pub fn curve_field_completing_orientations(
         let sw = Stopwatch::start();
         let (raw, _) = solve(&decided_set)?;
         for &c in &pending {
-            let f: Vec<DVec3> = curves[c]
-                .vertices
-                .iter()
-                .map(|&v| {
-                    let nv = d3(normals[v as usize]);
-                    let u = raw[v as usize];
-                    u - u.dot(nv) * nv
-                })
-                .collect();
-            let (g0, g1) = score_terms(&tangents[c], &f);
+            let (g0, g1) = curve_scores(&raw, &normals, &tangents[c], &curves[c].vertices);
             forward[c] = g0 >= g1;
         }
         steps.push(sw.secs());

@@ -49,7 +49,7 @@ pub use curvature::{PrincipalCurvatures, principal_curvatures};
 pub use curve_distance::{Polyline, distance_to_polylines};
 pub use curve_guided_field::{
     CurveField, FieldCurve, FieldParams, HarmonicFieldSolver, curve_field_completing_orientations,
-    curve_field_with_orientations, curve_tangents, oriented_curve_field, score_terms,
+    curve_tangents, field_roughness, oriented_curve_field, score_terms,
 };
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
