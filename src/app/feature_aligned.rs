@@ -242,6 +242,8 @@ impl FeatureAlignedDialog {
         let flags = found.kept.clone();
         let ctx = ctx.clone();
         std::thread::spawn(move || {
+            // the window gets the CPU first
+            crate::work::lower_thread_priority();
             let res =
                 feature_aligned::curves_and_field(&mesh, Some(&kept), &Params::default(), &cancel)
                     .map(|(_, field, _)| FieldPreview {
