@@ -399,8 +399,8 @@ pub struct SystemRow {
 }
 
 /// Geometry-correlated transfer, Spot (textured) -> the horse, both at `n` surface points:
-/// features, CCA, matching and parametric synthesis.
-pub fn weather_row(n: usize) -> Result<SystemRow> {
+/// features, CCA, matching and synthesis by `method`.
+pub fn weather_row(n: usize, method: crate::synthesis::mertens::Method) -> Result<SystemRow> {
     use crate::synthesis::mertens;
     let mut source = crate::mesh::io::load(&crate::testdata::data_path("spot/spot.obj"))?;
     source.repair()?;
@@ -408,6 +408,7 @@ pub fn weather_row(n: usize) -> Result<SystemRow> {
     target.repair()?;
     let params = mertens::Params {
         working_vertices: n,
+        method,
         ..mertens::Params::default()
     };
     let t = Instant::now();
@@ -418,7 +419,7 @@ pub fn weather_row(n: usize) -> Result<SystemRow> {
     };
     let out = mertens::run(&input, &params, &|_| {}, &CancelToken::new())?;
     Ok(SystemRow {
-        case: "weather spot -> horse".into(),
+        case: format!("weather spot -> horse, {method:?}").to_lowercase(),
         vertices: out.target.mesh.num_vertices(),
         stages: out
             .timings
@@ -704,10 +705,16 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
             }
             Vec::new()
         }
-        "weather" => sizes
-            .iter()
-            .map(|&n| weather_row(n))
-            .collect::<Result<_>>()?,
+        "weather" => {
+            use crate::synthesis::mertens::Method;
+            let mut rows = Vec::new();
+            for &n in sizes {
+                for m in [Method::Parametric, Method::NonParametric] {
+                    rows.push(weather_row(n, m)?);
+                }
+            }
+            rows
+        }
         "features" => sizes
             .iter()
             .map(|&n| features_row(n))

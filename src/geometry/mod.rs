@@ -17,6 +17,8 @@
 //! - [`oriented_curve_field`] (Xu et al. 2009 greedy curve orientation + harmonic diffusion)
 //! - [`distance_to_polylines`] (surface distance to salient curves: Euclidean near, edge paths far)
 //! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1)
+//! - [`sparse_samples`] (a grid subsample of the vertices and the interpolation back: expensive
+//!   smooth fields evaluated at their own scale)
 //! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
 //! - [`uv_atlas`] (charts, LSCM + ARAP, packing: UVs for a mesh without them)
 //! - [`bake_uv`] / [`fill_gutters`] (conservative UV rasterisation, pull-push gutters),
@@ -38,6 +40,7 @@ mod laplacian;
 mod occlusion;
 mod refine;
 mod solid_angle_curvature;
+mod sparse_evaluation;
 mod uv_atlas;
 mod uv_bake;
 
@@ -58,10 +61,13 @@ pub use functional_map::{FmapParams, MapQuality, ShapeMap, Spectrum, functional_
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
+pub(crate) use refine::IntMap;
 pub use refine::{Refined, nearest_original, refine_to_density};
 pub use solid_angle_curvature::{
-    SolidAngleTree, solid_angle_curvature, solid_angle_curvature_cancellable,
+    BETA as SOLID_ANGLE_BETA, SolidAngleCurvature, SolidAngleTree, solid_angle_curvature,
+    solid_angle_curvature_cancellable,
 };
+pub use sparse_evaluation::{SparseSamples, sparse_samples};
 pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
 pub use uv_bake::{
     BAKE_BYTES_PER_TEXEL, BakedImage, bake_closest, bake_onto, bake_uv, check_bake_memory,

@@ -11,11 +11,13 @@ use crate::mesh::{SignalKind, TriMesh};
 
 /// A multiplicative hasher for integer keys (the edge map is the hot loop of refinement).
 #[derive(Default)]
-struct IntHasher(u64);
+pub(crate) struct IntHasher(u64);
 
 impl Hasher for IntHasher {
     fn finish(&self) -> u64 {
-        self.0
+        // the product's entropy is in its high bits; fold them into the low bits that pick
+        // the bucket
+        self.0 ^ (self.0 >> 29)
     }
     fn write(&mut self, bytes: &[u8]) {
         for &b in bytes {
@@ -27,7 +29,8 @@ impl Hasher for IntHasher {
     }
 }
 
-type IntMap<V> = HashMap<u64, V, BuildHasherDefault<IntHasher>>;
+/// A hash map on integer keys with a fast multiplicative hash.
+pub(crate) type IntMap<V> = HashMap<u64, V, BuildHasherDefault<IntHasher>>;
 
 #[inline]
 fn edge_key(a: u32, b: u32) -> u64 {

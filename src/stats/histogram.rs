@@ -124,7 +124,11 @@ pub fn match_histogram(values: &mut [f32], reference: &[f32]) {
 
 /// Two-sample Kolmogorov-Smirnov distance `sup |F_a - F_b|` (0 = same distribution, 1 = disjoint).
 pub fn ks_distance(a: &[f32], b: &[f32]) -> f32 {
-    let (a, b) = (sorted(a), sorted(b));
+    ks_distance_sorted(&sorted(a), &sorted(b))
+}
+
+/// [`ks_distance`] of two samples already sorted ascending (finite values).
+pub fn ks_distance_sorted(a: &[f32], b: &[f32]) -> f32 {
     if a.is_empty() || b.is_empty() {
         return if a.len() == b.len() { 0.0 } else { 1.0 };
     }

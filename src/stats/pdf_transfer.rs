@@ -8,7 +8,7 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
-use super::histogram::{ks_distance, quantile_sorted, sorted};
+use super::histogram::{ks_distance_sorted, quantile_sorted};
 
 /// Parameters of [`pdf_transfer`].
 #[derive(Clone, Copy, Debug, serde::Serialize, serde::Deserialize)]
@@ -90,19 +90,29 @@ pub fn pdf_transfer(
         let mut worst = 0.0f32;
         for a in 0..d {
             let axis = &r[a * d..(a + 1) * d];
-            let ps = sorted(&project(source, d, axis));
-            let pt = project(target, d, axis);
-            worst = worst.max(ks_distance(&pt, &ps));
-            // rank of each target projection
-            let mut idx: Vec<u32> = (0..pt.len() as u32).collect();
-            idx.par_sort_unstable_by(|&i, &j| {
-                pt[i as usize].total_cmp(&pt[j as usize]).then(i.cmp(&j))
-            });
-            let n = idx.len() as f32;
+            let mut ps: Vec<f32> = project(source, d, axis)
+                .into_iter()
+                .filter(|x| x.is_finite())
+                .collect();
+            ps.par_sort_unstable_by(f32::total_cmp);
+            // target projections with their indices, sorted: the rank of each
+            let mut pt: Vec<(f32, u32)> = project(target, d, axis)
+                .into_iter()
+                .enumerate()
+                .map(|(i, x)| (x, i as u32))
+                .collect();
+            pt.par_sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            let finite: Vec<f32> = pt.iter().map(|x| x.0).filter(|x| x.is_finite()).collect();
+            worst = worst.max(ks_distance_sorted(&finite, &ps));
+            let n = pt.len() as f32;
+            let moved: Vec<f32> = pt
+                .par_iter()
+                .enumerate()
+                .map(|(rank, &(x, _))| quantile_sorted(&ps, (rank as f32 + 0.5) / n) - x)
+                .collect();
             let mut delta = vec![0.0f32; pt.len()];
-            for (rank, &i) in idx.iter().enumerate() {
-                let v = quantile_sorted(&ps, (rank as f32 + 0.5) / n);
-                delta[i as usize] = v - pt[i as usize];
+            for (&(_, i), &m) in pt.iter().zip(&moved) {
+                delta[i as usize] = m;
             }
             target
                 .par_chunks_mut(d)
@@ -123,6 +133,7 @@ pub fn pdf_transfer(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::stats::histogram::ks_distance;
 
     #[test]
     fn transfer_matches_random_marginals() {

@@ -36,8 +36,8 @@ use crate::stats::{Cca, PdfTransferParams, cca, pdf_transfer};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
 pub use features::{
-    FeatureSet, check_feature_name, feature_field, feature_names, features, normalised_height,
-    wound_inwards,
+    CELL_PER_RADIUS, FeatureSet, LEVEL0_CELL_PER_RADIUS, check_feature_name, feature_field,
+    feature_names, features, features_on_surface, normalised_height, wound_inwards,
 };
 
 /// The vertical axis (for the normalised-height feature).
@@ -475,9 +475,30 @@ pub fn run(
     // ---- features
     progress("features", 0.05);
     let sw = Stopwatch::start();
-    let fs = features(&rs.mesh.positions, &rs.mesh.faces, params, cancel)?;
-    progress("features", 0.35);
-    let ft = features(&rt.mesh.positions, &rt.mesh.faces, params, cancel)?;
+    // the working meshes are bisections of the inputs: the inputs' triangles carry the same
+    // surface for the curvature tree and the occlusion rays
+    // both meshes at once: the trees' builds and the sampling passes are serial
+    let (fs, ft) = rayon::join(
+        || {
+            features_on_surface(
+                &rs.mesh.positions,
+                &rs.mesh.faces,
+                Some((&src.positions, &src.faces)),
+                params,
+                cancel,
+            )
+        },
+        || {
+            features_on_surface(
+                &rt.mesh.positions,
+                &rt.mesh.faces,
+                Some((&tgt.positions, &tgt.faces)),
+                params,
+                cancel,
+            )
+        },
+    );
+    let (fs, ft) = (fs?, ft?);
     timings.push(("features", sw.secs()));
     sink(Event::StageTime("features", sw.secs()));
     cancel.check()?;
