@@ -7,9 +7,9 @@
 //! mean absolute difference between the two; for occlusion, also the difference between two
 //! full evaluations with different ray seeds (the noise floor the sparse one is judged against).
 use meshmatch::geometry::{
-    SOLID_ANGLE_BETA, SolidAngleCurvature, directional_occlusion, refine_to_density, vertex_normals,
+    SolidAngleCurvature, directional_occlusion, refine_to_density, vertex_normals,
 };
-use meshmatch::synthesis::mertens::{Params, features_on_surface};
+use meshmatch::synthesis::mertens::{Params, features_on_surface, opening_for_radius};
 use meshmatch::work::{CancelToken, Stopwatch};
 
 fn std(a: &[f32]) -> f64 {
@@ -75,7 +75,7 @@ fn main() {
     let cols: Vec<Vec<f32>> = radii
         .iter()
         .map(|&r| {
-            let beta = (SOLID_ANGLE_BETA * (r / r_min).sqrt()).clamp(SOLID_ANGLE_BETA, 8.0);
+            let beta = opening_for_radius(r, r_min);
             sac.at(&all, &[r], beta, &CancelToken::new())
                 .expect("curvature")
         })

@@ -578,3 +578,73 @@ fn nonparametric_copies_source_colours_where_the_geometry_asks_for_them() {
     assert!(r > 0.7, "lightness correlation {r}");
     assert!(copied > 0.99, "{copied}");
 }
+
+/// At a working density above the features' finest grid, the features are evaluated on grid
+/// samples and interpolated back: on the bunny refined to 60K points they must agree with every
+/// vertex evaluated (curvature, the same opening criterion), and the sparse occlusion must be as
+/// close to the full one as a second full evaluation with other rays is.
+#[test]
+fn sparse_features_agree_with_every_vertex_evaluated() {
+    use meshmatch::geometry::{SolidAngleCurvature, refine_to_density};
+    use meshmatch::synthesis::mertens::{features_on_surface, opening_for_radius};
+    use meshmatch::testdata::data_path;
+    let mut bunny = meshmatch::mesh::io::load(&data_path("bunny/bunny.obj")).expect("bunny");
+    bunny.repair().expect("repair");
+    let r = refine_to_density(&bunny, 60_000);
+    let (p, f) = (&r.mesh.positions, &r.mesh.faces);
+    let params = Params {
+        curvature_radii: vec![0.05, 0.15, 0.3],
+        rays: 32,
+        ..Params::default()
+    };
+    let cancel = CancelToken::new();
+    let fs = features_on_surface(
+        p,
+        f,
+        Some((&bunny.positions, &bunny.faces)),
+        &params,
+        &cancel,
+    )
+    .expect("features");
+    assert!(
+        fs.evaluated * 3 < p.len(),
+        "{} of {} vertices evaluated: the sampling did not take over",
+        fs.evaluated,
+        p.len()
+    );
+    let flipped: Vec<[u32; 3]> = f.iter().map(|t| [t[0], t[2], t[1]]).collect();
+    let f = if fs.flipped { &flipped } else { f };
+    let all: Vec<u32> = (0..p.len() as u32).collect();
+    let sac = SolidAngleCurvature::new(p, f);
+    let r_min = fs.radii[0];
+    for (j, &rad) in fs.radii.iter().enumerate() {
+        let full = sac
+            .at(&all, &[rad], opening_for_radius(rad, r_min), &cancel)
+            .expect("curvature");
+        let sparse = feature_field(&fs, &format!("curvature-{j}")).expect("column");
+        let c = pearson(&sparse, &full);
+        eprintln!("curvature-{j}: {c:.4}");
+        assert!(
+            c > 0.98,
+            "curvature-{j}: correlation {c:.4} with every vertex evaluated"
+        );
+    }
+    let nrm = vertex_normals(p, f);
+    let full = directional_occlusion(p, f, &nrm, params.rays, params.seed);
+    let other = directional_occlusion(p, f, &nrm, params.rays, params.seed + 7);
+    let ao = |o: &[[f32; 4]]| o.iter().map(|x| x[0]).collect::<Vec<f32>>();
+    let sparse = feature_field(&fs, "ao").expect("ao");
+    let (c_sparse, c_noise) = (
+        pearson(&sparse, &ao(&full)),
+        pearson(&ao(&other), &ao(&full)),
+    );
+    eprintln!(
+        "{} of {} evaluated; ao {c_sparse:.4}, other rays {c_noise:.4}",
+        fs.evaluated,
+        p.len()
+    );
+    assert!(
+        c_sparse > c_noise - 0.01,
+        "ambient occlusion: sparse {c_sparse:.4} against full, other rays {c_noise:.4}"
+    );
+}

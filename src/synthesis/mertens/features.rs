@@ -37,6 +37,9 @@ pub struct FeatureSet {
     pub seconds: [f64; 3],
     /// The faces were wound inwards ([`wound_inwards`]) and were flipped for the features.
     pub flipped: bool,
+    /// Vertices at which occlusion and the smallest radius were evaluated (level 0 of the
+    /// sampling; every vertex on a coarse mesh).
+    pub evaluated: usize,
 }
 
 impl FeatureSet {
@@ -171,6 +174,12 @@ pub fn features(
     features_on_surface(positions, faces, None, params, cancel)
 }
 
+/// The solid-angle tree's opening criterion for radius `r` when the smallest radius is `r_min`:
+/// `SOLID_ANGLE_BETA × sqrt(r / r_min)`, at most 8 (see [`features`]).
+pub fn opening_for_radius(r: f32, r_min: f32) -> f32 {
+    (SOLID_ANGLE_BETA * (r / r_min).sqrt()).clamp(SOLID_ANGLE_BETA, 8.0)
+}
+
 /// A triangulated surface: positions and faces.
 pub type Surface<'a> = (&'a [[f32; 3]], &'a [[u32; 3]]);
 
@@ -227,7 +236,11 @@ pub fn features_on_surface(
     cancel.check()?;
     let radii: Vec<f32> = params.curvature_radii.iter().map(|r| r * diag).collect();
     let nr = radii.len();
-    let r_min = radii.iter().copied().fold(0.01 * diag, f32::min);
+    // the smallest radius (1% of the diagonal sets the finest grid when there are none)
+    let r_min = match radii.iter().copied().reduce(f32::min) {
+        Some(r) => r,
+        None => 0.01 * diag,
+    };
     // A pyramid of grid subsamples (`geometry::sparse_evaluation`): level 0 is a grid of
     // spacing r_min × LEVEL0_CELL_PER_RADIUS over the vertices, where occlusion and the smallest
     // radius are evaluated; curvature at a larger radius r on a grid of spacing
@@ -255,7 +268,7 @@ pub fn features_on_surface(
         cancel.check()?;
         // the tree's error grows with the radius (`SOLID_ANGLE_BETA`), and larger radii have
         // quadratically fewer samples: a stricter opening criterion there
-        let beta = (SOLID_ANGLE_BETA * (r / r_min).sqrt()).clamp(SOLID_ANGLE_BETA, 8.0);
+        let beta = opening_for_radius(r, r_min);
         let sj = sparse_samples(&p0, &n0, r * CELL_PER_RADIUS);
         let col = if sj.len() * 2 <= m {
             let at: Vec<u32> = sj
@@ -297,5 +310,6 @@ pub fn features_on_surface(
         radii,
         seconds: [t0, t1, t2],
         flipped,
+        evaluated: m,
     })
 }

@@ -37,7 +37,8 @@ use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
 pub use features::{
     CELL_PER_RADIUS, FeatureSet, LEVEL0_CELL_PER_RADIUS, check_feature_name, feature_field,
-    feature_names, features, features_on_surface, normalised_height, wound_inwards,
+    feature_names, features, features_on_surface, normalised_height, opening_for_radius,
+    wound_inwards,
 };
 
 /// The vertical axis (for the normalised-height feature).
