@@ -1,0 +1,132 @@
+//! Do quilted elements keep clear of each other? Every built-in swatch over a plane, the bunny
+//! and the horse with the swatch `FRAC` (default 0.1) of the base's diagonal wide: elements, the
+//! smallest distance between vertices of different elements against the clearance the quilting
+//! enforces (`tau`, half the swatch's own, scaled), the pairs of elements closer than `tau / 2`,
+//! and the pairs whose surfaces cross (an edge of one piercing a triangle of the other, by ray
+//! casting along every edge). `cargo run --release --example quilt_clearance` (`BASE=plane` for
+//! one base).
+use std::collections::HashMap;
+
+use glam::Vec3;
+use meshmatch::synthesis::quilting::{self, Input, Params, SwatchKind, swatch};
+use meshmatch::work::{CancelToken, no_events};
+
+fn main() {
+    let frac: f32 = std::env::var("FRAC")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0.1);
+    let only = std::env::var("BASE").ok();
+    for name in ["plane", "bunny/bunny.obj", "horse/horse.ply"] {
+        if only.as_deref().is_some_and(|o| o != name) {
+            continue;
+        }
+        let base = if name == "plane" {
+            quilting::plane(1.0, 1.0, 64, 64)
+        } else {
+            let mut b =
+                meshmatch::mesh::io::load(&meshmatch::testdata::data_path(name)).expect("base");
+            b.repair().expect("repair");
+            b
+        };
+        let (lo, hi) = base.bounds().expect("bounds");
+        let diag = Vec3::from(hi).distance(Vec3::from(lo));
+        for kind in [
+            SwatchKind::Chain,
+            SwatchKind::Weave,
+            SwatchKind::Studs,
+            SwatchKind::Scales,
+            SwatchKind::Nuts,
+        ] {
+            let sw = swatch(kind, 1);
+            let params = Params {
+                swatch_size: Some(frac * diag),
+                ..Params::default()
+            };
+            let out = quilting::run(
+                &Input {
+                    base: &base,
+                    swatch: &sw,
+                    field: None,
+                },
+                &params,
+                &no_events,
+                &CancelToken::new(),
+            )
+            .expect("quilt");
+            let l = out.stats.swatch_size;
+            let tau = 0.5 * sw.clearance() * l / sw.extent[0];
+            // vertex grid of cell tau
+            let mut grid: HashMap<[i32; 3], Vec<u32>> = HashMap::new();
+            let key = |p: Vec3| {
+                let q = (p / tau).floor();
+                [q.x as i32, q.y as i32, q.z as i32]
+            };
+            let pos = &out.elements.positions;
+            for (i, p) in pos.iter().enumerate() {
+                grid.entry(key(Vec3::from(*p))).or_default().push(i as u32);
+            }
+            let mut dmin = f32::INFINITY;
+            let mut close: std::collections::HashSet<(u32, u32)> = Default::default();
+            for (i, p) in pos.iter().enumerate() {
+                let p = Vec3::from(*p);
+                let k = key(p);
+                for dz in -1..=1 {
+                    for dy in -1..=1 {
+                        for dx in -1..=1 {
+                            let Some(l) = grid.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) else {
+                                continue;
+                            };
+                            for &j in l {
+                                let (a, b) = (out.element_id[i], out.element_id[j as usize]);
+                                if a == b {
+                                    continue;
+                                }
+                                let d = p.distance(Vec3::from(pos[j as usize]));
+                                dmin = dmin.min(d);
+                                if d < 0.5 * tau {
+                                    close.insert((a.min(b), a.max(b)));
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            // edges of one element that pierce a triangle of another
+            let bvh = meshmatch::geometry::TriangleBvh::new(pos, &out.elements.faces);
+            let face_elem: Vec<u32> = out
+                .elements
+                .faces
+                .iter()
+                .map(|f| out.element_id[f[0] as usize])
+                .collect();
+            let mut pierce: std::collections::HashSet<(u32, u32)> = Default::default();
+            for f in &out.elements.faces {
+                for k in 0..3 {
+                    let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
+                    if a > b {
+                        continue;
+                    }
+                    let (pa, pb) = (Vec3::from(pos[a]), Vec3::from(pos[b]));
+                    let o = pa + 1e-4 * (pb - pa);
+                    if let Some((t, _, dist)) = bvh.ray_hit(o.to_array(), (pb - o).to_array()) {
+                        let e = out.element_id[a];
+                        if dist < 1.0 - 1e-4 && face_elem[t as usize] != e {
+                            pierce.insert((
+                                e.min(face_elem[t as usize]),
+                                e.max(face_elem[t as usize]),
+                            ));
+                        }
+                    }
+                }
+            }
+            println!(
+                "{name} {kind:?}: {} elements, min vertex distance {:.3} tau, {} element pairs closer than tau/2, {} pairs interpenetrating",
+                out.num_elements(),
+                dmin / tau,
+                close.len(),
+                pierce.len()
+            );
+        }
+    }
+}
