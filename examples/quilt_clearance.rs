@@ -111,7 +111,9 @@ fn main() {
                     let o = pa + 1e-4 * (pb - pa);
                     if let Some((t, _, dist)) = bvh.ray_hit(o.to_array(), (pb - o).to_array()) {
                         let e = out.element_id[a];
-                        if dist < 1.0 - 1e-4 && face_elem[t as usize] != e {
+                        // hits at the edge's start are contacts (strands of a weave touch
+                        // where they cross), not crossings
+                        if dist > 1e-3 && dist < 1.0 - 1e-4 && face_elem[t as usize] != e {
                             pierce.insert((
                                 e.min(face_elem[t as usize]),
                                 e.max(face_elem[t as usize]),

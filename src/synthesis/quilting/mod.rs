@@ -38,7 +38,10 @@
 //!    conflict graph, solved exactly as an s-t min cut (Dinic max-flow, [`maxflow`]): SOURCE ->
 //!    old (weight 1.1), old -> new (infinite) per conflict, new -> SINK (weight 1). Then new
 //!    elements that conflict with each other (flattening distortion) are dropped greedily,
-//!    nearest to the seed first. So two survivors never overlap and elements stay whole.
+//!    nearest to the seed first. Two elements whose surfaces cross ([`crossing`]: an edge of one
+//!    piercing a triangle of the other, which the vertex test misses for interlinked rings and
+//!    crossing strands bent by the shell map or meeting across a seam) conflict too. So two
+//!    survivors never overlap and elements stay whole.
 //! 5. **Shell map (§3.2, simplified).** A swatch point `(x, y, z)` goes to `uv = s R (x + t)` in
 //!    the flattened patch, to the base triangle and barycentric coordinates `b` containing it
 //!    (affine extrapolation from the nearest triangle for points just past a base boundary),
@@ -59,6 +62,7 @@
 //! default scale: 464 patches, about 5070 elements, 0.97 M faces, about 7 s; a periodic swatch
 //! on a plane is reproduced exactly (rigid copies on one lattice).
 
+mod crossing;
 mod io;
 pub mod maxflow;
 mod swatch;
@@ -745,6 +749,9 @@ pub fn run(
     let cell = sw.extent[0].min(sw.extent[1]) / 16.0;
     let classes: Vec<u32> = sw.elements.iter().map(|e| e.class).collect();
     let images = sw.images();
+    let elem_faces: Vec<Vec<[u32; 3]>> = (0..sw.elements.len())
+        .map(|e| sw.element_faces(e))
+        .collect();
     let mean_edge = crate::geometry::mean_edge_length(&mesh.positions, faces);
 
     let mut rng = SmallRng::seed_from_u64(params.seed);
@@ -976,7 +983,15 @@ pub fn run(
             for (k, (e, _)) in old.iter().enumerate() {
                 let pe = &placed[*e as usize];
                 let pcl = sw.elements[pe.source as usize].class;
-                if pe.centre.distance(c.centre) < conflict_dist(pcl, cl) {
+                if pe.centre.distance(c.centre) < conflict_dist(pcl, cl)
+                    || (pe.centre.distance(c.centre) < 2.0 * (c.radius + max_radius)
+                        && crossing::surfaces_cross(
+                            &pe.positions,
+                            &elem_faces[pe.source as usize],
+                            &c.positions,
+                            &elem_faces[c.source as usize],
+                        ))
+                {
                     near.push(k as u32);
                 }
             }
@@ -1011,9 +1026,16 @@ pub fn run(
             let clash = !accepted_hash.near(&c.positions, tau).is_empty()
                 || accepted.iter().any(|&a| {
                     let o = &cands[a];
-                    o.centre.distance(c.centre)
-                        < conflict_dist(sw.elements[o.source as usize].class, cl)
-                            .min(0.9 * (o.radius + c.radius))
+                    let d = o.centre.distance(c.centre);
+                    d < conflict_dist(sw.elements[o.source as usize].class, cl)
+                        .min(0.9 * (o.radius + c.radius))
+                        || (d < 2.0 * (o.radius + c.radius)
+                            && crossing::surfaces_cross(
+                                &o.positions,
+                                &elem_faces[o.source as usize],
+                                &c.positions,
+                                &elem_faces[c.source as usize],
+                            ))
                 });
             if clash {
                 stats.dropped_conflict += 1;
