@@ -31,13 +31,7 @@ fn main() {
         };
         let (lo, hi) = base.bounds().expect("bounds");
         let diag = Vec3::from(hi).distance(Vec3::from(lo));
-        for kind in [
-            SwatchKind::Chain,
-            SwatchKind::Weave,
-            SwatchKind::Studs,
-            SwatchKind::Scales,
-            SwatchKind::Nuts,
-        ] {
+        for kind in SwatchKind::ALL {
             let sw = swatch(kind, 1);
             let params = Params {
                 swatch_size: Some(frac * diag),

@@ -115,13 +115,7 @@ mod tests {
     #[test]
     fn built_in_swatches_have_no_crossing_elements() {
         use crate::synthesis::quilting::{SwatchKind, swatch};
-        for kind in [
-            SwatchKind::Chain,
-            SwatchKind::Weave,
-            SwatchKind::Studs,
-            SwatchKind::Scales,
-            SwatchKind::Nuts,
-        ] {
+        for kind in SwatchKind::ALL {
             let sw = swatch(kind, 1);
             let n = sw.elements.len();
             let mut crossing = Vec::new();
