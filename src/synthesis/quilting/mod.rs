@@ -646,6 +646,14 @@ pub fn run(
             "thickness must be non-negative (got {h})"
         )));
     }
+    if let Some(t) = params.thickness
+        && t > diag
+    {
+        return Err(Error::InvalidInput(format!(
+            "thickness {t} is more than the base's bounding-box diagonal ({diag}); the shell \
+             would swallow the base"
+        )));
+    }
     let hscale = if sw.height > 0.0 { h / sw.height } else { 0.0 };
 
     // ---- base preparation
