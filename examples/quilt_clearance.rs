@@ -86,36 +86,7 @@ fn main() {
                     }
                 }
             }
-            // edges of one element that pierce a triangle of another
-            let bvh = meshmatch::geometry::TriangleBvh::new(pos, &out.elements.faces);
-            let face_elem: Vec<u32> = out
-                .elements
-                .faces
-                .iter()
-                .map(|f| out.element_id[f[0] as usize])
-                .collect();
-            let mut pierce: std::collections::HashSet<(u32, u32)> = Default::default();
-            for f in &out.elements.faces {
-                for k in 0..3 {
-                    let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
-                    if a > b {
-                        continue;
-                    }
-                    let (pa, pb) = (Vec3::from(pos[a]), Vec3::from(pos[b]));
-                    let o = pa + 1e-4 * (pb - pa);
-                    if let Some((t, _, dist)) = bvh.ray_hit(o.to_array(), (pb - o).to_array()) {
-                        let e = out.element_id[a];
-                        // hits at the edge's start are contacts (strands of a weave touch
-                        // where they cross), not crossings
-                        if dist > 1e-3 && dist < 1.0 - 1e-4 && face_elem[t as usize] != e {
-                            pierce.insert((
-                                e.min(face_elem[t as usize]),
-                                e.max(face_elem[t as usize]),
-                            ));
-                        }
-                    }
-                }
-            }
+            let pierce = quilting::crossing_pairs(&out);
             println!(
                 "{name} {kind:?}: {} elements, min vertex distance {:.3} tau, {} element pairs closer than tau/2, {} pairs interpenetrating",
                 out.num_elements(),

@@ -144,34 +144,6 @@ fn min_inter_element_distance(out: &QuiltOutput, cell: f32) -> f32 {
     best
 }
 
-/// Pairs of elements whose surfaces cross: a ray along every output edge that hits a triangle
-/// of another element strictly inside the edge (hits at the edge's start are contacts).
-fn crossing_pairs(out: &QuiltOutput) -> usize {
-    let pos = &out.elements.positions;
-    let bvh = meshmatch::geometry::TriangleBvh::new(pos, &out.elements.faces);
-    let face_elem: Vec<u32> = out
-        .elements
-        .faces
-        .iter()
-        .map(|f| out.element_id[f[0] as usize])
-        .collect();
-    let mut pairs = std::collections::HashSet::new();
-    for f in &out.elements.faces {
-        for k in 0..3 {
-            let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
-            let (pa, pb) = (Vec3::from(pos[a]), Vec3::from(pos[b]));
-            let o = pa + 1e-4 * (pb - pa);
-            if let Some((t, _, dist)) = bvh.ray_hit(o.to_array(), (pb - o).to_array()) {
-                let (e, g) = (out.element_id[a], face_elem[t as usize]);
-                if dist > 1e-3 && dist < 1.0 - 1e-4 && e != g {
-                    pairs.insert((e.min(g), e.max(g)));
-                }
-            }
-        }
-    }
-    pairs.len()
-}
-
 /// Fraction of base area (by face centroid) within `r` of some output vertex.
 fn coverage(base: &TriMesh, out: &QuiltOutput, r: f32) -> f32 {
     let mut map: HashMap<[i32; 3], Vec<Vec3>> = HashMap::new();
@@ -407,13 +379,13 @@ fn bunny_chain_mail() {
     assert!(dmin >= 0.99 * tau, "elements {dmin} apart, tau {tau}");
     // interlinked rings bent over the bunny and meeting across patch seams: their surfaces
     // must not pass through each other
-    let crossing = crossing_pairs(&out);
+    let crossing = quilting::crossing_pairs(&out).len();
     assert_eq!(crossing, 0, "{crossing} pairs of rings cross");
     // crossing strands of a weave, the same
     let weave = swatch(SwatchKind::Weave, 1);
     let out = quilt(&base, &weave, &params);
     check_integrity(&out, &weave);
-    let crossing = crossing_pairs(&out);
+    let crossing = quilting::crossing_pairs(&out).len();
     let cov = coverage(&base, &out, out.stats.swatch_size / 2.0);
     eprintln!(
         "bunny weave: {} elements, coverage {cov:.3}",

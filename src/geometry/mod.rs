@@ -67,7 +67,7 @@ pub use solid_angle_curvature::{
     BETA as SOLID_ANGLE_BETA, SolidAngleCurvature, SolidAngleTree, solid_angle_curvature,
     solid_angle_curvature_cancellable,
 };
-pub use sparse_evaluation::{SparseSamples, sparse_samples};
+pub use sparse_evaluation::{SparseSamples, sparse_samples, sparse_samples_if_worth_it};
 pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
 pub use uv_bake::{
     BAKE_BYTES_PER_TEXEL, BakedImage, bake_closest, bake_onto, bake_uv, check_bake_memory,

@@ -107,6 +107,21 @@ pub fn sparse_samples(positions: &[[f32; 3]], normals: &[[f32; 3]], cell: f32) -
     }
 }
 
+/// [`sparse_samples`], or every vertex when the grid would hold more than half of them (a
+/// subsample that small a saving is not worth its interpolation error).
+pub fn sparse_samples_if_worth_it(
+    positions: &[[f32; 3]],
+    normals: &[[f32; 3]],
+    cell: f32,
+) -> SparseSamples {
+    let s = sparse_samples(positions, normals, cell);
+    if s.len() * 2 <= positions.len() {
+        s
+    } else {
+        sparse_samples(positions, normals, 0.0)
+    }
+}
+
 impl SparseSamples {
     /// Number of samples.
     pub fn len(&self) -> usize {

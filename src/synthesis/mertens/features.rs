@@ -17,7 +17,8 @@ pub const CELL_PER_RADIUS: f32 = 0.25;
 pub const LEVEL0_CELL_PER_RADIUS: f32 = 1.0 / 3.0;
 use crate::error::{Error, Result};
 use crate::geometry::{
-    OcclusionBvh, SOLID_ANGLE_BETA, SolidAngleCurvature, directional_occlusion_with, sparse_samples,
+    OcclusionBvh, SOLID_ANGLE_BETA, SolidAngleCurvature, directional_occlusion_with,
+    sparse_samples_if_worth_it,
 };
 use crate::work::{CancelToken, Stopwatch};
 
@@ -248,12 +249,7 @@ pub fn features_on_surface(
     // everything from level 0 to every vertex. A level 0 holding more than half the vertices
     // is not worth it: every vertex is evaluated then.
     let sw = Stopwatch::start();
-    let s0 = sparse_samples(positions, &normals, r_min * LEVEL0_CELL_PER_RADIUS);
-    let s0 = if s0.len() * 2 <= n {
-        s0
-    } else {
-        sparse_samples(positions, &normals, 0.0)
-    };
+    let s0 = sparse_samples_if_worth_it(positions, &normals, r_min * LEVEL0_CELL_PER_RADIUS);
     let (p0, n0): (Vec<[f32; 3]>, Vec<[f32; 3]>) = s0
         .vertices
         .iter()
@@ -269,18 +265,13 @@ pub fn features_on_surface(
         // the tree's error grows with the radius (`SOLID_ANGLE_BETA`), and larger radii have
         // quadratically fewer samples: a stricter opening criterion there
         let beta = opening_for_radius(r, r_min);
-        let sj = sparse_samples(&p0, &n0, r * CELL_PER_RADIUS);
-        let col = if sj.len() * 2 <= m {
-            let at: Vec<u32> = sj
-                .vertices
-                .iter()
-                .map(|&i| s0.vertices[i as usize])
-                .collect();
-            let k = sac.at(&at, &[r], beta, cancel)?;
-            sj.interpolate(&p0, &n0, &k, 1)
-        } else {
-            sac.at(&s0.vertices, &[r], beta, cancel)?
-        };
+        let sj = sparse_samples_if_worth_it(&p0, &n0, r * CELL_PER_RADIUS);
+        let at: Vec<u32> = sj
+            .vertices
+            .iter()
+            .map(|&i| s0.vertices[i as usize])
+            .collect();
+        let col = sj.interpolate(&p0, &n0, &sac.at(&at, &[r], beta, cancel)?, 1);
         for (i, x) in col.into_iter().enumerate() {
             level0[i * dim0 + j] = x;
         }

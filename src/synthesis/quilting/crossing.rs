@@ -83,6 +83,39 @@ pub(crate) fn surfaces_cross(
     !tb.is_empty() && (edges_pierce(&ta, &tb) || edges_pierce(&tb, &ta))
 }
 
+/// The pairs of output elements whose surfaces cross, found independently of the placement's
+/// test: a ray along every output edge (a BVH over the whole output) that hits a triangle of
+/// another element strictly inside the edge. Hits at the edge's very start are contacts (strands
+/// of a weave touch where they cross), not crossings. Pairs as `(smaller, larger)` element ids,
+/// sorted.
+pub fn crossing_pairs(out: &super::QuiltOutput) -> Vec<(u32, u32)> {
+    let pos = &out.elements.positions;
+    let bvh = crate::geometry::TriangleBvh::new(pos, &out.elements.faces);
+    let face_elem: Vec<u32> = out
+        .elements
+        .faces
+        .iter()
+        .map(|f| out.element_id[f[0] as usize])
+        .collect();
+    let mut pairs = Vec::new();
+    for f in &out.elements.faces {
+        for k in 0..3 {
+            let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
+            let (pa, pb) = (Vec3::from(pos[a]), Vec3::from(pos[b]));
+            let o = pa + 1e-4 * (pb - pa);
+            if let Some((t, _, dist)) = bvh.ray_hit(o.to_array(), (pb - o).to_array()) {
+                let (e, g) = (out.element_id[a], face_elem[t as usize]);
+                if dist > 1e-3 && dist < 1.0 - 1e-4 && e != g {
+                    pairs.push((e.min(g), e.max(g)));
+                }
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -67,6 +67,7 @@ mod io;
 pub mod maxflow;
 mod swatch;
 
+pub use crossing::crossing_pairs;
 pub use io::{save_quilt_obj, save_quilt_ply};
 pub use swatch::{Axis, Element, Swatch, SwatchKind, load_swatch, swatch};
 
