@@ -75,6 +75,17 @@ pub struct SynthArgs {
     /// lines on black (default: detected).
     #[arg(long)]
     pub feature_mask: Option<PathBuf>,
+    /// Where the synthesis runs: texture (the samples are the texels of the target's UVs or a
+    /// generated atlas, and the texture is magnified from the full-resolution exemplar; needs a
+    /// .glb/.gltf/.obj output), surface (the vertices of a refined mesh, then baked), or auto
+    /// (texture for textured outputs of the neighbourhood method without --mask/--displace/
+    /// --out-dense, surface otherwise).
+    #[arg(long, default_value = "auto")]
+    pub space: String,
+    /// Most texels synthesized in texture space (1,000 to 2,000,000); the output texture is
+    /// magnified from them.
+    #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_TEXEL_BUDGET)]
+    pub texel_budget: usize,
 }
 
 impl SynthArgs {
@@ -167,6 +178,55 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         outputs.push(("--out-dense", d.as_path(), OutKind::Mesh));
     }
     check_outputs(&inputs, &outputs)?;
+    let textured_out = matches!(
+        a.out
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .as_deref(),
+        Some("glb" | "gltf" | "obj")
+    );
+    let texture_space = match a.space.as_str() {
+        "surface" => false,
+        "texture" => {
+            let clash = if !textured_out {
+                Some("an output with a texture (.glb, .gltf or .obj)")
+            } else if a.displace {
+                Some("no --displace (it changes the geometry)")
+            } else if a.mask.is_some() {
+                Some("no --mask")
+            } else if optimise {
+                Some("--method neighbourhood")
+            } else if a.out_dense.is_some() {
+                Some("no --out-dense (there is no dense mesh)")
+            } else {
+                None
+            };
+            if let Some(c) = clash {
+                return Err(Error::InvalidInput(format!("--space texture needs {c}")));
+            }
+            true
+        }
+        "auto" => {
+            textured_out
+                && !a.displace
+                && a.mask.is_none()
+                && !optimise
+                && a.out_dense.is_none()
+                && a.exemplar_width.is_none()
+        }
+        o => {
+            return Err(Error::InvalidInput(format!(
+                "--space {o}: use auto, texture or surface"
+            )));
+        }
+    };
+    if !(MIN_VERTEX_BUDGET..=max_budget).contains(&a.texel_budget) {
+        return Err(Error::InvalidInput(format!(
+            "--texel-budget {}: use {MIN_VERTEX_BUDGET} to {max_budget} texels",
+            a.texel_budget
+        )));
+    }
     let (tex, alpha) = io::load_texture_with_alpha(&a.exemplar)?;
     let mut exemplar = tex.image;
     if let Some(al) = &alpha {
@@ -191,6 +251,9 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         exemplar = crate::synthesis::wei_levoy::shrink_exemplar(exemplar, w);
     }
     let target = load_usable(&a.target)?;
+    if texture_space {
+        return synth_texture(a, &exemplar, alpha.as_ref(), &target, orientation, search);
+    }
     if a.exemplar_width.is_none() {
         let min = (4u32 << (a.levels.clamp(1, 8) - 1)).max(8);
         let (fitted, note) = crate::synthesis::wei_levoy::fit_exemplar_to_budget(
@@ -393,6 +456,90 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         io::save(&r.mesh, d)?;
         eprintln!("wrote {}", d.display());
     }
+    Ok(0)
+}
+
+/// `synth --space texture`: the synthesis on the texels of the target's UV layout.
+fn synth_texture(
+    a: &SynthArgs,
+    exemplar: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+    target: &crate::mesh::TriMesh,
+    orientation: crate::synthesis::Orientation,
+    search: crate::synthesis::Search,
+) -> Result<i32> {
+    use crate::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
+    let params = TextureParams {
+        synth: crate::synthesis::SynthParams {
+            scale: a.scale,
+            orientation,
+            levels: a.levels,
+            search,
+            seed: a.seed,
+            ..Default::default()
+        },
+        texture_size: a.texture_size,
+        texel_budget: a.texel_budget,
+    };
+    let input = TextureInput {
+        exemplar,
+        alpha,
+        target,
+        field: None,
+    };
+    let t = std::time::Instant::now();
+    let bar = progress_bar();
+    let sink = |e: crate::work::Event| bar_sink(&bar, e);
+    let r = synthesize_texture(&input, &params, &sink, &CancelToken::new())?;
+    bar.finish_and_clear();
+    if let Some(an) = r.anisotropy {
+        eprintln!(
+            "orientation auto: {} (the exemplar's gradient harmonics: 2-fold {:.2}, 4-fold {:.2}; \
+             oriented from {:.2})",
+            r.orientation_used.as_str(),
+            an.twofold,
+            an.fourfold,
+            crate::synthesis::wei_levoy::anisotropy::ORIENTED,
+        );
+    }
+    if let Some(at) = &r.atlas {
+        eprintln!(
+            "generated a UV atlas for the target: {} charts, {:.0}% of the texture",
+            at.charts,
+            100.0 * at.utilization
+        );
+    }
+    let (ew, _) = exemplar.dimensions();
+    eprintln!(
+        "synthesized in texture space: {} texels of a {w}x{w} working texture ({:.4} units a \
+         texel), exemplar {}{}; levels {:?} texels",
+        r.level_texels.first().copied().unwrap_or(0),
+        r.spacing,
+        r.working_exemplar_width,
+        if r.working_exemplar_width < ew {
+            format!(
+                " pixels wide (shrunk from {ew} to the --texel-budget; the texture reads the full one)"
+            )
+        } else {
+            " pixels wide (full)".to_string()
+        },
+        r.level_texels,
+        w = r.working_size,
+    );
+    eprintln!(
+        "synthesized in {:.2} s (prepare {:.2}, neighbourhoods {:.2}, search {:.2}, magnify {:.2}); \
+         finest-level neighbourhood energy {:.5}; texture {}x{}",
+        t.elapsed().as_secs_f64(),
+        r.timings.prepare,
+        r.timings.neighbourhoods,
+        r.timings.search,
+        r.timings.magnify,
+        r.level_energy.first().copied().unwrap_or(0.0),
+        a.texture_size,
+        a.texture_size
+    );
+    io::save(&r.mesh, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
     Ok(0)
 }
 

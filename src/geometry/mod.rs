@@ -71,5 +71,5 @@ pub use sparse_evaluation::{SparseSamples, sparse_samples, sparse_samples_if_wor
 pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
 pub use uv_bake::{
     BAKE_BYTES_PER_TEXEL, BakedImage, bake_closest, bake_onto, bake_uv, check_bake_memory,
-    fill_gutters, mip_chain, sample_bilinear,
+    fill_gutters, mip_chain, sample_bilinear, uv_texels,
 };

@@ -67,6 +67,41 @@ pub fn bake_uv<F>(
 where
     F: Fn(usize, [f32; 3]) -> [f32; 3] + Sync,
 {
+    let (pixels, covered) = rasterize_uv(uvs, faces, width, height, [0.0; 3], sample);
+    BakedImage {
+        width: width.max(1),
+        height: height.max(1),
+        pixels,
+        covered,
+    }
+}
+
+/// The surface point of every texel of a `width × height` image: `(face, barycentric)` of the
+/// triangle that covers (or touches) its centre, as [`bake_uv`] finds it; `None` outside the
+/// charts. Row 0 is the top of the image.
+pub fn uv_texels(
+    uvs: &[[f32; 2]],
+    faces: usize,
+    width: usize,
+    height: usize,
+) -> Vec<Option<(u32, [f32; 3])>> {
+    rasterize_uv(uvs, faces, width, height, None, |f, b| Some((f as u32, b))).0
+}
+
+/// The conservative rasteriser behind [`bake_uv`] and [`uv_texels`]: `sample(f, bary)` per
+/// covered texel, `empty` elsewhere, and the coverage mask.
+fn rasterize_uv<T, F>(
+    uvs: &[[f32; 2]],
+    faces: usize,
+    width: usize,
+    height: usize,
+    empty: T,
+    sample: F,
+) -> (Vec<T>, Vec<bool>)
+where
+    T: Clone + Send + Sync,
+    F: Fn(usize, [f32; 3]) -> T + Sync,
+{
     let (w, h) = (width.max(1), height.max(1));
     let faces = faces.min(uvs.len() / 3);
     // Texel-space corners (x right, y down) of every face.
@@ -111,7 +146,7 @@ where
             }
         }
     }
-    let mut pixels = vec![[0.0f32; 3]; w * h];
+    let mut pixels = vec![empty; w * h];
     let mut covered = vec![false; w * h];
     pixels
         .par_chunks_mut(BAND_ROWS * w)
@@ -152,12 +187,7 @@ where
                 }
             }
         });
-    BakedImage {
-        width: w,
-        height: h,
-        pixels,
-        covered,
-    }
+    (pixels, covered)
 }
 
 /// Bake the per-vertex colours of another surface into a mesh's UV layout, as DCC tools transfer

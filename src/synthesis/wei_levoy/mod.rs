@@ -16,6 +16,7 @@ mod neigh;
 mod orient;
 mod pyramid;
 mod search;
+pub mod texture_space;
 
 use std::sync::Arc;
 
@@ -30,6 +31,10 @@ pub use metrics::{
     color_histogram, exemplar_loo_distance, histogram_l1, image_colors, neighbourhood_distance,
 };
 pub use orient::orientation_energy;
+pub use texture_space::{
+    DEFAULT_TEXEL_BUDGET, TextureInput, TextureOutput, TextureParams, TextureTimings,
+    synthesize_texture,
+};
 
 use crate::geometry::vertex_normals;
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
@@ -550,7 +555,6 @@ pub fn synthesize_with_alpha(
         "use a larger --scale or a smaller --vertex-budget",
     )?;
     let nlev = params.levels;
-    let passes = params.passes.max(1);
 
     // ---- prepare: finest level (uniform density), mesh pyramid, image pyramid
     let sw = Stopwatch::start();
@@ -653,7 +657,7 @@ pub fn synthesize_with_alpha(
         }
     }
     drop(hier);
-    let (mut imgs, alphas) = match alpha {
+    let (imgs, alphas) = match alpha {
         None => (image_pyramid(Img::from_rgb(exemplar), nlev), None),
         Some(a) => {
             let (img, a) = transparent_filled(exemplar, a)?;
@@ -665,13 +669,188 @@ pub fn synthesize_with_alpha(
     sink(Event::StageTime("prepare", timings.prepare));
     cancel.check()?;
 
+    let out = synthesize_levels(
+        &levels,
+        field.is_some().then_some(&carried[..]),
+        &imgs,
+        alphas.as_deref(),
+        h0,
+        params,
+        &total,
+        &|k, dirs, h, size, parent| {
+            if parent {
+                build_stencils(
+                    &levels[k],
+                    dirs,
+                    &levels[k + 1],
+                    Some(&levels[k].parent),
+                    h,
+                    size,
+                )
+            } else {
+                build_stencils(&levels[k], dirs, &levels[k], None, h, size)
+            }
+        },
+        sink,
+        cancel,
+    )?;
+    timings.orientation = out.orientation_secs;
+    timings.neighbourhoods = out.neighbourhood_secs;
+    timings.search = out.search_secs;
+    drop(imgs);
+    let LevelsOut {
+        colors: col,
+        sources,
+        dirs,
+        level_energy,
+        exemplar: ex0,
+        ..
+    } = out;
+
+    // ---- deliver
+    let level_vertices: Vec<usize> = levels.iter().map(|l| l.num_vertices()).collect();
+    let fine = levels.into_iter().next().expect("finest level");
+    let source: Vec<[u32; 2]> = sources
+        .iter()
+        .map(|&c| {
+            if c == u32::MAX {
+                [u32::MAX; 2]
+            } else {
+                let (x, y) = ex0.pixel(c);
+                [x as u32, y as u32]
+            }
+        })
+        .collect();
+    let mut positions = fine.positions;
+    let displacement = params.displace.then(|| {
+        let amount = params.displace_amount.unwrap_or(scale / 20.0);
+        let luma = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+        let mean = luma(ex0.mean);
+        let disp: Vec<f32> = col.iter().map(|&c| (luma(c) - mean) * amount).collect();
+        for (p, (n, d)) in positions.iter_mut().zip(fine.normals.iter().zip(&disp)) {
+            for k in 0..3 {
+                p[k] += n[k] * d;
+            }
+        }
+        disp
+    });
+    let mut mesh = TriMesh::new(positions, fine.faces);
+    mesh.normals = Some(vertex_normals(&mesh.positions, &mesh.faces));
+    mesh.colors = Some(col.clone());
+    mesh.path = None;
+    let file_colors = target.to_file_order(&col[..nv], [0.5; 3]);
+    timings.total = total.secs();
+    Ok(SynthResult {
+        mesh,
+        file_colors,
+        orientation: dirs,
+        source,
+        spacing: h0,
+        mesh_d,
+        level_vertices,
+        level_energy,
+        displacement,
+        timings,
+        orientation_used: params.orientation,
+        anisotropy,
+    })
+}
+
+/// Coherence candidates for vertex `v` (Ashikhmin 2001 on a surface): its current source, each
+/// neighbour q's source shifted by `p - q` expressed in q's texture frame, and the parent's source
+/// (doubled, shifted by `p - parent` in p's frame).
+#[allow(clippy::too_many_arguments)]
+fn collect_candidates(
+    cands: &mut Vec<u32>,
+    v: usize,
+    lev: &Level,
+    dirs: &[[f32; 3]],
+    src: &[u32],
+    ex: &ExemplarLevel,
+    h: f32,
+    parent: Option<(&Level, &[u32], &ExemplarLevel)>,
+) {
+    let pv = Vec3::from(lev.positions[v]);
+    if src[v] != u32::MAX {
+        cands.push(src[v]);
+    }
+    for &q in lev.adj.row(v) {
+        let q = q as usize;
+        if src[q] == u32::MAX {
+            continue;
+        }
+        let nq = Vec3::from(lev.normals[q]);
+        let sq = Vec3::from(dirs[q]);
+        let tq = nq.cross(sq);
+        let d = pv - Vec3::from(lev.positions[q]);
+        let (x, y) = ex.pixel(src[q]);
+        let nx = x as f32 + d.dot(sq) / h;
+        let ny = y as f32 - d.dot(tq) / h;
+        cands.push(ex.cand_at(nx.round() as i64, ny.round() as i64));
+    }
+    if let Some((plev, psrc, pex)) = parent {
+        let a = lev.parent[v] as usize;
+        if psrc[a] != u32::MAX {
+            let nv = Vec3::from(lev.normals[v]);
+            let sv = Vec3::from(dirs[v]);
+            let tv = nv.cross(sv);
+            let d = pv - Vec3::from(plev.positions[a]);
+            let (x, y) = pex.pixel(psrc[a]);
+            let px = x as f32 + d.dot(sv) / (2.0 * h);
+            let py = y as f32 - d.dot(tv) / (2.0 * h);
+            let fx = 2.0 * px + 0.5;
+            let fy = 2.0 * py + 0.5;
+            cands.push(ex.cand_at(fx.round() as i64, fy.round() as i64));
+        }
+    }
+}
+
+/// What [`synthesize_levels`] gives back: the finest level's colours, exemplar candidates
+/// (`u32::MAX` for fixed samples), texture directions, and the numbers.
+pub(crate) struct LevelsOut {
+    pub colors: Vec<[f32; 3]>,
+    pub sources: Vec<u32>,
+    pub dirs: Vec<[f32; 3]>,
+    pub level_energy: Vec<f64>,
+    pub exemplar: ExemplarLevel,
+    pub orientation_secs: f64,
+    pub neighbourhood_secs: f64,
+    pub search_secs: f64,
+}
+
+/// Resampling stencils of level `k` in its samples' frames `dirs` at spacing `h` and template
+/// `size`: on the level itself, or (`parent = true`) on level `k + 1`.
+pub(crate) type StencilBuilder<'a> =
+    dyn Fn(usize, &[[f32; 3]], f32, usize, bool) -> Stencils + Sync + 'a;
+
+/// The coarse-to-fine synthesis on a pyramid of sample levels (mesh vertices, or texels of an
+/// atlas): orientation (an explicit field `carried` on the finest level, or the params'), then
+/// per level and pass the best-match search over the neighbourhoods `stencils` builds. Partial
+/// results are colours per finest-level sample.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn synthesize_levels(
+    levels: &[Level],
+    carried: Option<&[[f32; 3]]>,
+    imgs: &[Img],
+    alphas: Option<&[Img]>,
+    h0: f32,
+    params: &SynthParams,
+    total: &Stopwatch,
+    stencils: &StencilBuilder,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<LevelsOut> {
+    let nlev = levels.len();
+    let passes = params.passes.max(1);
     // ---- orientation, coarse to fine
     let sw = Stopwatch::start();
     let mut dirs: Vec<Vec<[f32; 3]>> = vec![Vec::new(); nlev];
     // an explicit field: fine to coarse (children averaged), projected on each level
     let mut field_dirs: Vec<Vec<[f32; 3]>> = Vec::new();
-    if field.is_some() && !matches!(params.orientation, Orientation::Random | Orientation::Up) {
-        field_dirs.push(orient::project_all(&levels[0], &carried));
+    if let Some(carried) = carried
+        && !matches!(params.orientation, Orientation::Random | Orientation::Up)
+    {
+        field_dirs.push(orient::project_all(&levels[0], carried));
         for k in 1..nlev {
             let d = orient::from_children(&levels[k], &levels[k - 1].parent, &field_dirs[k - 1]);
             field_dirs.push(d);
@@ -708,8 +887,8 @@ pub fn synthesize_with_alpha(
         };
         cancel.check()?;
     }
-    timings.orientation = sw.secs();
-    sink(Event::StageTime("orientation", timings.orientation));
+    let orientation_secs = sw.secs();
+    sink(Event::StageTime("orientation", orientation_secs));
 
     // ancestor of every finest vertex on each level (for partial results on the finest mesh)
     let mut up: Vec<Vec<u32>> = vec![(0..levels[0].num_vertices() as u32).collect()];
@@ -737,20 +916,13 @@ pub fn synthesize_with_alpha(
         let h = h0 * (1u32 << k) as f32;
         let has_parent = psize > 0;
         let mut ex = ExemplarLevel::new(&imgs[k], has_parent.then(|| &imgs[k + 1]), size, psize);
-        if let Some(a) = &alphas {
+        if let Some(a) = alphas {
             ex.restrict_to_opaque(&a[k]);
         }
-        let cur_st = build_stencils(lev, &dirs[k], lev, None, h, size);
-        let par_st: Option<Stencils> = has_parent.then(|| {
-            build_stencils(
-                lev,
-                &dirs[k],
-                &levels[k + 1],
-                Some(&lev.parent),
-                2.0 * h,
-                psize,
-            )
-        });
+        let cur_st = stencils(k, &dirs[k], h, size, false);
+        cancel.check()?;
+        let par_st: Option<Stencils> =
+            has_parent.then(|| stencils(k, &dirs[k], 2.0 * h, psize, true));
         neigh_secs += sw.secs();
         let sw = Stopwatch::start();
         // random initialisation from this level's exemplar (equalises histograms, §3.1)
@@ -856,108 +1028,16 @@ pub fn synthesize_with_alpha(
             exemplars[k + 2] = None;
         }
     }
-    timings.neighbourhoods = neigh_secs;
-    timings.search = search_secs;
     sink(Event::StageTime("neighbourhoods", neigh_secs));
     sink(Event::StageTime("search", search_secs));
-    imgs.truncate(1);
-
-    // ---- deliver
-    let level_vertices: Vec<usize> = levels.iter().map(|l| l.num_vertices()).collect();
-    let fine = levels.into_iter().next().expect("finest level");
-    let col = std::mem::take(&mut colors[0]);
-    let ex0 = exemplars[0].take().expect("finest level synthesized");
-    let source: Vec<[u32; 2]> = srcs[0]
-        .iter()
-        .map(|&c| {
-            if c == u32::MAX {
-                [u32::MAX; 2]
-            } else {
-                let (x, y) = ex0.pixel(c);
-                [x as u32, y as u32]
-            }
-        })
-        .collect();
-    let mut positions = fine.positions;
-    let displacement = params.displace.then(|| {
-        let amount = params.displace_amount.unwrap_or(scale / 20.0);
-        let luma = |c: [f32; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
-        let mean = luma(ex0.mean);
-        let disp: Vec<f32> = col.iter().map(|&c| (luma(c) - mean) * amount).collect();
-        for (p, (n, d)) in positions.iter_mut().zip(fine.normals.iter().zip(&disp)) {
-            for k in 0..3 {
-                p[k] += n[k] * d;
-            }
-        }
-        disp
-    });
-    let mut mesh = TriMesh::new(positions, fine.faces);
-    mesh.normals = Some(vertex_normals(&mesh.positions, &mesh.faces));
-    mesh.colors = Some(col.clone());
-    mesh.path = None;
-    let file_colors = target.to_file_order(&col[..nv], [0.5; 3]);
-    timings.total = total.secs();
-    Ok(SynthResult {
-        mesh,
-        file_colors,
-        orientation: std::mem::take(&mut dirs[0]),
-        source,
-        spacing: h0,
-        mesh_d,
-        level_vertices,
+    Ok(LevelsOut {
+        colors: std::mem::take(&mut colors[0]),
+        sources: std::mem::take(&mut srcs[0]),
+        dirs: std::mem::take(&mut dirs[0]),
         level_energy,
-        displacement,
-        timings,
-        orientation_used: params.orientation,
-        anisotropy,
+        exemplar: exemplars[0].take().expect("finest level synthesized"),
+        orientation_secs,
+        neighbourhood_secs: neigh_secs,
+        search_secs,
     })
-}
-
-/// Coherence candidates for vertex `v` (Ashikhmin 2001 on a surface): its current source, each
-/// neighbour q's source shifted by `p - q` expressed in q's texture frame, and the parent's source
-/// (doubled, shifted by `p - parent` in p's frame).
-#[allow(clippy::too_many_arguments)]
-fn collect_candidates(
-    cands: &mut Vec<u32>,
-    v: usize,
-    lev: &Level,
-    dirs: &[[f32; 3]],
-    src: &[u32],
-    ex: &ExemplarLevel,
-    h: f32,
-    parent: Option<(&Level, &[u32], &ExemplarLevel)>,
-) {
-    let pv = Vec3::from(lev.positions[v]);
-    if src[v] != u32::MAX {
-        cands.push(src[v]);
-    }
-    for &q in lev.adj.row(v) {
-        let q = q as usize;
-        if src[q] == u32::MAX {
-            continue;
-        }
-        let nq = Vec3::from(lev.normals[q]);
-        let sq = Vec3::from(dirs[q]);
-        let tq = nq.cross(sq);
-        let d = pv - Vec3::from(lev.positions[q]);
-        let (x, y) = ex.pixel(src[q]);
-        let nx = x as f32 + d.dot(sq) / h;
-        let ny = y as f32 - d.dot(tq) / h;
-        cands.push(ex.cand_at(nx.round() as i64, ny.round() as i64));
-    }
-    if let Some((plev, psrc, pex)) = parent {
-        let a = lev.parent[v] as usize;
-        if psrc[a] != u32::MAX {
-            let nv = Vec3::from(lev.normals[v]);
-            let sv = Vec3::from(dirs[v]);
-            let tv = nv.cross(sv);
-            let d = pv - Vec3::from(plev.positions[a]);
-            let (x, y) = pex.pixel(psrc[a]);
-            let px = x as f32 + d.dot(sv) / (2.0 * h);
-            let py = y as f32 - d.dot(tv) / (2.0 * h);
-            let fx = 2.0 * px + 0.5;
-            let fy = 2.0 * py + 0.5;
-            cands.push(ex.cand_at(fx.round() as i64, fy.round() as i64));
-        }
-    }
 }
