@@ -81,6 +81,7 @@ fn spot_texture_space_synthesis_is_seamless_and_keeps_the_exemplars_detail() {
         },
         texture_size: 1024,
         texel_budget: 60_000,
+        new_atlas: false,
     };
     let input = TextureInput {
         exemplar: &ex,
@@ -199,4 +200,168 @@ fn spot_texture_space_synthesis_is_seamless_and_keeps_the_exemplars_detail() {
         ours > 1.2 * theirs,
         "texture space {ours:.4} is not sharper than the surface bake {theirs:.4}"
     );
+}
+
+/// A speckled green-blue exemplar with a transparent magenta disc in the middle.
+fn exemplar_with_hole(size: u32) -> (image::RgbImage, image::GrayImage) {
+    let c = size as f32 / 2.0;
+    let mut rgb = image::RgbImage::new(size, size);
+    let mut alpha = image::GrayImage::new(size, size);
+    for y in 0..size {
+        for x in 0..size {
+            let inside =
+                ((x as f32 - c).powi(2) + (y as f32 - c).powi(2)).sqrt() < size as f32 / 4.0;
+            let h = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) % 97;
+            let p = if inside {
+                [255, 0, 255]
+            } else {
+                [30 + h as u8, 140 + (h as u8 / 2), 60 + (97 - h as u8)]
+            };
+            rgb.put_pixel(x, y, image::Rgb(p));
+            alpha.put_pixel(x, y, image::Luma([if inside { 0 } else { 255 }]));
+        }
+    }
+    (rgb, alpha)
+}
+
+#[test]
+fn a_mesh_without_uvs_gets_an_atlas_and_never_the_exemplars_hole() {
+    let bunny = load("bunny/bunny.obj");
+    assert!(bunny.uvs.is_none());
+    let (rgb, alpha) = exemplar_with_hole(96);
+    let params = TextureParams {
+        synth: SynthParams {
+            levels: 3,
+            ..Default::default()
+        },
+        texture_size: 512,
+        texel_budget: 30_000,
+        new_atlas: false,
+    };
+    let input = TextureInput {
+        exemplar: &rgb,
+        alpha: Some(&alpha),
+        target: &bunny,
+        field: None,
+    };
+    let r = synthesize_texture(&input, &params, &no_events, &CancelToken::new()).unwrap();
+    assert!(r.atlas.is_some());
+    assert!(
+        r.atlas_reason
+            .as_deref()
+            .is_some_and(|s| s.contains("no UVs")),
+        "{:?}",
+        r.atlas_reason
+    );
+    let uvs = r.mesh.uvs.as_ref().expect("the atlas's UVs");
+    let tex = &r.mesh.texture.as_ref().expect("a texture").image;
+    let texels = meshmatch::geometry::uv_texels(uvs, r.mesh.faces.len(), 512, 512);
+    let inside: Vec<[u8; 3]> = texels
+        .iter()
+        .zip(tex.pixels())
+        .filter(|(t, _)| t.is_some())
+        .map(|(_, p)| p.0)
+        .collect();
+    assert!(
+        inside.len() > 20_000,
+        "{} texels in the charts",
+        inside.len()
+    );
+    let magenta = inside
+        .iter()
+        .filter(|c| c[0] > 200 && c[1] < 64 && c[2] > 200)
+        .count();
+    assert_eq!(magenta, 0, "{magenta} texels show the transparent colour");
+    let greenish = inside.iter().filter(|c| c[1] > c[0] && c[1] > 115).count();
+    assert!(
+        greenish * 10 > inside.len() * 9,
+        "{greenish} of {} texels look like the exemplar",
+        inside.len()
+    );
+}
+
+#[test]
+fn unusable_uvs_get_an_atlas_and_bad_parameters_are_errors() {
+    let spot = load("spot/spot.obj");
+    let ex = exemplar("1.jpg");
+    let params = TextureParams {
+        synth: SynthParams {
+            levels: 2,
+            ..Default::default()
+        },
+        texture_size: 128,
+        texel_budget: 2_000,
+        new_atlas: false,
+    };
+    let run = |mesh: &TriMesh, p: &TextureParams| {
+        synthesize_texture(
+            &TextureInput {
+                exemplar: &ex,
+                alpha: None,
+                target: mesh,
+                field: None,
+            },
+            p,
+            &no_events,
+            &CancelToken::new(),
+        )
+    };
+    // tiled UVs: corners outside the unit square
+    let mut tiled = spot.clone();
+    for t in tiled.uvs.as_mut().unwrap() {
+        t[0] *= 3.0;
+    }
+    let r = run(&tiled, &params).unwrap();
+    assert!(
+        r.atlas_reason
+            .as_deref()
+            .is_some_and(|s| s.contains("outside")),
+        "{:?}",
+        r.atlas_reason
+    );
+    // stacked UVs: every face on the same triangle
+    let mut stacked = spot.clone();
+    for (i, t) in stacked.uvs.as_mut().unwrap().iter_mut().enumerate() {
+        *t = [[0.1, 0.1], [0.9, 0.1], [0.5, 0.9]][i % 3];
+    }
+    let r = run(&stacked, &params).unwrap();
+    assert!(
+        r.atlas_reason
+            .as_deref()
+            .is_some_and(|s| s.contains("overlap")),
+        "{:?}",
+        r.atlas_reason
+    );
+    // Spot's own UVs are used as they are
+    let own = run(&spot, &params).unwrap().atlas_reason;
+    assert!(own.is_none(), "{own:?}");
+    // one-line errors
+    let bad = [
+        TextureParams {
+            synth: SynthParams {
+                displace: true,
+                ..params.synth.clone()
+            },
+            ..params.clone()
+        },
+        TextureParams {
+            texel_budget: 10,
+            ..params.clone()
+        },
+        TextureParams {
+            texture_size: 8,
+            ..params.clone()
+        },
+        TextureParams {
+            synth: SynthParams {
+                scale: Some(f32::NAN),
+                ..params.synth.clone()
+            },
+            ..params.clone()
+        },
+    ];
+    for p in &bad {
+        let e = run(&spot, p).unwrap_err().to_string();
+        assert!(!e.contains('\n') && !e.is_empty(), "{e}");
+    }
 }

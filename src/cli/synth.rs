@@ -480,6 +480,7 @@ fn synth_texture(
         },
         texture_size: a.texture_size,
         texel_budget: a.texel_budget,
+        new_atlas: false,
     };
     let input = TextureInput {
         exemplar,
@@ -502,9 +503,9 @@ fn synth_texture(
             crate::synthesis::wei_levoy::anisotropy::ORIENTED,
         );
     }
-    if let Some(at) = &r.atlas {
+    if let (Some(at), Some(why)) = (&r.atlas, &r.atlas_reason) {
         eprintln!(
-            "generated a UV atlas for the target: {} charts, {:.0}% of the texture",
+            "generated a UV atlas for the target ({why}): {} charts, {:.0}% of the texture",
             at.charts,
             100.0 * at.utilization
         );

@@ -52,6 +52,8 @@ pub struct TextureParams {
     pub texture_size: u32,
     /// Most texels synthesized; the output is magnified from them (see the module doc).
     pub texel_budget: usize,
+    /// Generate a new atlas even when the target's UVs are usable.
+    pub new_atlas: bool,
 }
 
 impl Default for TextureParams {
@@ -60,6 +62,7 @@ impl Default for TextureParams {
             synth: SynthParams::default(),
             texture_size: 2048,
             texel_budget: DEFAULT_TEXEL_BUDGET,
+            new_atlas: false,
         }
     }
 }
@@ -103,6 +106,9 @@ pub struct TextureOutput {
     pub mesh: TriMesh,
     /// Charts and coverage of a generated atlas.
     pub atlas: Option<crate::geometry::UvAtlas>,
+    /// Why the atlas was generated: no UVs, UVs outside the unit square, overlapping charts, or
+    /// asked for.
+    pub atlas_reason: Option<String>,
     /// Side of the working (synthesized) texture.
     pub working_size: u32,
     /// Synthesized texels per level, finest first.
@@ -238,6 +244,54 @@ impl<'a> Surface<'a> {
             })
             .sum()
     }
+}
+
+/// Why `mesh`'s UVs cannot carry a synthesized texture, if they cannot: none; faces outside
+/// the unit square (tiled or wrapped layouts, whose texels would be shared); or charts that
+/// overlap (mirrored or stacked halves: one texel would be two surface places). Overlap is
+/// measured as UV area beyond the texels the layout covers at 512².
+fn unusable_uvs(mesh: &TriMesh) -> Option<String> {
+    let Some(uvs) = mesh
+        .uvs
+        .as_ref()
+        .filter(|u| u.len() == 3 * mesh.faces.len())
+    else {
+        return Some("the target has no UVs".into());
+    };
+    // a few corners just past the border are common in real layouts; faces whose centre lies
+    // outside are a tiled or wrapped layout
+    let outside = (0..mesh.faces.len())
+        .filter(|&f| {
+            let c = (0..3).fold(Vec2::ZERO, |a, k| a + Vec2::from(uvs[3 * f + k])) / 3.0;
+            !(c.is_finite() && (0.0..=1.0).contains(&c.x) && (0.0..=1.0).contains(&c.y))
+        })
+        .count();
+    if outside * 100 > mesh.faces.len() {
+        return Some(format!(
+            "{outside} of its {} faces lie outside the UV unit square (a tiled or wrapped layout)",
+            mesh.faces.len()
+        ));
+    }
+    let area: f64 = (0..mesh.faces.len())
+        .map(|f| {
+            let t = [0, 1, 2].map(|k| Vec2::from(uvs[3 * f + k]).as_dvec2());
+            0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]).abs()
+        })
+        .sum();
+    const PROBE: usize = 512;
+    let covered = crate::geometry::uv_texels(uvs, mesh.faces.len(), PROBE, PROBE)
+        .iter()
+        .filter(|t| t.is_some())
+        .count() as f64
+        / (PROBE * PROBE) as f64;
+    // conservative coverage exceeds the area of a layout without overlaps (chart borders)
+    if area > 1.1 * covered + 1e-3 {
+        return Some(format!(
+            "its UV charts overlap ({:.0}% of their area is shared)",
+            100.0 * (1.0 - covered / area)
+        ));
+    }
+    None
 }
 
 /// One level of texels: the grid side, the sample index of every texel (`u32::MAX` outside the
@@ -799,11 +853,12 @@ pub fn synthesize_texture(
     let sw = Stopwatch::start();
     let mut mesh = target.clone();
     let mut atlas = None;
-    if mesh
-        .uvs
-        .as_ref()
-        .is_none_or(|u| u.len() != 3 * mesh.faces.len())
-    {
+    let atlas_reason = if params.new_atlas {
+        Some("asked for".to_string())
+    } else {
+        unusable_uvs(&mesh)
+    };
+    if atlas_reason.is_some() {
         let ap = crate::geometry::AtlasParams {
             texture_size: params.texture_size,
             ..Default::default()
@@ -1021,6 +1076,7 @@ pub fn synthesize_texture(
     Ok(TextureOutput {
         mesh,
         atlas,
+        atlas_reason,
         working_size: side as u32,
         level_texels: levels.iter().map(|l| l.num_vertices()).collect(),
         level_energy: out.level_energy,
