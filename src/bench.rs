@@ -658,6 +658,59 @@ pub fn synth_row(mesh: &std::path::Path, texture: &std::path::Path) -> Result<Sy
     })
 }
 
+/// `synth` into a texture with its defaults (texel budget, auto orientation, alpha, a
+/// 2048² texture): what a user gets from `meshmatch synth --exemplar T --target M --out o.glb`.
+pub fn synth_texture_row(mesh: &std::path::Path, texture: &std::path::Path) -> Result<SystemRow> {
+    use crate::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
+    let t = Instant::now();
+    let mut target = crate::mesh::io::load(mesh)?;
+    target.repair()?;
+    let (tex, alpha) = crate::mesh::io::load_texture_with_alpha(texture)?;
+    let input = TextureInput {
+        exemplar: &tex.image,
+        alpha: alpha.as_ref(),
+        target: &target,
+        field: None,
+    };
+    let r = synthesize_texture(
+        &input,
+        &TextureParams::default(),
+        &|_| {},
+        &CancelToken::new(),
+    )?;
+    let name = |p: &std::path::Path| {
+        p.file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    Ok(SystemRow {
+        case: format!(
+            "synth {} into {}'s texture ({}, {}² working, exemplar {} px wide, {})",
+            name(texture),
+            name(mesh),
+            if r.atlas.is_some() {
+                "atlas"
+            } else {
+                "own UVs"
+            },
+            r.working_size,
+            r.working_exemplar_width,
+            r.orientation_used.as_str()
+        ),
+        vertices: r.level_texels.first().copied().unwrap_or(0),
+        stages: vec![
+            ("prepare".into(), r.timings.prepare),
+            ("orientation".into(), r.timings.orientation),
+            ("neighbourhoods".into(), r.timings.neighbourhoods),
+            ("search".into(), r.timings.search),
+            ("magnify".into(), r.timings.magnify),
+        ],
+        total_s: t.elapsed().as_secs_f64(),
+        faces: 0,
+        peak_rss_mb: peak_rss_mb(),
+    })
+}
+
 /// The shared meshes (one level of folders under the data directory, robustness cases left out)
 /// and textures (`textures/`), sorted.
 fn shared_meshes_and_textures() -> (Vec<std::path::PathBuf>, Vec<std::path::PathBuf>) {
@@ -689,7 +742,8 @@ fn shared_meshes_and_textures() -> (Vec<std::path::PathBuf>, Vec<std::path::Path
     (meshes, textures)
 }
 
-/// `meshmatch bench --system weather|features|quilt|map|synth`: the rows of a synthesis system.
+/// `meshmatch bench --system weather|features|quilt|map|synth|synth-texture`: the rows of a
+/// synthesis system.
 pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
     let rows: Vec<SystemRow> = match system {
         "synth" => {
@@ -700,6 +754,19 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
                     match synth_row(m, t) {
                         Ok(r) => print_rows(vec![r], json),
                         Err(e) => println!("synth {} on {}: {e}", t.display(), m.display()),
+                    }
+                }
+            }
+            Vec::new()
+        }
+        "synth-texture" => {
+            // Every shared mesh with every shared texture, into a texture.
+            let (meshes, textures) = shared_meshes_and_textures();
+            for m in &meshes {
+                for t in &textures {
+                    match synth_texture_row(m, t) {
+                        Ok(r) => print_rows(vec![r], json),
+                        Err(e) => println!("synth {} into {}: {e}", t.display(), m.display()),
                     }
                 }
             }
@@ -735,7 +802,8 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
         }
         _ => {
             return Err(crate::error::Error::InvalidInput(format!(
-                "--system {system}: use meshmatch, weather, features, quilt, map or synth"
+                "--system {system}: use meshmatch, weather, features, quilt, map, synth or \
+                 synth-texture"
             )));
         }
     };

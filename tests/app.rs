@@ -2282,3 +2282,62 @@ fn view_menu_opens_the_geometric_feature_window() {
     h.run_steps(2);
     assert!(h.state().system::<FeatureDialog>().unwrap().open);
 }
+
+#[test]
+fn paint_with_exemplar_into_a_texture_textures_the_mesh_through_its_uvs_and_undo_restores() {
+    use meshmatch::app::tools::{ExemplarSettings, Region, TEXTURE_SIDE};
+    let spot_path = meshmatch::testdata::data_path("spot/spot.obj");
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.open_mesh(Side::Target, &spot_path).unwrap();
+    let before = app.state.slot(Side::Target).unwrap().displayed().clone();
+    let own = before.texture.clone().expect("Spot is textured");
+    // A small green speckle exemplar: few texels, a short run.
+    let ex = std::env::temp_dir().join(format!("meshmatch_tex_ex_{}.png", std::process::id()));
+    image::RgbImage::from_fn(48, 48, |x, y| {
+        let h = ((x * 73 + y * 151) % 29) as u8;
+        image::Rgb([20 + h, 150 + h, 30 + h])
+    })
+    .save(&ex)
+    .unwrap();
+    let settings = ExemplarSettings {
+        image: Some(ex.clone()),
+        region: Region::Texture,
+        scale: 0.5,
+        ..ExemplarSettings::default()
+    };
+    app.start_exemplar(&settings);
+    let job = app.tool.take().expect("started");
+    let out = job.wait().unwrap();
+    let history = app.state.history_len().0;
+    app.state.apply_tool_outcome(out);
+    assert!(app.state.errors.is_empty(), "{:?}", app.state.errors);
+    assert_eq!(app.state.history_len().0, history + 1);
+    let m = app.state.slot(Side::Target).unwrap().displayed().clone();
+    // The same mesh and UVs, a new texture of the exemplar's green.
+    assert_eq!(m.faces, before.faces);
+    assert_eq!(m.uvs, before.uvs);
+    let tex = &m.texture.as_ref().expect("a texture").image;
+    assert_eq!(tex.dimensions(), (TEXTURE_SIDE, TEXTURE_SIDE));
+    let green = tex
+        .pixels()
+        .filter(|p| p.0[1] > 140 && p.0[0] < 70 && p.0[2] < 80)
+        .count();
+    assert!(
+        green as f64 > 0.95 * (TEXTURE_SIDE as f64).powi(2),
+        "{green} green texels"
+    );
+    assert!(
+        app.state.message.contains("texels synthesized"),
+        "{}",
+        app.state.message
+    );
+    // One undo brings Spot's own texture back.
+    assert!(app.state.undo());
+    let back = app.state.slot(Side::Target).unwrap().displayed().clone();
+    assert!(
+        std::sync::Arc::ptr_eq(back.texture.as_ref().unwrap(), &own)
+            || back.texture.as_ref().unwrap().image == own.image
+    );
+    std::fs::remove_file(&ex).ok();
+}

@@ -104,12 +104,19 @@ impl<P: AppParams> SystemTool<P> for ExemplarDialog {
     }
     fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob> {
         let side = self.settings.side;
-        let (Some(mesh), Some(coverage)) = (state.painted_mesh(side), state.paint_coverage(side))
+        let (Some(mut mesh), Some(coverage)) =
+            (state.painted_mesh(side), state.paint_coverage(side))
         else {
             return Err(Error::InvalidInput(format!(
                 "open a {side:?} mesh to paint first"
             )));
         };
+        if self.settings.region == super::tools::Region::Texture {
+            // into its texture: the mesh as displayed, with its own UVs
+            if let Some(slot) = state.slot(side) {
+                mesh.uvs = slot.displayed().uvs.clone();
+            }
+        }
         exemplar_job(&self.settings, mesh, &coverage, wake)
     }
     fn as_any_mut(&mut self) -> &mut dyn Any {

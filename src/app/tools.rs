@@ -431,7 +431,13 @@ pub enum Region {
     /// Only the vertices painted with the Paint tool (coverage at least one half); the rest keep
     /// their displayed colours and constrain the synthesis at the border.
     Painted,
+    /// The whole mesh, synthesized texel by texel into its texture (its own UVs, or an atlas
+    /// generated for it): the mesh comes back textured, at [`TEXTURE_SIDE`]².
+    Texture,
 }
+
+/// Side of the texture "Paint with exemplar" makes into a texture.
+pub const TEXTURE_SIDE: u32 = 2048;
 
 /// Settings of "Paint with exemplar" (texture synthesis from an image, Wei & Levoy 2001).
 #[derive(Clone, Debug, PartialEq)]
@@ -520,7 +526,7 @@ pub fn exemplar_job(
         )));
     }
     let mask = match settings.region {
-        Region::Whole => None,
+        Region::Whole | Region::Texture => None,
         Region::Painted => {
             let m: Vec<bool> = coverage.iter().map(|&c| c >= 0.5).collect();
             if !m.iter().any(|&b| b) {
@@ -546,6 +552,9 @@ pub fn exemplar_job(
     };
     let pixels = settings.pixels;
     let n = mesh.num_vertices();
+    if settings.region == Region::Texture {
+        return Ok(texture_job(path, params, mesh, side, wake));
+    }
     let mut job = ToolJob::spawn("paint with exemplar", wake, move |sink, cancel| {
         let (img, alpha) = load_exemplar(&path, pixels)?;
         let input = wei_levoy::Input {
@@ -574,6 +583,50 @@ pub fn exemplar_job(
     });
     job.preview = Some(side);
     Ok(job)
+}
+
+/// Paint with exemplar into a texture: the synthesis runs on the texels of `mesh`'s UV layout
+/// (or a generated atlas) and reads the full-resolution image; the mesh comes back textured and
+/// replaces the displayed one (one undo step).
+fn texture_job(
+    path: PathBuf,
+    params: SynthParams,
+    mesh: TriMesh,
+    side: Side,
+    wake: impl Fn() + Send + Sync + 'static,
+) -> ToolJob {
+    ToolJob::spawn("paint with exemplar", wake, move |sink, cancel| {
+        let (tex, alpha) = crate::mesh::io::load_texture_with_alpha(&path)?;
+        let mut target = mesh;
+        target.colors = None;
+        let input = wei_levoy::TextureInput {
+            exemplar: &tex.image,
+            alpha: alpha.as_ref(),
+            target: &target,
+            field: None,
+        };
+        let p = wei_levoy::TextureParams {
+            synth: params,
+            texture_size: TEXTURE_SIDE,
+            ..Default::default()
+        };
+        let r = wei_levoy::synthesize_texture(&input, &p, sink, cancel)?;
+        let name = path.file_name().unwrap_or_default().to_string_lossy();
+        let atlas = match &r.atlas_reason {
+            Some(why) => format!("; a UV atlas was generated: {why}"),
+            None => String::new(),
+        };
+        Ok(ToolOutcome::Mesh(
+            side,
+            r.mesh,
+            format!(
+                "{side:?} textured with {name}: {} texels synthesized into a {TEXTURE_SIDE}x\
+                 {TEXTURE_SIDE} texture in {:.1} s{atlas} (Ctrl+Z undoes)",
+                r.level_texels.first().copied().unwrap_or(0),
+                r.timings.total
+            ),
+        ))
+    })
 }
 
 /// The "Image: NAME  [Choose image...]" row of the image-exemplar windows; true when the button
@@ -684,6 +737,12 @@ impl ExemplarDialog {
                 "Only the vertices painted with the Paint tool; the rest keep their colours \
                  and guide the border",
             );
+            ui.selectable_value(&mut s.region, Region::Texture, "Into a texture")
+                .on_hover_text(format!(
+                    "Synthesize texel by texel into a {TEXTURE_SIDE}x{TEXTURE_SIDE} texture \
+                     through the mesh's UVs (or a generated atlas), from the full-resolution \
+                     image; the mesh becomes textured"
+                ));
         });
         ui.add(
             egui::Slider::new(&mut s.scale, 0.02..=2.0)
@@ -694,11 +753,14 @@ impl ExemplarDialog {
             "How wide the exemplar appears on the surface, as a fraction of the mesh's \
              bounding-box diagonal: smaller = more repetitions, finer texture",
         );
-        ui.add(egui::Slider::new(&mut s.pixels, 32..=256).text("exemplar width (px)"))
-            .on_hover_text(
-                "The image is shrunk to this width before synthesis: more pixels = finer detail, \
-                 but more surface vertices and a slower run (the count grows with its square)",
-            );
+        if s.region != Region::Texture {
+            ui.add(egui::Slider::new(&mut s.pixels, 32..=256).text("exemplar width (px)"))
+                .on_hover_text(
+                    "The image is shrunk to this width before synthesis: more pixels = finer \
+                     detail, but more surface vertices and a slower run (the count grows with \
+                     its square)",
+                );
+        }
         egui::ComboBox::from_label("orientation")
             .selected_text(s.orientation.as_str())
             .show_ui(ui, |ui| {
@@ -743,6 +805,13 @@ impl ExemplarDialog {
         });
         let mesh = state.slot(s.side).map(|m| m.displayed());
         match mesh {
+            Some(_) if s.region == Region::Texture => {
+                ui.label(format!(
+                    "up to {} texels synthesized, magnified to {TEXTURE_SIDE}x{TEXTURE_SIDE} from \
+                     the full image",
+                    wei_levoy::DEFAULT_TEXEL_BUDGET
+                ));
+            }
             Some(m) => {
                 let n = s.estimated_vertices(m, width);
                 ui.label(format!(
@@ -758,7 +827,7 @@ impl ExemplarDialog {
             let ready = s.image.is_some()
                 && mesh.is_some()
                 && !busy
-                && (s.region == Region::Whole || painted > 0);
+                && (s.region != Region::Painted || painted > 0);
             if ui
                 .add_enabled(ready, egui::Button::new("Run"))
                 .on_hover_text("Synthesize on its own thread; the view updates after every pass")

@@ -19,7 +19,8 @@ pub struct BenchArgs {
     /// Spot -> horse at each size), features (feature-aligned texturing of a cube of each size,
     /// curves, field, synthesis and optimisation at that many vertices), quilt (chain mail on a plane and on the bunny), map (the
     /// global shape map man -> woman at each size, and a transfer with structure 0 and auto) or
-    /// synth (`synth` with its defaults, every shared texture on every shared mesh).
+    /// synth (`synth` with its defaults, every shared texture on every shared mesh, on the
+    /// surface) or synth-texture (the same into each mesh's texture space, as `--out o.glb`).
     #[arg(long, default_value = "meshmatch")]
     pub system: String,
     /// Worker threads, one run of the whole table per count, e.g. `1,2` for the parallel

@@ -818,7 +818,13 @@ pub fn synthesize_texture(
             f.len()
         )));
     }
-    crate::geometry::check_bake_memory(params.texture_size)?;
+    // the output's texel hits (20 bytes), colours, coverage, pull-push pyramid and 8-bit copy
+    let out_texels = (params.texture_size as u64).pow(2);
+    crate::work::check_memory(
+        out_texels.saturating_mul(64),
+        &format!("a {0}x{0} texture", params.texture_size),
+        "use a smaller --texture-size",
+    )?;
     let (lo, hi) = target
         .bounds()
         .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
@@ -841,13 +847,6 @@ pub fn synthesize_texture(
             m = min_side
         )));
     }
-    // `Auto`: the field the exemplar's anisotropy asks for (on the full exemplar).
-    let anis = (sp.orientation == Orientation::Auto)
-        .then(|| anisotropy::exemplar_anisotropy(input.exemplar, input.alpha));
-    let sp = SynthParams {
-        orientation: anis.map_or(sp.orientation, anisotropy::choose_orientation),
-        ..sp.clone()
-    };
 
     // ---- the UV layout
     let sw = Stopwatch::start();
@@ -908,6 +907,14 @@ pub fn synthesize_texture(
     let work_alpha = input
         .alpha
         .map(|a| super::resize_alpha(a.clone(), work_ex.width(), work_ex.height()));
+    // `Auto`: the field the exemplar's anisotropy asks for, measured at the working scale as
+    // the surface synthesis measures it
+    let anis = (sp.orientation == Orientation::Auto)
+        .then(|| anisotropy::exemplar_anisotropy(&work_ex, work_alpha.as_ref()));
+    let sp = SynthParams {
+        orientation: anis.map_or(sp.orientation, anisotropy::choose_orientation),
+        ..sp.clone()
+    };
     let (imgs, alphas) = match &work_alpha {
         None => (image_pyramid(Img::from_rgb(&work_ex), nlev), None),
         Some(a) => {
