@@ -528,10 +528,11 @@ fn synth_texture(
         w = r.working_size,
     );
     eprintln!(
-        "synthesized in {:.2} s (prepare {:.2}, neighbourhoods {:.2}, search {:.2}, magnify {:.2}); \
-         finest-level neighbourhood energy {:.5}; texture {}x{}",
+        "synthesized in {:.2} s (prepare {:.2}, orientation {:.2}, neighbourhoods {:.2}, search \
+         {:.2}, magnify {:.2}); finest-level neighbourhood energy {:.5}; texture {}x{}",
         t.elapsed().as_secs_f64(),
         r.timings.prepare,
+        r.timings.orientation,
         r.timings.neighbourhoods,
         r.timings.search,
         r.timings.magnify,
