@@ -406,37 +406,35 @@ impl TexelGrid {
     }
 }
 
-/// A 3D hash grid over sample positions.
-struct PointGrid {
+/// A 3D hash grid over sample positions (with their normals).
+struct PointGrid<'a> {
     cell: f32,
     map: std::collections::HashMap<[i32; 3], Vec<u32>>,
+    positions: &'a [[f32; 3]],
+    normals: &'a [[f32; 3]],
 }
 
-impl PointGrid {
-    fn new(positions: &[[f32; 3]], cell: f32) -> PointGrid {
+impl<'a> PointGrid<'a> {
+    fn new(positions: &'a [[f32; 3]], normals: &'a [[f32; 3]], cell: f32) -> PointGrid<'a> {
         let mut map: std::collections::HashMap<[i32; 3], Vec<u32>> = Default::default();
         for (i, p) in positions.iter().enumerate() {
             map.entry(Self::key(*p, cell)).or_default().push(i as u32);
         }
-        PointGrid { cell, map }
+        PointGrid {
+            cell,
+            map,
+            positions,
+            normals,
+        }
     }
 
     fn key(p: [f32; 3], cell: f32) -> [i32; 3] {
         p.map(|x| (x / cell).floor().clamp(-1e9, 1e9) as i32)
     }
 
-    /// Samples within `r` of `p` (r at most one cell), nearest first, at most `k`, each with
+    /// Samples within `r` of `p` (r at most one cell), nearest first, each with
     /// normal agreement above zero; `skip` excluded.
-    fn near(
-        &self,
-        positions: &[[f32; 3]],
-        normals: &[[f32; 3]],
-        p: Vec3,
-        n: Vec3,
-        r: f32,
-        skip: u32,
-        out: &mut Vec<(f32, u32)>,
-    ) {
+    fn near(&self, p: Vec3, n: Vec3, r: f32, skip: u32, out: &mut Vec<(f32, u32)>) {
         out.clear();
         let c = Self::key(p.to_array(), self.cell);
         for dz in -1..=1 {
@@ -447,8 +445,8 @@ impl PointGrid {
                             if s == skip {
                                 continue;
                             }
-                            let d2 = Vec3::from(positions[s as usize]).distance_squared(p);
-                            if d2 <= r * r && Vec3::from(normals[s as usize]).dot(n) > 0.0 {
+                            let d2 = Vec3::from(self.positions[s as usize]).distance_squared(p);
+                            if d2 <= r * r && Vec3::from(self.normals[s as usize]).dot(n) > 0.0 {
                                 out.push((d2, s));
                             }
                         }
@@ -488,7 +486,7 @@ fn texel_level(surface: &Surface, grid: &TexelGrid) -> Level {
         }
     };
     let cell = (2.5 * mean_len).max(1e-12);
-    let pgrid = PointGrid::new(&positions, cell);
+    let pgrid = PointGrid::new(&positions, &normals, cell);
     let side = grid.side as i64;
     let rows: Vec<Vec<u32>> = (0..grid.hit.len())
         .into_par_iter()
@@ -515,7 +513,7 @@ fn texel_level(surface: &Surface, grid: &TexelGrid) -> Level {
             if row.len() < MAX_NEIGHBOURS {
                 // a chart border: the nearest texels of any chart
                 let n = Vec3::from(normals[s]);
-                pgrid.near(&positions, &normals, p, n, cell, s as u32, buf);
+                pgrid.near(p, n, cell, s as u32, buf);
                 for &(_, q) in buf.iter() {
                     if row.len() >= MAX_NEIGHBOURS {
                         break;
@@ -567,7 +565,7 @@ fn texel_parents(
         let m = l.len() / 2;
         (4.0 * *l.select_nth_unstable_by(m, |a, b| a.total_cmp(b)).1).max(1e-12)
     };
-    let pgrid = PointGrid::new(&coarse.positions, cell);
+    let pgrid = PointGrid::new(&coarse.positions, &coarse.normals, cell);
     let (fs, cs) = (fine_grid.side, coarse_grid.side);
     (0..fine.num_vertices())
         .into_par_iter()
@@ -585,15 +583,7 @@ fn texel_parents(
                 }
             }
             let n = Vec3::from(fine.normals[s]);
-            pgrid.near(
-                &coarse.positions,
-                &coarse.normals,
-                p,
-                n,
-                cell,
-                u32::MAX,
-                buf,
-            );
+            pgrid.near(p, n, cell, u32::MAX, buf);
             if let Some(&(_, q)) = buf.first() {
                 return q;
             }
