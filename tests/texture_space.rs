@@ -332,6 +332,20 @@ fn unusable_uvs_get_an_atlas_and_bad_parameters_are_errors() {
         "{:?}",
         r.atlas_reason
     );
+    // a layout squeezed into a corner
+    let mut corner = spot.clone();
+    for t in corner.uvs.as_mut().unwrap() {
+        t[0] *= 0.1;
+        t[1] *= 0.1;
+    }
+    let r = run(&corner, &params).unwrap();
+    assert!(
+        r.atlas_reason
+            .as_deref()
+            .is_some_and(|s| s.contains("cover only")),
+        "{:?}",
+        r.atlas_reason
+    );
     // Spot's own UVs are used as they are
     let own = run(&spot, &params).unwrap().atlas_reason;
     assert!(own.is_none(), "{own:?}");

@@ -248,8 +248,9 @@ impl<'a> Surface<'a> {
 
 /// Why `mesh`'s UVs cannot carry a synthesized texture, if they cannot: none; faces outside
 /// the unit square (tiled or wrapped layouts, whose texels would be shared); or charts that
-/// overlap (mirrored or stacked halves: one texel would be two surface places). Overlap is
-/// measured as UV area beyond the texels the layout covers at 512².
+/// overlap (mirrored or stacked halves: one texel would be two surface places); or a layout that
+/// covers under 5% of the texture. Coverage is counted in texels at 512², overlap as UV area
+/// beyond it.
 fn unusable_uvs(mesh: &TriMesh) -> Option<String> {
     let Some(uvs) = mesh
         .uvs
@@ -284,6 +285,13 @@ fn unusable_uvs(mesh: &TriMesh) -> Option<String> {
         .filter(|t| t.is_some())
         .count() as f64
         / (PROBE * PROBE) as f64;
+    // a layout in a corner of the image would give the surface a few texels
+    if covered < 0.05 {
+        return Some(format!(
+            "its UVs cover only {:.1}% of the texture",
+            100.0 * covered
+        ));
+    }
     // conservative coverage exceeds the area of a layout without overlaps (chart borders)
     if area > 1.1 * covered + 1e-3 {
         return Some(format!(
@@ -433,7 +441,7 @@ impl<'a> PointGrid<'a> {
     }
 
     /// Samples within `r` of `p` (r at most one cell), nearest first, each with
-    /// normal agreement above zero; `skip` excluded.
+    /// normal agreement above zero unless `n` is zero; `skip` excluded.
     fn near(&self, p: Vec3, n: Vec3, r: f32, skip: u32, out: &mut Vec<(f32, u32)>) {
         out.clear();
         let c = Self::key(p.to_array(), self.cell);
@@ -446,7 +454,10 @@ impl<'a> PointGrid<'a> {
                                 continue;
                             }
                             let d2 = Vec3::from(self.positions[s as usize]).distance_squared(p);
-                            if d2 <= r * r && Vec3::from(self.normals[s as usize]).dot(n) > 0.0 {
+                            if d2 <= r * r
+                                && (n == Vec3::ZERO
+                                    || Vec3::from(self.normals[s as usize]).dot(n) > 0.0)
+                            {
                                 out.push((d2, s));
                             }
                         }
@@ -587,15 +598,31 @@ fn texel_parents(
             if let Some(&(_, q)) = buf.first() {
                 return q;
             }
-            // nothing near facing the same way: the nearest at all
-            let mut best = (f32::INFINITY, 0u32);
-            for (q, c) in coarse.positions.iter().enumerate() {
-                let d = Vec3::from(*c).distance_squared(p);
-                if d < best.0 {
-                    best = (d, q as u32);
+            // nothing near facing the same way (inconsistent normals): the nearest near at all
+            pgrid.near(p, Vec3::ZERO, cell, u32::MAX, buf);
+            if let Some(&(_, q)) = buf.first() {
+                return q;
+            }
+            // nothing near in 3D: the nearest covered texel around (x/2, y/2) in the image, or
+            // (a layout that stretches one place across many texels) the first
+            let (cx, cy) = (x.min(cs - 1) as i64, y.min(cs - 1) as i64);
+            for r in 1..=(cs as i64).min(16) {
+                for dy in -r..=r {
+                    for dx in -r..=r {
+                        if dx.abs() != r && dy.abs() != r {
+                            continue;
+                        }
+                        let (qx, qy) = (cx + dx, cy + dy);
+                        if qx >= 0 && qy >= 0 && qx < cs as i64 && qy < cs as i64 {
+                            let q = coarse_grid.index[qy as usize * cs + qx as usize];
+                            if q != u32::MAX {
+                                return q;
+                            }
+                        }
+                    }
                 }
             }
-            best.1
+            0
         })
         .collect()
 }
