@@ -742,34 +742,34 @@ fn shared_meshes_and_textures() -> (Vec<std::path::PathBuf>, Vec<std::path::Path
     (meshes, textures)
 }
 
+/// `row` for every shared mesh with every shared texture, printed as each finishes (a failed
+/// pair prints its error, `synth TEXTURE <joiner> MESH: ...`).
+fn every_shared_pair(
+    row: fn(&std::path::Path, &std::path::Path) -> Result<SystemRow>,
+    joiner: &str,
+    json: bool,
+) {
+    let (meshes, textures) = shared_meshes_and_textures();
+    for m in &meshes {
+        for t in &textures {
+            match row(m, t) {
+                Ok(r) => print_rows(vec![r], json),
+                Err(e) => println!("synth {} {joiner} {}: {e}", t.display(), m.display()),
+            }
+        }
+    }
+}
+
 /// `meshmatch bench --system weather|features|quilt|map|synth|synth-texture`: the rows of a
 /// synthesis system.
 pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
     let rows: Vec<SystemRow> = match system {
         "synth" => {
-            // Every shared mesh with every shared texture, printed as each finishes.
-            let (meshes, textures) = shared_meshes_and_textures();
-            for m in &meshes {
-                for t in &textures {
-                    match synth_row(m, t) {
-                        Ok(r) => print_rows(vec![r], json),
-                        Err(e) => println!("synth {} on {}: {e}", t.display(), m.display()),
-                    }
-                }
-            }
+            every_shared_pair(synth_row, "on", json);
             Vec::new()
         }
         "synth-texture" => {
-            // Every shared mesh with every shared texture, into a texture.
-            let (meshes, textures) = shared_meshes_and_textures();
-            for m in &meshes {
-                for t in &textures {
-                    match synth_texture_row(m, t) {
-                        Ok(r) => print_rows(vec![r], json),
-                        Err(e) => println!("synth {} into {}: {e}", t.display(), m.display()),
-                    }
-                }
-            }
+            every_shared_pair(synth_texture_row, "into", json);
             Vec::new()
         }
         "weather" => {

@@ -39,3 +39,27 @@ pub fn grid(n: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
 pub fn data_path(rel: &str) -> PathBuf {
     data_dir().join(rel)
 }
+
+/// A speckled green-blue exemplar `size` pixels square with a transparent magenta disc
+/// (a quarter of the side in radius) in the middle, and its alpha: what tests of transparent
+/// exemplar pixels synthesize from.
+pub fn exemplar_with_hole(size: u32) -> (image::RgbImage, image::GrayImage) {
+    let c = size as f32 / 2.0;
+    let mut rgb = image::RgbImage::new(size, size);
+    let mut alpha = image::GrayImage::new(size, size);
+    for y in 0..size {
+        for x in 0..size {
+            let inside =
+                ((x as f32 - c).powi(2) + (y as f32 - c).powi(2)).sqrt() < size as f32 / 4.0;
+            let h = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) % 97;
+            let p = if inside {
+                [255, 0, 255]
+            } else {
+                [30 + h as u8, 140 + (h as u8 / 2), 60 + (97 - h as u8)]
+            };
+            rgb.put_pixel(x, y, image::Rgb(p));
+            alpha.put_pixel(x, y, image::Luma([if inside { 0 } else { 255 }]));
+        }
+    }
+    (rgb, alpha)
+}

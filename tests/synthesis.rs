@@ -467,31 +467,9 @@ fn bad_inputs_are_errors() {
     assert_eq!(back.levels, 4);
 }
 
-/// A speckled green-blue exemplar with a transparent magenta disc in the middle.
-fn exemplar_with_hole(size: u32) -> (image::RgbImage, image::GrayImage) {
-    let c = size as f32 / 2.0;
-    let mut rgb = image::RgbImage::new(size, size);
-    let mut alpha = image::GrayImage::new(size, size);
-    for y in 0..size {
-        for x in 0..size {
-            let inside =
-                ((x as f32 - c).powi(2) + (y as f32 - c).powi(2)).sqrt() < size as f32 / 4.0;
-            let h = (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)) % 97;
-            let p = if inside {
-                [255, 0, 255]
-            } else {
-                [30 + h as u8, 140 + (h as u8 / 2), 60 + (97 - h as u8)]
-            };
-            rgb.put_pixel(x, y, image::Rgb(p));
-            alpha.put_pixel(x, y, image::Luma([if inside { 0 } else { 255 }]));
-        }
-    }
-    (rgb, alpha)
-}
-
 #[test]
 fn an_exemplars_transparent_hole_is_never_synthesized() {
-    let (rgb, alpha) = exemplar_with_hole(48);
+    let (rgb, alpha) = meshmatch::testdata::exemplar_with_hole(48);
     let sphere = icosphere(3);
     let params = SynthParams {
         scale: Some(1.5),

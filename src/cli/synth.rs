@@ -392,16 +392,7 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         }
         r
     };
-    if let Some(an) = r.anisotropy {
-        eprintln!(
-            "orientation auto: {} (the exemplar's gradient harmonics: 2-fold {:.2}, 4-fold {:.2}; \
-             oriented from {:.2})",
-            r.orientation_used.as_str(),
-            an.twofold,
-            an.fourfold,
-            crate::synthesis::wei_levoy::anisotropy::ORIENTED,
-        );
-    }
+    print_anisotropy(r.anisotropy, r.orientation_used);
     eprintln!(
         "synthesized {} vertices in {:.2} s (search {:.2} s, {} search, orientation {}, method \
          {}); finest-level neighbourhood energy {:.5}",
@@ -493,16 +484,7 @@ fn synth_texture(
     let sink = |e: crate::work::Event| bar_sink(&bar, e);
     let r = synthesize_texture(&input, &params, &sink, &CancelToken::new())?;
     bar.finish_and_clear();
-    if let Some(an) = r.anisotropy {
-        eprintln!(
-            "orientation auto: {} (the exemplar's gradient harmonics: 2-fold {:.2}, 4-fold {:.2}; \
-             oriented from {:.2})",
-            r.orientation_used.as_str(),
-            an.twofold,
-            an.fourfold,
-            crate::synthesis::wei_levoy::anisotropy::ORIENTED,
-        );
-    }
+    print_anisotropy(r.anisotropy, r.orientation_used);
     if let (Some(at), Some(why)) = (&r.atlas, &r.atlas_reason) {
         eprintln!(
             "generated a UV atlas for the target ({why}): {} charts, {:.0}% of the texture",
@@ -543,6 +525,23 @@ fn synth_texture(
     io::save(&r.mesh, &a.out)?;
     eprintln!("wrote {}", a.out.display());
     Ok(0)
+}
+
+/// What `auto` measured and chose, on stderr.
+fn print_anisotropy(
+    anisotropy: Option<crate::synthesis::wei_levoy::Anisotropy>,
+    used: crate::synthesis::Orientation,
+) {
+    if let Some(an) = anisotropy {
+        eprintln!(
+            "orientation auto: {} (the exemplar's gradient harmonics: 2-fold {:.2}, 4-fold {:.2}; \
+             oriented from {:.2})",
+            used.as_str(),
+            an.twofold,
+            an.fourfold,
+            crate::synthesis::wei_levoy::anisotropy::ORIENTED,
+        );
+    }
 }
 
 /// The texture optimisation's numbers on stderr.

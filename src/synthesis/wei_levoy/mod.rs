@@ -477,35 +477,8 @@ pub fn synthesize_with_alpha(
     let total = Stopwatch::start();
     let mut timings = SynthTimings::default();
     // ---- validate
-    if target.faces.is_empty() || target.positions.is_empty() {
-        return Err(Error::InvalidMesh("target mesh has no faces".into()));
-    }
-    if target.positions.iter().flatten().any(|x| !x.is_finite()) {
-        return Err(Error::InvalidMesh(
-            "target mesh has non-finite coordinates".into(),
-        ));
-    }
+    validate(target, exemplar.dimensions(), params.levels)?;
     let nv = target.num_vertices();
-    if target.faces.iter().flatten().any(|&i| i as usize >= nv) {
-        return Err(Error::InvalidMesh(
-            "target face refers to a missing vertex".into(),
-        ));
-    }
-    let (ew, eh) = (exemplar.width() as usize, exemplar.height() as usize);
-    if !(1..=8).contains(&params.levels) {
-        return Err(Error::InvalidInput(format!(
-            "levels must be between 1 and 8, got {}",
-            params.levels
-        )));
-    }
-    let min_side = 4usize << (params.levels - 1);
-    if ew.min(eh) < min_side.max(8) {
-        return Err(Error::InvalidInput(format!(
-            "exemplar {ew}x{eh} is too small for {} levels (needs at least {m}x{m})",
-            params.levels,
-            m = min_side.max(8)
-        )));
-    }
     let (lo, hi) = target
         .bounds()
         .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
@@ -530,7 +503,7 @@ pub fn synthesize_with_alpha(
             return Err(Error::InvalidInput("mask selects no vertex".into()));
         }
     }
-    let h0 = scale / ew as f32;
+    let h0 = scale / exemplar.width() as f32;
     let area = target.area();
     let estimate = REFINED_PER_TEXEL * area / (h0 as f64 * h0 as f64);
     if estimate > params.max_vertices as f64 {
@@ -754,6 +727,39 @@ pub fn synthesize_with_alpha(
         orientation_used: params.orientation,
         anisotropy,
     })
+}
+
+/// The checks every synthesis entry makes on its target, exemplar and level count, as one-line
+/// errors: faces, finite coordinates, face indices, 1 to 8 levels, and an exemplar at least
+/// `4 * 2^(levels - 1)` (and 8) pixels on its smaller side.
+pub(crate) fn validate(target: &TriMesh, exemplar: (u32, u32), levels: usize) -> Result<()> {
+    if target.faces.is_empty() || target.positions.is_empty() {
+        return Err(Error::InvalidMesh("target mesh has no faces".into()));
+    }
+    if target.positions.iter().flatten().any(|x| !x.is_finite()) {
+        return Err(Error::InvalidMesh(
+            "target mesh has non-finite coordinates".into(),
+        ));
+    }
+    let nv = target.num_vertices();
+    if target.faces.iter().flatten().any(|&i| i as usize >= nv) {
+        return Err(Error::InvalidMesh(
+            "target face refers to a missing vertex".into(),
+        ));
+    }
+    if !(1..=8).contains(&levels) {
+        return Err(Error::InvalidInput(format!(
+            "levels must be between 1 and 8, got {levels}"
+        )));
+    }
+    let (ew, eh) = exemplar;
+    let m = (4u32 << (levels - 1)).max(8);
+    if ew.min(eh) < m {
+        return Err(Error::InvalidInput(format!(
+            "exemplar {ew}x{eh} is too small for {levels} levels (needs at least {m}x{m})"
+        )));
+    }
+    Ok(())
 }
 
 /// Coherence candidates for vertex `v` (Ashikhmin 2001 on a surface): its current source, each

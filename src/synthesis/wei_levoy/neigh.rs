@@ -148,7 +148,6 @@ pub(crate) fn build_stencil(
     out.fill(UNCOVERED);
     sc.depth.clear();
     sc.depth.resize(size * size, f32::INFINITY);
-    let ri = (size / 2) as i32;
     for &fi in &sc.faces {
         let face = mesh.faces[fi as usize];
         let mut uv = [Vec2::ZERO; 3];
@@ -158,41 +157,51 @@ pub(crate) fn build_stencil(
             uv[k] = Vec2::new(d.dot(f.s), d.dot(f.t)) * inv_h;
             z[k] = d.dot(f.n);
         }
-        let e1 = uv[1] - uv[0];
-        let e2 = uv[2] - uv[0];
-        let area = e1.perp_dot(e2);
-        if area <= 1e-9 {
-            continue; // flipped or degenerate after flattening
-        }
-        let lo = uv[0].min(uv[1]).min(uv[2]);
-        let hi = uv[0].max(uv[1]).max(uv[2]);
-        // template point (i, j) sits at uv = (i, -j)
-        let i0 = fast_ceil(lo.x).max(-ri);
-        let i1 = fast_floor(hi.x).min(ri);
-        let j0 = fast_ceil(-hi.y).max(-ri);
-        let j1 = fast_floor(-lo.y).min(ri);
-        if i0 > i1 || j0 > j1 {
-            continue;
-        }
-        for j in j0..=j1 {
-            for i in i0..=i1 {
-                let p = Vec2::new(i as f32, -j as f32) - uv[0];
-                let b1 = p.perp_dot(e2) / area;
-                let b2 = e1.perp_dot(p) / area;
-                let b0 = 1.0 - b1 - b2;
-                const EPS: f32 = -1e-4;
-                if b0 < EPS || b1 < EPS || b2 < EPS {
-                    continue;
-                }
-                let t = ((j + ri) as usize) * size + (i + ri) as usize;
-                let depth = (b0 * z[0] + b1 * z[1] + b2 * z[2]).abs();
-                if depth < sc.depth[t] {
-                    sc.depth[t] = depth;
-                    out[t] = Tap {
-                        idx: face,
-                        w: [b0, b1, b2],
-                    };
-                }
+        splat_template(&uv, &z, size, &mut sc.depth, |t, b| {
+            out[t] = Tap { idx: face, w: b };
+        });
+    }
+}
+
+/// Rasterise the template points (`size x size`, point (i, j) at flattened uv = (i, -j), in
+/// template units) that fall inside one flattened triangle `uv` with heights `z` over the
+/// tangent plane: each covered point whose |height| is below `depth[t]` takes it and is passed
+/// to `set(t, barycentric)`. Back-facing and degenerate triangles cover nothing.
+pub(crate) fn splat_template(
+    uv: &[Vec2; 3],
+    z: &[f32; 3],
+    size: usize,
+    depth: &mut [f32],
+    mut set: impl FnMut(usize, [f32; 3]),
+) {
+    let ri = (size / 2) as i32;
+    let e1 = uv[1] - uv[0];
+    let e2 = uv[2] - uv[0];
+    let area = e1.perp_dot(e2);
+    if area <= 1e-9 {
+        return; // flipped or degenerate after flattening
+    }
+    let lo = uv[0].min(uv[1]).min(uv[2]);
+    let hi = uv[0].max(uv[1]).max(uv[2]);
+    let i0 = fast_ceil(lo.x).max(-ri);
+    let i1 = fast_floor(hi.x).min(ri);
+    let j0 = fast_ceil(-hi.y).max(-ri);
+    let j1 = fast_floor(-lo.y).min(ri);
+    for j in j0..=j1 {
+        for i in i0..=i1 {
+            let p = Vec2::new(i as f32, -j as f32) - uv[0];
+            let b1 = p.perp_dot(e2) / area;
+            let b2 = e1.perp_dot(p) / area;
+            let b0 = 1.0 - b1 - b2;
+            const EPS: f32 = -1e-4;
+            if b0 < EPS || b1 < EPS || b2 < EPS {
+                continue;
+            }
+            let t = ((j + ri) as usize) * size + (i + ri) as usize;
+            let d = (b0 * z[0] + b1 * z[1] + b2 * z[2]).abs();
+            if d < depth[t] {
+                depth[t] = d;
+                set(t, [b0, b1, b2]);
             }
         }
     }

@@ -28,11 +28,11 @@
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::neigh::{Frame, Stencils, Tap, UNCOVERED};
+use super::neigh::{Frame, Stencils, Tap, UNCOVERED, splat_template};
 use super::pyramid::{Img, Level, image_pyramid};
 use super::{
     Anisotropy, LevelsOut, Orientation, SynthParams, anisotropy, feature_field, synthesize_levels,
-    transparent_filled,
+    transparent_filled, validate,
 };
 use crate::error::{Error, Result};
 use crate::mesh::{Csr, TriMesh};
@@ -237,13 +237,18 @@ impl<'a> Surface<'a> {
 
     /// The UV area the layout covers (overlapping charts counted once each).
     fn uv_area(&self) -> f64 {
-        (0..self.faces.len())
-            .map(|f| {
-                let t = [0, 1, 2].map(|k| Vec2::from(self.uvs[3 * f + k]).as_dvec2());
-                0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]).abs()
-            })
-            .sum()
+        uv_area(self.uvs, self.faces.len())
     }
+}
+
+/// The summed UV area of `faces` triangles with per-corner `uvs`.
+fn uv_area(uvs: &[[f32; 2]], faces: usize) -> f64 {
+    (0..faces)
+        .map(|f| {
+            let t = [0, 1, 2].map(|k| Vec2::from(uvs[3 * f + k]).as_dvec2());
+            0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]).abs()
+        })
+        .sum()
 }
 
 /// Why `mesh`'s UVs cannot carry a synthesized texture, if they cannot: none; faces outside
@@ -273,12 +278,7 @@ fn unusable_uvs(mesh: &TriMesh) -> Option<String> {
             mesh.faces.len()
         ));
     }
-    let area: f64 = (0..mesh.faces.len())
-        .map(|f| {
-            let t = [0, 1, 2].map(|k| Vec2::from(uvs[3 * f + k]).as_dvec2());
-            0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]).abs()
-        })
-        .sum();
+    let area = uv_area(uvs, mesh.faces.len());
     const PROBE: usize = 512;
     let covered = crate::geometry::uv_texels(uvs, mesh.faces.len(), PROBE, PROBE)
         .iter()
@@ -472,6 +472,16 @@ impl<'a> PointGrid<'a> {
 /// Neighbours per texel in the adjacency (grid neighbours of the same chart, or the nearest).
 const MAX_NEIGHBOURS: usize = 8;
 
+/// The median of `values` (1 when empty): the typical texel length of a level.
+fn median(values: &[f32]) -> f32 {
+    if values.is_empty() {
+        return 1.0;
+    }
+    let mut v = values.to_vec();
+    let m = v.len() / 2;
+    *v.select_nth_unstable_by(m, |a, b| a.total_cmp(b)).1
+}
+
 /// The synthesis level of a texel grid: positions, normals, 3D adjacency.
 fn texel_level(surface: &Surface, grid: &TexelGrid) -> Level {
     let positions: Vec<[f32; 3]> = grid
@@ -487,16 +497,7 @@ fn texel_level(surface: &Surface, grid: &TexelGrid) -> Level {
     let lens: Vec<f32> = (0..grid.hit.len())
         .map(|s| grid.texel_len(surface, s))
         .collect();
-    let mean_len = {
-        let mut l: Vec<f32> = lens.clone();
-        let m = l.len() / 2;
-        if l.is_empty() {
-            1.0
-        } else {
-            *l.select_nth_unstable_by(m, |a, b| a.total_cmp(b)).1
-        }
-    };
-    let cell = (2.5 * mean_len).max(1e-12);
+    let cell = (2.5 * median(&lens)).max(1e-12);
     let pgrid = PointGrid::new(&positions, &normals, cell);
     let side = grid.side as i64;
     let rows: Vec<Vec<u32>> = (0..grid.hit.len())
@@ -571,11 +572,7 @@ fn texel_parents(
     let lens: Vec<f32> = (0..coarse_grid.hit.len())
         .map(|s| coarse_grid.texel_len(surface, s))
         .collect();
-    let cell = {
-        let mut l = lens.clone();
-        let m = l.len() / 2;
-        (4.0 * *l.select_nth_unstable_by(m, |a, b| a.total_cmp(b)).1).max(1e-12)
-    };
+    let cell = (4.0 * median(&lens)).max(1e-12);
     let pgrid = PointGrid::new(&coarse.positions, &coarse.normals, cell);
     let (fs, cs) = (fine_grid.side, coarse_grid.side);
     (0..fine.num_vertices())
@@ -689,35 +686,9 @@ fn flatten_surface(
                 sc.queue.push(g);
             }
         }
-        let e1 = uv[1] - uv[0];
-        let e2 = uv[2] - uv[0];
-        let area = e1.perp_dot(e2);
-        if area <= 1e-9 {
-            continue; // back-facing or degenerate in this frame
-        }
-        // template point (i, j) sits at uv = (i, -j)
-        let i0 = (lo.x.clamp(-1e6, 1e6).ceil() as i32).max(-ri);
-        let i1 = (hi.x.clamp(-1e6, 1e6).floor() as i32).min(ri);
-        let j0 = ((-hi.y).clamp(-1e6, 1e6).ceil() as i32).max(-ri);
-        let j1 = ((-lo.y).clamp(-1e6, 1e6).floor() as i32).min(ri);
-        for j in j0..=j1 {
-            for i in i0..=i1 {
-                let p = Vec2::new(i as f32, -j as f32) - uv[0];
-                let b1 = p.perp_dot(e2) / area;
-                let b2 = e1.perp_dot(p) / area;
-                let b0 = 1.0 - b1 - b2;
-                const EPS: f32 = -1e-4;
-                if b0 < EPS || b1 < EPS || b2 < EPS {
-                    continue;
-                }
-                let t = ((j + ri) as usize) * size + (i + ri) as usize;
-                let depth = (b0 * z[0] + b1 * z[1] + b2 * z[2]).abs();
-                if depth < sc.depth[t] {
-                    sc.depth[t] = depth;
-                    out[t] = (fi, [b0.max(0.0), b1.max(0.0), b2.max(0.0)]);
-                }
-            }
-        }
+        splat_template(&uv, &z, size, &mut sc.depth, |t, b| {
+            out[t] = (fi, b.map(|x| x.max(0.0)));
+        });
     }
 }
 
@@ -795,26 +766,8 @@ pub fn synthesize_texture(
             "a displacement changes the geometry: it cannot be synthesized into a texture".into(),
         ));
     }
-    if target.faces.is_empty() || target.positions.is_empty() {
-        return Err(Error::InvalidMesh("target mesh has no faces".into()));
-    }
-    if target.positions.iter().flatten().any(|x| !x.is_finite()) {
-        return Err(Error::InvalidMesh(
-            "target mesh has non-finite coordinates".into(),
-        ));
-    }
+    validate(target, input.exemplar.dimensions(), sp.levels)?;
     let nv = target.num_vertices();
-    if target.faces.iter().flatten().any(|&i| i as usize >= nv) {
-        return Err(Error::InvalidMesh(
-            "target face refers to a missing vertex".into(),
-        ));
-    }
-    if !(1..=8).contains(&sp.levels) {
-        return Err(Error::InvalidInput(format!(
-            "levels must be between 1 and 8, got {}",
-            sp.levels
-        )));
-    }
     if !(16..=8192).contains(&params.texture_size) {
         return Err(Error::InvalidInput(format!(
             "texture size must be between 16 and 8192, got {}",
@@ -857,13 +810,6 @@ pub fn synthesize_texture(
     }
     let (ew, eh) = input.exemplar.dimensions();
     let min_side = ((4u32 << (sp.levels - 1)).max(8)) as f64;
-    if (ew.min(eh) as f64) < min_side {
-        return Err(Error::InvalidInput(format!(
-            "exemplar {ew}x{eh} is too small for {} levels (needs at least {m}x{m})",
-            sp.levels,
-            m = min_side
-        )));
-    }
 
     // ---- the UV layout
     let sw = Stopwatch::start();
