@@ -3,8 +3,9 @@
 //! smallest distance between vertices of different elements against the clearance the quilting
 //! enforces (`tau`, half the swatch's own, scaled), the pairs of elements closer than `tau / 2`,
 //! and the pairs whose surfaces cross (an edge of one piercing a triangle of the other, by ray
-//! casting along every edge). `cargo run --release --example quilt_clearance` (`BASE=plane` for
-//! one base).
+//! casting along every edge); and the face density against the swatch's (output faces per base
+//! area over swatch faces per scaled swatch area). `cargo run --release --example
+//! quilt_clearance` (`BASE=plane` for one base).
 use std::collections::HashMap;
 
 use glam::Vec3;
@@ -87,12 +88,22 @@ fn main() {
                 }
             }
             let pierce = quilting::crossing_pairs(&out);
+            // face density against the swatch's: output faces per base area over swatch faces
+            // per (scaled) swatch area
+            let base_area: f64 =
+                meshmatch::geometry::face_areas(&base.positions, &base.faces).iter().sum();
+            let s = l / sw.extent[0];
+            let swatch_density =
+                sw.mesh.num_faces() as f64 / (sw.extent[0] * sw.extent[1] * s * s) as f64;
+            let density = out.elements.num_faces() as f64 / base_area / swatch_density;
             println!(
-                "{name} {kind:?}: {} elements, min vertex distance {:.3} tau, {} element pairs closer than tau/2, {} pairs interpenetrating",
+                "{name} {kind:?}: {} elements, face density {:.2} of the swatch's, min vertex distance {:.3} tau, {} element pairs closer than tau/2, {} pairs interpenetrating, {:.2} s",
                 out.num_elements(),
+                density,
                 dmin / tau,
                 close.len(),
-                pierce.len()
+                pierce.len(),
+                out.stats.seconds
             );
         }
     }
