@@ -384,9 +384,14 @@ pub const FAN_TAPS: usize = 3;
 pub struct FanSampler {
     /// `idx[(v * R * A + bin) * FAN_TAPS + k]`.
     pub idx: Vec<u32>,
-    /// Matching weights (sum 1 per bin).
-    pub w: Vec<f32>,
+    /// Matching weights (sum 1 per bin) in units of `1 / 65535` ([`FanSampler::weight`]):
+    /// at a million vertices the table is the largest structure of a transfer, and 16-bit
+    /// weights take a quarter off it (324 bytes per vertex) at a rounding of 8e-6 per tap.
+    pub w: Vec<u16>,
 }
+
+/// Scale of [`FanSampler::w`].
+const WEIGHT_ONE: f32 = 65535.0;
 
 impl FanSampler {
     /// Geodesic fans (Zelinka & Garland 2004, as used by MeshMatch §3.1) of one level: every
@@ -415,7 +420,7 @@ impl FanSampler {
         let per = nb * FAN_TAPS;
         let len = n.saturating_mul(per);
         let mut idx = crate::error::try_filled(len, 0u32, "the fan sampling table")?;
-        let mut wts = crate::error::try_filled(len, 0.0f32, "the fan sampling weights")?;
+        let mut wts = crate::error::try_filled(len, 0u16, "the fan sampling weights")?;
         let sigma = 0.6 * level.mean_edge;
         // Gaussian cut-off at 2.5σ (weight 0.044).
         let cut = 2.5 * sigma;
@@ -519,12 +524,12 @@ impl FanSampler {
                         if sum > 1e-3 {
                             for j in 0..FAN_TAPS {
                                 fi[o + j] = t[j].1;
-                                fw[o + j] = t[j].0 / sum;
+                                fw[o + j] = (t[j].0 / sum * WEIGHT_ONE).round() as u16;
                             }
                         } else if b < FAN_ANGLES {
                             for j in 0..FAN_TAPS {
                                 fi[o + j] = v as u32;
-                                fw[o + j] = if j == 0 { 1.0 } else { 0.0 };
+                                fw[o + j] = if j == 0 { u16::MAX } else { 0 };
                             }
                         } else {
                             let inner = (b - FAN_ANGLES) * FAN_TAPS;
@@ -538,6 +543,12 @@ impl FanSampler {
             });
         cancel.check()?;
         Ok(FanSampler { idx, w: wts })
+    }
+
+    /// Weight of tap `k` of the table (`k = (v * R * A + bin) * FAN_TAPS + tap`).
+    #[inline]
+    pub fn weight(&self, k: usize) -> f32 {
+        self.w[k] as f32 * (1.0 / WEIGHT_ONE)
     }
 
     /// Fans of a signal with `channels` values per vertex, pre-filtered by one pass of 1-ring
@@ -562,7 +573,7 @@ impl FanSampler {
                 dst.iter_mut().for_each(|x| *x = 0.0);
                 for j in 0..FAN_TAPS {
                     let u = self.idx[o + j] as usize;
-                    let w = self.w[o + j];
+                    let w = self.weight(o + j);
                     for ch in 0..c {
                         dst[ch] += w * sig[u * c + ch];
                     }
