@@ -90,8 +90,9 @@ fn main() {
             let pierce = quilting::crossing_pairs(&out);
             // face density against the swatch's: output faces per base area over swatch faces
             // per (scaled) swatch area
-            let base_area: f64 =
-                meshmatch::geometry::face_areas(&base.positions, &base.faces).iter().sum();
+            let base_area: f64 = meshmatch::geometry::face_areas(&base.positions, &base.faces)
+                .iter()
+                .sum();
             let s = l / sw.extent[0];
             let swatch_density =
                 sw.mesh.num_faces() as f64 / (sw.extent[0] * sw.extent[1] * s * s) as f64;
