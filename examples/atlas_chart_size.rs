@@ -13,6 +13,7 @@ fn main() {
     for name in [
         "bunny/bunny.obj",
         "spot/spot.obj",
+        "penguin/penguin.obj",
         "horse/horse.ply",
         "igea/igea.ply",
     ] {

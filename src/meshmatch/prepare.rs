@@ -302,7 +302,7 @@ pub fn prepare(
     // Fan sampling tables of every level. A mesh with a signal builds each level's table, takes
     // its fans and drops it. A mesh without one (a target) keeps them, so a correspondence edit
     // only re-runs the solve; very large targets rebuild them level by level in the solve
-    // instead of holding ~2 KB per vertex.
+    // instead of holding about 1 KB per vertex (u32 indices and 16-bit weights, 162 taps).
     sink(Event::Progress(progress("fans", &watch, 0.6)));
     let sw = Stopwatch::start();
     let table = |l: usize| {
