@@ -35,6 +35,37 @@ pub fn grid(n: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
     (positions, faces)
 }
 
+/// A closed unit UV sphere: `rings - 1` rings of `segs` vertices plus two poles, counter-clockwise
+/// seen from outside (`2 segs (rings - 1)` faces): a small known closed surface for tests.
+pub fn uv_sphere(rings: usize, segs: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+    let mut p = vec![[0.0, 0.0, 1.0]];
+    for i in 1..rings {
+        let th = std::f32::consts::PI * i as f32 / rings as f32;
+        for j in 0..segs {
+            let ph = 2.0 * std::f32::consts::PI * j as f32 / segs as f32;
+            p.push([th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()]);
+        }
+    }
+    p.push([0.0, 0.0, -1.0]);
+    let s = segs as u32;
+    let idx = |i: usize, j: u32| 1 + (i as u32 - 1) * s + (j % s);
+    let mut f = Vec::new();
+    for j in 0..s {
+        f.push([0, idx(1, j), idx(1, j + 1)]);
+    }
+    for i in 1..rings - 1 {
+        for j in 0..s {
+            f.push([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)]);
+            f.push([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]);
+        }
+    }
+    let last = p.len() as u32 - 1;
+    for j in 0..s {
+        f.push([last, idx(rings - 1, j + 1), idx(rings - 1, j)]);
+    }
+    (p, f)
+}
+
 /// Path of a file inside the shared data directory, e.g. `data_path("spot/spot.obj")`.
 pub fn data_path(rel: &str) -> PathBuf {
     data_dir().join(rel)

@@ -480,35 +480,7 @@ pub fn hks_times(evals: &[f64], count: usize) -> Vec<f64> {
 mod tests {
     use super::*;
 
-    /// A UV sphere (closed), `rings × segs` grid plus two poles.
-    pub(crate) fn sphere(rings: usize, segs: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let mut p = vec![[0.0, 0.0, 1.0]];
-        for i in 1..rings {
-            let th = std::f32::consts::PI * i as f32 / rings as f32;
-            for j in 0..segs {
-                let ph = 2.0 * std::f32::consts::PI * j as f32 / segs as f32;
-                p.push([th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()]);
-            }
-        }
-        p.push([0.0, 0.0, -1.0]);
-        let s = segs as u32;
-        let idx = |i: usize, j: u32| 1 + (i as u32 - 1) * s + (j % s);
-        let mut f = Vec::new();
-        for j in 0..s {
-            f.push([0, idx(1, j), idx(1, j + 1)]);
-        }
-        for i in 1..rings - 1 {
-            for j in 0..s {
-                f.push([idx(i, j), idx(i + 1, j), idx(i + 1, j + 1)]);
-                f.push([idx(i, j), idx(i + 1, j + 1), idx(i, j + 1)]);
-            }
-        }
-        let last = p.len() as u32 - 1;
-        for j in 0..s {
-            f.push([last, idx(rings - 1, j + 1), idx(rings - 1, j)]);
-        }
-        (p, f)
-    }
+    use crate::testdata::uv_sphere as sphere;
 
     #[test]
     fn sphere_spectrum_and_disconnected_nullspace() {

@@ -105,23 +105,21 @@ pub fn uv_atlas(
     } else {
         uvunwrap::MeshInput::new(positions, &indices)
     };
+    // 0 (no limit) at or below the cap, and for a degenerate or non-finite total area
     let max_chart_area = if params.max_chart_faces > 0 && faces.len() > params.max_chart_faces {
         let area: f64 = super::face_areas(positions, faces)
             .iter()
             .filter(|a| a.is_finite())
             .sum();
-        (area * params.max_chart_faces as f64 / faces.len() as f64) as f32
+        let a = (area * params.max_chart_faces as f64 / faces.len() as f64) as f32;
+        if a.is_finite() && a > 0.0 { a } else { 0.0 }
     } else {
         0.0
     };
     let options = uvunwrap::Options {
         max_chart_angle: params.max_chart_angle,
         max_area_distortion: params.max_area_distortion,
-        max_chart_area: if max_chart_area.is_finite() && max_chart_area > 0.0 {
-            max_chart_area
-        } else {
-            0.0
-        },
+        max_chart_area,
         density: uvunwrap::Density::Auto { page_size: size },
         padding: params.padding,
         ..Default::default()
@@ -249,37 +247,9 @@ mod tests {
         assert!(areas.iter().all(|&a| a > 0.0), "{areas:?}");
     }
 
-    /// A UV sphere of `n x 2n` quads (two triangles each, fans at the poles).
-    fn sphere(n: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let m = 2 * n;
-        let mut p = vec![[0.0, 0.0, 1.0]];
-        for i in 1..n {
-            let th = std::f32::consts::PI * i as f32 / n as f32;
-            for j in 0..m {
-                let ph = std::f32::consts::TAU * j as f32 / m as f32;
-                p.push([th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos()]);
-            }
-        }
-        p.push([0.0, 0.0, -1.0]);
-        let id = |i: usize, j: usize| (1 + (i - 1) * m + j % m) as u32;
-        let south = (p.len() - 1) as u32;
-        let mut f = Vec::new();
-        for j in 0..m {
-            f.push([0, id(1, j), id(1, j + 1)]);
-            f.push([id(n - 1, j), south, id(n - 1, j + 1)]);
-        }
-        for i in 1..n - 1 {
-            for j in 0..m {
-                f.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                f.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
-        (p, f)
-    }
-
     #[test]
     fn the_chart_size_cap_splits_large_charts() {
-        let (p, f) = sphere(48); // 9,024 faces
+        let (p, f) = crate::testdata::uv_sphere(48, 96); // 9,024 faces
         let atlas = |cap: usize, p: &[[f32; 3]], f: &[[u32; 3]]| {
             uv_atlas(
                 p,
