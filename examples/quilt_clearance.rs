@@ -5,7 +5,10 @@
 //! and the pairs whose surfaces cross (an edge of one piercing a triangle of the other, by ray
 //! casting along every edge); and the face density against the swatch's (output faces per base
 //! area over swatch faces per scaled swatch area). `cargo run --release --example
-//! quilt_clearance` (`BASE=plane` for one base).
+//! quilt_clearance` (`BASE=plane` for one base, `THICK` the shell thickness in swatch widths). Also the shell's L2 stretch before and after
+//! its minimisation (`SWEEPS`, default the quilting's), and element size uniformity: each
+//! element's surface area over its swatch element's (scaled), mean and coefficient of
+//! variation.
 use std::collections::HashMap;
 
 use glam::Vec3;
@@ -18,6 +21,9 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(0.1);
     let only = std::env::var("BASE").ok();
+    // shell thickness in units of the swatch width (default: the swatch's own height)
+    let thick: Option<f32> = std::env::var("THICK").ok().and_then(|s| s.parse().ok());
+    let sweeps: Option<usize> = std::env::var("SWEEPS").ok().and_then(|s| s.parse().ok());
     for name in ["plane", "bunny/bunny.obj", "horse/horse.ply"] {
         if only.as_deref().is_some_and(|o| o != name) {
             continue;
@@ -36,6 +42,8 @@ fn main() {
             let sw = swatch(kind, 1);
             let params = Params {
                 swatch_size: Some(frac * diag),
+                thickness: thick.map(|t| t * frac * diag),
+                shell_sweeps: sweeps.unwrap_or(Params::default().shell_sweeps),
                 ..Params::default()
             };
             let out = quilting::run(
@@ -97,10 +105,42 @@ fn main() {
             let swatch_density =
                 sw.mesh.num_faces() as f64 / (sw.extent[0] * sw.extent[1] * s * s) as f64;
             let density = out.elements.num_faces() as f64 / base_area / swatch_density;
+            // element area over its swatch element's, scaled
+            let area = |pos: &[[f32; 3]], faces: &[[u32; 3]]| -> f64 {
+                meshmatch::geometry::face_areas(pos, faces).iter().sum()
+            };
+            let mut ratios = Vec::new();
+            let mut v0 = 0usize;
+            let mut f0 = 0usize;
+            for &src in &out.element_source {
+                let e = &sw.elements[src as usize];
+                let (nv, nf) = (e.vertices.len(), e.faces.len());
+                let faces: Vec<[u32; 3]> = out.elements.faces[f0..f0 + nf]
+                    .iter()
+                    .map(|f| f.map(|v| v - v0 as u32))
+                    .collect();
+                let a_out = area(&out.elements.positions[v0..v0 + nv], &faces);
+                let a_in = area(
+                    sw.element_positions(src as usize),
+                    &sw.element_faces(src as usize),
+                ) * (s * s) as f64;
+                if a_in > 0.0 {
+                    ratios.push(a_out / a_in);
+                }
+                v0 += nv;
+                f0 += nf;
+            }
+            let m = ratios.iter().sum::<f64>() / ratios.len().max(1) as f64;
+            let cv = (ratios.iter().map(|r| (r - m) * (r - m)).sum::<f64>()
+                / ratios.len().max(1) as f64)
+                .sqrt()
+                / m;
             println!(
-                "{name} {kind:?}: {} elements, face density {:.2} of the swatch's, min vertex distance {:.3} tau, {} element pairs closer than tau/2, {} pairs interpenetrating, {:.2} s",
+                "{name} {kind:?}: {} elements, face density {:.2} of the swatch's, element area {m:.3} of the swatch's (CV {cv:.3}), shell L2 {:.4} -> {:.4}, min vertex distance {:.3} tau, {} element pairs closer than tau/2, {} pairs interpenetrating, {:.2} s",
                 out.num_elements(),
                 density,
+                out.stats.shell_stretch_before,
+                out.stats.shell_stretch,
                 dmin / tau,
                 close.len(),
                 pierce.len(),

@@ -271,6 +271,10 @@ fn chain_mail_on_a_sphere_is_whole_covering_in_shell_and_clear() {
             "outside the shell: {d} (H = {h})"
         );
     }
+    // the tetrahedral shell: none inverted, its stretch minimisation never raises L2
+    assert_eq!(out.stats.shell_inverted, 0);
+    assert!(out.stats.shell_stretch <= out.stats.shell_stretch_before);
+    assert!(out.stats.shell_stretch >= 1.0 - 1e-6);
     let cov = coverage(&base, &out, l / 2.0);
     assert!(cov > 0.95, "coverage {cov}");
     let s = l / sw.extent[0];
@@ -319,6 +323,7 @@ fn concave_guard_keeps_offsets_below_the_radius_of_curvature() {
     check_integrity(&out, &sw);
     let guarded = lowest(&out);
     assert!(guarded > 0.0, "offset crossed the centre: {guarded}");
+    assert_eq!(out.stats.shell_inverted, 0);
     params.concave_guard = false;
     let raw = lowest(&quilt(&base, &sw, &params));
     assert!(raw < 0.0, "{raw}");

@@ -107,15 +107,24 @@ impl QuiltArgs {
         let s = &out.stats;
         eprintln!(
             "quilted {} elements ({} faces) in {:.2} s: {} patches, {:.1}% of the base covered, \
-             swatch {:.4} wide, shell {:.4} thick",
+             swatch {:.4} wide, shell {:.4} thick, shell stretch L2 {:.3} -> {:.3}",
             s.elements,
             out.elements.num_faces(),
             s.seconds,
             s.patches,
             100.0 * s.covered_fraction,
             s.swatch_size,
-            s.thickness
+            s.thickness,
+            s.shell_stretch_before,
+            s.shell_stretch
         );
+        if s.shell_inverted > 0 {
+            eprintln!(
+                "warning: {} shell tetrahedra stay inverted (base vertices whose normal points \
+                 away from a neighbouring face); elements there may fold",
+                s.shell_inverted
+            );
+        }
         let ext = a
             .out
             .extension()

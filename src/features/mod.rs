@@ -380,17 +380,25 @@ pub const FAN_TAPS: usize = 3;
 /// vertices with the largest Gaussian splat weights and their normalised weights. Building it
 /// costs one geodesic-neighbourhood walk per vertex; applying it to a signal is a cheap gather,
 /// so target fans can be recomputed after every M-step.
-#[derive(Clone, Debug, Default)]
+///
+/// Compact layout (at a million vertices the table is the largest structure of a transfer):
+/// each vertex lists its distinct tap vertices once (about 40, never more than
+/// `R * A * FAN_TAPS` = 162), a tap is a one-byte index into that list, and a bin stores two
+/// 16-bit weights, the third being what is left of 1. 162 + 108 bytes plus 4 per listed vertex,
+/// against 648 + 324 for u32 indices and three u16 weights.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct FanSampler {
-    /// `idx[(v * R * A + bin) * FAN_TAPS + k]`.
-    pub idx: Vec<u32>,
-    /// Matching weights (sum 1 per bin) in units of `1 / 65535` ([`FanSampler::weight`]):
-    /// at a million vertices the table is the largest structure of a transfer, and 16-bit
-    /// weights take a quarter off it (324 bytes per vertex) at a rounding of 8e-6 per tap.
-    pub w: Vec<u16>,
+    /// `verts[start[v]..start[v + 1]]`: the distinct tap vertices of `v`.
+    start: Vec<u32>,
+    verts: Vec<u32>,
+    /// `tap[(v * R * A + bin) * FAN_TAPS + k]`: index into `v`'s list.
+    tap: Vec<u8>,
+    /// `w[(v * R * A + bin) * 2 + k]`, `k < 2`, in units of `1 / 65535`; the third weight is
+    /// `65535 - w0 - w1`.
+    w: Vec<u16>,
 }
 
-/// Scale of [`FanSampler::w`].
+/// Scale of [`FanSampler`]'s weights.
 const WEIGHT_ONE: f32 = 65535.0;
 
 impl FanSampler {
@@ -418,9 +426,15 @@ impl FanSampler {
         let n = level.len();
         let nb = FAN_RADII * FAN_ANGLES;
         let per = nb * FAN_TAPS;
-        let len = n.saturating_mul(per);
-        let mut idx = crate::error::try_filled(len, 0u32, "the fan sampling table")?;
-        let mut wts = crate::error::try_filled(len, 0u16, "the fan sampling weights")?;
+        if n.saturating_mul(per) >= u32::MAX as usize {
+            return Err(crate::error::Error::InvalidInput(format!(
+                "{n} vertices are too many for one fan sampling table"
+            )));
+        }
+        let mut tap =
+            crate::error::try_filled(n.saturating_mul(per), 0u8, "the fan sampling table")?;
+        let mut wts =
+            crate::error::try_filled(n.saturating_mul(nb * 2), 0u16, "the fan sampling weights")?;
         let sigma = 0.6 * level.mean_edge;
         // Gaussian cut-off at 2.5σ (weight 0.044).
         let cut = 2.5 * sigma;
@@ -435,19 +449,29 @@ impl FanSampler {
         let cut2 = cut * cut;
         let rks: [f32; FAN_RADII] =
             std::array::from_fn(|r| (r + 1) as f32 / FAN_RADII as f32 * radius);
-        idx.par_chunks_mut(per * chunk)
-            .zip(wts.par_chunks_mut(per * chunk))
+        // per chunk: its vertices' tap lists, concatenated, and their lengths
+        let lists: Vec<(Vec<u32>, Vec<u8>)> = tap
+            .par_chunks_mut(per * chunk)
+            .zip(wts.par_chunks_mut(nb * 2 * chunk))
             .enumerate()
-            .for_each(|(ci, (oi, ow))| {
+            .map(|(ci, (oi, ow))| {
+                let mut verts: Vec<u32> = Vec::new();
+                let mut counts: Vec<u8> = Vec::new();
                 if cancel.is_cancelled() {
-                    return;
+                    return (verts, counts);
                 }
                 let mut stamp = vec![u32::MAX; n];
+                let mut local = vec![u8::MAX; n];
                 let mut queue: Vec<u32> = Vec::with_capacity(256);
                 // Top taps per bin as (squared distance, vertex), nearest first: ranking by
                 // distance is ranking by Gaussian weight, so exp runs only on the kept taps.
                 let mut top = vec![(f32::INFINITY, 0u32); nb * FAN_TAPS];
-                for (k, (fi, fw)) in oi.chunks_mut(per).zip(ow.chunks_mut(per)).enumerate() {
+                // final (vertex, weight) per tap
+                let mut fin = vec![(0u32, 0u16); nb * FAN_TAPS];
+                let nv = oi.len() / per;
+                verts.reserve(nv * 48);
+                counts.reserve(nv);
+                for (k, (fi, fw)) in oi.chunks_mut(per).zip(ow.chunks_mut(nb * 2)).enumerate() {
                     let v = ci * chunk + k;
                     let pv = Vec3::from(level.positions[v]);
                     let t1 = Vec3::from(frames.t1[v]);
@@ -522,33 +546,86 @@ impl FanSampler {
                         let sum: f32 = t.iter().map(|x| x.0).sum();
                         let o = b * FAN_TAPS;
                         if sum > 1e-3 {
-                            for j in 0..FAN_TAPS {
-                                fi[o + j] = t[j].1;
-                                fw[o + j] = (t[j].0 / sum * WEIGHT_ONE).round() as u16;
-                            }
+                            // the first two rounded, the last what is left, so they sum to 1
+                            let w0 = (t[0].0 / sum * WEIGHT_ONE).round() as u16;
+                            let w1 =
+                                ((t[1].0 / sum * WEIGHT_ONE).round() as u16).min(u16::MAX - w0);
+                            fin[o] = (t[0].1, w0);
+                            fin[o + 1] = (t[1].1, w1);
+                            fin[o + 2] = (t[2].1, u16::MAX - w0 - w1);
                         } else if b < FAN_ANGLES {
-                            for j in 0..FAN_TAPS {
-                                fi[o + j] = v as u32;
-                                fw[o + j] = if j == 0 { u16::MAX } else { 0 };
-                            }
+                            fin[o] = (v as u32, u16::MAX);
+                            fin[o + 1] = (v as u32, 0);
+                            fin[o + 2] = (v as u32, 0);
                         } else {
                             let inner = (b - FAN_ANGLES) * FAN_TAPS;
                             for j in 0..FAN_TAPS {
-                                fi[o + j] = fi[inner + j];
-                                fw[o + j] = fw[inner + j];
+                                fin[o + j] = fin[inner + j];
                             }
                         }
                     }
+                    // the vertex's distinct taps, in order of first use
+                    for &(u, _) in &fin {
+                        local[u as usize] = u8::MAX;
+                    }
+                    let first = verts.len();
+                    for (j, &(u, w)) in fin.iter().enumerate() {
+                        let l = &mut local[u as usize];
+                        if *l == u8::MAX {
+                            *l = (verts.len() - first) as u8;
+                            verts.push(u);
+                        }
+                        fi[j] = *l;
+                        let (b, k) = (j / FAN_TAPS, j % FAN_TAPS);
+                        if k < 2 {
+                            fw[b * 2 + k] = w;
+                        }
+                    }
+                    counts.push((verts.len() - first) as u8);
                 }
-            });
+                verts.shrink_to_fit();
+                (verts, counts)
+            })
+            .collect();
         cancel.check()?;
-        Ok(FanSampler { idx, w: wts })
+        let total: usize = lists.iter().map(|(v, _)| v.len()).sum();
+        let mut start = Vec::with_capacity(n + 1);
+        let mut verts = Vec::with_capacity(total);
+        start.push(0u32);
+        for (vs, counts) in lists {
+            for c in counts {
+                let last = *start.last().unwrap_or(&0);
+                start.push(last + c as u32);
+            }
+            verts.extend_from_slice(&vs);
+        }
+        Ok(FanSampler {
+            start,
+            verts,
+            tap,
+            w: wts,
+        })
     }
 
-    /// Weight of tap `k` of the table (`k = (v * R * A + bin) * FAN_TAPS + tap`).
+    /// Tap vertices and weights of bin `b` of vertex `v`.
     #[inline]
-    pub fn weight(&self, k: usize) -> f32 {
-        self.w[k] as f32 * (1.0 / WEIGHT_ONE)
+    pub fn taps(&self, v: usize, b: usize) -> [(u32, f32); FAN_TAPS] {
+        let nb = FAN_RADII * FAN_ANGLES;
+        let list = &self.verts[self.start[v] as usize..self.start[v + 1] as usize];
+        let o = (v * nb + b) * FAN_TAPS;
+        let (w0, w1) = (self.w[(v * nb + b) * 2], self.w[(v * nb + b) * 2 + 1]);
+        let w2 = u16::MAX - w0 - w1;
+        let s = 1.0 / WEIGHT_ONE;
+        [
+            (list[self.tap[o] as usize], w0 as f32 * s),
+            (list[self.tap[o + 1] as usize], w1 as f32 * s),
+            (list[self.tap[o + 2] as usize], w2 as f32 * s),
+        ]
+    }
+
+    /// Bytes held by the table.
+    pub fn bytes(&self) -> usize {
+        self.start.len() * 4 + self.verts.len() * 4 + self.tap.len() + self.w.len() * 2
     }
 
     /// Fans of a signal with `channels` values per vertex, pre-filtered by one pass of 1-ring
@@ -566,17 +643,27 @@ impl FanSampler {
         let sig = smooth(level, signal, c);
         let nb = FAN_RADII * FAN_ANGLES;
         out.resize(level.len() * nb * c, 0.0);
+        let s = 1.0 / WEIGHT_ONE;
         out.par_chunks_mut(nb * c).enumerate().for_each(|(v, fan)| {
+            let list = &self.verts[self.start[v] as usize..self.start[v + 1] as usize];
+            let taps = &self.tap[v * nb * FAN_TAPS..(v + 1) * nb * FAN_TAPS];
+            let ws = &self.w[v * nb * 2..(v + 1) * nb * 2];
             for b in 0..nb {
-                let o = (v * nb + b) * FAN_TAPS;
                 let dst = &mut fan[b * c..(b + 1) * c];
-                dst.iter_mut().for_each(|x| *x = 0.0);
-                for j in 0..FAN_TAPS {
-                    let u = self.idx[o + j] as usize;
-                    let w = self.weight(o + j);
-                    for ch in 0..c {
-                        dst[ch] += w * sig[u * c + ch];
-                    }
+                let (w0, w1) = (ws[2 * b], ws[2 * b + 1]);
+                let w = [
+                    w0 as f32 * s,
+                    w1 as f32 * s,
+                    (u16::MAX - w0 - w1) as f32 * s,
+                ];
+                let t = &taps[b * FAN_TAPS..(b + 1) * FAN_TAPS];
+                let (u0, u1, u2) = (
+                    list[t[0] as usize] as usize * c,
+                    list[t[1] as usize] as usize * c,
+                    list[t[2] as usize] as usize * c,
+                );
+                for ch in 0..c {
+                    dst[ch] = w[0] * sig[u0 + ch] + w[1] * sig[u1 + ch] + w[2] * sig[u2 + ch];
                 }
             }
         });
@@ -642,8 +729,21 @@ mod tests {
         ));
         let a = FanSampler::new(&l, &frames, 2.5);
         let b = FanSampler::new_cancellable(&l, &frames, 2.5, &CancelToken::new()).unwrap();
-        assert_eq!(a.idx, b.idx);
-        assert_eq!(a.w, b.w);
+        assert_eq!(a, b);
+        // every bin's weights sum to one and its taps lie within the fan's reach
+        let reach = 2.5 * l.mean_edge + 2.5 * 0.6 * l.mean_edge;
+        for v in 0..l.len() {
+            for bin in 0..FAN_RADII * FAN_ANGLES {
+                let t = a.taps(v, bin);
+                let sum: f32 = t.iter().map(|x| x.1).sum();
+                assert!((sum - 1.0).abs() < 1e-6, "{sum}");
+                for (u, w) in t {
+                    let d =
+                        Vec3::from(l.positions[u as usize]).distance(Vec3::from(l.positions[v]));
+                    assert!(w == 0.0 || d <= reach * 1.001, "{d} > {reach}");
+                }
+            }
+        }
     }
 
     #[test]

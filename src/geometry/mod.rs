@@ -19,6 +19,9 @@
 //! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1)
 //! - [`sparse_samples`] (a grid subsample of the vertices and the interpolation back: expensive
 //!   smooth fields evaluated at their own scale)
+//! - [`offset_surface`], [`shell_point`] / [`shell_point_ruled`], [`shell_stretch`], [`minimize_shell_stretch`]
+//!   (tetrahedral shell maps, Zhou et al. 2006 eq. (8)-(9): offset, map, L2 stretch, its
+//!   minimisation)
 //! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
 //! - [`uv_atlas`] (charts, LSCM + ARAP, packing: UVs for a mesh without them)
 //! - [`bake_uv`] / [`fill_gutters`] (conservative UV rasterisation, pull-push gutters),
@@ -39,6 +42,7 @@ mod heat;
 mod laplacian;
 mod occlusion;
 mod refine;
+mod shell_map;
 mod solid_angle_curvature;
 mod sparse_evaluation;
 mod uv_atlas;
@@ -63,6 +67,10 @@ pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_vorono
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
 pub(crate) use refine::IntMap;
 pub use refine::{Refined, nearest_original, refine_to_density};
+pub use shell_map::{
+    ShellStretch, StretchReport, minimize_shell_stretch, offset_surface, shell_point,
+    shell_point_ruled, shell_stretch,
+};
 pub use solid_angle_curvature::{
     BETA as SOLID_ANGLE_BETA, SolidAngleCurvature, SolidAngleTree, solid_angle_curvature,
     solid_angle_curvature_cancellable,
