@@ -384,13 +384,17 @@ pub const FAN_TAPS: usize = 3;
 /// Compact layout (at a million vertices the table is the largest structure of a transfer):
 /// each vertex lists its distinct tap vertices once (about 40, never more than
 /// `R * A * FAN_TAPS` = 162), a tap is a one-byte index into that list, and a bin stores two
-/// 16-bit weights, the third being what is left of 1. 162 + 108 bytes plus 4 per listed vertex,
-/// against 648 + 324 for u32 indices and three u16 weights.
+/// 16-bit weights, the third being what is left of 1. 162 + 108 + 5 bytes plus 4 per listed
+/// vertex, against 648 + 324 for u32 indices and three u16 weights.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FanSampler {
-    /// `verts[start[v]..start[v + 1]]`: the distinct tap vertices of `v`.
-    start: Vec<u32>,
-    verts: Vec<u32>,
+    /// Vertices per chunk of the build; `lists[v / chunk]` holds the tap lists of a chunk, so
+    /// the table is never copied whole to concatenate them.
+    chunk: usize,
+    lists: Vec<Vec<u32>>,
+    /// `lists[v / chunk][off[v]..off[v] + len[v]]`: the distinct tap vertices of `v`.
+    off: Vec<u32>,
+    len: Vec<u8>,
     /// `tap[(v * R * A + bin) * FAN_TAPS + k]`: index into `v`'s list.
     tap: Vec<u8>,
     /// `w[(v * R * A + bin) * 2 + k]`, `k < 2`, in units of `1 / 65535`; the third weight is
@@ -426,11 +430,6 @@ impl FanSampler {
         let n = level.len();
         let nb = FAN_RADII * FAN_ANGLES;
         let per = nb * FAN_TAPS;
-        if n.saturating_mul(per) >= u32::MAX as usize {
-            return Err(crate::error::Error::InvalidInput(format!(
-                "{n} vertices are too many for one fan sampling table"
-            )));
-        }
         let mut tap =
             crate::error::try_filled(n.saturating_mul(per), 0u8, "the fan sampling table")?;
         let mut wts =
@@ -588,30 +587,40 @@ impl FanSampler {
             })
             .collect();
         cancel.check()?;
-        let total: usize = lists.iter().map(|(v, _)| v.len()).sum();
-        let mut start = Vec::with_capacity(n + 1);
-        let mut verts = Vec::with_capacity(total);
-        start.push(0u32);
+        let mut off = Vec::with_capacity(n);
+        let mut len = Vec::with_capacity(n);
+        let mut chunks = Vec::with_capacity(lists.len());
         for (vs, counts) in lists {
+            let mut o = 0u32;
             for c in counts {
-                let last = *start.last().unwrap_or(&0);
-                start.push(last + c as u32);
+                off.push(o);
+                len.push(c);
+                o += c as u32;
             }
-            verts.extend_from_slice(&vs);
+            chunks.push(vs);
         }
         Ok(FanSampler {
-            start,
-            verts,
+            chunk,
+            lists: chunks,
+            off,
+            len,
             tap,
             w: wts,
         })
+    }
+
+    /// The distinct tap vertices of `v`.
+    #[inline]
+    fn list(&self, v: usize) -> &[u32] {
+        let o = self.off[v] as usize;
+        &self.lists[v / self.chunk][o..o + self.len[v] as usize]
     }
 
     /// Tap vertices and weights of bin `b` of vertex `v`.
     #[inline]
     pub fn taps(&self, v: usize, b: usize) -> [(u32, f32); FAN_TAPS] {
         let nb = FAN_RADII * FAN_ANGLES;
-        let list = &self.verts[self.start[v] as usize..self.start[v + 1] as usize];
+        let list = self.list(v);
         let o = (v * nb + b) * FAN_TAPS;
         let (w0, w1) = (self.w[(v * nb + b) * 2], self.w[(v * nb + b) * 2 + 1]);
         let w2 = u16::MAX - w0 - w1;
@@ -625,7 +634,10 @@ impl FanSampler {
 
     /// Bytes held by the table.
     pub fn bytes(&self) -> usize {
-        self.start.len() * 4 + self.verts.len() * 4 + self.tap.len() + self.w.len() * 2
+        self.off.len() * 5
+            + self.lists.iter().map(|l| l.len() * 4).sum::<usize>()
+            + self.tap.len()
+            + self.w.len() * 2
     }
 
     /// Fans of a signal with `channels` values per vertex, pre-filtered by one pass of 1-ring
@@ -645,7 +657,7 @@ impl FanSampler {
         out.resize(level.len() * nb * c, 0.0);
         let s = 1.0 / WEIGHT_ONE;
         out.par_chunks_mut(nb * c).enumerate().for_each(|(v, fan)| {
-            let list = &self.verts[self.start[v] as usize..self.start[v + 1] as usize];
+            let list = self.list(v);
             let taps = &self.tap[v * nb * FAN_TAPS..(v + 1) * nb * FAN_TAPS];
             let ws = &self.w[v * nb * 2..(v + 1) * nb * 2];
             for b in 0..nb {
