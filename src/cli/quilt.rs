@@ -120,9 +120,10 @@ impl QuiltArgs {
         );
         if s.shell_inverted > 0 {
             eprintln!(
-                "warning: {} shell tetrahedra stay inverted (base vertices whose normal points \
-                 away from a neighbouring face); elements there may fold",
-                s.shell_inverted
+                "note: {} of the shell's {} tetrahedra stay inverted (base vertices whose normal \
+                 points away from a neighbouring face); elements over them may fold",
+                s.shell_inverted,
+                3 * base.num_faces()
             );
         }
         let ext = a

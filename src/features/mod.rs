@@ -384,7 +384,7 @@ pub const FAN_TAPS: usize = 3;
 /// Compact layout (at a million vertices the table is the largest structure of a transfer):
 /// each vertex lists its distinct tap vertices once (about 40, never more than
 /// `R * A * FAN_TAPS` = 162), a tap is a one-byte index into that list, and a bin stores two
-/// 16-bit weights, the third being what is left of 1. 162 + 108 + 5 bytes plus 4 per listed
+/// 16-bit weights, the third being what is left of 1. 162 + 216 + 5 bytes plus 4 per listed
 /// vertex, against 648 + 324 for u32 indices and three u16 weights.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FanSampler {
