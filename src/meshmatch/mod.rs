@@ -241,6 +241,9 @@ pub struct ExactCheck {
     /// target vertex to its nearest source patch over every source vertex and rotation, in the
     /// level's colour weighting. Lower = the target is made of source patches more faithfully.
     pub coherence: f64,
+    /// Wall time of this check (both exhaustive searches over the sample), seconds: a
+    /// diagnostic, not part of a transfer (`exact_samples` is 0 by default).
+    pub check_seconds: f64,
 }
 
 /// Extra constraints on the target: vertices whose signal is fixed (paint-by-example masks and

@@ -704,6 +704,7 @@ fn exact_check(
         l: ctx.l,
     };
     let coherence = em::exact_distances(&colour_only, &sample);
+    let check_seconds = sw.secs();
     let mean = |x: &mut dyn Iterator<Item = f64>| x.sum::<f64>() / k.max(1) as f64;
     ExactCheck {
         samples: k,
@@ -712,6 +713,7 @@ fn exact_check(
         exact_seconds: secs * n as f64 / k.max(1) as f64,
         meshmatch_seconds: solve_seconds,
         coherence: mean(&mut coherence.iter().map(|&d| d as f64)),
+        check_seconds,
     }
 }
 
