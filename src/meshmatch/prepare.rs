@@ -163,7 +163,7 @@ pub fn prepare(
     )?;
     // Refine the bare welded surface (the signal is sampled below from the input itself).
     let bare = TriMesh::new(welded.positions.clone(), welded.faces.clone());
-    let mut r = crate::geometry::refine_to_density(&bare, params.vertices);
+    let r = crate::geometry::refine_to_density(&bare, params.vertices);
     drop(bare);
     let vert_src: Vec<(u32, [f32; 3])> = r
         .vertex_sources()
@@ -238,37 +238,12 @@ pub fn prepare(
             *slot = w;
         }
     }
-    // Cache-friendly order: the refined vertices along the Morton curve of their positions, so
-    // neighbourhood walks (fan tables, propagation) stay in cache; faces keep their order (the
-    // bake layout is per face) with their corners renumbered.
-    let order = crate::geometry::morton_order(&r.mesh.positions);
-    let mut renumber = vec![0u32; order.len()];
-    for (new, &old) in order.iter().enumerate() {
-        renumber[old as usize] = new as u32;
-    }
-    let permute =
-        |v: Vec<[f32; 3]>| -> Vec<[f32; 3]> { order.iter().map(|&o| v[o as usize]).collect() };
-    let r_positions = permute(std::mem::take(&mut r.mesh.positions));
-    let mut r_faces = std::mem::take(&mut r.mesh.faces);
-    for t in r_faces.iter_mut() {
-        *t = t.map(|v| renumber[v as usize]);
-    }
-    let signal0 = signal0.map(permute);
-    let working_to_file: Vec<u32> = {
-        let old = working_to_file;
-        order.iter().map(|&o| old[o as usize]).collect()
-    };
-    for w in file_to_working.iter_mut() {
-        *w = renumber.get(*w as usize).copied().unwrap_or(*w);
-    }
-    drop(order);
-    drop(renumber);
     let face_input: Vec<u32> = r
         .source_face
         .iter()
         .map(|&f| welded_to_input[f as usize])
         .collect();
-    let mut working = TriMesh::new(r_positions, r_faces);
+    let mut working = TriMesh::new(r.mesh.positions, r.mesh.faces);
     working.colors = signal0.clone();
     // A textured input keeps its texture on the working mesh (UVs interpolated into every working
     // corner), so views draw it per pixel rather than through the vertex colours.
