@@ -58,8 +58,8 @@
 //!    their internal faces. Measured with `examples/quilt_clearance` on the bunny and the
 //!    horse, against the earlier map along interpolated normals: element counts within 1% at
 //!    the default thickness (the tetrahedra lost 8% of the horse's weave), element area CV
-//!    5-13% lower; with a shell half a swatch thick on the bunny, 1-6% more elements and a CV
-//!    of 0.25 instead of 0.29 (chain).
+//!    1-13% lower (the horse's nuts 1% higher); with a shell half a swatch thick on the
+//!    bunny, 1-6% more elements and a CV of 0.25 instead of 0.29 (chain).
 //! 6. **Not done:** Laplacian-coordinate deformation (eq. 4-6) and stitching of elements that
 //!    cross patch seams (eq. 7, Yu et al. 2004 merging). Elements are placed rigidly in
 //!    `(u, v, w)` and bent only by the shell map.
