@@ -616,7 +616,8 @@ impl FanSampler {
         &self.lists[v / self.chunk][o..o + self.len[v] as usize]
     }
 
-    /// Tap vertices and weights of bin `b` of vertex `v`.
+    /// Tap vertices and weights of bin `b` of vertex `v` (the one decoder of the compact
+    /// layout: [`FanSampler::fans_into`] gathers through it).
     #[inline]
     pub fn taps(&self, v: usize, b: usize) -> [(u32, f32); FAN_TAPS] {
         let nb = FAN_RADII * FAN_ANGLES;
@@ -630,14 +631,6 @@ impl FanSampler {
             (list[self.tap[o + 1] as usize], w1 as f32 * s),
             (list[self.tap[o + 2] as usize], w2 as f32 * s),
         ]
-    }
-
-    /// Bytes held by the table.
-    pub fn bytes(&self) -> usize {
-        self.off.len() * 5
-            + self.lists.iter().map(|l| l.len() * 4).sum::<usize>()
-            + self.tap.len()
-            + self.w.len() * 2
     }
 
     /// Fans of a signal with `channels` values per vertex, pre-filtered by one pass of 1-ring
@@ -655,27 +648,13 @@ impl FanSampler {
         let sig = smooth(level, signal, c);
         let nb = FAN_RADII * FAN_ANGLES;
         out.resize(level.len() * nb * c, 0.0);
-        let s = 1.0 / WEIGHT_ONE;
         out.par_chunks_mut(nb * c).enumerate().for_each(|(v, fan)| {
-            let list = self.list(v);
-            let taps = &self.tap[v * nb * FAN_TAPS..(v + 1) * nb * FAN_TAPS];
-            let ws = &self.w[v * nb * 2..(v + 1) * nb * 2];
             for b in 0..nb {
                 let dst = &mut fan[b * c..(b + 1) * c];
-                let (w0, w1) = (ws[2 * b], ws[2 * b + 1]);
-                let w = [
-                    w0 as f32 * s,
-                    w1 as f32 * s,
-                    (u16::MAX - w0 - w1) as f32 * s,
-                ];
-                let t = &taps[b * FAN_TAPS..(b + 1) * FAN_TAPS];
-                let (u0, u1, u2) = (
-                    list[t[0] as usize] as usize * c,
-                    list[t[1] as usize] as usize * c,
-                    list[t[2] as usize] as usize * c,
-                );
+                let [(u0, w0), (u1, w1), (u2, w2)] = self.taps(v, b);
+                let (u0, u1, u2) = (u0 as usize * c, u1 as usize * c, u2 as usize * c);
                 for ch in 0..c {
-                    dst[ch] = w[0] * sig[u0 + ch] + w[1] * sig[u1 + ch] + w[2] * sig[u2 + ch];
+                    dst[ch] = w0 * sig[u0 + ch] + w1 * sig[u1 + ch] + w2 * sig[u2 + ch];
                 }
             }
         });

@@ -37,7 +37,7 @@
 use glam::{Mat3, Vec3};
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 
-use crate::mesh::{Csr, boundary_loops};
+use crate::mesh::{boundary_loops, vertex_faces};
 
 /// Shell volume ratios at or below this count as inverted.
 const MIN_RATIO: f32 = 1e-4;
@@ -148,45 +148,66 @@ pub fn shell_point_ruled(
     out
 }
 
-/// Per tetrahedron of every prism: the inverse texture edge matrix and the texture volume.
+/// Per tetrahedron of every prism: the inverse texture edge matrix and its determinant (six
+/// times the signed texture volume; 0 for a skipped sliver).
 struct TextureTets {
     inv: Vec<Mat3>,
-    vol: Vec<f32>,
     det: Vec<f32>,
+}
+
+impl TextureTets {
+    /// Texture volume of tetrahedron `ti`.
+    fn vol(&self, ti: usize) -> f32 {
+        self.det[ti].abs() / 6.0
+    }
 }
 
 fn texture_tets(p: &[[f32; 3]], faces: &[[u32; 3]], h: f32) -> TextureTets {
     let mut inv = Vec::with_capacity(faces.len() * 3);
-    let mut vol = Vec::with_capacity(faces.len() * 3);
     let mut det = Vec::with_capacity(faces.len() * 3);
     for &f in faces {
-        match texture_corners(p, f, h) {
-            Some(c) => {
-                for t in TETS {
+        let c = texture_corners(p, f, h);
+        for t in TETS {
+            let (i, d) = c
+                .map(|c| {
                     let e = edge_matrix(&c, t).as_dmat3();
-                    let d = e.determinant();
-                    let i = e.inverse().as_mat3();
-                    if i.is_finite() && d.is_finite() && d != 0.0 {
-                        inv.push(i);
-                        vol.push((d.abs() / 6.0) as f32);
-                        det.push(d as f32);
-                    } else {
-                        inv.push(Mat3::ZERO);
-                        vol.push(0.0);
-                        det.push(0.0);
-                    }
-                }
-            }
-            None => {
-                for _ in 0..3 {
-                    inv.push(Mat3::ZERO);
-                    vol.push(0.0);
-                    det.push(0.0);
-                }
-            }
+                    (e.inverse().as_mat3(), e.determinant())
+                })
+                .filter(|(i, d)| i.is_finite() && d.is_finite() && *d != 0.0)
+                .unwrap_or((Mat3::ZERO, 0.0));
+            inv.push(i);
+            det.push(d as f32);
         }
     }
-    TextureTets { inv, vol, det }
+    TextureTets { inv, det }
+}
+
+/// Shell volume over texture volume of every tetrahedron (NaN where the texture tetrahedron
+/// is skipped).
+fn volume_ratios(
+    p: &[[f32; 3]],
+    top: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    tex: &TextureTets,
+) -> Vec<f32> {
+    let mut out = Vec::with_capacity(faces.len() * 3);
+    for (fi, &f) in faces.iter().enumerate() {
+        let c = corners(p, top, prism_order(f));
+        for (k, t) in TETS.iter().enumerate() {
+            let d = tex.det[3 * fi + k];
+            out.push(if d == 0.0 {
+                f32::NAN
+            } else {
+                edge_matrix(&c, *t).determinant() / d
+            });
+        }
+    }
+    out
+}
+
+/// A volume ratio that counts as inverted.
+fn is_inverted(r: f32) -> bool {
+    r.is_nan() || r <= MIN_RATIO
 }
 
 /// The offset surface `q_i = p_i + H s_i n_i`, with `s_i` starting at `scale` (1 where `None`)
@@ -205,37 +226,31 @@ pub fn offset_surface(
         Some(sc) => sc.iter().map(|x| x.clamp(0.05, 1.0)).collect(),
         None => vec![1.0; n],
     };
-    let lift = |s: &[f32]| -> Vec<[f32; 3]> {
-        (0..n)
-            .map(|i| (Vec3::from(p[i]) + Vec3::from(normals[i]) * (thickness * s[i])).to_array())
-            .collect()
+    let lift = |i: usize, s: f32| -> [f32; 3] {
+        (Vec3::from(p[i]) + Vec3::from(normals[i]) * (thickness * s)).to_array()
     };
-    let mut top = lift(&s);
+    let mut top: Vec<[f32; 3]> = (0..n).map(|i| lift(i, s[i])).collect();
     if !keep_positive || thickness.is_nan() || thickness <= 0.0 {
         return (top, s);
     }
     let tex = texture_tets(p, faces, thickness);
+    let mut shrink = vec![false; n];
     for _round in 0..40 {
-        let mut shrink = vec![false; n];
+        shrink.iter_mut().for_each(|x| *x = false);
         let mut any = false;
+        let ratios = volume_ratios(p, &top, faces, &tex);
         for (fi, &f) in faces.iter().enumerate() {
             let so = prism_order(f);
-            let c = corners(p, &top, so);
             for (k, t) in TETS.iter().enumerate() {
                 let ti = 3 * fi + k;
-                if tex.det[ti] == 0.0 {
+                if tex.det[ti] == 0.0 || !is_inverted(ratios[ti]) {
                     continue;
                 }
-                let r = edge_matrix(&c, *t).determinant() / tex.det[ti];
-                if r.is_nan() || r <= MIN_RATIO {
-                    for &corner in t {
-                        if corner >= 3 {
-                            let v = so[corner - 3] as usize;
-                            if s[v] > 0.05 {
-                                shrink[v] = true;
-                                any = true;
-                            }
-                        }
+                for &corner in t.iter().filter(|&&c| c >= 3) {
+                    let v = so[corner - 3] as usize;
+                    if s[v] > 0.05 {
+                        shrink[v] = true;
+                        any = true;
                     }
                 }
             }
@@ -246,9 +261,9 @@ pub fn offset_surface(
         for i in 0..n {
             if shrink[i] {
                 s[i] = (s[i] * 0.8).max(0.05);
+                top[i] = lift(i, s[i]);
             }
         }
-        top = lift(&s);
     }
     (top, s)
 }
@@ -300,10 +315,10 @@ fn sums(p: &[[f32; 3]], top: &[[f32; 3]], faces: &[[u32; 3]], tex: &TextureTets)
                 continue;
             }
             let (l2sq, r) = tet_terms(&c, *t, &tex.inv[ti], tex.det[ti]);
-            if r.is_nan() || r <= MIN_RATIO {
+            if is_inverted(r) {
                 inverted += 1;
             }
-            let v = tex.vol[ti] as f64;
+            let v = tex.vol(ti) as f64;
             out.energy += l2sq as f64 * v;
             out.tex += v;
             out.shell += r as f64 * v;
@@ -339,6 +354,8 @@ pub struct StretchReport {
     pub sweeps: usize,
     /// Line-search steps taken.
     pub moves: usize,
+    /// Tetrahedra inverted at the end ([`ShellStretch::inverted`]).
+    pub inverted: usize,
 }
 
 /// Moves the offset vertices `top` in their tangent planes (normal `normals[i]`) to lower the
@@ -357,24 +374,19 @@ pub fn minimize_shell_stretch(
 ) -> StretchReport {
     let n = p.len();
     let tex = texture_tets(p, faces, thickness);
-    let (mut total, _) = sums(p, top, faces, &tex);
+    let (mut total, inverted) = sums(p, top, faces, &tex);
     let before = total.l2();
     let mut report = StretchReport {
         before,
         after: before,
         sweeps: 0,
         moves: 0,
+        inverted,
     };
     if !before.is_finite() || n == 0 {
         return report;
     }
-    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(faces.len() * 3);
-    for (f, c) in faces.iter().enumerate() {
-        for &v in c {
-            pairs.push((v, f as u32));
-        }
-    }
-    let vf = Csr::from_pairs(n, &mut pairs);
+    let vf = vertex_faces(n, faces);
     let mut fixed = vec![false; n];
     for lp in boundary_loops(faces) {
         for v in lp {
@@ -382,21 +394,16 @@ pub fn minimize_shell_stretch(
         }
     }
     // each tetrahedron's volume ratio at the start: no step takes one below half of it
-    let mut floor = vec![0.0f32; faces.len() * 3];
-    for (fi, &f) in faces.iter().enumerate() {
-        let c = corners(p, top, prism_order(f));
-        for (k, t) in TETS.iter().enumerate() {
-            let ti = 3 * fi + k;
-            if tex.det[ti] != 0.0 {
-                let r = edge_matrix(&c, *t).determinant() / tex.det[ti];
-                floor[ti] = if r > MIN_RATIO {
-                    (0.5 * r).max(2.0 * MIN_RATIO).min(r)
-                } else {
-                    r
-                };
+    let floor: Vec<f32> = volume_ratios(p, top, faces, &tex)
+        .into_iter()
+        .map(|r| {
+            if r > MIN_RATIO {
+                (0.5 * r).max(2.0 * MIN_RATIO).min(r)
+            } else {
+                r
             }
-        }
-    }
+        })
+        .collect();
     let mut rng = SmallRng::seed_from_u64(seed);
     // per-tet terms along the line, reused
     struct Line {
@@ -461,7 +468,7 @@ pub fn minimize_shell_stretch(
                         r0,
                         r1,
                         floor: floor[ti].min(r0),
-                        w: tex.vol[ti],
+                        w: tex.vol(ti),
                     });
                 }
             }
@@ -540,7 +547,7 @@ pub fn minimize_shell_stretch(
             }
         }
         // re-sum to shed rounding drift
-        total = sums(p, top, faces, &tex).0;
+        (total, report.inverted) = sums(p, top, faces, &tex);
         let end = total.l2();
         if (start - end).is_nan() || start - end <= 1e-4 * start {
             break;

@@ -14,6 +14,7 @@ use std::sync::Arc;
 
 pub use topology::{
     Csr, boundary_loops, connected_components, edge_counts, sorted_edges, vertex_adjacency,
+    vertex_faces,
 };
 pub use validate::{MAX_FACES, MAX_VERTICES, MAX_WORKING_VERTICES, RepairReport, ValidationReport};
 

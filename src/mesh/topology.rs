@@ -56,6 +56,20 @@ pub fn vertex_adjacency(n: usize, faces: &[[u32; 3]]) -> Csr {
     Csr::from_pairs(n, &mut pairs)
 }
 
+/// Vertex-face incidence of a triangle list: `row(v)` lists the faces using `v`, ascending
+/// (out-of-range corners are skipped).
+pub fn vertex_faces(n: usize, faces: &[[u32; 3]]) -> Csr {
+    let mut pairs = Vec::with_capacity(faces.len() * 3);
+    for (fi, f) in faces.iter().enumerate() {
+        for &v in f {
+            if (v as usize) < n {
+                pairs.push((v, fi as u32));
+            }
+        }
+    }
+    Csr::from_pairs(n, &mut pairs)
+}
+
 /// Connected components over faces: per-vertex component label (vertices in no face get their
 /// own label) and the number of components that contain at least one face.
 pub fn connected_components(n: usize, faces: &[[u32; 3]]) -> (Vec<u32>, usize) {

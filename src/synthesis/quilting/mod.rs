@@ -92,7 +92,7 @@ use crate::geometry::{
     offset_surface, shell_point, shell_point_ruled, shell_stretch, tangent_direction,
     vertex_normals,
 };
-use crate::mesh::{Csr, TriMesh, vertex_adjacency};
+use crate::mesh::{Csr, TriMesh, vertex_adjacency, vertex_faces};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
 /// Parameters of [`run`].
@@ -695,13 +695,7 @@ pub fn run(
     let area = face_areas(&mesh.positions, faces);
     let total_area: f64 = area.iter().sum();
     let adj = vertex_adjacency(n, faces);
-    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(faces.len() * 3);
-    for (f, c) in faces.iter().enumerate() {
-        for &v in c {
-            pairs.push((v, f as u32));
-        }
-    }
-    let vf = Csr::from_pairs(n, &mut pairs);
+    let vf = vertex_faces(n, faces);
     let guard: Vec<f32> = (0..n)
         .map(|i| {
             if !params.concave_guard || h <= 0.0 {
@@ -750,8 +744,7 @@ pub fn run(
         Some(&guard),
         params.concave_guard,
     );
-    let plain = shell_stretch(&mesh.positions, &top, faces, h);
-    let (stretch_before, stretch_after) = if params.shell_sweeps > 0 && h > 0.0 {
+    let (stretch_before, stretch_after, shell_inverted) = if params.shell_sweeps > 0 && h > 0.0 {
         let rep = minimize_shell_stretch(
             &mesh.positions,
             faces,
@@ -761,11 +754,11 @@ pub fn run(
             params.shell_sweeps,
             params.seed,
         );
-        (rep.before, rep.after)
+        (rep.before, rep.after, rep.inverted)
     } else {
-        (plain.l2, plain.l2)
+        let plain = shell_stretch(&mesh.positions, &top, faces, h);
+        (plain.l2, plain.l2, plain.inverted)
     };
-    let shell_inverted = shell_stretch(&mesh.positions, &top, faces, h).inverted;
     let base = Base {
         p: &mesh.positions,
         faces,

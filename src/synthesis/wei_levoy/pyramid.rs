@@ -8,7 +8,7 @@ use glam::Vec3;
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 
 use crate::error::{Error, Result};
-use crate::mesh::{Csr, vertex_adjacency};
+use crate::mesh::{Csr, vertex_adjacency, vertex_faces};
 
 /// One level of the mesh pyramid.
 #[derive(Clone, Debug)]
@@ -38,13 +38,7 @@ impl Level {
     ) -> Level {
         let n = positions.len();
         let adj = vertex_adjacency(n, &faces);
-        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(faces.len() * 3);
-        for (f, face) in faces.iter().enumerate() {
-            for &v in face {
-                pairs.push((v, f as u32));
-            }
-        }
-        let vf = Csr::from_pairs(n, &mut pairs);
+        let vf = vertex_faces(n, &faces);
         Level {
             positions,
             faces,
