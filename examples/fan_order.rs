@@ -1,28 +1,29 @@
-//! Does vertex order matter to the fan sampling table? The horse refined to `N` working
-//! vertices (default 256K), its fan table built in the refined order and in a Morton (Z-curve)
-//! order of the same vertices: seconds for each. `cargo run --release --example fan_order`.
-//! (Measured: 5.8 s against 3.1 s at 256K. Working meshes are not reordered yet: with a Morton
-//! ordered source, completion by example lost its quality (mean patch distance 1.2 against
-//! 0.07). The hierarchy's edge collapse breaks ties by vertex index, and in that order it left
-//! 4 vertices of the painted region without faces at level 1 (5 components against 1): the
-//! collapse must not strand vertices before meshes can be reordered. Rejecting collapses that
-//! strand a vertex or pinch the boundary was tried: the completion test's colour distance fell
-//! from 61 to 36 (12 in the refinement's order), so another order dependence remains.)
+//! Does the visiting order matter to the fan sampling table and the fans? The horse refined to
+//! `N` working vertices (default 256K), its fan table built and one 3-channel fan gather run
+//! visiting the vertices in the refinement's order (the identity) and in the Morton order that
+//! `FanSampler::new` uses, both on the mesh as refined; then the same mesh renumbered in Morton
+//! order (what a cache-friendly mesh would give). Best of three each.
+//! `cargo run --release --example fan_order` (`N=1000000` for a film-resolution mesh).
+//!
+//! Working meshes keep the refinement's order: renumbering them was tried, and with a Morton
+//! ordered source completion by example lost its quality (mean patch distance 1.2 against 0.07;
+//! the hierarchy's edge collapse breaks ties by vertex index). Visiting in Morton order inside
+//! the table's build gives most of the locality without renumbering anything. The gather stays
+//! in vertex order: in Morton order its scattered row writes made it slower (0.151 s against
+//! 0.112 s at 256K).
 use meshmatch::features::{FanSampler, tangent_frames};
 use meshmatch::hierarchy::Level;
+use meshmatch::work::CancelToken;
 use std::time::Instant;
 
-fn morton(p: [f32; 3], lo: [f32; 3], scale: f32) -> u64 {
-    let spread = |x: u32| {
-        let mut v = x as u64 & 0x1f_ffff;
-        v = (v | v << 32) & 0x1f00000000ffff;
-        v = (v | v << 16) & 0x1f0000ff0000ff;
-        v = (v | v << 8) & 0x100f00f00f00f00f;
-        v = (v | v << 4) & 0x10c30c30c30c30c3;
-        (v | v << 2) & 0x1249249249249249
-    };
-    let q = |k: usize| (((p[k] - lo[k]) * scale).clamp(0.0, 2_097_151.0)) as u32;
-    spread(q(0)) | spread(q(1)) << 1 | spread(q(2)) << 2
+fn best_of_3(mut f: impl FnMut()) -> f64 {
+    let mut best = f64::INFINITY;
+    for _ in 0..3 {
+        let t = Instant::now();
+        f();
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    best
 }
 
 fn main() {
@@ -35,35 +36,33 @@ fn main() {
     m.repair().expect("repair");
     let r = meshmatch::geometry::refine_to_density(&m, n);
     let (p, f) = (r.mesh.positions, r.mesh.faces);
-    let time = |p: Vec<[f32; 3]>, f: Vec<[u32; 3]>, name: &str| {
-        let lev = Level::new(p, f);
+    let cancel = CancelToken::new();
+    let run = |lev: &Level, order: Vec<u32>, name: &str| {
         let frames = tangent_frames(&lev.normals);
-        let mut best = f64::INFINITY;
-        for _ in 0..3 {
-            let t = Instant::now();
-            let s = FanSampler::new(&lev, &frames, 2.5 * lev.mean_edge);
-            best = best.min(t.elapsed().as_secs_f64());
-            std::hint::black_box(&s);
-        }
+        let radius = 2.5 * lev.mean_edge;
+        let mut s = FanSampler::default();
+        let table = best_of_3(|| {
+            s = FanSampler::with_order(lev, &frames, radius, &order, &cancel)
+                .expect("a permutation");
+        });
+        let signal: Vec<f32> = lev.positions.iter().flatten().copied().collect();
+        let mut out = Vec::new();
+        let gather = best_of_3(|| s.fans_into(lev, &signal, 3, &mut out));
         println!(
-            "{name}: {} vertices, fan table {best:.3} s (best of 3)",
+            "{name}: {} vertices, fan table {table:.3} s, 3-channel fans {gather:.3} s (best of 3)",
             lev.len()
         );
     };
-    time(p.clone(), f.clone(), "refined order");
-    let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
-    for q in &p {
-        for k in 0..3 {
-            lo[k] = lo[k].min(q[k]);
-            hi[k] = hi[k].max(q[k]);
-        }
-    }
-    let ext = (0..3)
-        .map(|k| hi[k] - lo[k])
-        .fold(0.0f32, f32::max)
-        .max(1e-30);
-    let mut order: Vec<u32> = (0..p.len() as u32).collect();
-    order.sort_by_key(|&i| morton(p[i as usize], lo, 2_097_151.0 / ext));
+    let lev = Level::new(p.clone(), f.clone());
+    let identity: Vec<u32> = (0..p.len() as u32).collect();
+    run(&lev, identity, "refined order, visited in order");
+    run(
+        &lev,
+        meshmatch::geometry::morton_order(&lev.positions),
+        "refined order, visited in Morton order (the default)",
+    );
+    drop(lev);
+    let order = meshmatch::geometry::morton_order(&p);
     let mut inv = vec![0u32; p.len()];
     for (new, &old) in order.iter().enumerate() {
         inv[old as usize] = new as u32;
@@ -71,5 +70,11 @@ fn main() {
     let pm: Vec<[f32; 3]> = order.iter().map(|&i| p[i as usize]).collect();
     let mut fm: Vec<[u32; 3]> = f.iter().map(|t| t.map(|v| inv[v as usize])).collect();
     fm.sort_by_key(|t| *t.iter().min().unwrap_or(&0));
-    time(pm, fm, "Morton order");
+    let lev = Level::new(pm, fm);
+    let identity: Vec<u32> = (0..lev.len() as u32).collect();
+    run(
+        &lev,
+        identity,
+        "renumbered in Morton order, visited in order",
+    );
 }

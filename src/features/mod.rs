@@ -360,7 +360,8 @@ pub(crate) fn exp_neg(x: f32) -> f32 {
         return 0.0;
     }
     let y = x.max(0.0) * std::f32::consts::LOG2_E;
-    let n = y.floor();
+    // `y` is in [0, 126): truncation is its floor, without a call to libm's `floorf`
+    let n = (y as i32) as f32;
     let t = (y - n) * std::f32::consts::LN_2;
     let p = 1.0
         - t * (1.0
@@ -388,11 +389,12 @@ pub const FAN_TAPS: usize = 3;
 /// vertex, against 648 + 324 for u32 indices and three u16 weights.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct FanSampler {
-    /// Vertices per chunk of the build; `lists[v / chunk]` holds the tap lists of a chunk, so
-    /// the table is never copied whole to concatenate them.
-    chunk: usize,
+    /// Per chunk of the build (consecutive vertices of the visiting order), the tap lists of its
+    /// vertices: the table is never copied whole to concatenate them.
     lists: Vec<Vec<u32>>,
-    /// `lists[v / chunk][off[v]..off[v] + len[v]]`: the distinct tap vertices of `v`.
+    /// The build chunk that listed `v`'s taps.
+    part: Vec<u16>,
+    /// `lists[part[v]][off[v]..off[v] + len[v]]`: the distinct tap vertices of `v`.
     off: Vec<u32>,
     len: Vec<u8>,
     /// `tap[(v * R * A + bin) * FAN_TAPS + k]`: index into `v`'s list.
@@ -400,6 +402,61 @@ pub struct FanSampler {
     /// `w[(v * R * A + bin) * 2 + k]`, `k < 2`, in units of `1 / 65535`; the third weight is
     /// `65535 - w0 - w1`.
     w: Vec<u16>,
+}
+
+/// A flat table of rows of `width` values written by parallel tasks in an order of their own
+/// (the vertices' visiting order), each row by exactly one task.
+struct ScatterRows<'a, T> {
+    ptr: *mut T,
+    rows: usize,
+    width: usize,
+    _data: std::marker::PhantomData<&'a mut [T]>,
+}
+
+// SAFETY: the rows handed out are disjoint (the callers' contract on `row`), so sending the
+// table to other threads is as sound as splitting a `&mut [T]` into chunks.
+unsafe impl<T: Send> Send for ScatterRows<'_, T> {}
+// SAFETY: as above: shared use only ever produces disjoint rows.
+unsafe impl<T: Send> Sync for ScatterRows<'_, T> {}
+
+impl<'a, T> ScatterRows<'a, T> {
+    fn new(data: &'a mut [T], width: usize) -> Self {
+        let width = width.max(1);
+        ScatterRows {
+            ptr: data.as_mut_ptr(),
+            rows: data.len() / width,
+            width,
+            _data: std::marker::PhantomData,
+        }
+    }
+
+    /// Row `r`, mutably.
+    ///
+    /// # Safety
+    /// No other reference to row `r` may exist while the returned one lives: every row is
+    /// taken at most once (callers visit a permutation of the rows).
+    #[inline]
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn row(&self, r: usize) -> &mut [T] {
+        assert!(r < self.rows, "row {r} of {}", self.rows);
+        // SAFETY: in bounds (checked above), and unaliased by the caller's contract.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(r * self.width), self.width) }
+    }
+}
+
+/// Whether `order` lists each of `0..n` exactly once.
+fn is_permutation(order: &[u32], n: usize) -> bool {
+    if order.len() != n {
+        return false;
+    }
+    let mut seen = vec![false; n];
+    for &v in order {
+        match seen.get_mut(v as usize) {
+            Some(s) if !*s => *s = true,
+            _ => return false,
+        }
+    }
+    true
 }
 
 /// Scale of [`FanSampler`]'s weights.
@@ -427,7 +484,27 @@ impl FanSampler {
         radius: f32,
         cancel: &CancelToken,
     ) -> Result<FanSampler> {
+        let order = crate::geometry::morton_order(&level.positions);
+        Self::with_order(level, frames, radius, &order, cancel)
+    }
+
+    /// [`FanSampler::new_cancellable`] visiting the vertices in `order` (a permutation of the
+    /// level's vertices; anything else is an `InvalidInput` error). The table is the same for
+    /// every order; the order decides how well the walks around consecutive vertices share the
+    /// cache (`examples/fan_order` measures the identity against the Morton order).
+    pub fn with_order(
+        level: &Level,
+        frames: &Frames,
+        radius: f32,
+        order: &[u32],
+        cancel: &CancelToken,
+    ) -> Result<FanSampler> {
         let n = level.len();
+        if !is_permutation(order, n) {
+            return Err(Error::InvalidInput(format!(
+                "a fan table's visiting order must list each of the {n} vertices once"
+            )));
+        }
         let nb = FAN_RADII * FAN_ANGLES;
         let per = nb * FAN_TAPS;
         let mut tap =
@@ -449,11 +526,11 @@ impl FanSampler {
         let rks: [f32; FAN_RADII] =
             std::array::from_fn(|r| (r + 1) as f32 / FAN_RADII as f32 * radius);
         // per chunk: its vertices' tap lists, concatenated, and their lengths
-        let lists: Vec<(Vec<u32>, Vec<u8>)> = tap
-            .par_chunks_mut(per * chunk)
-            .zip(wts.par_chunks_mut(nb * 2 * chunk))
-            .enumerate()
-            .map(|(ci, (oi, ow))| {
+        let tap_rows = ScatterRows::new(&mut tap, per);
+        let w_rows = ScatterRows::new(&mut wts, nb * 2);
+        let lists: Vec<(Vec<u32>, Vec<u8>)> = order
+            .par_chunks(chunk)
+            .map(|vs| {
                 let mut verts: Vec<u32> = Vec::new();
                 let mut counts: Vec<u8> = Vec::new();
                 if cancel.is_cancelled() {
@@ -465,17 +542,23 @@ impl FanSampler {
                 // Top taps per bin as (squared distance, vertex), nearest first: ranking by
                 // distance is ranking by Gaussian weight, so exp runs only on the kept taps.
                 let mut top = vec![(f32::INFINITY, 0u32); nb * FAN_TAPS];
+                // per bin, the squared distance a vertex must beat to enter its top list: the
+                // last kept tap's, capped at the Gaussian cut-off
+                let mut worst = [cut2; FAN_RADII * FAN_ANGLES];
                 // final (vertex, weight) per tap
                 let mut fin = vec![(0u32, 0u16); nb * FAN_TAPS];
-                let nv = oi.len() / per;
-                verts.reserve(nv * 48);
-                counts.reserve(nv);
-                for (k, (fi, fw)) in oi.chunks_mut(per).zip(ow.chunks_mut(nb * 2)).enumerate() {
-                    let v = ci * chunk + k;
+                verts.reserve(vs.len() * 48);
+                counts.reserve(vs.len());
+                for &v in vs {
+                    let v = v as usize;
+                    // SAFETY: `order` is a permutation (checked above), so row `v` is taken
+                    // here and nowhere else.
+                    let (fi, fw) = unsafe { (tap_rows.row(v), w_rows.row(v)) };
                     let pv = Vec3::from(level.positions[v]);
                     let t1 = Vec3::from(frames.t1[v]);
                     let t2 = Vec3::from(frames.t2[v]);
                     top.iter_mut().for_each(|x| *x = (f32::INFINITY, v as u32));
+                    worst.fill(cut2);
                     queue.clear();
                     queue.push(v as u32);
                     stamp[v] = v as u32;
@@ -516,19 +599,30 @@ impl FanSampler {
                             }
                             let base = rho2 + rk * rk;
                             let two_rk = 2.0 * rk;
-                            for (a, &pa) in proj.iter().enumerate() {
-                                let d2 = (base - two_rk * pa).max(0.0);
+                            // The ring's 18 distances and which of them enter a top list, in a
+                            // branch-free pass; only those then take the (rare) sorted insert.
+                            let wr = &worst[r * FAN_ANGLES..(r + 1) * FAN_ANGLES];
+                            let mut d2s = [0.0f32; FAN_ANGLES];
+                            let mut enter = 0u32;
+                            for a in 0..FAN_ANGLES {
+                                let d2 = (base - two_rk * proj[a]).max(0.0);
+                                d2s[a] = d2;
+                                enter |= ((d2 < wr[a]) as u32) << a;
+                            }
+                            while enter != 0 {
+                                let a = enter.trailing_zeros() as usize;
+                                enter &= enter - 1;
+                                let d2 = d2s[a];
                                 let b = r * FAN_ANGLES + a;
                                 let t = &mut top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
                                 // Insert into the sorted (ascending) top list.
-                                if d2 < cut2 && d2 < t[FAN_TAPS - 1].0 {
-                                    let mut j = FAN_TAPS - 1;
-                                    while j > 0 && t[j - 1].0 > d2 {
-                                        t[j] = t[j - 1];
-                                        j -= 1;
-                                    }
-                                    t[j] = (d2, u as u32);
+                                let mut j = FAN_TAPS - 1;
+                                while j > 0 && t[j - 1].0 > d2 {
+                                    t[j] = t[j - 1];
+                                    j -= 1;
                                 }
+                                t[j] = (d2, u as u32);
+                                worst[b] = t[FAN_TAPS - 1].0.min(cut2);
                             }
                         }
                         continue_walk(level, &mut queue, &mut stamp, u, v, pv, reach);
@@ -587,21 +681,25 @@ impl FanSampler {
             })
             .collect();
         cancel.check()?;
-        let mut off = Vec::with_capacity(n);
-        let mut len = Vec::with_capacity(n);
+        let mut off = vec![0u32; n];
+        let mut len = vec![0u8; n];
+        let mut part = vec![0u16; n];
         let mut chunks = Vec::with_capacity(lists.len());
-        for (vs, counts) in lists {
+        for ((ci, (vs, counts)), visited) in lists.into_iter().enumerate().zip(order.chunks(chunk))
+        {
             let mut o = 0u32;
-            for c in counts {
-                off.push(o);
-                len.push(c);
+            for (c, &v) in counts.into_iter().zip(visited) {
+                let v = v as usize;
+                off[v] = o;
+                len[v] = c;
+                part[v] = ci as u16;
                 o += c as u32;
             }
             chunks.push(vs);
         }
         Ok(FanSampler {
-            chunk,
             lists: chunks,
+            part,
             off,
             len,
             tap,
@@ -613,7 +711,7 @@ impl FanSampler {
     #[inline]
     fn list(&self, v: usize) -> &[u32] {
         let o = self.off[v] as usize;
-        &self.lists[v / self.chunk][o..o + self.len[v] as usize]
+        &self.lists[self.part[v] as usize][o..o + self.len[v] as usize]
     }
 
     /// Tap vertices and weights of bin `b` of vertex `v` (the one decoder of the compact
@@ -648,16 +746,25 @@ impl FanSampler {
         let sig = smooth(level, signal, c);
         let nb = FAN_RADII * FAN_ANGLES;
         out.resize(level.len() * nb * c, 0.0);
-        out.par_chunks_mut(nb * c).enumerate().for_each(|(v, fan)| {
-            for b in 0..nb {
-                let dst = &mut fan[b * c..(b + 1) * c];
-                let [(u0, w0), (u1, w1), (u2, w2)] = self.taps(v, b);
-                let (u0, u1, u2) = (u0 as usize * c, u1 as usize * c, u2 as usize * c);
-                for ch in 0..c {
-                    dst[ch] = w0 * sig[u0 + ch] + w1 * sig[u1 + ch] + w2 * sig[u2 + ch];
-                }
+        // In vertex order: visiting in the build's Morton order made the gather slower
+        // (`examples/fan_order`: the scattered row writes cost more than the taps' locality gains).
+        out.par_chunks_mut(nb * c)
+            .enumerate()
+            .for_each(|(v, fan)| self.gather_row(v, &sig, c, fan));
+    }
+
+    /// Fan of `v` from the pre-filtered signal `sig` into `fan` (`R * A * c` values).
+    #[inline]
+    fn gather_row(&self, v: usize, sig: &[f32], c: usize, fan: &mut [f32]) {
+        let nb = FAN_RADII * FAN_ANGLES;
+        for b in 0..nb {
+            let dst = &mut fan[b * c..(b + 1) * c];
+            let [(u0, w0), (u1, w1), (u2, w2)] = self.taps(v, b);
+            let (u0, u1, u2) = (u0 as usize * c, u1 as usize * c, u2 as usize * c);
+            for ch in 0..c {
+                dst[ch] = w0 * sig[u0 + ch] + w1 * sig[u1 + ch] + w2 * sig[u2 + ch];
             }
-        });
+        }
     }
 }
 
@@ -734,6 +841,48 @@ mod tests {
                     assert!(w == 0.0 || d <= reach * 1.001, "{d} > {reach}");
                 }
             }
+        }
+    }
+
+    #[test]
+    fn the_visiting_order_changes_neither_the_table_nor_the_fans() {
+        // a sphere of 4,584 vertices: 18 build chunks, so rows, lists and chunk ids all scatter
+        let (p, f) = crate::testdata::uv_sphere(80, 58);
+        let l = Level::new(p, f);
+        let n = l.len();
+        let frames = tangent_frames(&l.normals);
+        let r = 2.5 * l.mean_edge;
+        let cancel = CancelToken::new();
+        let identity: Vec<u32> = (0..n as u32).collect();
+        let scrambled: Vec<u32> = (0..n).map(|i| ((i * 2741) % n) as u32).collect();
+        let plain = FanSampler::with_order(&l, &frames, r, &identity, &cancel).unwrap();
+        let signal: Vec<f32> = l
+            .positions
+            .iter()
+            .flat_map(|q| [q[0], q[1] * q[2], (3.0 * q[2]).sin()])
+            .collect();
+        let want = plain.fans(&l, &signal, 3);
+        for other in [
+            FanSampler::new(&l, &frames, r),
+            FanSampler::with_order(&l, &frames, r, &scrambled, &cancel).unwrap(),
+        ] {
+            for v in 0..n {
+                for b in 0..FAN_RADII * FAN_ANGLES {
+                    assert_eq!(plain.taps(v, b), other.taps(v, b), "vertex {v}, bin {b}");
+                }
+            }
+            assert_eq!(want, other.fans(&l, &signal, 3));
+        }
+        // an order that is not a permutation is refused, not a data race
+        for bad in [
+            vec![0u32; n],
+            (0..n as u32 - 1).collect(),
+            (1..=n as u32).collect(),
+        ] {
+            assert!(matches!(
+                FanSampler::with_order(&l, &frames, r, &bad, &cancel),
+                Err(Error::InvalidInput(_))
+            ));
         }
     }
 

@@ -9,6 +9,7 @@
 //! - [`tangent_frames`], [`parallel_transport_angle`]
 //! - [`TriangleBvh`] (closest point, ray hit)
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
+//! - [`morton_order`] (a cache-friendly visiting order along the Z-order curve)
 //! - [`taubin_smooth`]
 //! - [`shape_map`] / [`functional_map`] (functional maps + ZoomOut: a global intrinsic map)
 //! - [`solid_angle_curvature`] (Connolly / Mertens multi-scale curvature, Barnes-Hut tree)
@@ -40,6 +41,7 @@ mod frames;
 mod functional_map;
 mod heat;
 mod laplacian;
+mod morton_order;
 mod occlusion;
 mod refine;
 mod shell_map;
@@ -64,6 +66,7 @@ pub use frames::{parallel_transport_angle, tangent_frames};
 pub use functional_map::{FmapParams, MapQuality, ShapeMap, Spectrum, functional_map, shape_map};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
+pub use morton_order::morton_order;
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
 pub(crate) use refine::IntMap;
 pub use refine::{Refined, nearest_original, refine_to_density};
