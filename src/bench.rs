@@ -145,8 +145,14 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
     params.exact_samples = EXACT_SAMPLES;
     let cancel = CancelToken::new();
     let t0 = Instant::now();
-    let ps = mm::prepare(source, &params_source, &crate::work::no_events, &cancel)?;
-    let pt = mm::prepare(target, &params, &crate::work::no_events, &cancel)?;
+    let (ps, pt) = mm::prepare_pair(
+        source,
+        &params_source,
+        target,
+        &params,
+        &crate::work::no_events,
+        &cancel,
+    )?;
     let solve_start = Instant::now();
     let first = std::sync::Mutex::new(None::<f64>);
     let sink = |e: Event| {
@@ -273,8 +279,7 @@ pub fn cancel_probes(
                 }
             };
             let r = (|| {
-                let ps = mm::prepare(&s, &params_source, &sink, &c)?;
-                let pt = mm::prepare(&t, &params, &sink, &c)?;
+                let (ps, pt) = mm::prepare_pair(&s, &params_source, &t, &params, &sink, &c)?;
                 mm::solve(&ps, &pt, &[], &params, &sink, &c).map(|_| ())
             })();
             let _ = tx.send(Instant::now());

@@ -10,20 +10,32 @@ use std::time::Instant;
 
 /// A cheap, cloneable cancel flag checked by solvers between small units of work.
 #[derive(Clone, Debug, Default)]
-pub struct CancelToken(Arc<AtomicBool>);
+pub struct CancelToken {
+    own: Arc<AtomicBool>,
+    /// The token this one was made from by [`CancelToken::child`]: cancelling it cancels this.
+    parent: Option<Arc<CancelToken>>,
+}
 
 impl CancelToken {
     /// A fresh, un-cancelled token.
     pub fn new() -> Self {
         Self::default()
     }
+    /// A token cancelled with this one, or on its own (cancelling it leaves this one running):
+    /// one part of a job stops its sibling parts without stopping the caller.
+    pub fn child(&self) -> Self {
+        CancelToken {
+            own: Arc::default(),
+            parent: Some(Arc::new(self.clone())),
+        }
+    }
     /// Ask the job to stop.
     pub fn cancel(&self) {
-        self.0.store(true, Ordering::Relaxed);
+        self.own.store(true, Ordering::Relaxed);
     }
-    /// Has a stop been requested?
+    /// Has a stop been requested (of this token or of one it was made from)?
     pub fn is_cancelled(&self) -> bool {
-        self.0.load(Ordering::Relaxed)
+        self.own.load(Ordering::Relaxed) || self.parent.as_ref().is_some_and(|p| p.is_cancelled())
     }
     /// `Err(Error::Cancelled)` once a stop was requested.
     pub fn check(&self) -> crate::error::Result<()> {
@@ -171,6 +183,18 @@ pub fn check_memory(need: u64, what: &str, advice: &str) -> crate::error::Result
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_child_token_follows_its_parent_but_not_the_other_way() {
+        let parent = CancelToken::new();
+        let (a, b) = (parent.child(), parent.child());
+        let grandchild = a.child();
+        a.cancel();
+        assert!(a.is_cancelled() && grandchild.is_cancelled());
+        assert!(!parent.is_cancelled() && !b.is_cancelled());
+        parent.clone().cancel();
+        assert!(b.is_cancelled() && b.check().is_err());
+    }
 
     #[test]
     fn run_cancellable_returns_on_cancel_without_waiting_for_the_work() {

@@ -5,7 +5,7 @@ use glam::{Mat3, Vec3};
 use meshmatch::TriMesh;
 use meshmatch::color::delta_e76;
 use meshmatch::correspondence::Correspondence;
-use meshmatch::meshmatch::{TransferParams, prepare, solve};
+use meshmatch::meshmatch::{TransferParams, prepare, prepare_pair, solve};
 use meshmatch::work::{CancelToken, Event};
 use std::time::Instant;
 
@@ -218,6 +218,46 @@ fn file_outputs_follow_the_target_file() {
     c2.cancel();
     assert!(matches!(
         solve(&ps, &pt, &[], &prm, &|_| {}, &c2),
+        Err(meshmatch::Error::Cancelled)
+    ));
+}
+
+/// Preparing both meshes together gives what preparing them one after the other gives (the
+/// same working meshes, the same transfer), and an error in one mesh is reported as itself, not
+/// as the cancellation it causes in the other.
+#[test]
+fn preparing_a_pair_together_matches_preparing_each() {
+    let cancel = CancelToken::new();
+    let src = spot();
+    let cow = meshmatch::mesh::io::load(&data("cow/cow.ply")).unwrap();
+    let prm = TransferParams {
+        vertices: 6_000,
+        iterations: 2,
+        ..Default::default()
+    };
+    let ps = prepare(&src, &prm, &|_| {}, &cancel).unwrap();
+    let pt = prepare(&cow, &prm, &|_| {}, &cancel).unwrap();
+    let (qs, qt) = prepare_pair(&src, &prm, &cow, &prm, &|_| {}, &cancel).unwrap();
+    for (a, b) in [(&ps, &qs), (&pt, &qt)] {
+        assert_eq!(a.working_mesh().positions, b.working_mesh().positions);
+        assert_eq!(a.working_mesh().faces, b.working_mesh().faces);
+        assert_eq!(a.working_to_file(), b.working_to_file());
+    }
+    let a = solve(&ps, &pt, &[], &prm, &|_| {}, &cancel).unwrap();
+    let b = solve(&qs, &qt, &[], &prm, &|_| {}, &cancel).unwrap();
+    assert_eq!(a.nnf, b.nnf);
+    assert_eq!(a.working_signal, b.working_signal);
+    // a broken target: its own error, whichever mesh finishes first
+    let empty = TriMesh::new(Vec::new(), Vec::new());
+    for (s, t) in [(&src, &empty), (&empty, &cow)] {
+        let err = prepare_pair(s, &prm, t, &prm, &|_| {}, &cancel).unwrap_err();
+        assert!(matches!(err, meshmatch::Error::InvalidMesh(_)), "{err}");
+    }
+    // the caller's cancel stops both
+    let stopped = CancelToken::new();
+    stopped.cancel();
+    assert!(matches!(
+        prepare_pair(&src, &prm, &cow, &prm, &|_| {}, &stopped),
         Err(meshmatch::Error::Cancelled)
     ));
 }

@@ -37,6 +37,17 @@ impl Engine for MeshMatchEngine {
         meshmatch::prepare(mesh, params, sink, cancel)
     }
 
+    fn prepare_pair(
+        &self,
+        source: &TriMesh,
+        target: &TriMesh,
+        params: &TransferParams,
+        sink: &dyn Fn(Event),
+        cancel: &CancelToken,
+    ) -> Result<(PreparedMesh, PreparedMesh)> {
+        meshmatch::prepare_pair(source, params, target, params, sink, cancel)
+    }
+
     fn working(&self, p: &PreparedMesh) -> (Arc<TriMesh>, Arc<[u32]>, Arc<[u32]>) {
         (
             Arc::new(p.working_mesh().clone()),

@@ -6,7 +6,7 @@ use super::fill_from_known;
 use crate::error::{Error, Result};
 use crate::geometry::refine_to_density;
 use crate::mesh::TriMesh;
-use crate::meshmatch::{Constraints, TransferParams, prepare, solve_constrained};
+use crate::meshmatch::{Constraints, TransferParams, prepare_pair, solve_constrained};
 use crate::work::{CancelToken, Event};
 
 /// Result of [`complete`].
@@ -156,16 +156,12 @@ pub fn complete(
     let mut source = TriMesh::new(spos, sfaces);
     source.colors = Some(scol);
     let target = TriMesh::new(wmesh.positions.clone(), wmesh.faces.clone());
-    let ps = prepare(
+    let (ps, pt) = prepare_pair(
         &source,
         &TransferParams {
             vertices: source.positions.len(),
             ..params.clone()
         },
-        sink,
-        cancel,
-    )?;
-    let pt = prepare(
         &target,
         &TransferParams {
             vertices: nw,

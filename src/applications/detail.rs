@@ -9,7 +9,7 @@ use crate::geometry::{
 };
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
 use crate::mesh::TriMesh;
-use crate::meshmatch::{TransferParams, prepare, solve};
+use crate::meshmatch::{TransferParams, prepare_pair, solve};
 use crate::work::{CancelToken, Event};
 use glam::Vec3;
 
@@ -176,16 +176,12 @@ pub fn transfer_detail(
     );
     let tgt = working_geometry(target, params.vertices)?;
     cancel.check()?;
-    let ps = prepare(
+    let (ps, pt) = prepare_pair(
         &smesh,
         &TransferParams {
             vertices: smesh.positions.len(),
             ..params.clone()
         },
-        sink,
-        cancel,
-    )?;
-    let pt = prepare(
         &tgt,
         &TransferParams {
             vertices: tgt.positions.len(),

@@ -6,7 +6,7 @@ use crate::error::{Error, Result};
 use crate::geometry::{TriangleBvh, mean_edge_length, refine_to_density};
 use crate::mesh::TriMesh;
 use crate::mesh::{SignalKind, sample_texture};
-use crate::meshmatch::{Constraints, TransferParams, prepare, solve_constrained};
+use crate::meshmatch::{Constraints, TransferParams, prepare_pair, solve_constrained};
 use crate::work::{CancelToken, Event};
 use glam::Vec3;
 
@@ -128,17 +128,13 @@ pub fn update_texture(
         } else {
             cap
         };
-        let ps = prepare(
+        let target = TriMesh::new(wmesh.positions.clone(), wmesh.faces.clone());
+        let (ps, pt) = prepare_pair(
             old,
             &TransferParams {
                 vertices: vs,
                 ..params.clone()
             },
-            sink,
-            cancel,
-        )?;
-        let target = TriMesh::new(wmesh.positions.clone(), wmesh.faces.clone());
-        let pt = prepare(
             &target,
             &TransferParams {
                 vertices: nw,

@@ -115,8 +115,8 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     let sink = |e: Event| bar_sink(&bar, e);
     let cancel = CancelToken::new();
     let t = std::time::Instant::now();
-    let prepared_source = mm::prepare(&source, &params, &sink, &cancel)?;
-    let prepared_target = mm::prepare(&target, &params, &sink, &cancel)?;
+    let (prepared_source, prepared_target) =
+        mm::prepare_pair(&source, &params, &target, &params, &sink, &cancel)?;
     let result = mm::solve(
         &prepared_source,
         &prepared_target,

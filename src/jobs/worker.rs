@@ -46,6 +46,19 @@ pub trait Engine: Send + 'static {
         sink: &dyn Fn(Event),
         cancel: &CancelToken,
     ) -> Result<Self::Prepared>;
+    /// Prepare a source and a target (both uncached); by default one after the other.
+    fn prepare_pair(
+        &self,
+        source: &TriMesh,
+        target: &TriMesh,
+        params: &Self::Params,
+        sink: &dyn Fn(Event),
+        cancel: &CancelToken,
+    ) -> Result<(Self::Prepared, Self::Prepared)> {
+        let s = self.prepare(source, params, sink, cancel)?;
+        let t = self.prepare(target, params, sink, cancel)?;
+        Ok((s, t))
+    }
     /// The working mesh of a prepared mesh, its working-to-file and file-to-working vertex maps.
     fn working(&self, prepared: &Self::Prepared) -> (Arc<TriMesh>, Arc<[u32]>, Arc<[u32]>);
     /// Transfer from `source` to `target` under correspondences in file vertex indices.
@@ -305,25 +318,44 @@ fn run_job<E: Engine>(
         notify();
     };
     let key = engine.prepare_key(params);
-    for side in [Side::Source, Side::Target] {
-        let entry = meshes.get(&side).ok_or_else(|| {
-            Error::InvalidInput(format!("no {side:?} mesh loaded").to_lowercase())
-        })?;
-        let k = (entry.id, key.clone());
-        if let std::collections::hash_map::Entry::Vacant(slot) = cache.entry(k) {
-            cancel.check()?;
-            let prepared = engine.prepare(&entry.mesh, params, &sink, cancel)?;
-            let (working, working_to_file, file_to_working) = engine.working(&prepared);
-            let _ = etx.send(WorkerEvent::Prepared {
-                side,
-                mesh_id: entry.id,
-                working,
-                working_to_file,
-                file_to_working,
-            });
-            notify();
-            slot.insert(prepared);
+    let entry = |side: Side| {
+        meshes
+            .get(&side)
+            .ok_or_else(|| Error::InvalidInput(format!("no {side:?} mesh loaded").to_lowercase()))
+    };
+    let (source, target) = (entry(Side::Source)?, entry(Side::Target)?);
+    let missing = |e: &MeshEntry| !cache.contains_key(&(e.id, key.clone()));
+    cancel.check()?;
+    // Both missing (a first transfer): prepared together, each one's sequential stages
+    // overlapping the other's.
+    let prepared = match (missing(source), missing(target)) {
+        (true, true) => {
+            let (s, t) = engine.prepare_pair(&source.mesh, &target.mesh, params, &sink, cancel)?;
+            vec![(Side::Source, source, s), (Side::Target, target, t)]
         }
+        (true, false) => vec![(
+            Side::Source,
+            source,
+            engine.prepare(&source.mesh, params, &sink, cancel)?,
+        )],
+        (false, true) => vec![(
+            Side::Target,
+            target,
+            engine.prepare(&target.mesh, params, &sink, cancel)?,
+        )],
+        (false, false) => Vec::new(),
+    };
+    for (side, entry, prepared) in prepared {
+        let (working, working_to_file, file_to_working) = engine.working(&prepared);
+        let _ = etx.send(WorkerEvent::Prepared {
+            side,
+            mesh_id: entry.id,
+            working,
+            working_to_file,
+            file_to_working,
+        });
+        notify();
+        cache.insert((entry.id, key.clone()), prepared);
     }
     let s = &cache[&(meshes[&Side::Source].id, key.clone())];
     let t = &cache[&(meshes[&Side::Target].id, key)];

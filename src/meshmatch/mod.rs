@@ -28,7 +28,7 @@ use crate::work::{CancelToken, Event};
 
 pub use deliver::{BakeLayout, Delivered, bake_texture, deliver, deliver_dense};
 pub use global_map::{POINT_MAP_VERTICES, PointMap, map_meshes};
-pub use prepare::{PreparedMesh, prepare};
+pub use prepare::{PreparedMesh, prepare, prepare_pair};
 pub use solve::{solve, solve_constrained};
 
 /// Parameters of a MeshMatch transfer.
@@ -268,8 +268,7 @@ pub fn transfer(
             "the source mesh has no signal (vertex colours or a texture) to transfer".into(),
         ));
     }
-    let ps = prepare(source, params, sink, cancel)?;
-    let pt = prepare(target, params, sink, cancel)?;
+    let (ps, pt) = prepare_pair(source, params, target, params, sink, cancel)?;
     let mut r = solve(&ps, &pt, corr, params, sink, cancel)?;
     let mut t: Vec<(String, f64)> = ps
         .timings()
