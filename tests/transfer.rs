@@ -262,6 +262,35 @@ fn preparing_a_pair_together_matches_preparing_each() {
     ));
 }
 
+/// Several pair preparations at once (tests, the app's worker beside a tool) all finish: each
+/// preparation blocks its thread while the HKS eigen-solve runs detached, and that solve's
+/// parallel loops must still find rayon's workers free (run as rayon jobs, the targets'
+/// preparations took every worker and waited forever).
+#[test]
+fn concurrent_pair_preparations_all_finish() {
+    let src = std::sync::Arc::new(spot());
+    let cow = std::sync::Arc::new(meshmatch::mesh::io::load(&data("cow/cow.ply")).unwrap());
+    let (tx, rx) = std::sync::mpsc::channel();
+    let jobs = 2 * rayon::current_num_threads().max(2);
+    for _ in 0..jobs {
+        let (src, cow, tx) = (src.clone(), cow.clone(), tx.clone());
+        std::thread::spawn(move || {
+            let prm = TransferParams {
+                vertices: 3_000,
+                ..Default::default()
+            };
+            let r = prepare_pair(&src, &prm, &cow, &prm, &|_| {}, &CancelToken::new());
+            let _ = tx.send(r.is_ok());
+        });
+    }
+    for _ in 0..jobs {
+        let ok = rx
+            .recv_timeout(std::time::Duration::from_secs(300))
+            .expect("a pair preparation did not finish in 5 minutes");
+        assert!(ok);
+    }
+}
+
 /// A seed makes a run reproducible, whatever the machine's core count: the same transfer in a
 /// one-thread and a three-thread pool gives the identical NNF and colours; another seed does not.
 #[test]

@@ -80,15 +80,16 @@ fn progress(stage: &'static str, watch: &Stopwatch, fraction: f32) -> Progress {
     }
 }
 
-/// Prepare a source and a target at once ([`prepare`] of each): the target as a job of its own
-/// in the current rayon pool, so that each mesh's sequential stages (refinement, hierarchy, the HKS eigen-solve)
+/// Prepare a source and a target at once ([`prepare`] of each): the target on a thread of its
+/// own, so that each mesh's sequential stages (refinement, hierarchy, the HKS eigen-solve)
 /// overlap the other's work. Progress events come from the source's preparation only (`sink`
-/// is called on this thread); `cancel` stops both, and an error in one stops the other.
+/// is called on this thread); `cancel` stops both, and an error in one stops the other. The
+/// target's parallel loops run in rayon's global pool.
 ///
-/// Meshes above `KEEP_SAMPLERS_UP_TO` working vertices are prepared one after the other, as
-/// [`prepare`] twice: there both preparations are memory-bound, and at a million target vertices
-/// overlapping them measured no faster (100.5 s against 99.3 s end to end) for 77 MiB more peak
-/// memory.
+/// One after the other instead, as [`prepare`] twice: in a pool of one thread (`bench --threads
+/// 1` measures one core), and for meshes above `KEEP_SAMPLERS_UP_TO` working vertices, where
+/// both preparations are memory-bound and at a million target vertices overlapping them
+/// measured no faster (100.5 s against 99.3 s end to end) for 77 MiB more peak memory.
 pub fn prepare_pair(
     source: &TriMesh,
     source_params: &TransferParams,
@@ -98,36 +99,42 @@ pub fn prepare_pair(
     cancel: &CancelToken,
 ) -> Result<(PreparedMesh, PreparedMesh)> {
     let working = |m: &TriMesh, p: &TransferParams| m.positions.len().max(p.vertices);
-    if working(source, source_params).max(working(target, target_params)) > KEEP_SAMPLERS_UP_TO {
+    let large =
+        working(source, source_params).max(working(target, target_params)) > KEEP_SAMPLERS_UP_TO;
+    if large || rayon::current_num_threads() < 2 {
         let ps = prepare(source, source_params, sink, cancel)?;
         let pt = prepare(target, target_params, sink, cancel)?;
         return Ok((ps, pt));
     }
     let (for_source, for_target) = (cancel.child(), cancel.child());
-    let mut pt = None;
-    // In the current rayon pool (a pool of one thread then prepares one after the other); the
-    // source on this thread, as `sink` may only be called here.
-    let ps = rayon::in_place_scope(|scope| {
-        scope.spawn(|_| {
-            let r = prepare(target, target_params, &crate::work::no_events, &for_target);
-            if r.is_err() {
-                for_source.cancel();
-            }
-            pt = Some(r);
-        });
+    // The target on a thread of its own, never as a job of the rayon pool: a preparation blocks
+    // its thread while the HKS eigen-solve runs detached (`work::run_cancellable`), and that
+    // solve's own parallel loops need the pool's workers free.
+    std::thread::scope(|scope| {
+        let target_job = std::thread::Builder::new()
+            .name("meshmatch-prepare-target".into())
+            .spawn_scoped(scope, || {
+                let r = prepare(target, target_params, &crate::work::no_events, &for_target);
+                if r.is_err() {
+                    for_source.cancel();
+                }
+                r
+            })
+            .map_err(|e| Error::InvalidInput(format!("cannot start a thread: {e}")))?;
         let ps = prepare(source, source_params, sink, &for_source);
         if ps.is_err() {
             for_target.cancel();
         }
-        ps
-    });
-    let pt = pt.expect("the scope waits for the target's preparation");
-    // The first real error, not the `Cancelled` it caused in the other mesh.
-    match (ps, pt) {
-        (Ok(ps), Ok(pt)) => Ok((ps, pt)),
-        (Err(e), Err(Error::Cancelled)) | (Err(Error::Cancelled), Err(e)) => Err(e),
-        (Err(e), _) | (_, Err(e)) => Err(e),
-    }
+        let pt = target_job
+            .join()
+            .map_err(|_| Error::InvalidInput("preparing the target panicked".into()))?;
+        // The first real error, not the `Cancelled` it caused in the other mesh.
+        match (ps, pt) {
+            (Ok(ps), Ok(pt)) => Ok((ps, pt)),
+            (Err(e), Err(Error::Cancelled)) | (Err(Error::Cancelled), Err(e)) => Err(e),
+            (Err(e), _) | (_, Err(e)) => Err(e),
+        }
+    })
 }
 
 /// Prepare a mesh for MeshMatch: weld, refine to `params.vertices` by longest-edge bisection
