@@ -44,22 +44,75 @@ pub(crate) struct MapCache {
 type CachedMap = (usize, Vec<(u32, u32)>, Arc<GlobalMap>);
 
 impl MapCache {
-    /// The spectrum of `h`'s level `l` with `k` eigenpairs, computed once.
-    fn spectrum(&self, h: &Hierarchy, l: usize, k: usize) -> Result<Arc<Spectrum>> {
-        if let Ok(g) = self.spectrum.lock()
-            && let Some((cl, ck, sp)) = g.as_ref()
-            && *cl == l
-            && *ck == k
-        {
-            return Ok(sp.clone());
-        }
-        let m = &h.levels[l];
-        let sp = Arc::new(Spectrum::new(&m.positions, &m.faces, k)?);
-        if let Ok(mut g) = self.spectrum.lock() {
-            *g = Some((l, k, sp.clone()));
-        }
-        Ok(sp)
+    /// The cached spectrum of level `l` with `k` eigenpairs, if it is the one held.
+    fn cached_spectrum(&self, l: usize, k: usize) -> Option<Arc<Spectrum>> {
+        let g = self.spectrum.lock().ok()?;
+        let (cl, ck, sp) = g.as_ref()?;
+        (*cl == l && *ck == k).then(|| sp.clone())
     }
+
+    fn store_spectrum(&self, l: usize, k: usize, sp: Arc<Spectrum>) {
+        if let Ok(mut g) = self.spectrum.lock() {
+            *g = Some((l, k, sp));
+        }
+    }
+}
+
+/// A level's positions and faces, copied for a detached computation.
+type LevelGeometry = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
+/// The spectra (`k` eigenpairs) of the source's level `ls` and the target's level `lt`, each
+/// computed once per prepared mesh. The missing ones are computed together, detached
+/// ([`crate::work::run_cancellable`]): the eigen-solves are long single calls, and cancel must not
+/// wait for them.
+fn spectra(
+    source: &PreparedMesh,
+    target: &PreparedMesh,
+    (ls, lt): (usize, usize),
+    k: usize,
+    cancel: &CancelToken,
+) -> Result<(Arc<Spectrum>, Arc<Spectrum>)> {
+    let (cs, ct) = (
+        source.map_cache.cached_spectrum(ls, k),
+        target.map_cache.cached_spectrum(lt, k),
+    );
+    if let (Some(a), Some(b)) = (&cs, &ct) {
+        return Ok((a.clone(), b.clone()));
+    }
+    let level = |h: &Hierarchy, l: usize, cached: &Option<Arc<Spectrum>>| {
+        cached
+            .is_none()
+            .then(|| (h.levels[l].positions.clone(), h.levels[l].faces.clone()))
+    };
+    let need_s = level(&source.hierarchy, ls, &cs);
+    let need_t = level(&target.hierarchy, lt, &ct);
+    let solve = move |m: Option<LevelGeometry>| {
+        m.map(|(p, f)| Spectrum::new(&p, &f, k).map(Arc::new))
+            .transpose()
+    };
+    let (rs, rt) = crate::work::run_cancellable(cancel, move || {
+        rayon::join(|| solve(need_s), || solve(need_t))
+    })?;
+    let pick = |cached: Option<Arc<Spectrum>>,
+                computed: Result<Option<Arc<Spectrum>>>,
+                cache: &MapCache,
+                l: usize|
+     -> Result<Arc<Spectrum>> {
+        match (cached, computed?) {
+            (Some(sp), _) => Ok(sp),
+            (None, Some(sp)) => {
+                cache.store_spectrum(l, k, sp.clone());
+                Ok(sp)
+            }
+            (None, None) => Err(Error::InvalidInput(
+                "shape map: a spectrum was neither cached nor computed".into(),
+            )),
+        }
+    };
+    Ok((
+        pick(cs, rs, &source.map_cache, ls)?,
+        pick(ct, rt, &target.map_cache, lt)?,
+    ))
 }
 
 /// The map as the solve uses it.
@@ -180,11 +233,7 @@ pub(super) fn global_map(
         return Ok(m.clone());
     }
     let k = params.k_final.max(params.k_init).max(params.k_descriptors);
-    let (ss, st) = rayon::join(
-        || source.map_cache.spectrum(hs, ls, k),
-        || target.map_cache.spectrum(ht, lt, k),
-    );
-    let (ss, st) = (ss?, st?);
+    let (ss, st) = spectra(source, target, (ls, lt), k, cancel)?;
     let eigen_s = sw.secs();
     cancel.check()?;
     let m = functional_map(&ss, &st, &landmarks, &params, cancel)?;
