@@ -15,7 +15,8 @@ fn spread3(x: u32) -> u64 {
 }
 
 /// The vertices in Morton order of their positions (21 bits per axis over the bounding box's
-/// largest side): `order[new] = old`. Ties and non-finite positions keep their input order.
+/// largest side): `order[new] = old`. Ties keep their input order; a non-finite coordinate counts
+/// as the box's lowest on its axis (the order stays a permutation).
 pub fn morton_order(positions: &[[f32; 3]]) -> Vec<u32> {
     let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
     for p in positions {

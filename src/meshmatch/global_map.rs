@@ -58,8 +58,9 @@ impl MapCache {
     }
 }
 
-/// A level's positions and faces, copied for a detached computation.
-type LevelGeometry = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+/// A level's positions and faces, copied for a detached eigen-solve, with the cache it fills
+/// and the level's index.
+type SpectrumJob = (Vec<[f32; 3]>, Vec<[u32; 3]>, Arc<MapCache>, usize);
 
 /// The spectra (`k` eigenpairs) of the source's level `ls` and the target's level `lt`, each
 /// computed once per prepared mesh. The missing ones are computed together, detached
@@ -79,40 +80,38 @@ fn spectra(
     if let (Some(a), Some(b)) = (&cs, &ct) {
         return Ok((a.clone(), b.clone()));
     }
-    let level = |h: &Hierarchy, l: usize, cached: &Option<Arc<Spectrum>>| {
-        cached
-            .is_none()
-            .then(|| (h.levels[l].positions.clone(), h.levels[l].faces.clone()))
+    // Each missing spectrum is stored in its mesh's cache as soon as it is computed, inside the
+    // detached work: a cancelled solve's eigen-solves still fill the cache for the next one,
+    // and one mesh's failure does not lose the other's spectrum.
+    let job = |m: &PreparedMesh, l: usize, cached: &Option<Arc<Spectrum>>| {
+        cached.is_none().then(|| {
+            let lev = &m.hierarchy.levels[l];
+            (
+                lev.positions.clone(),
+                lev.faces.clone(),
+                m.map_cache.clone(),
+                l,
+            )
+        })
     };
-    let need_s = level(&source.hierarchy, ls, &cs);
-    let need_t = level(&target.hierarchy, lt, &ct);
-    let solve = move |m: Option<LevelGeometry>| {
-        m.map(|(p, f)| Spectrum::new(&p, &f, k).map(Arc::new))
-            .transpose()
+    let (need_s, need_t) = (job(source, ls, &cs), job(target, lt, &ct));
+    let solve = move |j: Option<SpectrumJob>| -> Result<()> {
+        if let Some((p, f, cache, l)) = j {
+            cache.store_spectrum(l, k, Arc::new(Spectrum::new(&p, &f, k)?));
+        }
+        Ok(())
     };
     let (rs, rt) = crate::work::run_cancellable(cancel, move || {
         rayon::join(|| solve(need_s), || solve(need_t))
     })?;
-    let pick = |cached: Option<Arc<Spectrum>>,
-                computed: Result<Option<Arc<Spectrum>>>,
-                cache: &MapCache,
-                l: usize|
-     -> Result<Arc<Spectrum>> {
-        match (cached, computed?) {
-            (Some(sp), _) => Ok(sp),
-            (None, Some(sp)) => {
-                cache.store_spectrum(l, k, sp.clone());
-                Ok(sp)
-            }
-            (None, None) => Err(Error::InvalidInput(
-                "shape map: a spectrum was neither cached nor computed".into(),
-            )),
-        }
+    rs?;
+    rt?;
+    let get = |m: &PreparedMesh, l: usize| {
+        m.map_cache.cached_spectrum(l, k).ok_or_else(|| {
+            Error::InvalidInput("shape map: a spectrum was neither cached nor computed".into())
+        })
     };
-    Ok((
-        pick(cs, rs, &source.map_cache, ls)?,
-        pick(ct, rt, &target.map_cache, lt)?,
-    ))
+    Ok((get(source, ls)?, get(target, lt)?))
 }
 
 /// The map as the solve uses it.

@@ -86,8 +86,9 @@ fn progress(stage: &'static str, watch: &Stopwatch, fraction: f32) -> Progress {
 /// is called on this thread); `cancel` stops both, and an error in one stops the other. The
 /// target's parallel loops run in rayon's global pool.
 ///
-/// One after the other instead, as [`prepare`] twice: in a pool of one thread (`bench --threads
-/// 1` measures one core), and for meshes above `KEEP_SAMPLERS_UP_TO` working vertices, where
+/// One after the other instead, as [`prepare`] twice: when called from a rayon pool's thread
+/// (`bench --threads` measures that pool's cores; a blocked worker could starve the HKS solve),
+/// with one thread, and for meshes above `KEEP_SAMPLERS_UP_TO` working vertices, where
 /// both preparations are memory-bound and at a million target vertices overlapping them
 /// measured no faster (100.5 s against 99.3 s end to end) for 77 MiB more peak memory.
 pub fn prepare_pair(
@@ -101,7 +102,10 @@ pub fn prepare_pair(
     let working = |m: &TriMesh, p: &TransferParams| m.positions.len().max(p.vertices);
     let large =
         working(source, source_params).max(working(target, target_params)) > KEEP_SAMPLERS_UP_TO;
-    if large || rayon::current_num_threads() < 2 {
+    // Inside a rayon pool (`bench --threads`, a caller's `install`) the target's thread could
+    // not use that pool, and a blocked worker is what the HKS solve must not meet.
+    let in_pool = rayon::current_thread_index().is_some();
+    if large || in_pool || rayon::current_num_threads() < 2 {
         let ps = prepare(source, source_params, sink, cancel)?;
         let pt = prepare(target, target_params, sink, cancel)?;
         return Ok((ps, pt));
@@ -114,16 +118,18 @@ pub fn prepare_pair(
         let target_job = std::thread::Builder::new()
             .name("meshmatch-prepare-target".into())
             .spawn_scoped(scope, || {
+                let stop_source = CancelOnDrop(Some(&for_source));
                 let r = prepare(target, target_params, &crate::work::no_events, &for_target);
-                if r.is_err() {
-                    for_source.cancel();
+                if r.is_ok() {
+                    stop_source.disarm();
                 }
                 r
             })
             .map_err(|e| Error::InvalidInput(format!("cannot start a thread: {e}")))?;
+        let stop_target = CancelOnDrop(Some(&for_target));
         let ps = prepare(source, source_params, sink, &for_source);
-        if ps.is_err() {
-            for_target.cancel();
+        if ps.is_ok() {
+            stop_target.disarm();
         }
         let pt = target_job
             .join()
@@ -135,6 +141,24 @@ pub fn prepare_pair(
             (Err(e), _) | (_, Err(e)) => Err(e),
         }
     })
+}
+
+/// Cancels its token when dropped armed: on an error or a panic in one mesh's preparation, so
+/// that the other stops instead of running to its end.
+struct CancelOnDrop<'a>(Option<&'a CancelToken>);
+
+impl CancelOnDrop<'_> {
+    fn disarm(mut self) {
+        self.0 = None;
+    }
+}
+
+impl Drop for CancelOnDrop<'_> {
+    fn drop(&mut self) {
+        if let Some(c) = self.0 {
+            c.cancel();
+        }
+    }
 }
 
 /// Prepare a mesh for MeshMatch: weld, refine to `params.vertices` by longest-edge bisection
