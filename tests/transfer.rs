@@ -181,16 +181,21 @@ fn spot_onto_stretched_moved_spot_with_correspondences() {
     assert!(mean <= 8.0, "mean dE {mean}");
 }
 
-#[test]
-fn file_outputs_follow_the_target_file() {
-    let cancel = CancelToken::new();
-    let src = spot();
+/// Spot and the cow, with small parameters: 6,000 working vertices, two iterations a level.
+fn spot_cow_at_6k() -> (TriMesh, TriMesh, TransferParams) {
     let cow = meshmatch::mesh::io::load(&data("cow/cow.ply")).unwrap();
     let prm = TransferParams {
         vertices: 6_000,
         iterations: 2,
         ..Default::default()
     };
+    (spot(), cow, prm)
+}
+
+#[test]
+fn file_outputs_follow_the_target_file() {
+    let cancel = CancelToken::new();
+    let (src, cow, prm) = spot_cow_at_6k();
     let ps = prepare(&src, &prm, &|_| {}, &cancel).unwrap();
     let pt = prepare(&cow, &prm, &|_| {}, &cancel).unwrap();
     let corr = [Correspondence {
@@ -228,13 +233,7 @@ fn file_outputs_follow_the_target_file() {
 #[test]
 fn preparing_a_pair_together_matches_preparing_each() {
     let cancel = CancelToken::new();
-    let src = spot();
-    let cow = meshmatch::mesh::io::load(&data("cow/cow.ply")).unwrap();
-    let prm = TransferParams {
-        vertices: 6_000,
-        iterations: 2,
-        ..Default::default()
-    };
+    let (src, cow, prm) = spot_cow_at_6k();
     let ps = prepare(&src, &prm, &|_| {}, &cancel).unwrap();
     let pt = prepare(&cow, &prm, &|_| {}, &cancel).unwrap();
     let (qs, qt) = prepare_pair(&src, &prm, &cow, &prm, &|_| {}, &cancel).unwrap();
