@@ -748,23 +748,16 @@ impl FanSampler {
         out.resize(level.len() * nb * c, 0.0);
         // In vertex order: visiting in the build's Morton order made the gather slower
         // (`examples/fan_order`: the scattered row writes cost more than the taps' locality gains).
-        out.par_chunks_mut(nb * c)
-            .enumerate()
-            .for_each(|(v, fan)| self.gather_row(v, &sig, c, fan));
-    }
-
-    /// Fan of `v` from the pre-filtered signal `sig` into `fan` (`R * A * c` values).
-    #[inline]
-    fn gather_row(&self, v: usize, sig: &[f32], c: usize, fan: &mut [f32]) {
-        let nb = FAN_RADII * FAN_ANGLES;
-        for b in 0..nb {
-            let dst = &mut fan[b * c..(b + 1) * c];
-            let [(u0, w0), (u1, w1), (u2, w2)] = self.taps(v, b);
-            let (u0, u1, u2) = (u0 as usize * c, u1 as usize * c, u2 as usize * c);
-            for ch in 0..c {
-                dst[ch] = w0 * sig[u0 + ch] + w1 * sig[u1 + ch] + w2 * sig[u2 + ch];
+        out.par_chunks_mut(nb * c).enumerate().for_each(|(v, fan)| {
+            for b in 0..nb {
+                let dst = &mut fan[b * c..(b + 1) * c];
+                let [(u0, w0), (u1, w1), (u2, w2)] = self.taps(v, b);
+                let (u0, u1, u2) = (u0 as usize * c, u1 as usize * c, u2 as usize * c);
+                for ch in 0..c {
+                    dst[ch] = w0 * sig[u0 + ch] + w1 * sig[u1 + ch] + w2 * sig[u2 + ch];
+                }
             }
-        }
+        });
     }
 }
 

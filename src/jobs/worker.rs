@@ -325,26 +325,28 @@ fn run_job<E: Engine>(
     };
     let (source, target) = (entry(Side::Source)?, entry(Side::Target)?);
     let missing = |e: &MeshEntry| !cache.contains_key(&(e.id, key.clone()));
+    let (need_s, need_t) = (missing(source), missing(target));
     cancel.check()?;
-    // Both missing (a first transfer): prepared together, each one's sequential stages
-    // overlapping the other's.
-    let prepared = match (missing(source), missing(target)) {
-        (true, true) => {
-            let (s, t) = engine.prepare_pair(&source.mesh, &target.mesh, params, &sink, cancel)?;
-            vec![(Side::Source, source, s), (Side::Target, target, t)]
+    let mut prepared = Vec::new();
+    if need_s && need_t {
+        // A first transfer: both prepared together, each one's sequential stages overlapping
+        // the other's.
+        let (s, t) = engine.prepare_pair(&source.mesh, &target.mesh, params, &sink, cancel)?;
+        prepared = vec![(Side::Source, source, s), (Side::Target, target, t)];
+    } else {
+        for (side, entry, need) in [
+            (Side::Source, source, need_s),
+            (Side::Target, target, need_t),
+        ] {
+            if need {
+                prepared.push((
+                    side,
+                    entry,
+                    engine.prepare(&entry.mesh, params, &sink, cancel)?,
+                ));
+            }
         }
-        (true, false) => vec![(
-            Side::Source,
-            source,
-            engine.prepare(&source.mesh, params, &sink, cancel)?,
-        )],
-        (false, true) => vec![(
-            Side::Target,
-            target,
-            engine.prepare(&target.mesh, params, &sink, cancel)?,
-        )],
-        (false, false) => Vec::new(),
-    };
+    }
     for (side, entry, prepared) in prepared {
         let (working, working_to_file, file_to_working) = engine.working(&prepared);
         let _ = etx.send(WorkerEvent::Prepared {
