@@ -57,6 +57,9 @@ fn main() {
                 &CancelToken::new(),
             )
             .expect("quilt");
+            if std::env::var("STATS").is_ok() {
+                println!("{:?}", out.stats);
+            }
             let l = out.stats.swatch_size;
             let tau = 0.5 * sw.clearance() * l / sw.extent[0];
             // vertex grid of cell tau
@@ -109,17 +112,33 @@ fn main() {
             let area = |pos: &[[f32; 3]], faces: &[[u32; 3]]| -> f64 {
                 meshmatch::geometry::face_areas(pos, faces).iter().sum()
             };
+            // per element: its vertex and face ranges (contiguous in the output); merged
+            // elements (several swatch copies joined) have no single swatch element to compare
+            // with and are left out of the size statistics
+            let ne = out.num_elements();
+            let mut vr = vec![(usize::MAX, 0usize); ne];
+            for (v, &e) in out.element_id.iter().enumerate() {
+                let r = &mut vr[e as usize];
+                r.0 = r.0.min(v);
+                r.1 = r.1.max(v + 1);
+            }
+            let mut fr = vec![(usize::MAX, 0usize); ne];
+            for (k, f) in out.elements.faces.iter().enumerate() {
+                let r = &mut fr[out.element_id[f[0] as usize] as usize];
+                r.0 = r.0.min(k);
+                r.1 = r.1.max(k + 1);
+            }
             let mut ratios = Vec::new();
-            let mut v0 = 0usize;
-            let mut f0 = 0usize;
-            for &src in &out.element_source {
-                let e = &sw.elements[src as usize];
-                let (nv, nf) = (e.vertices.len(), e.faces.len());
-                let faces: Vec<[u32; 3]> = out.elements.faces[f0..f0 + nf]
+            for (e, &src) in out.element_source.iter().enumerate() {
+                if out.element_pieces[e] != 1 {
+                    continue;
+                }
+                let (v0, v1) = vr[e];
+                let faces: Vec<[u32; 3]> = out.elements.faces[fr[e].0..fr[e].1]
                     .iter()
                     .map(|f| f.map(|v| v - v0 as u32))
                     .collect();
-                let a_out = area(&out.elements.positions[v0..v0 + nv], &faces);
+                let a_out = area(&out.elements.positions[v0..v1], &faces);
                 let a_in = area(
                     sw.element_positions(src as usize),
                     &sw.element_faces(src as usize),
@@ -127,8 +146,6 @@ fn main() {
                 if a_in > 0.0 {
                     ratios.push(a_out / a_in);
                 }
-                v0 += nv;
-                f0 += nf;
             }
             let m = ratios.iter().sum::<f64>() / ratios.len().max(1) as f64;
             let cv = (ratios.iter().map(|r| (r - m) * (r - m)).sum::<f64>()
@@ -136,8 +153,9 @@ fn main() {
                 .sqrt()
                 / m;
             println!(
-                "{name} {kind:?}: {} elements, face density {:.2} of the swatch's, element area {m:.3} of the swatch's (CV {cv:.3}), shell L2 {:.4} -> {:.4}, min vertex distance {:.3} tau, {} element pairs closer than tau/2, {} pairs interpenetrating, {:.2} s",
+                "{name} {kind:?}: {} elements ({} merged), face density {:.2} of the swatch's, element area {m:.3} of the swatch's (CV {cv:.3}), shell L2 {:.4} -> {:.4}, min vertex distance {:.3} tau, {} element pairs closer than tau/2, {} pairs interpenetrating, {:.2} s",
                 out.num_elements(),
+                out.element_pieces.iter().filter(|&&k| k > 1).count(),
                 density,
                 out.stats.shell_stretch_before,
                 out.stats.shell_stretch,

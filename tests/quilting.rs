@@ -87,22 +87,58 @@ fn quilt(base: &TriMesh, sw: &Swatch, params: &Params) -> QuiltOutput {
     .expect("quilting runs")
 }
 
-/// Every output element is a whole copy of its swatch element: same vertex and face counts,
-/// the same faces up to an index offset, one connected component.
+/// Every output element is whole: a copy of its swatch element (same vertex and face counts,
+/// the same faces up to an index offset, one connected component), or, for an element merged
+/// from several copies, one connected, consistently oriented component, closed when its swatch
+/// element is, with its swatch element's Euler characteristic and no fewer than half the
+/// smallest swatch element's faces (no fragment).
 fn check_integrity(out: &QuiltOutput, sw: &Swatch) {
     let m = &out.elements;
     let mut v0 = 0usize;
     let mut f0 = 0usize;
+    assert_eq!(out.element_pieces.len(), out.num_elements());
     for (e, &src) in out.element_source.iter().enumerate() {
         let el = &sw.elements[src as usize];
-        let nv = el.vertices.len();
-        let nf = el.faces.len();
+        let nv = if out.element_pieces[e] == 1 {
+            el.vertices.len()
+        } else {
+            out.element_id[v0..]
+                .iter()
+                .take_while(|&&x| x as usize == e)
+                .count()
+        };
+        let nf = if out.element_pieces[e] == 1 {
+            el.faces.len()
+        } else {
+            m.faces[f0..]
+                .iter()
+                .take_while(|f| (f[0] as usize) < v0 + nv)
+                .count()
+        };
         assert!(out.element_id[v0..v0 + nv].iter().all(|&x| x as usize == e));
         let faces: Vec<[u32; 3]> = m.faces[f0..f0 + nf]
             .iter()
             .map(|f| f.map(|v| v - v0 as u32))
             .collect();
-        assert_eq!(faces, sw.element_faces(src as usize), "element {e}");
+        assert!(faces.iter().flatten().all(|&v| (v as usize) < nv));
+        let source_faces = sw.element_faces(src as usize);
+        if out.element_pieces[e] == 1 {
+            assert_eq!(faces, source_faces, "element {e}");
+        } else {
+            let closed = meshmatch::mesh::boundary_loops(&source_faces).is_empty();
+            assert!(
+                quilting::merging::oriented_manifold(&faces, closed),
+                "merged element {e} is not an oriented manifold"
+            );
+            assert_eq!(
+                quilting::merging::euler_characteristic(nv, &faces),
+                quilting::merging::euler_characteristic(el.vertices.len(), &source_faces),
+                "merged element {e} changed topology"
+            );
+            // no fragment: at least half the smallest swatch element's face count
+            let smallest = sw.elements.iter().map(|x| x.faces.len()).min().unwrap_or(0);
+            assert!(2 * nf >= smallest, "merged element {e} is a fragment");
+        }
         let (_, comps) = connected_components(nv, &faces);
         assert_eq!(comps, 1);
         v0 += nv;
@@ -362,7 +398,9 @@ fn bunny_chain_mail() {
     let sw = swatch(SwatchKind::Chain, 1);
     let (lo, hi) = base.bounds().unwrap();
     let diag = Vec3::from(hi).distance(Vec3::from(lo));
+    // merging on: threads merge, rings never do
     let params = Params {
+        merge_elements: true,
         swatch_size: Some(diag / 6.0),
         ..Default::default()
     };
@@ -386,10 +424,18 @@ fn bunny_chain_mail() {
     // must not pass through each other
     let crossing = quilting::crossing_pairs(&out).len();
     assert_eq!(crossing, 0, "{crossing} pairs of rings cross");
+    // rings never merge, even with merging on (compact elements are kept whole or dropped by
+    // the cut)
+    assert!(out.element_pieces.iter().all(|&k| k == 1));
     // crossing strands of a weave, the same
     let weave = swatch(SwatchKind::Weave, 1);
     let out = quilt(&base, &weave, &params);
     check_integrity(&out, &weave);
+    // strands from neighbouring patches that continue each other are merged (deformed
+    // half-way and stitched) rather than one of them dropped
+    let merged = out.element_pieces.iter().filter(|&&k| k > 1).count();
+    assert!(merged > 0 && out.stats.merged >= merged, "no strand merged");
+
     let crossing = quilting::crossing_pairs(&out).len();
     let cov = coverage(&base, &out, out.stats.swatch_size / 2.0);
     eprintln!(

@@ -34,6 +34,8 @@ pub struct QuiltDialog {
     pub size: f32,
     /// Random seed.
     pub seed: u64,
+    /// Merge threads that continue each other across patch seams.
+    pub merge: bool,
 }
 
 impl Default for QuiltDialog {
@@ -43,6 +45,7 @@ impl Default for QuiltDialog {
             swatch: SwatchChoice::Builtin(SwatchKind::Chain),
             size: 0.1,
             seed: Params::default().seed,
+            merge: Params::default().merge_elements,
         }
     }
 }
@@ -99,6 +102,12 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
                 "The swatch's width as a fraction of the target's bounding-box diagonal",
             );
         ui.add(egui::DragValue::new(&mut self.seed).prefix("seed "));
+        ui.checkbox(&mut self.merge, "merge threads across seams")
+            .on_hover_text(
+                "Threads (elongated elements) that continue each other across patch seams are \
+                 deformed half-way and stitched into one instead of one copy being dropped; \
+                 slower, compact elements are never merged",
+            );
         let ready =
             state.slot(Side::Target).is_some() && !matches!(self.swatch, SwatchChoice::File(None));
         ui.horizontal(|ui| {
@@ -129,6 +138,7 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
         let params = Params {
             swatch_size: Some(self.size * diag),
             seed: self.seed,
+            merge_elements: self.merge,
             ..Params::default()
         };
         let choice = self.swatch.clone();

@@ -40,6 +40,11 @@ pub struct QuiltArgs {
     /// Random seed.
     #[arg(long, default_value_t = Params::default().seed)]
     pub seed: u64,
+    /// Merge threads (elongated elements) that continue each other across patch seams:
+    /// deform both half-way and stitch them into one instead of dropping one copy. Slower;
+    /// compact elements are never merged.
+    #[arg(long)]
+    pub merge: bool,
 }
 
 fn positive(name: &str, v: Option<f32>) -> Result<()> {
@@ -93,6 +98,7 @@ impl QuiltArgs {
             swatch_size: a.swatch_size,
             thickness: a.thickness,
             seed: a.seed,
+            merge_elements: a.merge,
             ..Params::default()
         };
         let bar = progress_bar();
@@ -106,10 +112,12 @@ impl QuiltArgs {
         bar.finish_and_clear();
         let s = &out.stats;
         eprintln!(
-            "quilted {} elements ({} faces) in {:.2} s: {} patches, {:.1}% of the base covered, \
-             swatch {:.4} wide, shell {:.4} thick, shell stretch L2 {:.3} -> {:.3}",
+            "quilted {} elements ({} faces; {} copies merged into others) in {:.2} s: {} patches, \
+             {:.1}% of the base covered, swatch {:.4} wide, shell {:.4} thick, shell stretch L2 \
+             {:.3} -> {:.3}",
             s.elements,
             out.elements.num_faces(),
+            s.merged,
             s.seconds,
             s.patches,
             100.0 * s.covered_fraction,

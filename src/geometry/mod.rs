@@ -5,6 +5,8 @@
 //!   [`mass_matrix_barycentric`]
 //! - [`laplacian_eigen`] (smallest eigenpairs of `L φ = λ M φ`, flat column-major vectors),
 //!   [`hks`] (flat vertex-major `n × times`), [`hks_times`]
+//! - [`laplacian_deform`] (uniform Laplacian coordinates + soft position constraints, Zhou et
+//!   al. 2006 eq. (4)-(5))
 //! - [`HeatGeodesics`] (heat-method distances, factorised once, many source sets)
 //! - [`tangent_frames`], [`parallel_transport_angle`]
 //! - [`TriangleBvh`] (closest point, ray hit)
@@ -41,6 +43,7 @@ mod frames;
 mod functional_map;
 mod heat;
 mod laplacian;
+mod laplacian_editing;
 mod morton_order;
 mod occlusion;
 mod refine;
@@ -66,6 +69,7 @@ pub use frames::{parallel_transport_angle, tangent_frames};
 pub use functional_map::{FmapParams, MapQuality, ShapeMap, Spectrum, functional_map, shape_map};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
+pub use laplacian_editing::laplacian_deform;
 pub use morton_order::morton_order;
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
 pub(crate) use refine::IntMap;
