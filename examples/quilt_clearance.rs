@@ -5,7 +5,9 @@
 //! and the pairs whose surfaces cross (an edge of one piercing a triangle of the other, by ray
 //! casting along every edge); and the face density against the swatch's (output faces per base
 //! area over swatch faces per scaled swatch area). `cargo run --release --example
-//! quilt_clearance` (`BASE=plane` for one base, `THICK` the shell thickness in swatch widths). Also the shell's L2 stretch before and after
+//! quilt_clearance` (`BASE=plane` for one base, `THICK` the shell thickness in swatch widths,
+//! `MERGE=1` to merge threads across seams, `DIST` the largest flattening distortion, `STATS=1`
+//! to print each run's counters). Also the shell's L2 stretch before and after
 //! its minimisation (`SWEEPS`, default the quilting's), and element size uniformity: each
 //! element's surface area over its swatch element's (scaled), mean and coefficient of
 //! variation.
@@ -44,6 +46,11 @@ fn main() {
                 swatch_size: Some(frac * diag),
                 thickness: thick.map(|t| t * frac * diag),
                 shell_sweeps: sweeps.unwrap_or(Params::default().shell_sweeps),
+                max_distortion: std::env::var("DIST")
+                    .ok()
+                    .and_then(|v| v.parse().ok())
+                    .unwrap_or(Params::default().max_distortion),
+                merge_elements: std::env::var("MERGE").is_ok_and(|v| v == "1"),
                 ..Params::default()
             };
             let out = quilting::run(

@@ -724,6 +724,24 @@ fn render_previews() {
             out.stats.seconds
         );
     }
+    // the weave with threads merged across seams, the same view as the plain one
+    let sw = swatch(SwatchKind::Weave, 1);
+    let out = quilt(
+        &base,
+        &sw,
+        &Params {
+            merge_elements: true,
+            ..Params::default()
+        },
+    );
+    render_png(
+        &[(&base, [150, 120, 90]), (&out.elements, [200, 200, 210])],
+        0.0,
+        4.0,
+        [0.45, 0.45],
+        900,
+        "/tmp/quilt_bunny_weave_merged_zoom.png",
+    );
     let sw = swatch(SwatchKind::Chain, 1);
     let sphere = icosphere(1.0, 4);
     let out = quilt(
