@@ -447,6 +447,21 @@ pub fn weather_row(n: usize, method: crate::synthesis::mertens::Method) -> Resul
 /// Mesh quilting of the chain-mail swatch over a plane (`planar`) or the bunny, with the swatch
 /// `1 / swatches` of the base's bounding-box diagonal wide.
 pub fn quilt_row(planar: bool, swatches: f32) -> Result<SystemRow> {
+    quilt_row_of(
+        crate::synthesis::quilting::SwatchKind::Chain,
+        planar,
+        swatches,
+        false,
+    )
+}
+
+/// Mesh quilting of `kind` over a plane or the bunny, threads merged across seams or not.
+pub fn quilt_row_of(
+    kind: crate::synthesis::quilting::SwatchKind,
+    planar: bool,
+    swatches: f32,
+    merge: bool,
+) -> Result<SystemRow> {
     use crate::synthesis::quilting;
     let base = if planar {
         quilting::plane(1.0, 1.0, 64, 64)
@@ -459,9 +474,10 @@ pub fn quilt_row(planar: bool, swatches: f32) -> Result<SystemRow> {
         .bounds()
         .ok_or_else(|| crate::error::Error::InvalidMesh("empty base".into()))?;
     let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo));
-    let swatch = quilting::swatch(quilting::SwatchKind::Chain, 1);
+    let swatch = quilting::swatch(kind, 1);
     let params = quilting::Params {
         swatch_size: Some(diag / swatches),
+        merge_elements: merge,
         ..quilting::Params::default()
     };
     let t = Instant::now();
@@ -473,8 +489,10 @@ pub fn quilt_row(planar: bool, swatches: f32) -> Result<SystemRow> {
     let out = quilting::run(&input, &params, &|_| {}, &CancelToken::new())?;
     Ok(SystemRow {
         case: format!(
-            "quilt chain on {} (swatch = diagonal / {swatches})",
-            if planar { "a plane" } else { "the bunny" }
+            "quilt {} on {} (swatch = diagonal / {swatches}){}",
+            kind.as_str(),
+            if planar { "a plane" } else { "the bunny" },
+            if merge { ", threads merged" } else { "" }
         ),
         vertices: base.num_vertices(),
         stages: vec![("quilt".into(), out.stats.seconds)],
@@ -802,6 +820,18 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
             quilt_row(true, 8.0)?,
             quilt_row(false, 10.0)?,
             quilt_row(false, 18.0)?,
+            quilt_row_of(
+                crate::synthesis::quilting::SwatchKind::Weave,
+                false,
+                10.0,
+                false,
+            )?,
+            quilt_row_of(
+                crate::synthesis::quilting::SwatchKind::Weave,
+                false,
+                10.0,
+                true,
+            )?,
         ],
         "map" => {
             let mut rows = Vec::new();
