@@ -17,19 +17,25 @@
 //!    constrains `C_in` through barycentric combinations of its face corners; here both
 //!    elements take vertex constraints from their own pairs, which is the same energy with the
 //!    roles swapped and keeps one solver.
-//! 3. **Cut (§2.7).** Instead of eq. (7)'s graph cut per element, both elements are cut along
-//!    one common surface, the bisector of their unpaired parts: with `d_a`, `d_b` the distances
-//!    to the unpaired faces of `a` and of `b`, `a` keeps the faces with `d_a - d_b < -g` and `b`
-//!    those with `d_a - d_b > g` (`g` half a mean edge length), each reduced to the connected
-//!    pieces that hold unpaired faces. Within the overlap the two surfaces coincide after the
-//!    deformation, so any cut there is cheap: the bisector is the cut eq. (7) prefers when the
-//!    whole overlap is equally close, and it puts the two cut loops side by side, a gap of
-//!    about `2 g` apart.
+//! 3. **Cut (§2.7).** Instead of eq. (7)'s graph cut per element, both elements are cut by one
+//!    plane: through the mean of the paired vertices (the middle of the overlap), across the
+//!    direction from `a`'s centroid to `b`'s. `a` keeps the faces more than `g` (half a mean
+//!    edge length) on its side, `b` those more than `g` on the other, each reduced to the
+//!    connected pieces that hold unpaired vertices. Within the overlap the two surfaces
+//!    coincide after the deformation, so any cut there is cheap (eq. (7) weighs every edge
+//!    there alike), and the plane puts the two cut loops side by side, about `2 g` apart. A
+//!    bisector of the two unpaired parts was tried first: on threads misregistered sideways
+//!    the unpaired strips along the sides broke its level set into several loops. The plane
+//!    suits the elongated elements merging is used for (threads), not elements that bend
+//!    back within the overlap.
 //! 4. **Stitch (ZHOU proposal 5).** Each new boundary loop of `a`'s piece is paired with the
 //!    nearest of `b`'s; the two are walked in step from their closest pair, always advancing
 //!    along the shorter diagonal, and the strip between them is triangulated with the
 //!    orientation of both pieces. The loop vertices are then relaxed half-way to their 1-ring
 //!    mean twice, smoothing the joint.
+//!    Open elements (ribbons) whose cut meets their own boundary are not stitched: the cut
+//!    edges there are chains inside a boundary loop, and such merges are refused (the strip
+//!    check or step 5).
 //! 5. **Integrity first.** The result must be one connected component whose edges are used by
 //!    at most two faces with opposite orientations (exactly two when the elements are closed)
 //!    and whose Euler characteristic equals `a`'s; otherwise nothing is merged
@@ -222,7 +228,7 @@ pub fn try_merge(
     let mean = |w: &[[f32; 3]]| w.iter().map(|&p| Vec3::from(p)).sum::<Vec3>() / w.len() as f32;
     let axis = (mean(&wb) - mean(&wa)).normalize_or_zero();
     if axis == Vec3::ZERO {
-        return Err("no unpaired faces");
+        return Err("the elements share a centroid");
     }
     let (mut mid, mut k) = (Vec3::ZERO, 0usize);
     for (w, h) in [(&wa, &ha), (&wb, &hb)] {
@@ -487,5 +493,34 @@ mod tests {
             *p = [2.0 + p[1], p[0], p[2] + 0.1];
         }
         assert!(merge(&geom(&a), &geom(&c), 0.25).is_none());
+    }
+
+    #[test]
+    fn open_ribbons_are_refused_not_broken() {
+        // a flat strip of quads along x (an open element: one boundary loop)
+        let ribbon = |x0: f32, y: f32| -> Merged {
+            let mut p = Vec::new();
+            for i in 0..=32 {
+                let x = x0 + 4.0 * i as f32 / 32.0;
+                p.push([x, y - 0.2, 0.0]);
+                p.push([x, y + 0.2, 0.0]);
+            }
+            let mut f = Vec::new();
+            for i in 0..32u32 {
+                let (a, b, c, d) = (2 * i, 2 * i + 2, 2 * i + 3, 2 * i + 1);
+                f.push([a, b, c]);
+                f.push([a, c, d]);
+            }
+            Merged {
+                positions: p,
+                faces: f,
+            }
+        };
+        let a = ribbon(0.0, 0.0);
+        let b = ribbon(2.0, 0.03);
+        // the cut runs into the ribbon's own boundary: the cut edges are chains within one
+        // boundary loop, not loops of their own, and bridging whole loops would close the
+        // ribbon into a sphere; the topology check refuses it (integrity first)
+        assert!(try_merge(&geom(&a), &geom(&b), 0.3).is_err());
     }
 }
