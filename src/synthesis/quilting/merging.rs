@@ -43,7 +43,7 @@
 
 use glam::Vec3;
 
-use crate::geometry::{TriangleBvh, laplacian_deform, vertex_normals};
+use crate::geometry::{TriangleBvh, laplacian_deform, mean_edge_length, vertex_normals};
 use crate::mesh::{boundary_loops, connected_components, vertex_adjacency};
 
 /// Smallest fraction of each element's vertices paired with the other for a merge.
@@ -70,19 +70,6 @@ pub struct Merged {
     pub positions: Vec<[f32; 3]>,
     /// Triangles.
     pub faces: Vec<[u32; 3]>,
-}
-
-fn mean_edge(g: &ElementGeometry) -> f32 {
-    let mut s = 0.0f64;
-    let mut k = 0usize;
-    for f in g.faces {
-        for e in 0..3 {
-            let (a, b) = (f[e] as usize, f[(e + 1) % 3] as usize);
-            s += Vec3::from(g.positions[a]).distance(Vec3::from(g.positions[b])) as f64;
-            k += 1;
-        }
-    }
-    if k == 0 { 0.0 } else { (s / k as f64) as f32 }
 }
 
 /// Euler characteristic `V - E + F` over the vertices used by faces.
@@ -241,7 +228,8 @@ pub fn try_merge(
     }
     let mid = mid / k.max(1) as f32;
     let side = |p: [f32; 3]| (Vec3::from(p) - mid).dot(axis);
-    let g = 0.5 * mean_edge(a).max(mean_edge(b));
+    let g =
+        0.5 * mean_edge_length(a.positions, a.faces).max(mean_edge_length(b.positions, b.faces));
     let sa: Vec<f32> = wa.iter().map(|&p| side(p)).collect();
     let sb: Vec<f32> = wb.iter().map(|&p| side(p)).collect();
     let keep = |faces: &[[u32; 3]], s: &[f32], h: &[Option<Vec3>], want_a: bool| {

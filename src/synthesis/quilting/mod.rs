@@ -874,7 +874,8 @@ pub fn run(
     let mut anchored: Vec<Vec<(u32, u32)>> = vec![Vec::new(); nf];
     // correspondence distance for merging: two mean edge lengths of the swatch's elements
     // (ZHOU proposal 3), scaled
-    let merge_delta = 2.0 * s * sw_mean_edge(sw, &elem_faces);
+    let merge_delta =
+        2.0 * s * crate::geometry::mean_edge_length(&sw.mesh.positions, &sw.mesh.faces);
     // only elongated elements (threads, strands) merge: their copies meet end to end across
     // seams; a fused pair of offset compact elements (rings, studs) reads as a defect, and the
     // cut keeps one of them whole instead
@@ -1495,22 +1496,6 @@ fn choose_translation(
         t += acc / k as f32;
     }
     t
-}
-
-/// Mean edge length over the swatch's elements (swatch units).
-fn sw_mean_edge(sw: &Swatch, elem_faces: &[Vec<[u32; 3]>]) -> f32 {
-    let (mut sum, mut k) = (0.0f64, 0usize);
-    for (e, faces) in elem_faces.iter().enumerate() {
-        let p = sw.element_positions(e);
-        for f in faces {
-            for i in 0..3 {
-                let (a, b) = (f[i] as usize, f[(i + 1) % 3] as usize);
-                sum += Vec3::from(p[a]).distance(Vec3::from(p[b])) as f64;
-                k += 1;
-            }
-        }
-    }
-    if k == 0 { 0.0 } else { (sum / k as f64) as f32 }
 }
 
 /// Ratio of the two largest principal standard deviations of the points (1 for a ring or a
