@@ -1831,6 +1831,29 @@ fn quilt_tool_covers_the_target_with_whole_elements_and_one_undo_brings_it_back(
             .num_vertices(),
         n_before
     );
+    // the weave with "merge threads across seams" ticked: threads join, still one undo step
+    {
+        let d = h.state_mut().system_mut::<QuiltDialog>().unwrap();
+        d.swatch = meshmatch::app::quilt::SwatchChoice::Builtin(
+            meshmatch::synthesis::quilting::SwatchKind::Weave,
+        );
+        d.merge = true;
+    }
+    h.state_mut().start_system(i);
+    wait_tool(&mut h, Duration::from_secs(120));
+    let st = &h.state().state;
+    assert!(st.errors.is_empty(), "{:?}", st.errors);
+    assert!(st.message.contains("merged across seams"), "{}", st.message);
+    h.state_mut().state.undo();
+    assert_eq!(
+        h.state()
+            .state
+            .slot(Side::Target)
+            .unwrap()
+            .file
+            .num_vertices(),
+        n_before
+    );
 }
 
 /// A cube of side 2 with an `n x n` grid on each face (sharp creases along its 12 edges).
