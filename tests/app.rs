@@ -1699,6 +1699,15 @@ fn wait_tool(h: &mut Harness<'static, App>, limit: Duration) {
     h.run_steps(2);
 }
 
+fn target_vertices(h: &Harness<'static, App>) -> usize {
+    h.state()
+        .state
+        .slot(Side::Target)
+        .unwrap()
+        .file
+        .num_vertices()
+}
+
 fn system_index<T: 'static>(h: &mut Harness<'static, App>) -> usize {
     let app = h.state_mut();
     (0..app.systems.len())
@@ -1798,13 +1807,7 @@ fn quilt_tool_covers_the_target_with_whole_elements_and_one_undo_brings_it_back(
     app.state.set_mesh(Side::Target, sphere(24, 32), false);
     let mut h = harness(app);
     h.run_steps(2);
-    let n_before = h
-        .state()
-        .state
-        .slot(Side::Target)
-        .unwrap()
-        .file
-        .num_vertices();
+    let n_before = target_vertices(&h);
     let i = system_index::<QuiltDialog>(&mut h);
     h.state_mut().system_mut::<QuiltDialog>().unwrap().size = 0.25;
     h.state_mut().start_system(i);
@@ -1822,15 +1825,7 @@ fn quilt_tool_covers_the_target_with_whole_elements_and_one_undo_brings_it_back(
     // The base and at least a few dozen whole elements.
     assert!(components.1 > 20, "{} components", components.1);
     h.state_mut().state.undo();
-    assert_eq!(
-        h.state()
-            .state
-            .slot(Side::Target)
-            .unwrap()
-            .file
-            .num_vertices(),
-        n_before
-    );
+    assert_eq!(target_vertices(&h), n_before);
     // the weave with "merge threads across seams" ticked: threads join, still one undo step
     {
         let d = h.state_mut().system_mut::<QuiltDialog>().unwrap();
@@ -1845,15 +1840,7 @@ fn quilt_tool_covers_the_target_with_whole_elements_and_one_undo_brings_it_back(
     assert!(st.errors.is_empty(), "{:?}", st.errors);
     assert!(st.message.contains("merged across seams"), "{}", st.message);
     h.state_mut().state.undo();
-    assert_eq!(
-        h.state()
-            .state
-            .slot(Side::Target)
-            .unwrap()
-            .file
-            .num_vertices(),
-        n_before
-    );
+    assert_eq!(target_vertices(&h), n_before);
 }
 
 /// A cube of side 2 with an `n x n` grid on each face (sharp creases along its 12 edges).

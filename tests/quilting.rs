@@ -99,23 +99,15 @@ fn check_integrity(out: &QuiltOutput, sw: &Swatch) {
     assert_eq!(out.element_pieces.len(), out.num_elements());
     for (e, &src) in out.element_source.iter().enumerate() {
         let el = &sw.elements[src as usize];
-        let nv = if out.element_pieces[e] == 1 {
-            el.vertices.len()
-        } else {
-            out.element_id[v0..]
-                .iter()
-                .take_while(|&&x| x as usize == e)
-                .count()
-        };
-        let nf = if out.element_pieces[e] == 1 {
-            el.faces.len()
-        } else {
-            m.faces[f0..]
-                .iter()
-                .take_while(|f| (f[0] as usize) < v0 + nv)
-                .count()
-        };
-        assert!(out.element_id[v0..v0 + nv].iter().all(|&x| x as usize == e));
+        // the element's vertex and face runs (contiguous)
+        let nv = out.element_id[v0..]
+            .iter()
+            .take_while(|&&x| x as usize == e)
+            .count();
+        let nf = m.faces[f0..]
+            .iter()
+            .take_while(|f| (f[0] as usize) < v0 + nv)
+            .count();
         let faces: Vec<[u32; 3]> = m.faces[f0..f0 + nf]
             .iter()
             .map(|f| f.map(|v| v - v0 as u32))
@@ -123,6 +115,7 @@ fn check_integrity(out: &QuiltOutput, sw: &Swatch) {
         assert!(faces.iter().flatten().all(|&v| (v as usize) < nv));
         let source_faces = sw.element_faces(src as usize);
         if out.element_pieces[e] == 1 {
+            assert_eq!(nv, el.vertices.len(), "element {e}");
             assert_eq!(faces, source_faces, "element {e}");
         } else {
             let closed = meshmatch::mesh::boundary_loops(&source_faces).is_empty();

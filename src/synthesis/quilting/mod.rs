@@ -572,6 +572,12 @@ impl Placed {
             .as_deref()
             .unwrap_or(&elem_faces[self.source as usize])
     }
+    fn geometry<'a>(&'a self, elem_faces: &'a [Vec<[u32; 3]>]) -> merging::ElementGeometry<'a> {
+        merging::ElementGeometry {
+            positions: &self.positions,
+            faces: self.faces(elem_faces),
+        }
+    }
     /// Distance from `p` to the nearest piece centre.
     fn centre_distance(&self, p: Vec3) -> f32 {
         self.pieces
@@ -590,6 +596,15 @@ struct Candidate {
     anchor: (u32, [f32; 3]),
     dir: Vec3,
     seed_dist: f32,
+}
+
+impl Candidate {
+    fn geometry<'a>(&'a self, elem_faces: &'a [Vec<[u32; 3]>]) -> merging::ElementGeometry<'a> {
+        merging::ElementGeometry {
+            positions: &self.positions,
+            faces: &elem_faces[self.source as usize],
+        }
+    }
 }
 
 fn centre_and_radius(ps: &[[f32; 3]]) -> (Vec3, f32) {
@@ -1102,8 +1117,9 @@ pub fn run(
             hash.insert(k as u32, &placed[*e as usize].positions);
         }
         let mut conflicts: Vec<(usize, usize)> = Vec::new();
-        // per candidate: the old element it joins (index into `old`) when it survives
-        let mut partner: Vec<Option<usize>> = vec![None; cands.len()];
+        // per candidate: the old element it joins (index into `old`) when it survives, and the
+        // merged element as computed against that old one's present geometry
+        let mut partner: Vec<Option<(usize, merging::Merged)>> = vec![None; cands.len()];
         for (j, c) in cands.iter().enumerate() {
             let cl = sw.elements[c.source as usize].class;
             let mut near = hash.near(&c.positions, tau);
@@ -1126,30 +1142,26 @@ pub fn run(
             near.sort_unstable();
             near.dedup();
             // the first same-class old element it can merge with is no conflict (§2.7)
-            if params.merge_elements {
-                partner[j] = near.iter().map(|&k| k as usize).find(|&k| {
+            if params.merge_elements && elongated[c.source as usize] {
+                partner[j] = near.iter().map(|&k| k as usize).find_map(|k| {
                     let pe = &placed[old[k].0 as usize];
-                    sw.elements[pe.source as usize].class == cl
-                        && elongated[c.source as usize]
-                        && elongated[pe.source as usize]
-                        && merging::merge(
-                            &merging::ElementGeometry {
-                                positions: &pe.positions,
-                                faces: pe.faces(&elem_faces),
-                            },
-                            &merging::ElementGeometry {
-                                positions: &c.positions,
-                                faces: &elem_faces[c.source as usize],
-                            },
-                            merge_delta,
-                        )
-                        .is_some()
+                    if sw.elements[pe.source as usize].class != cl || !elongated[pe.source as usize]
+                    {
+                        return None;
+                    }
+                    merging::merge(
+                        &pe.geometry(&elem_faces),
+                        &c.geometry(&elem_faces),
+                        merge_delta,
+                    )
+                    .map(|m| (k, m))
                 });
             }
+            let joins = partner[j].as_ref().map(|p| p.0);
             conflicts.extend(
                 near.into_iter()
                     .map(|k| k as usize)
-                    .filter(|&k| partner[j] != Some(k))
+                    .filter(|&k| joins != Some(k))
                     .map(|k| (k, j)),
             );
         }
@@ -1174,7 +1186,10 @@ pub fn run(
         });
         let mut accepted_hash = VertexHash::new(tau);
         let mut accepted: Vec<usize> = Vec::new();
-        let mut merged_now: Vec<usize> = Vec::new();
+        // candidates merged into an old element (accepted, but not placed on their own), and
+        // old elements grown by a merge in this patch (their cached merges are stale)
+        let mut merged_now = vec![false; cands.len()];
+        let mut grown = vec![false; old.len()];
         for j in order {
             let c = &cands[j];
             let cl = sw.elements[c.source as usize].class;
@@ -1198,21 +1213,19 @@ pub fn run(
             }
             // a candidate joining a surviving old element: merge now (the old one may have
             // grown by an earlier merge of this patch); a failed merge drops it
-            if let Some(k) = partner[j]
+            if let Some((k, cached)) = partner[j].take()
                 && keep_old[k]
             {
                 let e = old[k].0 as usize;
-                let merged = merging::merge(
-                    &merging::ElementGeometry {
-                        positions: &placed[e].positions,
-                        faces: placed[e].faces(&elem_faces),
-                    },
-                    &merging::ElementGeometry {
-                        positions: &c.positions,
-                        faces: &elem_faces[c.source as usize],
-                    },
-                    merge_delta,
-                );
+                let merged = if grown[k] {
+                    merging::merge(
+                        &placed[e].geometry(&elem_faces),
+                        &c.geometry(&elem_faces),
+                        merge_delta,
+                    )
+                } else {
+                    Some(cached)
+                };
                 // the merged element moved half-way: it must still keep clear of the other
                 // old elements and of this patch's accepted ones
                 let clear = |m: &merging::Merged| {
@@ -1265,7 +1278,8 @@ pub fn run(
                     anchor: c.anchor,
                     dir: c.dir,
                 });
-                merged_now.push(j);
+                merged_now[j] = true;
+                grown[k] = true;
                 stats.merged += 1;
                 continue;
             }
@@ -1273,7 +1287,7 @@ pub fn run(
             accepted.push(j);
         }
         for j in accepted {
-            if merged_now.contains(&j) {
+            if merged_now[j] {
                 continue;
             }
             let c = std::mem::replace(
