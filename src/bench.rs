@@ -41,6 +41,8 @@ pub struct BenchRow {
     /// Every stage's time (source and target preparation, then the solve), seconds.
     #[serde(skip)]
     pub stages: Vec<(String, f64)>,
+    /// EM iterations run per level, finest first (fewer than asked where a level converged).
+    pub iterations: Vec<usize>,
 }
 
 /// Largest source working resolution of a row: beyond it only the target grows (Spot's texture
@@ -185,9 +187,11 @@ pub fn bench_size(source: &TriMesh, target: &TriMesh, n: usize) -> Result<BenchR
         Err(e) => return Err(e),
     }
     let edit_preview = edit_first.into_inner().expect("not poisoned");
-    let iters = params.iterations.max(1) as f64;
+    // E-steps the finest level ran (fewer than `iterations` where it converged)
+    let iters = r.iterations.first().copied().unwrap_or(0).max(1) as f64;
     let prep = |p: &mm::PreparedMesh, name: &str| sum(p.timings(), |n| n == name);
     Ok(BenchRow {
+        iterations: r.iterations.clone(),
         vertices: pt.working_mesh().num_vertices(),
         source_vertices: ps.working_mesh().num_vertices(),
         hierarchy_s: prep(&ps, "hierarchy") + prep(&pt, "hierarchy"),
@@ -361,6 +365,8 @@ pub fn run(sizes: &[usize], json: bool, probes: usize) -> Result<()> {
                 .map(|(n, t)| format!("{n} {t:.2}"))
                 .collect();
             eprintln!("  stages (s): {}", stages.join(", "));
+            let its: Vec<String> = row.iterations.iter().map(|i| i.to_string()).collect();
+            eprintln!("  EM iterations per level, finest first: {}", its.join(" "));
         }
         if probes > 0 {
             let p = cancel_probes(&source, &target, n, row.end_to_end_s, probes)?;

@@ -113,7 +113,21 @@ impl AppParams for TransferParams {
             ui.label("Iterations");
             changed |= ui
                 .add(egui::DragValue::new(&mut self.iterations).range(1..=50))
-                .on_hover_text("EM iterations per level (paper: 5)")
+                .on_hover_text("EM iterations per level at most (paper: 5)")
+                .changed();
+            ui.end_row();
+            ui.label("Tolerance");
+            changed |= ui
+                .add(
+                    egui::DragValue::new(&mut self.tolerance)
+                        .range(0.0..=0.2)
+                        .speed(0.001)
+                        .max_decimals(3),
+                )
+                .on_hover_text(
+                    "A level stops iterating once an iteration improves its energy by less than \
+                     this fraction (0 = always run every iteration)",
+                )
                 .changed();
             ui.end_row();
             ui.label("Shape weight");

@@ -348,9 +348,13 @@ pub struct SolveArgs {
     /// Number of hierarchy levels, 1 to 16 (default: down to about 128 vertices).
     #[arg(long)]
     pub levels: Option<usize>,
-    /// EM iterations per level, 0 to 1000.
+    /// EM iterations per level at most, 0 to 1000.
     #[arg(long, default_value_t = 5)]
     pub iterations: usize,
+    /// A level stops iterating once an iteration lowers its energy by less than this fraction
+    /// (0 = always run every iteration).
+    #[arg(long, default_value_t = crate::meshmatch::DEFAULT_TOLERANCE)]
+    pub tolerance: f32,
     /// Random seed (runs with the same seed are identical).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -370,6 +374,7 @@ impl SolveArgs {
             vertices: self.vertices,
             levels: self.levels,
             iterations: self.iterations,
+            tolerance: self.tolerance,
             seed: self.seed,
             shape_weight: self.shape_weight.unwrap_or(default_shape_weight),
             sharpen: !self.no_sharpen,

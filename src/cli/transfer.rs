@@ -40,9 +40,13 @@ pub struct TransferArgs {
     /// Number of hierarchy levels, 1 to 16 (default: down to about 128 vertices, at most 7).
     #[arg(long)]
     pub levels: Option<usize>,
-    /// EM iterations per level, 0 to 1000.
+    /// EM iterations per level at most, 0 to 1000.
     #[arg(long, default_value_t = 5)]
     pub iterations: usize,
+    /// A level stops iterating once an iteration lowers its energy by less than this fraction
+    /// (0 = always run every iteration).
+    #[arg(long, default_value_t = crate::meshmatch::DEFAULT_TOLERANCE)]
+    pub tolerance: f32,
     /// Random seed (runs with the same seed are identical).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -81,6 +85,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         vertices: a.vertices,
         levels: a.levels,
         iterations: a.iterations,
+        tolerance: a.tolerance,
         seed: a.seed,
         shape_weight: a.shape_weight,
         fine_shape_scale: a.fine_shape_scale,

@@ -143,6 +143,7 @@ pub fn solve_constrained(
         done_work: 0.0,
         gmap,
         notices,
+        iterations: vec![0; nl],
         nnf: Vec::new(),
         signal: Vec::new(),
         energy: 0.0,
@@ -332,6 +333,8 @@ struct Levels<'a> {
     /// The global map, when the structure value uses it: the coarsest level's start.
     gmap: Option<std::sync::Arc<super::global_map::GlobalMap>>,
     notices: Vec<String>,
+    /// E-steps run per level.
+    iterations: Vec<usize>,
     nnf: Vec<(u32, u8)>,
     signal: Vec<[f32; 3]>,
     energy: f64,
@@ -514,6 +517,7 @@ impl<'a> Levels<'a> {
             0
         };
         let iterations = self.params.iterations;
+        let mut prev_energy = f64::INFINITY;
         for it in 0..=iterations {
             self.cancel.check()?;
             let sw = Stopwatch::start();
@@ -537,6 +541,13 @@ impl<'a> Levels<'a> {
             let ctx = self.ctx(l, fans_t, wc);
             *dist = em::all_distances(&ctx, &nnf);
             let energy = dist.iter().map(|&d| d as f64).sum::<f64>() / dist.len().max(1) as f64;
+            // Converged: the last E-step gained less than `tolerance` of the energy (MeshMatch's
+            // upsampled start is already close on every level below the coarsest).
+            let converged = it > 0
+                && prev_energy.is_finite()
+                && prev_energy - energy < self.params.tolerance as f64 * prev_energy;
+            let last = it == iterations || converged;
+            prev_energy = energy;
             let prog = Progress {
                 stage: "solve",
                 level: l,
@@ -558,7 +569,7 @@ impl<'a> Levels<'a> {
             });
             let mut exact = None;
             let (mut t_search, mut t_prop) = (0.0, 0.0);
-            if it == iterations {
+            if last {
                 if l == 0 && self.params.exact_samples > 0 {
                     exact = Some(exact_check(
                         &ctx,
@@ -595,7 +606,10 @@ impl<'a> Levels<'a> {
             if exact.is_some() {
                 self.exact = exact;
             }
-            if it == iterations {
+            if last {
+                // the skipped iterations count as done, so progress stays proportional
+                self.done_work += (iterations - it) as f64 * lt.len() as f64;
+                self.iterations[l] = it;
                 break;
             }
             self.t.search += t_search;
@@ -666,6 +680,7 @@ impl<'a> Levels<'a> {
             energy: self.energy,
             exact: self.exact,
             notices: self.notices,
+            iterations: self.iterations,
             ..TransferResult::default()
         }
     }
