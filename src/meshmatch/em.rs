@@ -27,6 +27,58 @@ pub(crate) struct Side<'a> {
     pub shape: &'a [f32],
     /// Colour fans (`PER` per vertex), unweighted.
     pub fans: &'a [f32],
+    /// Rotation-invariant summaries of the fans ([`ring_summaries`], `RING` per vertex); empty
+    /// = no lower bound, every candidate's fan is compared.
+    pub rings: &'a [f32],
+}
+
+/// Floats per vertex of the rotation-invariant ring summaries: per ring, the mean colour and the
+/// norm of the ring about its mean.
+pub(crate) const RING: usize = FAN_RADII * (C + 1);
+
+/// The lower bound is scaled by this just-below-one factor, so that rounding can never make it
+/// exceed a distance it bounds and prune a candidate the full comparison would keep.
+const BOUND_SLACK: f32 = 0.9999;
+
+/// Rotation-invariant summaries of colour fans (`PER` floats per vertex): per ring of `A`
+/// angles, its mean colour `μ` scaled by `√A` and the norm `|x̃|` of the ring minus its mean.
+///
+/// For two rings `x`, `y` and any cyclic rotation `y_k`, the fan distance splits exactly into
+/// `Σ|x - y_k|² = A |μx - μy|² + |x̃ - ỹ_k|²` (the cross term sums centred values to zero), and
+/// `|x̃ - ỹ_k| ≥ ||x̃| - |ỹ||` since a rotation keeps the norm. So the squared L2 distance of two
+/// summaries is a lower bound of the colour fan distance at every rotation: a candidate whose
+/// shape distance plus this bound already loses needs none of its 18 rotations compared.
+pub(crate) fn ring_summaries(fans: &[f32]) -> Vec<f32> {
+    let n = fans.len() / PER;
+    let mut out = vec![0.0f32; n * RING];
+    let sa = (FAN_ANGLES as f32).sqrt();
+    out.par_chunks_mut(RING)
+        .zip(fans.par_chunks(PER))
+        .for_each(|(o, f)| {
+            for r in 0..FAN_RADII {
+                let ring = &f[r * FAN_ANGLES * C..(r + 1) * FAN_ANGLES * C];
+                let mut mu = [0.0f32; C];
+                for x in ring.chunks_exact(C) {
+                    for c in 0..C {
+                        mu[c] += x[c];
+                    }
+                }
+                mu.iter_mut().for_each(|m| *m /= FAN_ANGLES as f32);
+                let mut ss = 0.0f32;
+                for x in ring.chunks_exact(C) {
+                    for c in 0..C {
+                        let d = x[c] - mu[c];
+                        ss += d * d;
+                    }
+                }
+                let o = &mut o[r * (C + 1)..(r + 1) * (C + 1)];
+                for c in 0..C {
+                    o[c] = mu[c] * sa;
+                }
+                o[C] = ss.sqrt();
+            }
+        });
+    out
 }
 
 /// Everything the E-step needs on one level.
@@ -50,7 +102,28 @@ impl Ctx<'_> {
         if d >= best || self.wc == 0.0 {
             return d;
         }
+        let lb = d + self.ring_bound(t, s);
+        if lb >= best {
+            return lb;
+        }
         self.fan_dist(t, s, k, d, best)
+    }
+
+    /// A lower bound of the weighted colour fan distance at every rotation
+    /// ([`ring_summaries`]); 0 without summaries.
+    #[inline]
+    fn ring_bound(&self, t: usize, s: usize) -> f32 {
+        if self.t.rings.is_empty() || self.s.rings.is_empty() {
+            return 0.0;
+        }
+        let a = &self.t.rings[t * RING..(t + 1) * RING];
+        let b = &self.s.rings[s * RING..(s + 1) * RING];
+        let mut acc = 0.0f32;
+        for i in 0..RING {
+            let x = a[i] - b[i];
+            acc += x * x;
+        }
+        BOUND_SLACK * self.wc * acc
     }
 
     /// The rotation-independent part of [`Ctx::dist`]: squared L2 of the weighted shape
@@ -109,7 +182,7 @@ impl Ctx<'_> {
         // The shape part is the same for every rotation: once, and out early if it already
         // loses.
         let sd = self.shape_dist(t, s);
-        if sd >= bd {
+        if sd >= bd || sd + self.ring_bound(t, s) >= bd {
             return (bd, bk);
         }
         for k in 0..FAN_ANGLES {
@@ -549,4 +622,61 @@ pub(crate) fn upsample(
             (best as u32, rot_index(a1 + k as f32 * STEP + a2))
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The summaries' squared distance never exceeds the colour fan distance at any rotation,
+    /// and it is tight for a fan against its own rotation.
+    #[test]
+    fn ring_summaries_bound_the_fan_distance_at_every_rotation() {
+        let mut rng = SmallRng::seed_from_u64(7);
+        let n = 64;
+        let mut fans: Vec<f32> = (0..n * PER).map(|_| rng.random::<f32>()).collect();
+        // vertex 1 is vertex 0 rotated by 5 steps: its distance at the right rotation is 0
+        let ring = FAN_ANGLES * C;
+        for r in 0..FAN_RADII {
+            for i in 0..ring {
+                fans[PER + r * ring + i] = fans[r * ring + (i + 5 * C) % ring];
+            }
+        }
+        let sums = ring_summaries(&fans);
+        let fan_d = |a: usize, b: usize, k: usize| -> f32 {
+            let mut d = 0.0;
+            for r in 0..FAN_RADII {
+                for i in 0..ring {
+                    let x = fans[a * PER + r * ring + i]
+                        - fans[b * PER + r * ring + (i + k * C) % ring];
+                    d += x * x;
+                }
+            }
+            d
+        };
+        let sum_d = |a: usize, b: usize| -> f32 {
+            (0..RING)
+                .map(|i| (sums[a * RING + i] - sums[b * RING + i]).powi(2))
+                .sum()
+        };
+        let mut tightest = f32::INFINITY;
+        for a in 0..n {
+            for b in 0..n {
+                let lb = sum_d(a, b);
+                let best = (0..FAN_ANGLES)
+                    .map(|k| fan_d(a, b, k))
+                    .fold(f32::INFINITY, f32::min);
+                assert!(
+                    lb <= best * 1.0001 + 1e-5,
+                    "bound {lb} above the distance {best}"
+                );
+                if a != b {
+                    tightest = tightest.min(best - lb);
+                }
+            }
+        }
+        assert!(sum_d(0, 1) < 1e-5, "a rotated copy has the same summary");
+        assert!(fan_d(1, 0, FAN_ANGLES - 5) < 1e-6 || fan_d(1, 0, 5) < 1e-6);
+        assert!(tightest.is_finite());
+    }
 }

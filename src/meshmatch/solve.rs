@@ -144,6 +144,8 @@ pub fn solve_constrained(
         gmap,
         notices,
         iterations: vec![0; nl],
+        rings_s: Vec::new(),
+        rings_t: Vec::new(),
         nnf: Vec::new(),
         signal: Vec::new(),
         energy: 0.0,
@@ -335,6 +337,10 @@ struct Levels<'a> {
     notices: Vec<String>,
     /// E-steps run per level.
     iterations: Vec<usize>,
+    /// Ring summaries of the current level's source fans and of the target's latest fans
+    /// ([`em::ring_summaries`]): the E-step's rotation-invariant lower bound.
+    rings_s: Vec<f32>,
+    rings_t: Vec<f32>,
     nnf: Vec<(u32, u8)>,
     signal: Vec<[f32; 3]>,
     energy: f64,
@@ -365,6 +371,7 @@ impl<'a> Levels<'a> {
             eang: &self.source.edge_angles[l],
             shape: &self.shapes[l].0,
             fans: &self.fans_s[l],
+            rings: &self.rings_s,
         }
     }
 
@@ -375,6 +382,7 @@ impl<'a> Levels<'a> {
             eang: &self.target.edge_angles[l],
             shape: &self.shapes[l].1,
             fans,
+            rings: if fans.is_empty() { &[] } else { &self.rings_t },
         }
     }
 
@@ -430,6 +438,10 @@ impl<'a> Levels<'a> {
         let mut fans_t =
             crate::error::try_filled(lt.len().saturating_mul(PER), 0.0f32, "the target's fans")?;
         let mut dist = vec![0.0f32; lt.len()];
+        let sw = Stopwatch::start();
+        self.rings_s = em::ring_summaries(&self.fans_s[l]);
+        self.rings_t.clear();
+        self.t.fans += sw.secs();
         self.start_level(l, &fans_t, &mut dist)?;
         self.iterate(l, sampler_t, &mut fans_t, &mut dist)
     }
@@ -536,6 +548,7 @@ impl<'a> Levels<'a> {
             }
             let sw = Stopwatch::start();
             sampler_t.fans_into(lt, self.signal.as_flattened(), C, fans_t);
+            self.rings_t = em::ring_summaries(fans_t);
             self.t.fans += sw.secs();
             let mut nnf = std::mem::take(&mut self.nnf);
             let ctx = self.ctx(l, fans_t, wc);
@@ -708,6 +721,7 @@ fn exact_check(
             eang: x.eang,
             shape: &[],
             fans: x.fans,
+            rings: x.rings,
         }
     }
     let colour_only = Ctx {
