@@ -66,6 +66,19 @@ pub fn run_cancellable<T: Send + 'static>(
     work: impl FnOnce() -> T + Send + 'static,
 ) -> crate::error::Result<T> {
     cancel.check()?;
+    spawn_detached(work)?.wait(cancel)
+}
+
+/// Work running on a thread of its own ([`spawn_detached`]), to be collected with
+/// [`Detached::wait`].
+pub struct Detached<T>(crossbeam_channel::Receiver<T>);
+
+/// Start `work` on its own thread and return at once, so the caller can do other work meanwhile
+/// (a preparation builds its fan tables while the eigen-solve runs). Dropping the handle
+/// abandons the result; the work still finishes in the background.
+pub fn spawn_detached<T: Send + 'static>(
+    work: impl FnOnce() -> T + Send + 'static,
+) -> crate::error::Result<Detached<T>> {
     let (tx, rx) = crossbeam_channel::bounded(1);
     std::thread::Builder::new()
         .name("meshmatch-detached".into())
@@ -73,14 +86,21 @@ pub fn run_cancellable<T: Send + 'static>(
             let _ = tx.send(work());
         })
         .map_err(|e| crate::error::Error::InvalidInput(format!("cannot start a thread: {e}")))?;
-    loop {
-        match rx.recv_timeout(std::time::Duration::from_millis(10)) {
-            Ok(v) => return Ok(v),
-            Err(crossbeam_channel::RecvTimeoutError::Timeout) => cancel.check()?,
-            Err(crossbeam_channel::RecvTimeoutError::Disconnected) => {
-                return Err(crate::error::Error::InvalidInput(
-                    "a background computation panicked".into(),
-                ));
+    Ok(Detached(rx))
+}
+
+impl<T> Detached<T> {
+    /// Wait for the result, returning `Err(Cancelled)` within about 10 ms of `cancel` being set.
+    pub fn wait(self, cancel: &CancelToken) -> crate::error::Result<T> {
+        loop {
+            match self.0.recv_timeout(std::time::Duration::from_millis(10)) {
+                Ok(v) => return Ok(v),
+                Err(crossbeam_channel::RecvTimeoutError::Timeout) => cancel.check()?,
+                Err(crossbeam_channel::RecvTimeoutError::Disconnected) => {
+                    return Err(crate::error::Error::InvalidInput(
+                        "a background computation panicked".into(),
+                    ));
+                }
             }
         }
     }

@@ -160,11 +160,18 @@ pub fn hks_scaled(positions: &[[f32; 3]], faces: &[[u32; 3]], k: usize) -> Resul
     let pts: Vec<[f32; 3]> = positions.iter().map(|p| p.map(|x| x * s)).collect();
     let k = k.min(n - 1).max(2);
     let (evals, evecs) = crate::geometry::laplacian_eigen(&pts, faces, k)?;
-    let times = crate::geometry::hks_times(&evals, HKS_TIMES);
+    hks_from_eigenpairs(&evals, &evecs)
+}
+
+/// The normalised, log-scaled HKS of [`hks_scaled`] from eigenpairs of a unit-area surface
+/// (eigenvalues ascending, eigenvectors flat column-major and M-orthonormal, as
+/// [`crate::geometry::laplacian_eigen`] and [`crate::geometry::Spectrum`] give them).
+pub fn hks_from_eigenpairs(evals: &[f64], evecs: &[f64]) -> Result<Vec<f32>> {
+    let times = crate::geometry::hks_times(evals, HKS_TIMES);
     if times.len() != HKS_TIMES {
         return Err(Error::InvalidMesh("HKS: degenerate spectrum".into()));
     }
-    let raw = crate::geometry::hks(&evals, &evecs, &times);
+    let raw = crate::geometry::hks(evals, evecs, &times);
     let traces: Vec<f64> = times
         .iter()
         .map(|&t| {
@@ -208,6 +215,13 @@ pub fn shape_features_cancellable(
         .unwrap_or(h.top());
     let (positions, faces) = (h.levels[lc].positions.clone(), h.levels[lc].faces.clone());
     let base = crate::work::run_cancellable(cancel, move || hks_scaled(&positions, &faces, 120))??;
+    Ok(shape_features_from(h, lc, base))
+}
+
+/// Shape features per level as [`shape_features`] makes them, from the HKS (`HKS_TIMES` values
+/// per vertex) of level `lc`: carried down the vertex tree to the finer levels and up it to the
+/// coarser ones, plus normal·up.
+pub fn shape_features_from(h: &Hierarchy, lc: usize, base: Vec<f32>) -> Vec<Vec<f32>> {
     let mut hks: Vec<Vec<f32>> = vec![Vec::new(); h.num_levels()];
     hks[lc] = base;
     for l in (0..lc).rev() {
@@ -240,7 +254,7 @@ pub fn shape_features_cancellable(
         }
         hks[l] = cur;
     }
-    Ok((0..h.num_levels())
+    (0..h.num_levels())
         .map(|l| {
             let lev = &h.levels[l];
             let mut out = Vec::with_capacity(lev.len() * SHAPE_DIM);
@@ -250,7 +264,7 @@ pub fn shape_features_cancellable(
             }
             out
         })
-        .collect())
+        .collect()
 }
 
 /// One pass of 1-ring averaging: x_v <- (x_v + mean of neighbours) / 2, `dim` values per vertex.

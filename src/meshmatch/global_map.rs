@@ -44,11 +44,27 @@ pub(crate) struct MapCache {
 type CachedMap = (usize, Vec<(u32, u32)>, Arc<GlobalMap>);
 
 impl MapCache {
-    /// The cached spectrum of level `l` with `k` eigenpairs, if it is the one held.
+    /// A cache holding level `l`'s spectrum of `k` eigenpairs (computed during preparation).
+    pub(super) fn with_spectrum(l: usize, k: usize, sp: Arc<Spectrum>) -> MapCache {
+        MapCache {
+            spectrum: Mutex::new(Some((l, k, sp))),
+            map: Mutex::default(),
+        }
+    }
+
+    /// The cached spectrum of level `l` with `k` eigenpairs, if the one held is of that level
+    /// and has at least `k` (its first `k` then).
     fn cached_spectrum(&self, l: usize, k: usize) -> Option<Arc<Spectrum>> {
         let g = self.spectrum.lock().ok()?;
         let (cl, ck, sp) = g.as_ref()?;
-        (*cl == l && *ck == k).then(|| sp.clone())
+        if *cl != l || *ck < k {
+            return None;
+        }
+        Some(if *ck == k {
+            sp.clone()
+        } else {
+            Arc::new(sp.truncated(k))
+        })
     }
 
     fn store_spectrum(&self, l: usize, k: usize, sp: Arc<Spectrum>) {
@@ -183,7 +199,7 @@ impl GlobalMap {
 }
 
 /// Finest level with at most `MAP_LEVEL_VERTICES` vertices (at most `nl - 1`).
-fn map_level(h: &Hierarchy, nl: usize) -> usize {
+pub(super) fn map_level(h: &Hierarchy, nl: usize) -> usize {
     (0..nl)
         .find(|&l| h.levels[l].len() <= MAP_LEVEL_VERTICES)
         .unwrap_or(nl - 1)
