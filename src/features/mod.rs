@@ -19,6 +19,8 @@ pub const FAN_ANGLES: usize = 18;
 pub const ANGLE_STEP_DEG: f32 = 360.0 / FAN_ANGLES as f32;
 /// Number of HKS time scales.
 pub const HKS_TIMES: usize = 8;
+/// Laplacian eigenpairs the automatic HKS sums over.
+pub const HKS_EIGENPAIRS: usize = 120;
 /// Automatic shape feature size: 8 HKS scales + normal·up.
 pub const SHAPE_DIM: usize = HKS_TIMES + 1;
 
@@ -209,13 +211,20 @@ pub fn shape_features_cancellable(
     hks_vertices: usize,
     cancel: &CancelToken,
 ) -> Result<Vec<Vec<f32>>> {
-    // The finest level with at most `hks_vertices` vertices (or the coarsest).
-    let lc = (0..h.num_levels())
-        .find(|&l| h.levels[l].len() <= hks_vertices)
-        .unwrap_or(h.top());
+    let lc = hks_level(h, hks_vertices);
     let (positions, faces) = (h.levels[lc].positions.clone(), h.levels[lc].faces.clone());
-    let base = crate::work::run_cancellable(cancel, move || hks_scaled(&positions, &faces, 120))??;
+    let base = crate::work::run_cancellable(cancel, move || {
+        hks_scaled(&positions, &faces, HKS_EIGENPAIRS)
+    })??;
     Ok(shape_features_from(h, lc, base))
+}
+
+/// The level the automatic HKS is computed on: the finest with at most `hks_vertices` vertices
+/// (or the coarsest).
+pub fn hks_level(h: &Hierarchy, hks_vertices: usize) -> usize {
+    (0..h.num_levels())
+        .find(|&l| h.levels[l].len() <= hks_vertices)
+        .unwrap_or(h.top())
 }
 
 /// Shape features per level as [`shape_features`] makes them, from the HKS (`HKS_TIMES` values

@@ -124,22 +124,6 @@ struct FaceBasis {
 }
 
 impl Spectrum {
-    /// The first `k` eigenpairs of this spectrum (all of them when it holds `k` or fewer): the
-    /// spectrum a solve for `k` would give, up to the solver's tolerance.
-    pub fn truncated(&self, k: usize) -> Spectrum {
-        let k = k.min(self.evals.len());
-        Spectrum {
-            n: self.n,
-            evals: self.evals[..k].to_vec(),
-            evecs: self.evecs[..k * self.n].to_vec(),
-            mass: self.mass.clone(),
-            area: self.area,
-            positions: self.positions.clone(),
-            faces: self.faces.clone(),
-            face_basis: std::sync::OnceLock::new(),
-        }
-    }
-
     /// Smallest `k` eigenpairs of `positions`/`faces`, rescaled to unit area. Errors on meshes
     /// with more than one connected component, fewer than `k + 1` vertices or zero area.
     pub fn new(positions: &[[f32; 3]], faces: &[[u32; 3]], k: usize) -> Result<Spectrum> {

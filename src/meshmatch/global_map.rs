@@ -44,27 +44,11 @@ pub(crate) struct MapCache {
 type CachedMap = (usize, Vec<(u32, u32)>, Arc<GlobalMap>);
 
 impl MapCache {
-    /// A cache holding level `l`'s spectrum of `k` eigenpairs (computed during preparation).
-    pub(super) fn with_spectrum(l: usize, k: usize, sp: Arc<Spectrum>) -> MapCache {
-        MapCache {
-            spectrum: Mutex::new(Some((l, k, sp))),
-            map: Mutex::default(),
-        }
-    }
-
-    /// The cached spectrum of level `l` with `k` eigenpairs, if the one held is of that level
-    /// and has at least `k` (its first `k` then).
+    /// The cached spectrum of level `l` with `k` eigenpairs, if it is the one held.
     fn cached_spectrum(&self, l: usize, k: usize) -> Option<Arc<Spectrum>> {
         let g = self.spectrum.lock().ok()?;
         let (cl, ck, sp) = g.as_ref()?;
-        if *cl != l || *ck < k {
-            return None;
-        }
-        Some(if *ck == k {
-            sp.clone()
-        } else {
-            Arc::new(sp.truncated(k))
-        })
+        (*cl == l && *ck == k).then(|| sp.clone())
     }
 
     fn store_spectrum(&self, l: usize, k: usize, sp: Arc<Spectrum>) {
@@ -199,7 +183,7 @@ impl GlobalMap {
 }
 
 /// Finest level with at most `MAP_LEVEL_VERTICES` vertices (at most `nl - 1`).
-pub(super) fn map_level(h: &Hierarchy, nl: usize) -> usize {
+fn map_level(h: &Hierarchy, nl: usize) -> usize {
     (0..nl)
         .find(|&l| h.levels[l].len() <= MAP_LEVEL_VERTICES)
         .unwrap_or(nl - 1)

@@ -7,8 +7,6 @@ use glam::Vec3;
 use super::TransferParams;
 use super::deliver::BakeLayout;
 use super::em::C;
-use super::global_map;
-use crate::geometry::Spectrum;
 use crate::error::{Error, Result};
 use crate::features::{self, FanSampler, Frames, edge_transport_angles, tangent_frames};
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
@@ -162,6 +160,10 @@ impl Drop for CancelOnDrop<'_> {
         }
     }
 }
+
+/// The level whose HKS the shape features carry down the vertex tree: the finest of at most
+/// this many vertices.
+const HKS_VERTICES: usize = 2000;
 
 /// Prepare a mesh for MeshMatch: weld, refine to `params.vertices` by longest-edge bisection
 /// (signal sampled from the texture/colours at every new vertex), build the hierarchy (§3), tangent
@@ -376,28 +378,19 @@ pub fn prepare(
     stage("hierarchy", sw.secs(), &mut timings);
     cancel.check()?;
 
-    // Shape features on a thread of their own while the fan tables are built: the eigen-solve
-    // is sequential and the tables are parallel, so together they fill the cores. The spectrum
-    // is the global map's (the finest level of at most `MAP_LEVEL_VERTICES`, `SOLVE_MAP_K`
-    // eigenpairs): the HKS is read from it and the solve's map finds it cached. Levels too
-    // small for it, or a surface of several components (no map), take the HKS of the level
-    // nearest 2000 vertices instead.
+    // Shape features on a thread of their own while the fan tables are built: the HKS
+    // eigen-solve is sequential and the tables are parallel, so together they fill the cores.
     sink(Event::Progress(progress("features", &watch, 0.5)));
-    let lm = global_map::map_level(&hierarchy, hierarchy.num_levels());
-    let km = global_map::SOLVE_MAP_K;
-    let spectral = (hierarchy.levels[lm].len() >= 4 * km).then(|| {
-        let lev = &hierarchy.levels[lm];
+    let lc = features::hks_level(&hierarchy, HKS_VERTICES);
+    let hks = {
+        let lev = &hierarchy.levels[lc];
         let (p, f) = (lev.positions.clone(), lev.faces.clone());
         crate::work::spawn_detached(move || {
             let sw = Stopwatch::start();
-            let sp = Spectrum::new(&p, &f, km).ok();
-            let hks = sp
-                .as_ref()
-                .and_then(|sp| features::hks_from_eigenpairs(&sp.evals, &sp.evecs).ok());
-            (sp, hks, sw.secs())
-        })
-    });
-    let spectral = spectral.transpose()?;
+            let hks = features::hks_scaled(&p, &f, features::HKS_EIGENPAIRS);
+            (hks, sw.secs())
+        })?
+    };
 
     // Fan sampling tables of every level. A mesh with a signal builds each level's table, takes
     // its fans and drops it. A mesh without one (a target) keeps them, so a correspondence edit
@@ -442,21 +435,9 @@ pub fn prepare(
         (None, None)
     };
     stage("fans", sw.secs(), &mut timings);
-    let sw = Stopwatch::start();
-    let (shape, map_cache) = match spectral.map(|d| d.wait(cancel)).transpose()? {
-        Some((Some(sp), Some(hks), secs)) => {
-            stage("features", secs, &mut timings);
-            (
-                features::shape_features_from(&hierarchy, lm, hks),
-                global_map::MapCache::with_spectrum(lm, km, Arc::new(sp)),
-            )
-        }
-        _ => {
-            let shape = features::shape_features_cancellable(&hierarchy, 2000, cancel)?;
-            stage("features", sw.secs(), &mut timings);
-            (shape, global_map::MapCache::default())
-        }
-    };
+    let (hks, secs) = hks.wait(cancel)?;
+    let shape = features::shape_features_from(&hierarchy, lc, hks?);
+    stage("features", secs, &mut timings);
     cancel.check()?;
     sink(Event::Progress(progress("prepare", &watch, 1.0)));
     let layout = Arc::new(BakeLayout {
@@ -480,6 +461,6 @@ pub fn prepare(
         samplers,
         fan_radius: params.fan_radius,
         timings,
-        map_cache: Arc::new(map_cache),
+        map_cache: Arc::default(),
     })
 }
