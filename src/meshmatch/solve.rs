@@ -338,7 +338,7 @@ struct Levels<'a> {
     /// E-steps run per level.
     iterations: Vec<usize>,
     /// Ring summaries of the current level's source fans and of the target's latest fans
-    /// ([`em::ring_summaries`]): the E-step's rotation-invariant lower bound.
+    /// ([`em::ring_summaries_into`]): the E-step's rotation-invariant lower bound.
     rings_s: Vec<f32>,
     rings_t: Vec<f32>,
     nnf: Vec<(u32, u8)>,
@@ -439,7 +439,7 @@ impl<'a> Levels<'a> {
             crate::error::try_filled(lt.len().saturating_mul(PER), 0.0f32, "the target's fans")?;
         let mut dist = vec![0.0f32; lt.len()];
         let sw = Stopwatch::start();
-        self.rings_s = em::ring_summaries(&self.fans_s[l]);
+        em::ring_summaries_into(&self.fans_s[l], &mut self.rings_s);
         self.rings_t.clear();
         self.t.fans += sw.secs();
         self.start_level(l, &fans_t, &mut dist)?;
@@ -548,7 +548,7 @@ impl<'a> Levels<'a> {
             }
             let sw = Stopwatch::start();
             sampler_t.fans_into(lt, self.signal.as_flattened(), C, fans_t);
-            self.rings_t = em::ring_summaries(fans_t);
+            em::ring_summaries_into(fans_t, &mut self.rings_t);
             self.t.fans += sw.secs();
             let mut nnf = std::mem::take(&mut self.nnf);
             let ctx = self.ctx(l, fans_t, wc);
