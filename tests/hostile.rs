@@ -219,6 +219,9 @@ fn huge_and_invalid_parameters_are_refused_before_work() {
             "4000000",
         );
         refused(&d, &with(base, &["--iterations", "1000000000"]), "1000");
+        refused(&d, &with(base, &["--tolerance", "NaN"]), "--tolerance");
+        refused(&d, &with(base, &["--tolerance=-0.1"]), "--tolerance");
+        refused(&d, &with(base, &["--tolerance", "1"]), "--tolerance");
         refused(&d, &with(base, &["--levels", "0"]), "--levels");
         refused(
             &d,

@@ -139,6 +139,8 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     for (name, s) in &result.timings {
         eprintln!("  {name:<12} {s:8.3} s");
     }
+    let its: Vec<String> = result.iterations.iter().map(|i| i.to_string()).collect();
+    eprintln!("  EM iterations per level, finest first: {}", its.join(" "));
     for n in &result.notices {
         eprintln!("note: {n}");
     }
