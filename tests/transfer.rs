@@ -102,6 +102,43 @@ fn spot_onto_retessellated_spot() {
     assert!(median < 5.0, "median dE {median}");
 }
 
+/// The convergence stop: at tolerance 0 every level runs every iteration; at the default it
+/// stops levels early and the result stays as good (energy within 1%, the mean colour error
+/// against the known truth within 5%).
+#[test]
+fn levels_stop_at_convergence_without_losing_quality() {
+    let cancel = CancelToken::new();
+    let (target, truth) = retessellated(8_000);
+    let every = TransferParams {
+        tolerance: 0.0,
+        ..params(12_000)
+    };
+    let (ps, pt) = prepare_pair(&spot(), &every, &target, &every, &|_| {}, &cancel).unwrap();
+    let full = solve(&ps, &pt, &[], &every, &|_| {}, &cancel).unwrap();
+    let fast = solve(&ps, &pt, &[], &params(12_000), &|_| {}, &cancel).unwrap();
+    assert!(full.iterations.iter().all(|&i| i == every.iterations));
+    assert!(fast.iterations.iter().all(|&i| i <= every.iterations));
+    let (n_full, n_fast): (usize, usize) =
+        (full.iterations.iter().sum(), fast.iterations.iter().sum());
+    let mean_de = |r: &meshmatch::meshmatch::TransferResult| {
+        let de: Vec<f32> = r
+            .file_signal
+            .iter()
+            .zip(&truth)
+            .map(|(a, b)| delta_e76(*a, *b))
+            .collect();
+        stats(de).1
+    };
+    let (m_full, m_fast) = (mean_de(&full), mean_de(&fast));
+    println!(
+        "iterations {n_full} -> {n_fast} ({:?}), energy {:.4} -> {:.4}, mean dE {m_full:.2} -> {m_fast:.2}",
+        fast.iterations, full.energy, fast.energy
+    );
+    assert!(n_fast < n_full, "the stop never ended a level early");
+    assert!(fast.energy <= 1.01 * full.energy, "energy");
+    assert!(m_fast <= 1.05 * m_full + 0.1, "colour error");
+}
+
 /// The deformation of the second test: a non-rigid stretch x *= 1 + 0.3 y, then a rotation,
 /// scale and translation.
 fn deform(p: Vec3, rot: Mat3) -> Vec3 {

@@ -555,8 +555,10 @@ impl<'a> Levels<'a> {
             *dist = em::all_distances(&ctx, &nnf);
             let energy = dist.iter().map(|&d| d as f64).sum::<f64>() / dist.len().max(1) as f64;
             // Converged: the last E-step gained less than `tolerance` of the energy (MeshMatch's
-            // upsampled start is already close on every level below the coarsest).
-            let converged = it > 0
+            // upsampled start is already close on every level below the coarsest). A rise counts
+            // as converged too, except at tolerance 0, which runs every iteration.
+            let converged = self.params.tolerance > 0.0
+                && it > 0
                 && prev_energy.is_finite()
                 && prev_energy - energy < self.params.tolerance as f64 * prev_energy;
             let last = it == iterations || converged;
