@@ -90,6 +90,13 @@ pub fn spawn_detached<T: Send + 'static>(
 }
 
 impl<T> Detached<T> {
+    /// A handle whose result is already there (work that was waited for early).
+    pub fn done(value: T) -> Detached<T> {
+        let (tx, rx) = crossbeam_channel::bounded(1);
+        let _ = tx.send(value);
+        Detached(rx)
+    }
+
     /// Wait for the result, returning `Err(Cancelled)` within about 10 ms of `cancel` being set.
     pub fn wait(self, cancel: &CancelToken) -> crate::error::Result<T> {
         loop {

@@ -54,7 +54,13 @@ fn retessellated(n: usize) -> (TriMesh, Vec<[f32; 3]>) {
     (TriMesh::new(positions, w.faces.clone()), truth)
 }
 
-fn stats(mut de: Vec<f32>) -> (f32, f32) {
+/// Median and mean colour error (CIE76 dE) of a transferred signal against the truth.
+fn de_stats(signal: &[[f32; 3]], truth: &[[f32; 3]]) -> (f32, f32) {
+    let mut de: Vec<f32> = signal
+        .iter()
+        .zip(truth)
+        .map(|(a, b)| delta_e76(*a, *b))
+        .collect();
     let mean = de.iter().sum::<f32>() / de.len() as f32;
     de.sort_by(|a, b| a.total_cmp(b));
     (de[de.len() / 2], mean)
@@ -79,13 +85,7 @@ fn spot_onto_retessellated_spot() {
         }
     };
     let r = solve(&ps, &pt, &[], &prm, &sink, &cancel).unwrap();
-    let de: Vec<f32> = r
-        .file_signal
-        .iter()
-        .zip(&truth)
-        .map(|(a, b)| delta_e76(*a, *b))
-        .collect();
-    let (median, mean) = stats(de);
+    let (median, mean) = de_stats(&r.file_signal, &truth);
     println!(
         "spot->spot retessellated: median dE {median:.2}, mean dE {mean:.2}, energy {:.4}, prepare {t_prep:.2}s, total {:.2}s",
         r.energy,
@@ -120,16 +120,10 @@ fn levels_stop_at_convergence_without_losing_quality() {
     assert!(fast.iterations.iter().all(|&i| i <= every.iterations));
     let (n_full, n_fast): (usize, usize) =
         (full.iterations.iter().sum(), fast.iterations.iter().sum());
-    let mean_de = |r: &meshmatch::meshmatch::TransferResult| {
-        let de: Vec<f32> = r
-            .file_signal
-            .iter()
-            .zip(&truth)
-            .map(|(a, b)| delta_e76(*a, *b))
-            .collect();
-        stats(de).1
-    };
-    let (m_full, m_fast) = (mean_de(&full), mean_de(&fast));
+    let (m_full, m_fast) = (
+        de_stats(&full.file_signal, &truth).1,
+        de_stats(&fast.file_signal, &truth).1,
+    );
     println!(
         "iterations {n_full} -> {n_fast} ({:?}), energy {:.4} -> {:.4}, mean dE {m_full:.2} -> {m_fast:.2}",
         fast.iterations, full.energy, fast.energy
@@ -202,13 +196,7 @@ fn spot_onto_stretched_moved_spot_with_correspondences() {
         })
         .count();
     let frac = good as f32 / r.nnf.len() as f32;
-    let de: Vec<f32> = r
-        .file_signal
-        .iter()
-        .zip(&truth)
-        .map(|(a, b)| delta_e76(*a, *b))
-        .collect();
-    let (median, mean) = stats(de);
+    let (median, mean) = de_stats(&r.file_signal, &truth);
     println!(
         "spot->stretched spot, 6 corr: {:.1}% within 0.1 sqrt(A), median dE {median:.2}, mean dE {mean:.2}, {:.2}s",
         100.0 * frac,

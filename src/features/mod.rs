@@ -162,18 +162,11 @@ pub fn hks_scaled(positions: &[[f32; 3]], faces: &[[u32; 3]], k: usize) -> Resul
     let pts: Vec<[f32; 3]> = positions.iter().map(|p| p.map(|x| x * s)).collect();
     let k = k.min(n - 1).max(2);
     let (evals, evecs) = crate::geometry::laplacian_eigen(&pts, faces, k)?;
-    hks_from_eigenpairs(&evals, &evecs)
-}
-
-/// The normalised, log-scaled HKS of [`hks_scaled`] from eigenpairs of a unit-area surface
-/// (eigenvalues ascending, eigenvectors flat column-major and M-orthonormal, as
-/// [`crate::geometry::laplacian_eigen`] and [`crate::geometry::Spectrum`] give them).
-pub fn hks_from_eigenpairs(evals: &[f64], evecs: &[f64]) -> Result<Vec<f32>> {
-    let times = crate::geometry::hks_times(evals, HKS_TIMES);
+    let times = crate::geometry::hks_times(&evals, HKS_TIMES);
     if times.len() != HKS_TIMES {
         return Err(Error::InvalidMesh("HKS: degenerate spectrum".into()));
     }
-    let raw = crate::geometry::hks(evals, evecs, &times);
+    let raw = crate::geometry::hks(&evals, &evecs, &times);
     let traces: Vec<f64> = times
         .iter()
         .map(|&t| {

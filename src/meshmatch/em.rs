@@ -84,6 +84,17 @@ pub(crate) fn ring_summaries_into(fans: &[f32], out: &mut Vec<f32>) {
         });
 }
 
+/// Squared L2 distance of two equally long feature vectors.
+#[inline]
+fn squared_l2(a: &[f32], b: &[f32]) -> f32 {
+    let mut d = 0.0f32;
+    for (x, y) in a.iter().zip(b) {
+        let e = x - y;
+        d += e * e;
+    }
+    d
+}
+
 /// Everything the E-step needs on one level.
 pub(crate) struct Ctx<'a> {
     pub s: Side<'a>,
@@ -119,14 +130,12 @@ impl Ctx<'_> {
         if self.t.rings.is_empty() || self.s.rings.is_empty() {
             return 0.0;
         }
-        let a = &self.t.rings[t * RING..(t + 1) * RING];
-        let b = &self.s.rings[s * RING..(s + 1) * RING];
-        let mut acc = 0.0f32;
-        for i in 0..RING {
-            let x = a[i] - b[i];
-            acc += x * x;
-        }
-        BOUND_SLACK * self.wc * acc
+        BOUND_SLACK
+            * self.wc
+            * squared_l2(
+                &self.t.rings[t * RING..(t + 1) * RING],
+                &self.s.rings[s * RING..(s + 1) * RING],
+            )
     }
 
     /// The rotation-independent part of [`Ctx::dist`]: squared L2 of the weighted shape
@@ -134,14 +143,10 @@ impl Ctx<'_> {
     #[inline]
     pub fn shape_dist(&self, t: usize, s: usize) -> f32 {
         let dsh = self.dsh;
-        let a = &self.t.shape[t * dsh..(t + 1) * dsh];
-        let b = &self.s.shape[s * dsh..(s + 1) * dsh];
-        let mut d = 0.0f32;
-        for i in 0..dsh {
-            let x = a[i] - b[i];
-            d += x * x;
-        }
-        d
+        squared_l2(
+            &self.t.shape[t * dsh..(t + 1) * dsh],
+            &self.s.shape[s * dsh..(s + 1) * dsh],
+        )
     }
 
     /// `d` plus the weighted colour fan distance at rotation k, ring by ring, stopping once the

@@ -394,9 +394,9 @@ pub fn prepare(
     // In a one-thread pool (`bench --threads 1` measures one core) the solve is waited for
     // before the tables, as the pair's preparations are run one after the other there.
     let hks = if rayon::current_num_threads() == 1 {
-        Ok(hks.wait(cancel)?)
+        crate::work::Detached::done(hks.wait(cancel)?)
     } else {
-        Err(hks)
+        hks
     };
 
     // Fan sampling tables of every level. A mesh with a signal builds each level's table, takes
@@ -442,10 +442,7 @@ pub fn prepare(
         (None, None)
     };
     stage("fans", sw.secs(), &mut timings);
-    let (hks, secs) = match hks {
-        Ok(done) => done,
-        Err(pending) => pending.wait(cancel)?,
-    };
+    let (hks, secs) = hks.wait(cancel)?;
     let shape = features::shape_features_from(&hierarchy, lc, hks?);
     stage("features", secs, &mut timings);
     cancel.check()?;
