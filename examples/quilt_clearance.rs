@@ -41,6 +41,9 @@ fn main() {
         let (lo, hi) = base.bounds().expect("bounds");
         let diag = Vec3::from(hi).distance(Vec3::from(lo));
         for kind in SwatchKind::ALL {
+            if std::env::var("KIND").is_ok_and(|k| k != kind.as_str()) {
+                continue;
+            }
             let sw = swatch(kind, 1);
             let params = Params {
                 swatch_size: Some(frac * diag),
@@ -51,6 +54,11 @@ fn main() {
                     .and_then(|v| v.parse().ok())
                     .unwrap_or(Params::default().max_distortion),
                 merge_elements: std::env::var("MERGE").is_ok_and(|v| v == "1"),
+                nudge: !std::env::var("NUDGE").is_ok_and(|v| v == "0"),
+                patch_radius: std::env::var("PR")
+                    .ok()
+                    .and_then(|v| v.parse().ok())
+                    .unwrap_or(Params::default().patch_radius),
                 ..Params::default()
             };
             let out = quilting::run(
@@ -64,6 +72,15 @@ fn main() {
                 &CancelToken::new(),
             )
             .expect("quilt");
+            if let Ok(dir) = std::env::var("OUT") {
+                let file = format!(
+                    "{dir}/{}_{}.obj",
+                    name.split('/').next().unwrap_or(name),
+                    kind.as_str()
+                );
+                quilting::save_quilt_obj(&out, Some(&base), std::path::Path::new(&file))
+                    .expect("save");
+            }
             if std::env::var("STATS").is_ok() {
                 println!("{:?}", out.stats);
             }

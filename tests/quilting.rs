@@ -835,3 +835,63 @@ fn no_element_leaves_the_shell_on_thin_legs_and_horns() {
     );
     assert!(out.stats.elements > 50, "{} elements", out.stats.elements);
 }
+
+/// Output faces per base area over the swatch's faces per (scaled) swatch area.
+fn face_density(base: &TriMesh, sw: &Swatch, out: &QuiltOutput) -> f64 {
+    let area: f64 = meshmatch::geometry::face_areas(&base.positions, &base.faces)
+        .iter()
+        .sum();
+    let s = (out.stats.swatch_size / sw.extent[0]) as f64;
+    let swatch = sw.mesh.num_faces() as f64 / (sw.extent[0] as f64 * sw.extent[1] as f64 * s * s);
+    out.elements.num_faces() as f64 / area / swatch
+}
+
+#[test]
+fn nudged_strands_fill_the_gaps_between_patches_on_a_curved_base() {
+    // a weave's long strands, crossing each other, over a sphere: where the lattices of two
+    // patches disagree, the cut drops whole strands; moved by part of a spacing, some fit
+    let base = icosphere(1.0, 4);
+    let sw = swatch(SwatchKind::Weave, 1);
+    let params = Params {
+        swatch_size: Some(0.9),
+        ..Default::default()
+    };
+    let plain = quilt(
+        &base,
+        &sw,
+        &Params {
+            nudge: false,
+            ..params.clone()
+        },
+    );
+    let nudged = quilt(&base, &sw, &params);
+    check_integrity(&nudged, &sw);
+    let (dp, dn) = (
+        face_density(&base, &sw, &plain),
+        face_density(&base, &sw, &nudged),
+    );
+    eprintln!(
+        "weave on a sphere: face density {dp:.3} -> {dn:.3} of the swatch's, {} strands nudged",
+        nudged.stats.nudged
+    );
+    assert!(nudged.stats.nudged > 0);
+    assert!(dn > 1.04 * dp, "density {dp} -> {dn}");
+    // never denser than the swatch, and every nudged strand clear of the others
+    assert!(dn < 1.05, "density {dn}");
+    let l = nudged.stats.swatch_size;
+    let tau = 0.5 * sw.clearance() * l / sw.extent[0];
+    let dmin = min_inter_element_distance(&nudged, tau);
+    assert!(dmin >= 0.99 * tau, "elements {dmin} apart, tau {tau}");
+    let crossing = quilting::crossing_pairs(&nudged).len();
+    assert_eq!(crossing, 0, "{crossing} pairs of strands cross");
+    // and within the shell
+    let bvh = meshmatch::geometry::TriangleBvh::new(base.positions.as_slice(), &base.faces);
+    let limit = 1.5 * nudged.stats.thickness + 0.05 * l;
+    assert!(
+        nudged
+            .elements
+            .positions
+            .iter()
+            .all(|q| bvh.closest_point(*q).is_some_and(|(_, _, d)| d <= limit))
+    );
+}

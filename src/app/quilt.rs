@@ -36,6 +36,8 @@ pub struct QuiltDialog {
     pub seed: u64,
     /// Merge threads that continue each other across patch seams.
     pub merge: bool,
+    /// Move elements the cut drops into the gaps between patches.
+    pub nudge: bool,
 }
 
 impl Default for QuiltDialog {
@@ -46,6 +48,7 @@ impl Default for QuiltDialog {
             size: 0.1,
             seed: Params::default().seed,
             merge: Params::default().merge_elements,
+            nudge: Params::default().nudge,
         }
     }
 }
@@ -108,6 +111,11 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
                  deformed half-way and stitched into one instead of one copy being dropped; \
                  slower, compact elements are never merged",
             );
+        ui.checkbox(&mut self.nudge, "fill gaps at seams")
+            .on_hover_text(
+                "An element dropped where two patches meet is tried again moved by a quarter or \
+                 half of its spacing, and kept whole where it clears every other element",
+            );
         let ready =
             state.slot(Side::Target).is_some() && !matches!(self.swatch, SwatchChoice::File(None));
         ui.horizontal(|ui| {
@@ -139,6 +147,7 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
             swatch_size: Some(self.size * diag),
             seed: self.seed,
             merge_elements: self.merge,
+            nudge: self.nudge,
             ..Params::default()
         };
         let choice = self.swatch.clone();

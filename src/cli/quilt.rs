@@ -45,6 +45,10 @@ pub struct QuiltArgs {
     /// compact elements are never merged.
     #[arg(long)]
     pub merge: bool,
+    /// Do not try elements dropped at patch seams again, moved by part of their spacing into
+    /// the gap (on by default: fills the gaps long elements leave on curved bases).
+    #[arg(long)]
+    pub no_nudge: bool,
 }
 
 fn positive(name: &str, v: Option<f32>) -> Result<()> {
@@ -99,6 +103,7 @@ impl QuiltArgs {
             thickness: a.thickness,
             seed: a.seed,
             merge_elements: a.merge,
+            nudge: !a.no_nudge,
             ..Params::default()
         };
         let bar = progress_bar();
@@ -112,12 +117,14 @@ impl QuiltArgs {
         bar.finish_and_clear();
         let s = &out.stats;
         eprintln!(
-            "quilted {} elements ({} faces; {} copies merged into others) in {:.2} s: {} patches, \
+            "quilted {} elements ({} faces; {} copies merged into others, {} moved into gaps) in \
+             {:.2} s: {} patches, \
              {:.1}% of the base covered, swatch {:.4} wide, shell {:.4} thick, shell stretch L2 \
              {:.3} -> {:.3}",
             s.elements,
             out.elements.num_faces(),
             s.merged,
+            s.nudged,
             s.seconds,
             s.patches,
             100.0 * s.covered_fraction,

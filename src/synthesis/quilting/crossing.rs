@@ -49,14 +49,111 @@ fn segment_pierces(a: Vec3, b: Vec3, t: &[Vec3; 3]) -> bool {
     tt > 1e-5 && tt < 1.0 - 1e-5
 }
 
+/// Triangles bucketed in a uniform grid over a box (CSR: `start[c]..start[c + 1]` in `items`),
+/// so that an edge meets only the triangles of the cells its box touches.
+struct TriGrid {
+    lo: Vec3,
+    inv: Vec3,
+    dims: [usize; 3],
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl TriGrid {
+    fn new(tris: &[[Vec3; 3]], lo: Vec3, hi: Vec3) -> Self {
+        // about two triangles a cell, at most 16 cells an axis
+        let n = ((tris.len() as f32 / 2.0).cbrt().ceil() as usize).clamp(1, 16);
+        let ext = (hi - lo).max(Vec3::splat(1e-12));
+        let dims = [n; 3];
+        let inv = Vec3::splat(n as f32) / ext;
+        let mut g = TriGrid {
+            lo,
+            inv,
+            dims,
+            start: vec![0; n * n * n + 1],
+            items: Vec::new(),
+        };
+        for pass in 0..2 {
+            for (i, t) in tris.iter().enumerate() {
+                let (a, b) = g.cells(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+                for z in a[2]..=b[2] {
+                    for y in a[1]..=b[1] {
+                        for x in a[0]..=b[0] {
+                            let c = (z * n + y) * n + x;
+                            if pass == 0 {
+                                g.start[c + 1] += 1;
+                            } else {
+                                g.items[g.start[c] as usize] = i as u32;
+                                g.start[c] += 1;
+                            }
+                        }
+                    }
+                }
+            }
+            if pass == 0 {
+                for c in 0..n * n * n {
+                    g.start[c + 1] += g.start[c];
+                }
+                g.items = vec![0; g.start[n * n * n] as usize];
+            } else {
+                // each cell's start moved to its end: shift back
+                for c in (1..=n * n * n).rev() {
+                    g.start[c] = g.start[c - 1];
+                }
+                g.start[0] = 0;
+            }
+        }
+        g
+    }
+    /// The (clamped) cell range of the box `lo..hi`.
+    fn cells(&self, lo: Vec3, hi: Vec3) -> ([usize; 3], [usize; 3]) {
+        let f = |p: Vec3| {
+            let q = (p - self.lo) * self.inv;
+            [0, 1, 2].map(|k| (q[k].floor().max(0.0) as usize).min(self.dims[k] - 1))
+        };
+        (f(lo), f(hi))
+    }
+}
+
 fn edges_pierce(a: &[[Vec3; 3]], b: &[[Vec3; 3]]) -> bool {
+    let hit = |p: Vec3, q: Vec3, tb: &[Vec3; 3]| {
+        let (lo, hi) = (p.min(q), p.max(q));
+        let (tl, th) = (tb[0].min(tb[1]).min(tb[2]), tb[0].max(tb[1]).max(tb[2]));
+        tl.cmple(hi).all() && th.cmpge(lo).all() && segment_pierces(p, q, tb)
+    };
+    if a.len() * b.len() <= 256 {
+        return a
+            .iter()
+            .any(|ta| (0..3).any(|k| b.iter().any(|tb| hit(ta[k], ta[(k + 1) % 3], tb))));
+    }
+    let (lo, hi) = b.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(l, h), t| {
+            (
+                l.min(t[0]).min(t[1]).min(t[2]),
+                h.max(t[0]).max(t[1]).max(t[2]),
+            )
+        },
+    );
+    let grid = TriGrid::new(b, lo, hi);
+    let n = grid.dims[0];
     a.iter().any(|ta| {
         (0..3).any(|k| {
             let (p, q) = (ta[k], ta[(k + 1) % 3]);
-            let (lo, hi) = (p.min(q), p.max(q));
-            b.iter().any(|tb| {
-                let (tl, th) = (tb[0].min(tb[1]).min(tb[2]), tb[0].max(tb[1]).max(tb[2]));
-                tl.cmple(hi).all() && th.cmpge(lo).all() && segment_pierces(p, q, tb)
+            let (el, eh) = (p.min(q), p.max(q));
+            if el.cmpgt(hi).any() || eh.cmplt(lo).any() {
+                return false;
+            }
+            let (c0, c1) = grid.cells(el, eh);
+            (c0[2]..=c1[2]).any(|z| {
+                (c0[1]..=c1[1]).any(|y| {
+                    (c0[0]..=c1[0]).any(|x| {
+                        let c = (z * n + y) * n + x;
+                        grid.items[grid.start[c] as usize..grid.start[c + 1] as usize]
+                            .iter()
+                            .any(|&i| hit(p, q, &b[i as usize]))
+                    })
+                })
             })
         })
     })
@@ -143,6 +240,43 @@ mod tests {
         // parallel, just above: clear
         let (pd, fd) = square(0.01, [0.5, 0.5], false);
         assert!(!surfaces_cross(&pa, &fa, &pd, &fd));
+    }
+
+    #[test]
+    fn the_grid_finds_what_the_pairwise_test_finds() {
+        // two wavy sheets, shifted so that some pairs pierce and some do not
+        let sheet = |n: usize, dz: f32, phase: f32| -> Vec<[Vec3; 3]> {
+            let p = |i: usize, j: usize| {
+                let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+                Vec3::new(x, y, dz + 0.05 * (9.0 * x + phase).sin() * (7.0 * y).cos())
+            };
+            let mut t = Vec::new();
+            for j in 0..n {
+                for i in 0..n {
+                    t.push([p(i, j), p(i + 1, j), p(i + 1, j + 1)]);
+                    t.push([p(i, j), p(i + 1, j + 1), p(i, j + 1)]);
+                }
+            }
+            t
+        };
+        let brute = |a: &[[Vec3; 3]], b: &[[Vec3; 3]]| {
+            a.iter().any(|ta| {
+                (0..3).any(|k| {
+                    b.iter()
+                        .any(|tb| segment_pierces(ta[k], ta[(k + 1) % 3], tb))
+                })
+            })
+        };
+        let a = sheet(20, 0.0, 0.0);
+        let mut seen = [0usize; 2];
+        for s in 0..40 {
+            let dz = -0.12 + 0.006 * s as f32;
+            let b = sheet(17, dz, 1.3);
+            let (g, f) = (edges_pierce(&a, &b), brute(&a, &b));
+            assert_eq!(g, f, "offset {dz}");
+            seen[g as usize] += 1;
+        }
+        assert!(seen[0] > 0 && seen[1] > 0, "{seen:?}");
     }
 
     #[test]
