@@ -98,15 +98,25 @@ where
     repaint: Option<egui::Context>,
 }
 
+/// Whether the views draw on a CPU rasteriser (set once the render state is known); read by the
+/// worker's wake-up callbacks, which are made before the window exists.
+static SOFTWARE_RENDERER: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
 /// Longest a worker event waits for a repaint (bursts of events coalesce; while a job runs the
-/// window also repaints every [`busy_repaint`]). Input still repaints at once.
-const WAKE_DELAY: std::time::Duration = std::time::Duration::from_millis(100);
+/// window also repaints every [`busy_repaint`]). Input still repaints at once. On a software
+/// renderer, where every frame of the window costs the job CPU, streamed results show twice a
+/// second instead of ten times.
+fn wake_delay() -> std::time::Duration {
+    let software = SOFTWARE_RENDERER.load(std::sync::atomic::Ordering::Relaxed);
+    std::time::Duration::from_millis(if software { 500 } else { 100 })
+}
 /// Repaint period while a job runs and nothing else asks for a frame (streamed results show, the
-/// busy indicator turns, the elapsed time counts): 20 frames a second on a GPU, 4 on a software
+/// busy indicator turns, the elapsed time counts): 20 frames a second on a GPU, 1 on a software
 /// renderer, where each frame of the window costs the job about a tenth of a second of CPU (the
-/// default transfer took 28 s in the app at 10 frames a second, 17 s at 4; 12 s in the CLI).
+/// default transfer took 28 s in the app at 10 frames a second, 17 s at 4; 12 s in the CLI;
+/// later 10.8 s at 4 frames a second plus results streamed at up to 10, against 7.5 s in the CLI).
 fn busy_repaint(software_renderer: bool) -> std::time::Duration {
-    std::time::Duration::from_millis(if software_renderer { 250 } else { 50 })
+    std::time::Duration::from_millis(if software_renderer { 1000 } else { 50 })
 }
 
 /// A small rotating arc that says "working". Unlike `egui::Spinner`, which asks for a repaint
@@ -153,8 +163,8 @@ where
         let wake_ctx = repaint.clone();
         let worker = Worker::spawn(engine, move || {
             if let Some(ctx) = &repaint {
-                // Coalesce bursts of events into at most one repaint per WAKE_DELAY.
-                ctx.request_repaint_after(WAKE_DELAY);
+                // Coalesce bursts of events into at most one repaint per wake delay.
+                ctx.request_repaint_after(wake_delay());
             }
         });
         MeshMatchApp {
@@ -193,7 +203,7 @@ where
         let ctx = self.repaint.clone();
         let wake = move || {
             if let Some(c) = &ctx {
-                c.request_repaint_after(WAKE_DELAY);
+                c.request_repaint_after(wake_delay());
             }
         };
         let job = match which {
@@ -301,7 +311,7 @@ where
         let ctx = self.repaint.clone();
         let wake: systems::Wake = Box::new(move || {
             if let Some(c) = &ctx {
-                c.request_repaint_after(WAKE_DELAY);
+                c.request_repaint_after(wake_delay());
             }
         });
         let Some(tool) = self.systems.get_mut(i) else {
@@ -335,7 +345,7 @@ where
             "export",
             move || {
                 if let Some(c) = &ctx {
-                    c.request_repaint_after(WAKE_DELAY);
+                    c.request_repaint_after(wake_delay());
                 }
             },
             move |_sink, cancel| Ok(tools::ToolOutcome::Done(task(cancel)?)),
@@ -359,7 +369,7 @@ where
         let ctx = self.repaint.clone();
         let j = tools::update_job(old, new, move || {
             if let Some(c) = &ctx {
-                c.request_repaint_after(WAKE_DELAY);
+                c.request_repaint_after(wake_delay());
             }
         });
         self.state.message = format!("{} running...", j.name);
@@ -1057,6 +1067,10 @@ where
         if self.state.restart_pending() {
             ctx.request_repaint_after(state::DEBOUNCE / 3);
         }
+        SOFTWARE_RENDERER.store(
+            self.views.software_renderer,
+            std::sync::atomic::Ordering::Relaxed,
+        );
         if self.state.job.running || self.tool.is_some() {
             ctx.request_repaint_after(busy_repaint(self.views.software_renderer));
         }
