@@ -113,8 +113,9 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
             );
         ui.checkbox(&mut self.nudge, "fill gaps at seams")
             .on_hover_text(
-                "An element dropped where two patches meet is tried again moved by a quarter or \
-                 half of its spacing, and kept whole where it clears every other element",
+                "A thread (elongated element) dropped where two patches meet is tried again \
+                 moved by a quarter or half of its spacing, and kept whole where it clears every \
+                 other element; compact elements are never moved",
             );
         let ready =
             state.slot(Side::Target).is_some() && !matches!(self.swatch, SwatchChoice::File(None));

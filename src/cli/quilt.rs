@@ -45,8 +45,8 @@ pub struct QuiltArgs {
     /// compact elements are never merged.
     #[arg(long)]
     pub merge: bool,
-    /// Do not try elements dropped at patch seams again, moved by part of their spacing into
-    /// the gap (on by default: fills the gaps long elements leave on curved bases).
+    /// Do not try threads (elongated elements) dropped at patch seams again, moved by part of
+    /// their spacing into the gap (on by default: fills the gaps they leave on curved bases).
     #[arg(long)]
     pub no_nudge: bool,
 }

@@ -161,9 +161,10 @@ pub struct Params {
     /// by default: measured on weaves over curved bases it leaves the face density as it is
     /// (within 5%) at 2.5-3 times the run time; the threads it joins run on across seams.
     pub merge_elements: bool,
-    /// Try each element the cut drops again, moved by a quarter or half of its class's spacing
-    /// in eight directions, and keep the first position that clears every element (fills the
-    /// gaps left where the lattices of neighbouring patches disagree).
+    /// Try each thread (an element at least `merge_min_aspect` elongated) the cut drops again,
+    /// moved by a quarter or half of its class's spacing in eight directions, and keep the
+    /// first position that clears every element (fills the gaps left where the lattices of
+    /// neighbouring patches disagree). Compact elements are never moved.
     pub nudge: bool,
     /// Only elements at least this elongated merge (ratio of their two largest principal
     /// standard deviations in the swatch: strands of a weave about 9, rings and studs 1-2).
@@ -964,8 +965,9 @@ pub fn run(
         .iter()
         .filter(|x| x.is_finite())
         .fold(0.0f32, |a, &b| a.max(0.7 * b * s));
-    // how far a nudged candidate may move (half its class's spacing)
-    let nudge_reach = if params.nudge {
+    // how far a nudged candidate may move (at most half of a class's spacing); only threads are
+    // nudged, so a swatch without any widens no search
+    let nudge_reach = if params.nudge && elongated.iter().any(|&long| long) {
         0.5 * spacing
             .iter()
             .filter(|x| x.is_finite())
