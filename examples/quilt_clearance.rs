@@ -6,7 +6,7 @@
 //! casting along every edge); and the face density against the swatch's (output faces per base
 //! area over swatch faces per scaled swatch area). `cargo run --release --example
 //! quilt_clearance` (`BASE=plane` for one base, `THICK` the shell thickness in swatch widths,
-//! `MERGE=1` to merge threads across seams, `DIST` the largest flattening distortion, `STATS=1`
+//! `MERGE=1` to merge threads across seams, `LATTICE=0` for the paper's matching on every patch, `DIST` the largest flattening distortion, `STATS=1`
 //! to print each run's counters). Also the shell's L2 stretch before and after
 //! its minimisation (`SWEEPS`, default the quilting's), and element size uniformity: each
 //! element's surface area over its swatch element's (scaled), mean and coefficient of
@@ -55,6 +55,7 @@ fn main() {
                     .unwrap_or(Params::default().max_distortion),
                 merge_elements: std::env::var("MERGE").is_ok_and(|v| v == "1"),
                 nudge: !std::env::var("NUDGE").is_ok_and(|v| v == "0"),
+                lattice: !std::env::var("LATTICE").is_ok_and(|v| v == "0"),
                 patch_radius: std::env::var("PR")
                     .ok()
                     .and_then(|v| v.parse().ok())

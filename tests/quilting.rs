@@ -225,6 +225,11 @@ fn plane_reproduces_a_periodic_swatch() {
     let fractions = std::cell::RefCell::new(Vec::new());
     let sink = |e: meshmatch::work::Event| {
         if let meshmatch::work::Event::Progress(p) = e {
+            // the lattice's solve first, then one event per patch
+            if p.stage == "quilt: lattice" {
+                assert!(fractions.borrow().is_empty());
+                return;
+            }
             assert_eq!(p.stage, "quilt");
             fractions.borrow_mut().push(p.fraction);
         }
@@ -852,8 +857,10 @@ fn nudged_strands_fill_the_gaps_between_patches_on_a_curved_base() {
     // patches disagree, the cut drops whole strands; moved by part of a spacing, some fit
     let base = icosphere(1.0, 4);
     let sw = swatch(SwatchKind::Weave, 1);
+    // the paper's matching on every patch (the global lattice leaves few gaps to fill)
     let params = Params {
         swatch_size: Some(0.9),
+        lattice: false,
         ..Default::default()
     };
     let plain = quilt(
@@ -889,6 +896,55 @@ fn nudged_strands_fill_the_gaps_between_patches_on_a_curved_base() {
     let limit = 1.5 * nudged.stats.thickness + 0.05 * l;
     assert!(
         nudged
+            .elements
+            .positions
+            .iter()
+            .all(|q| bvh.closest_point(*q).is_some_and(|(_, _, d)| d <= limit))
+    );
+}
+
+#[test]
+fn the_global_lattice_joins_a_weave_across_patches_on_a_curved_base() {
+    // patches flattened by the two stripe patterns lay their strands on one lattice, so the
+    // crossings line up across seams and the cut drops few strands
+    let base = icosphere(1.0, 4);
+    let sw = swatch(SwatchKind::Weave, 1);
+    let params = Params {
+        swatch_size: Some(0.9),
+        ..Default::default()
+    };
+    let matched = quilt(
+        &base,
+        &sw,
+        &Params {
+            lattice: false,
+            ..params.clone()
+        },
+    );
+    let lattice = quilt(&base, &sw, &params);
+    check_integrity(&lattice, &sw);
+    let (dm, dl) = (
+        face_density(&base, &sw, &matched),
+        face_density(&base, &sw, &lattice),
+    );
+    eprintln!(
+        "weave on a sphere: face density {dm:.3} matched -> {dl:.3} on the lattice ({} of {} \
+         patches)",
+        lattice.stats.lattice_patches, lattice.stats.patches
+    );
+    assert!(lattice.stats.lattice_patches * 2 > lattice.stats.patches);
+    assert!(dl > 1.1 * dm, "density {dm} -> {dl}");
+    assert!(dl > 0.75 && dl < 1.05, "density {dl} of the swatch's");
+    let l = lattice.stats.swatch_size;
+    let tau = 0.5 * sw.clearance() * l / sw.extent[0];
+    let dmin = min_inter_element_distance(&lattice, tau);
+    assert!(dmin >= 0.99 * tau, "elements {dmin} apart, tau {tau}");
+    let crossing = quilting::crossing_pairs(&lattice).len();
+    assert_eq!(crossing, 0, "{crossing} pairs of strands cross");
+    let bvh = meshmatch::geometry::TriangleBvh::new(base.positions.as_slice(), &base.faces);
+    let limit = 1.5 * lattice.stats.thickness + 0.05 * l;
+    assert!(
+        lattice
             .elements
             .positions
             .iter()

@@ -38,6 +38,8 @@ pub struct QuiltDialog {
     pub merge: bool,
     /// Move elements the cut drops into the gaps between patches.
     pub nudge: bool,
+    /// Place patches on one global lattice.
+    pub lattice: bool,
 }
 
 impl Default for QuiltDialog {
@@ -49,6 +51,7 @@ impl Default for QuiltDialog {
             seed: Params::default().seed,
             merge: Params::default().merge_elements,
             nudge: Params::default().nudge,
+            lattice: Params::default().lattice,
         }
     }
 }
@@ -117,6 +120,13 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
                  moved by a quarter or half of its spacing, and kept whole where it clears every \
                  other element; compact elements are never moved",
             );
+        ui.checkbox(&mut self.lattice, "one lattice over the surface")
+            .on_hover_text(
+                "Patches are laid on one global lattice (two stripe patterns along the \
+                 orientation field and across it), so threads and crossings line up across \
+                 seams; near the lattice's singularities patches are matched to their \
+                 neighbours as in the paper. Off: every patch is matched",
+            );
         let ready =
             state.slot(Side::Target).is_some() && !matches!(self.swatch, SwatchChoice::File(None));
         ui.horizontal(|ui| {
@@ -149,6 +159,7 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
             seed: self.seed,
             merge_elements: self.merge,
             nudge: self.nudge,
+            lattice: self.lattice,
             ..Params::default()
         };
         let choice = self.swatch.clone();

@@ -49,6 +49,11 @@ pub struct QuiltArgs {
     /// their spacing into the gap (on by default: fills the gaps they leave on curved bases).
     #[arg(long)]
     pub no_nudge: bool,
+    /// Match every patch to its neighbours as the paper does instead of placing patches on one
+    /// global lattice (two stripe patterns along the orientation field and across it). The
+    /// lattice, on by default, lines up threads and crossings across seams.
+    #[arg(long)]
+    pub no_lattice: bool,
 }
 
 fn positive(name: &str, v: Option<f32>) -> Result<()> {
@@ -104,6 +109,7 @@ impl QuiltArgs {
             seed: a.seed,
             merge_elements: a.merge,
             nudge: !a.no_nudge,
+            lattice: !a.no_lattice,
             ..Params::default()
         };
         let bar = progress_bar();
@@ -118,7 +124,7 @@ impl QuiltArgs {
         let s = &out.stats;
         eprintln!(
             "quilted {} elements ({} faces; {} copies merged into others, {} moved into gaps) in \
-             {:.2} s: {} patches, \
+             {:.2} s: {} patches ({} on the global lattice), \
              {:.1}% of the base covered, swatch {:.4} wide, shell {:.4} thick, shell stretch L2 \
              {:.3} -> {:.3}",
             s.elements,
@@ -127,6 +133,7 @@ impl QuiltArgs {
             s.nudged,
             s.seconds,
             s.patches,
+            s.lattice_patches,
             100.0 * s.covered_fraction,
             s.swatch_size,
             s.thickness,

@@ -9,6 +9,7 @@
 //!   al. 2006 eq. (4)-(5))
 //! - [`HeatGeodesics`] (heat-method distances, factorised once, many source sets)
 //! - [`tangent_frames`], [`parallel_transport_angle`]
+//! - [`smooth_direction_field`] (Knöppel et al. 2013: the smooth tangent field nearest a guide)
 //! - [`TriangleBvh`] (closest point, ray hit)
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
 //! - [`morton_order`] (a cache-friendly visiting order along the Z-order curve)
@@ -26,6 +27,8 @@
 //!   (tetrahedral shell maps, Zhou et al. 2006 eq. (8)-(9): offset, map, L2 stretch, its
 //!   minimisation)
 //! - [`exp_map`] / [`ExpMap`] (discrete exponential map of a geodesic disc)
+//! - [`stripe_pattern`] / [`StripePattern`] (Knöppel et al. 2015: a phase per vertex advancing
+//!   at a given frequency along a direction field; two of them make a global lattice)
 //! - [`uv_atlas`] (charts, LSCM + ARAP, packing: UVs for a mesh without them)
 //! - [`bake_uv`] / [`fill_gutters`] (conservative UV rasterisation, pull-push gutters),
 //!   [`bake_closest`] (another surface's colours by closest point),
@@ -37,6 +40,7 @@ mod crest_lines;
 mod curvature;
 mod curve_distance;
 mod curve_guided_field;
+mod direction_fields;
 mod eigen;
 mod expmap;
 mod frames;
@@ -50,6 +54,7 @@ mod refine;
 mod shell_map;
 mod solid_angle_curvature;
 mod sparse_evaluation;
+mod stripe_patterns;
 mod uv_atlas;
 mod uv_bake;
 
@@ -63,6 +68,7 @@ pub use curve_guided_field::{
     CurveField, FieldCurve, FieldParams, HarmonicFieldSolver, curve_field_completing_orientations,
     curve_tangents, field_roughness, oriented_curve_field, score_terms,
 };
+pub use direction_fields::smooth_direction_field;
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
 pub use frames::{parallel_transport_angle, tangent_frames};
@@ -83,6 +89,7 @@ pub use solid_angle_curvature::{
     solid_angle_curvature_cancellable,
 };
 pub use sparse_evaluation::{SparseSamples, sparse_samples, sparse_samples_if_worth_it};
+pub use stripe_patterns::{StripePattern, stripe_pattern};
 pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
 pub use uv_bake::{
     BAKE_BYTES_PER_TEXEL, BakedImage, bake_closest, bake_onto, bake_uv, check_bake_memory,
