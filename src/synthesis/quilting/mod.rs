@@ -22,6 +22,26 @@
 //!    `max_distortion` (default 2, the paper uses 4) shrinks the disc by 0.75 and retries, down
 //!    to `max(0.15 L, smallest element spacing)`; there, candidates on triangles distorted
 //!    more than `2 max_distortion` are dropped rather than stretched.
+//!
+//!    **Global lattice** (not in the paper; `lattice`, on by default): before any patch, the
+//!    orientation field is smoothed below a swatch width
+//!    ([`crate::geometry::smooth_direction_field`], unless a field is given) and two stripe
+//!    patterns ([`crate::geometry::stripe_pattern`], Knöppel et al. 2015) are solved along it
+//!    and across it, one phase cycle per swatch period (the extent of a periodic swatch, else
+//!    its box plus its own clearance). A patch then unwraps both phases face by face outwards
+//!    from its seed over the flattened disc, never through a face where either pattern is
+//!    singular, and uses them (scaled to swatch units) as its flattening, with the translation
+//!    that puts the swatch's lattice on the phases' and no rotation: every such patch lays its
+//!    copies on the same lattice, so copies of neighbouring patches coincide instead of
+//!    clashing at seams. Where the unwrapped chart overlaps itself (around a singularity) the
+//!    sheet nearer the seed is used, coverage and distortion count only faces within the disc's
+//!    geodesic radius, and a candidate with an edge stretched past twice its length is
+//!    dropped. A patch whose chart is distorted beyond `max_distortion` or whose mean area
+//!    scale is off by more than `lattice_scale` falls back to the exponential map and the
+//!    matching below. Measured with `examples/quilt_clearance` (bunny, a tenth of the
+//!    diagonal): the weave's face density 0.66 -> 0.80 of the swatch's, the chain 1.08 -> 1.05,
+//!    element area CV 0.04-0.08 -> 0.09-0.13 (the stripes' period drifts where the field
+//!    turns); on the horse only 84 of 690 patches take the lattice (weave 0.51 -> 0.53).
 //! 3. **Matching (§2.4, simplified).** Eq. (1)-(3) are taken at the element level: the
 //!    already-placed elements whose centres fall in the patch are brought into swatch
 //!    coordinates and every swatch translation `t` on a grid of `l_in / 16` (one period for
