@@ -36,12 +36,14 @@
 //!    clashing at seams. Where the unwrapped chart overlaps itself (around a singularity) the
 //!    sheet nearer the seed is used, coverage and distortion count only faces within the disc's
 //!    geodesic radius, and a candidate with an edge stretched past twice its length is
-//!    dropped. A patch whose chart is distorted beyond `max_distortion` or whose mean area
-//!    scale is off by more than `lattice_scale` falls back to the exponential map and the
-//!    matching below. Measured with `examples/quilt_clearance` (bunny, a tenth of the
-//!    diagonal): the weave's face density 0.66 -> 0.80 of the swatch's, the chain 1.08 -> 1.05,
-//!    element area CV 0.04-0.08 -> 0.09-0.13 (the stripes' period drifts where the field
-//!    turns); on the horse only 84 of 690 patches take the lattice (weave 0.51 -> 0.53).
+//!    dropped. A patch falls back to the exponential map and the matching below when its seed
+//!    lies within an element's reach (`r_elem`) of a singular face, more than 3% of its disc's
+//!    area is distorted beyond `max_distortion` or folded, or its chart's mean area scale is off
+//!    by more than `lattice_scale`; lattice patches leave the faces near a singularity
+//!    uncovered for matched patches. Measured with `examples/quilt_clearance` (a tenth of the
+//!    diagonal): the weave's face density on the bunny 0.66 -> 0.81 of the swatch's, the chain
+//!    1.08 -> 1.05, element area CV 0.04-0.08 -> 0.08-0.14 (the stripes' period drifts where
+//!    the field turns); on the horse the weave 0.51 -> 0.57.
 //! 3. **Matching (§2.4, simplified).** Eq. (1)-(3) are taken at the element level: the
 //!    already-placed elements whose centres fall in the patch are brought into swatch
 //!    coordinates and every swatch translation `t` on a grid of `l_in / 16` (one period for
@@ -195,8 +197,9 @@ pub struct Params {
     pub lattice: bool,
     /// Largest mean area scale `max(k, 1/k)` of a patch's lattice chart against the surface
     /// (the stripes' period drifts where the field turns): beyond it the patch falls back to
-    /// the exponential map. Measured on the bunny: 2 gives the densest weave (0.83 of the
-    /// swatch's) with element areas varying by 14%; 1.25 gives 0.80 and 12%.
+    /// the exponential map. Measured on the bunny's weave: at 1.25 a face density of 0.81 of
+    /// the swatch's with element areas varying by 12% (CV); looser bounds add a few percent of
+    /// density and more size variation.
     pub lattice_scale: f32,
     /// Only elements at least this elongated merge (ratio of their two largest principal
     /// standard deviations in the swatch: strands of a weave about 9, rings and studs 1-2).
@@ -631,6 +634,10 @@ impl Flat {
         (worst as f32, rho, mean)
     }
 }
+
+/// Largest share of a lattice patch's disc area whose flattening is distorted beyond
+/// `max_distortion` (or folded); elements on those faces are dropped one by one.
+const LATTICE_BAD_AREA: f64 = 0.03;
 
 /// A patch's chart of the global lattice: the two stripe phases unwrapped face by face,
 /// outwards from the seed face in order of distance (Dijkstra on face centroids' exponential
@@ -1183,6 +1190,38 @@ pub fn run(
             .collect(),
         None => Vec::new(),
     };
+    // faces within an element's reach of a singularity: elements there would straddle it, so
+    // lattice patches leave them uncovered and patches seeded on them are matched instead
+    let near_singular: Vec<bool> = if singular.iter().any(|&x| x) {
+        let mut dist = vec![f32::INFINITY; n];
+        let mut heap = std::collections::BinaryHeap::new();
+        for (f, _) in singular.iter().enumerate().filter(|(_, x)| **x) {
+            for &v in &faces[f] {
+                dist[v as usize] = 0.0;
+                heap.push(std::cmp::Reverse((0u32, v)));
+            }
+        }
+        while let Some(std::cmp::Reverse((d, v))) = heap.pop() {
+            let d = f32::from_bits(d);
+            if d > dist[v as usize] || d > r_elem {
+                continue;
+            }
+            let pv = Vec3::from(mesh.positions[v as usize]);
+            for &w in base.adj.row(v as usize) {
+                let nd = d + pv.distance(Vec3::from(mesh.positions[w as usize]));
+                if nd < dist[w as usize] {
+                    dist[w as usize] = nd;
+                    heap.push(std::cmp::Reverse((nd.to_bits(), w)));
+                }
+            }
+        }
+        faces
+            .iter()
+            .map(|f| f.iter().any(|&v| dist[v as usize] < r_elem))
+            .collect()
+    } else {
+        vec![false; faces.len()]
+    };
     let mut chart = LatticeChart::new(n, faces.len());
     cancel.check()?;
 
@@ -1290,7 +1329,7 @@ pub fn run(
         // the lattice's translation (swatch units) when the lattice flattens this patch
         let mut lattice_t: Option<Vec2> = None;
         let (flat, rho) = 'flat: {
-            if let Some(lat) = &lattice {
+            if let Some(lat) = lattice.as_ref().filter(|_| !near_singular[seed]) {
                 let r_flat = rp + 2.0 * r_elem + 2.0 * mean_edge + tau;
                 let em = exp_map(
                     &mesh.positions,
@@ -1334,11 +1373,26 @@ pub fn run(
                         g.into_iter().map(|(f, c)| (f, c.map(to_uv))).collect(),
                         true,
                     );
-                    let (d, rho, scale) =
-                        flat.distortion_and_scale(&base, rp, |f| chart.within(&base, f, rp));
+                    let near = |f: u32| chart.within(&base, f, rp);
+                    let (_, rho, scale) = flat.distortion_and_scale(&base, rp, near);
+                    // the share of the disc's area distorted beyond the limit (folded faces
+                    // included): elements on those faces are dropped one by one below, so a
+                    // few slivers need not cost the patch its lattice
+                    let (mut bad, mut all, mut worst) = (0.0f64, 0.0f64, 1.0f32);
+                    for ((f, t), &q) in flat.faces.iter().zip(&rho) {
+                        if t.iter().all(|p| p.length() <= rp) && near(*f) {
+                            let a = base.area[*f as usize];
+                            all += a;
+                            if q > params.max_distortion {
+                                bad += a;
+                            } else {
+                                worst = worst.max(q);
+                            }
+                        }
+                    }
                     let win = params.lattice_scale.max(1.0) as f64;
-                    if d <= params.max_distortion && (1.0 / win..=win).contains(&scale) {
-                        stats.max_distortion = stats.max_distortion.max(d);
+                    if bad <= LATTICE_BAD_AREA * all && (1.0 / win..=win).contains(&scale) {
+                        stats.max_distortion = stats.max_distortion.max(worst);
                         stats.lattice_patches += 1;
                         lattice_t = Some(Vec2::new(
                             -(g0[0].rem_euclid(period[0] as f64)) as f32,
@@ -1864,7 +1918,8 @@ pub fn run(
         mark(seed, &mut covered, &mut score);
         for (f, tri) in &flat.faces {
             if tri.iter().all(|q| q.length() <= rp)
-                && (lattice_t.is_none() || chart.within(&base, *f, rp))
+                && (lattice_t.is_none()
+                    || (chart.within(&base, *f, rp) && !near_singular[*f as usize]))
             {
                 mark(*f as usize, &mut covered, &mut score);
             }
