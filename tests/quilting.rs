@@ -951,3 +951,21 @@ fn the_global_lattice_joins_a_weave_across_patches_on_a_curved_base() {
             .all(|q| bvh.closest_point(*q).is_some_and(|(_, _, d)| d <= limit))
     );
 }
+
+#[test]
+fn a_base_with_a_vertex_in_no_face_quilts_on_the_lattice() {
+    // the lattice's solves see every vertex, used or not
+    let mut base = icosphere(1.0, 3);
+    base.positions.push([3.0, 0.0, 0.0]);
+    let sw = swatch(SwatchKind::Studs, 1);
+    let out = quilt(
+        &base,
+        &sw,
+        &Params {
+            swatch_size: Some(0.8),
+            ..Default::default()
+        },
+    );
+    check_integrity(&out, &sw);
+    assert!(out.stats.lattice_patches > 0);
+}

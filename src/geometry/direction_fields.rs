@@ -23,7 +23,7 @@ use crate::error::{Error, Result};
 
 /// The unit tangent field nearest `guide` (one per vertex, projected onto each tangent plane)
 /// that is smooth at scales below `length`. `normals` are unit vertex normals. Vertices where
-/// the solve gives (near) zero keep their projected guide.
+/// the solve gives exactly zero (or a non-finite value) keep their projected guide.
 pub fn smooth_direction_field(
     positions: &[[f32; 3]],
     faces: &[[u32; 3]],

@@ -76,9 +76,9 @@ impl StripePattern {
     }
 }
 
-/// The stripe pattern of frequency `frequency` (radians per unit length) along the tangent
-/// field `dirs` (one per vertex; projected onto each vertex's tangent plane is not needed, the
-/// edge products only read the tangential part). Deterministic.
+/// The stripe pattern of frequency `frequency` (radians per unit length) along the field
+/// `dirs` (one per vertex, tangent to the surface; it is normalised, not projected).
+/// Deterministic.
 ///
 /// Errors: mismatched lengths, a non-positive frequency, a failed factorisation.
 pub fn stripe_pattern(
@@ -155,6 +155,8 @@ pub fn stripe_pattern(
     // inverse iteration, normalised per connected component so that every component keeps its
     // own smallest eigenvector at full precision
     let (label, ncomp) = crate::mesh::connected_components(n, faces);
+    // vertices in no face carry labels past the count of components with faces
+    let ncomp = ncomp.max(label.iter().map(|&l| l as usize + 1).max().unwrap_or(0));
     let mut x: Vec<f64> = (0..2 * n)
         .map(|k| {
             // a fixed, smooth-free start: a hash of the index in [-1, 1]
@@ -292,6 +294,16 @@ mod tests {
         let singular = faces.iter().filter(|f| sp.singular(&pos, **f) != 0).count();
         assert!(singular >= 1);
         assert!(sp.energy > 0.0);
+    }
+
+    #[test]
+    fn vertices_in_no_face_are_harmless() {
+        let (mut pos, faces) = grid(6, 6, 0.1);
+        pos.push([5.0, 5.0, 5.0]);
+        let dirs = vec![[1.0, 0.0, 0.0]; pos.len()];
+        let sp = stripe_pattern(&pos, &faces, &dirs, std::f64::consts::TAU / 0.3).unwrap();
+        assert_eq!(sp.psi.len(), pos.len());
+        assert!(faces.iter().all(|f| sp.singular(&pos, *f) == 0));
     }
 
     #[test]

@@ -191,8 +191,9 @@ pub struct Params {
     /// Place every patch on one global lattice: two stripe patterns along the orientation field
     /// and across it (Knöppel et al. 2015, period one swatch) give each patch its flattening,
     /// so that neighbouring patches lay their copies on the same lattice and threads meet
-    /// end to end across seams. Patches whose disc holds a singularity of the lattice, or whose
-    /// lattice is distorted beyond `max_distortion`, fall back to the exponential map and the
+    /// end to end across seams. A patch seeded within an element's reach of a singularity of
+    /// the lattice, with more than 3% of its disc distorted beyond `max_distortion` (or folded),
+    /// or with a mean scale beyond `lattice_scale`, falls back to the exponential map and the
     /// matching of §2.4. Off: every patch is matched as in the paper.
     pub lattice: bool,
     /// Largest mean area scale `max(k, 1/k)` of a patch's lattice chart against the surface
@@ -640,8 +641,8 @@ impl Flat {
 const LATTICE_BAD_AREA: f64 = 0.03;
 
 /// A patch's chart of the global lattice: the two stripe phases unwrapped face by face,
-/// outwards from the seed face in order of distance (Dijkstra on face centroids' exponential
-/// map distance), never through a face where either pattern is singular. Each face keeps its
+/// outwards from the seed face, best first by the mean exponential-map distance of each face's
+/// corners, never through a face where either pattern is singular. Each face keeps its
 /// own corner values, so a chart that wraps around a singularity overlaps itself there
 /// instead of tearing; [`Flat::locate`] then takes the sheet nearer the seed. Scratch sized to
 /// the base, reused per patch.
@@ -665,7 +666,7 @@ impl LatticeChart {
 
     /// The faces of the disc (`verts` with their distances) reached from `seed` without
     /// crossing a singular face, each with its corners' unwrapped phases, in the order they
-    /// were reached; `None` when the seed face itself is singular.
+    /// were reached; `None` when the seed face itself is singular or not wholly in the disc.
     #[allow(clippy::too_many_arguments)]
     fn unwrap(
         &mut self,
@@ -1391,7 +1392,10 @@ pub fn run(
                         }
                     }
                     let win = params.lattice_scale.max(1.0) as f64;
-                    if bad <= LATTICE_BAD_AREA * all && (1.0 / win..=win).contains(&scale) {
+                    if all > 0.0
+                        && bad <= LATTICE_BAD_AREA * all
+                        && (1.0 / win..=win).contains(&scale)
+                    {
                         stats.max_distortion = stats.max_distortion.max(worst);
                         stats.lattice_patches += 1;
                         lattice_t = Some(Vec2::new(
