@@ -41,9 +41,9 @@
 //!    area is distorted beyond `max_distortion` or folded, or its chart's mean area scale is off
 //!    by more than `lattice_scale`; lattice patches leave the faces near a singularity
 //!    uncovered for matched patches. Measured with `examples/quilt_clearance` (a tenth of the
-//!    diagonal): the weave's face density on the bunny 0.66 -> 0.81 of the swatch's, the chain
-//!    1.08 -> 1.05, element area CV 0.04-0.08 -> 0.08-0.14 (the stripes' period drifts where
-//!    the field turns); on the horse the weave 0.51 -> 0.57.
+//!    diagonal): the weave's face density on the bunny 0.66 -> 0.80 of the swatch's, the chain
+//!    1.08 -> 1.05, element area CV 0.04-0.08 -> 0.09-0.14 (the stripes' period drifts where
+//!    the field turns), run times equal or shorter; on the horse the weave 0.51 -> 0.54.
 //! 3. **Matching (§2.4, simplified).** Eq. (1)-(3) are taken at the element level: the
 //!    already-placed elements whose centres fall in the patch are brought into swatch
 //!    coordinates and every swatch translation `t` on a grid of `l_in / 16` (one period for
@@ -198,7 +198,7 @@ pub struct Params {
     pub lattice: bool,
     /// Largest mean area scale `max(k, 1/k)` of a patch's lattice chart against the surface
     /// (the stripes' period drifts where the field turns): beyond it the patch falls back to
-    /// the exponential map. Measured on the bunny's weave: at 1.25 a face density of 0.81 of
+    /// the exponential map. Measured on the bunny's weave: at 1.25 a face density of 0.80 of
     /// the swatch's with element areas varying by 12% (CV); looser bounds add a few percent of
     /// density and more size variation.
     pub lattice_scale: f32,
@@ -639,6 +639,12 @@ impl Flat {
 /// Largest share of a lattice patch's disc area whose flattening is distorted beyond
 /// `max_distortion` (or folded); elements on those faces are dropped one by one.
 const LATTICE_BAD_AREA: f64 = 0.03;
+
+/// A lattice patch's own sheet: faces within this many disc radii of the seed by the
+/// exponential map's distance along edges (which runs longer than the geodesic distance the
+/// chart measures, so a disc's own faces pass; a sheet wrapped around a singularity or a limb
+/// lies farther).
+const LATTICE_NEAR: f32 = 1.5;
 
 /// A patch's chart of the global lattice: the two stripe phases unwrapped face by face,
 /// outwards from the seed face, best first by the mean exponential-map distance of each face's
@@ -1374,7 +1380,7 @@ pub fn run(
                         g.into_iter().map(|(f, c)| (f, c.map(to_uv))).collect(),
                         true,
                     );
-                    let near = |f: u32| chart.within(&base, f, rp);
+                    let near = |f: u32| chart.within(&base, f, LATTICE_NEAR * rp);
                     let (_, rho, scale) = flat.distortion_and_scale(&base, rp, near);
                     // the share of the disc's area distorted beyond the limit (folded faces
                     // included): elements on those faces are dropped one by one below, so a
@@ -1923,7 +1929,7 @@ pub fn run(
         for (f, tri) in &flat.faces {
             if tri.iter().all(|q| q.length() <= rp)
                 && (lattice_t.is_none()
-                    || (chart.within(&base, *f, rp) && !near_singular[*f as usize]))
+                    || (chart.within(&base, *f, LATTICE_NEAR * rp) && !near_singular[*f as usize]))
             {
                 mark(*f as usize, &mut covered, &mut score);
             }
