@@ -1335,21 +1335,27 @@ pub fn run(
         let mut rp = params.patch_radius * l;
         // the lattice's translation (swatch units) when the lattice flattens this patch
         let mut lattice_t: Option<Vec2> = None;
+        // the disc flattened by the exponential map, out to where elements centred within `rp`
+        // still land on flattened triangles
+        let disc = |rp: f32| {
+            exp_map(
+                &mesh.positions,
+                &base.vn,
+                &base.adj,
+                &DiscSeed {
+                    face: sc,
+                    point: centroid.to_array(),
+                    normal: n0.to_array(),
+                    e1: e1.to_array(),
+                },
+                rp + 2.0 * r_elem + 2.0 * mean_edge + tau,
+            )
+        };
+        // the lattice's try computes the disc at the full radius; the fallback starts from it
+        let mut first_disc = None;
         let (flat, rho) = 'flat: {
             if let Some(lat) = lattice.as_ref().filter(|_| !near_singular[seed]) {
-                let r_flat = rp + 2.0 * r_elem + 2.0 * mean_edge + tau;
-                let em = exp_map(
-                    &mesh.positions,
-                    &base.vn,
-                    &base.adj,
-                    &DiscSeed {
-                        face: sc,
-                        point: centroid.to_array(),
-                        normal: n0.to_array(),
-                        e1: e1.to_array(),
-                    },
-                    r_flat,
-                );
+                let em = first_disc.insert(disc(rp));
                 if let Some(g) = chart.unwrap(
                     lat,
                     &singular,
@@ -1413,19 +1419,7 @@ pub fn run(
                 }
             }
             loop {
-                let r_flat = rp + 2.0 * r_elem + 2.0 * mean_edge + tau;
-                let em = exp_map(
-                    &mesh.positions,
-                    &base.vn,
-                    &base.adj,
-                    &DiscSeed {
-                        face: sc,
-                        point: centroid.to_array(),
-                        normal: n0.to_array(),
-                        e1: e1.to_array(),
-                    },
-                    r_flat,
-                );
+                let em = first_disc.take().unwrap_or_else(|| disc(rp));
                 let flat = Flat::new(&base, &em.vertices, &em.uv);
                 let (d, rho) = flat.distortion(&base, rp);
                 if d <= params.max_distortion || rp <= rp_min * 1.0001 {
