@@ -5,6 +5,7 @@
 
 use crate::error::{Error, Result};
 use crate::hierarchy::{Hierarchy, Level};
+use crate::mesh::Csr;
 use crate::work::CancelToken;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -544,157 +545,30 @@ impl FanSampler {
         // per chunk: its vertices' tap lists, concatenated, and their lengths
         let tap_rows = ScatterRows::new(&mut tap, per);
         let w_rows = ScatterRows::new(&mut wts, nb * 2);
-        let lists: Vec<(Vec<u32>, Vec<u8>)> = order
-            .par_chunks(chunk)
-            .map(|vs| {
-                let mut verts: Vec<u32> = Vec::new();
-                let mut counts: Vec<u8> = Vec::new();
-                if cancel.is_cancelled() {
-                    return (verts, counts);
-                }
-                let mut stamp = vec![u32::MAX; n];
-                let mut local = vec![u8::MAX; n];
-                let mut queue: Vec<u32> = Vec::with_capacity(256);
-                // Top taps per bin as (squared distance, vertex), nearest first: ranking by
-                // distance is ranking by Gaussian weight, so exp runs only on the kept taps.
-                let mut top = vec![(f32::INFINITY, 0u32); nb * FAN_TAPS];
-                // per bin, the squared distance a vertex must beat to enter its top list: the
-                // last kept tap's, capped at the Gaussian cut-off
-                let mut worst = [cut2; FAN_RADII * FAN_ANGLES];
-                // final (vertex, weight) per tap
-                let mut fin = vec![(0u32, 0u16); nb * FAN_TAPS];
-                verts.reserve(vs.len() * 48);
-                counts.reserve(vs.len());
-                for &v in vs {
-                    let v = v as usize;
-                    // SAFETY: `order` is a permutation (checked above), so row `v` is taken
-                    // here and nowhere else.
-                    let (fi, fw) = unsafe { (tap_rows.row(v), w_rows.row(v)) };
-                    let pv = Vec3::from(level.positions[v]);
-                    let t1 = Vec3::from(frames.t1[v]);
-                    let t2 = Vec3::from(frames.t2[v]);
-                    top.iter_mut().for_each(|x| *x = (f32::INFINITY, v as u32));
-                    worst.fill(cut2);
-                    queue.clear();
-                    queue.push(v as u32);
-                    stamp[v] = v as u32;
-                    let mut head = 0;
-                    while head < queue.len() {
-                        let u = queue[head] as usize;
-                        head += 1;
-                        let d = Vec3::from(level.positions[u]) - pv;
-                        let len = d.length();
-                        let (x, y) = (d.dot(t1), d.dot(t2));
-                        let pl = (x * x + y * y).sqrt();
-                        let (x, y) = if pl > 1e-12 {
-                            (x * len / pl, y * len / pl)
-                        } else {
-                            (0.0, 0.0)
-                        };
-                        let rho = len;
-                        // |x - bin|² = ρ² + r_k² - 2 r_k (x cos θ_a + y sin θ_a): the 18
-                        // projections are shared by the three rings, so each ring costs one
-                        // multiply-add per bin (cheaper than locating the angular window with
-                        // atan2/acos).
-                        let mut any = false;
-                        for &rk in rks.iter() {
-                            any |= (rho - rk).abs() < cut;
-                        }
-                        if !any {
-                            continue_walk(level, &mut queue, &mut stamp, u, v, pv, reach);
-                            continue;
-                        }
-                        let mut proj = [0.0f32; FAN_ANGLES];
-                        for (a, p) in proj.iter_mut().enumerate() {
-                            *p = x * dirs[a][0] + y * dirs[a][1];
-                        }
-                        let rho2 = x * x + y * y;
-                        for (r, &rk) in rks.iter().enumerate() {
-                            if (rho - rk).abs() >= cut {
-                                continue;
-                            }
-                            let base = rho2 + rk * rk;
-                            let two_rk = 2.0 * rk;
-                            // The ring's 18 distances and which of them enter a top list, in a
-                            // branch-free pass; only those then take the (rare) sorted insert.
-                            let wr = &worst[r * FAN_ANGLES..(r + 1) * FAN_ANGLES];
-                            let mut d2s = [0.0f32; FAN_ANGLES];
-                            let mut enter = 0u32;
-                            for a in 0..FAN_ANGLES {
-                                let d2 = (base - two_rk * proj[a]).max(0.0);
-                                d2s[a] = d2;
-                                enter |= ((d2 < wr[a]) as u32) << a;
-                            }
-                            while enter != 0 {
-                                let a = enter.trailing_zeros() as usize;
-                                enter &= enter - 1;
-                                let d2 = d2s[a];
-                                let b = r * FAN_ANGLES + a;
-                                let t = &mut top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
-                                // Insert into the sorted (ascending) top list.
-                                let mut j = FAN_TAPS - 1;
-                                while j > 0 && t[j - 1].0 > d2 {
-                                    t[j] = t[j - 1];
-                                    j -= 1;
-                                }
-                                t[j] = (d2, u as u32);
-                                worst[b] = t[FAN_TAPS - 1].0.min(cut2);
-                            }
-                        }
-                        continue_walk(level, &mut queue, &mut stamp, u, v, pv, reach);
-                    }
-                    for e in top.iter_mut() {
-                        e.0 = if e.0.is_finite() {
-                            exp_neg(e.0 * inv2s2)
-                        } else {
-                            0.0
-                        };
-                    }
-                    for b in 0..nb {
-                        let t = &top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
-                        let sum: f32 = t.iter().map(|x| x.0).sum();
-                        let o = b * FAN_TAPS;
-                        if sum > 1e-3 {
-                            // the first two rounded, the last what is left, so they sum to 1
-                            let w0 = (t[0].0 / sum * WEIGHT_ONE).round() as u16;
-                            let w1 =
-                                ((t[1].0 / sum * WEIGHT_ONE).round() as u16).min(u16::MAX - w0);
-                            fin[o] = (t[0].1, w0);
-                            fin[o + 1] = (t[1].1, w1);
-                            fin[o + 2] = (t[2].1, u16::MAX - w0 - w1);
-                        } else if b < FAN_ANGLES {
-                            fin[o] = (v as u32, u16::MAX);
-                            fin[o + 1] = (v as u32, 0);
-                            fin[o + 2] = (v as u32, 0);
-                        } else {
-                            let inner = (b - FAN_ANGLES) * FAN_TAPS;
-                            for j in 0..FAN_TAPS {
-                                fin[o + j] = fin[inner + j];
-                            }
-                        }
-                    }
-                    // the vertex's distinct taps, in order of first use
-                    for &(u, _) in &fin {
-                        local[u as usize] = u8::MAX;
-                    }
-                    let first = verts.len();
-                    for (j, &(u, w)) in fin.iter().enumerate() {
-                        let l = &mut local[u as usize];
-                        if *l == u8::MAX {
-                            *l = (verts.len() - first) as u8;
-                            verts.push(u);
-                        }
-                        fi[j] = *l;
-                        let (b, k) = (j / FAN_TAPS, j % FAN_TAPS);
-                        if k < 2 {
-                            fw[b * 2 + k] = w;
-                        }
-                    }
-                    counts.push((verts.len() - first) as u8);
-                }
-                verts.shrink_to_fit();
-                (verts, counts)
-            })
+        // The walks run on a copy of the level renumbered in the visiting order, so the
+        // neighbourhoods of consecutive vertices are close in memory too (the table itself is
+        // in the level's numbering; adjacency rows keep their order, so every walk visits the
+        // same vertices in the same order as on the level).
+        let walk = WalkMesh::new(level, order);
+        let job = TableJob {
+            walk: &walk,
+            order,
+            frames,
+            n,
+            nb,
+            cut,
+            cut2,
+            reach,
+            inv2s2,
+            dirs,
+            rks,
+            tap_rows: &tap_rows,
+            w_rows: &w_rows,
+            cancel,
+        };
+        let lists: Vec<(Vec<u32>, Vec<u8>)> = (0..n.div_ceil(chunk))
+            .into_par_iter()
+            .map(|c| job.chunk(c * chunk..((c + 1) * chunk).min(n)))
             .collect();
         cancel.check()?;
         let mut off = vec![0u32; n];
@@ -777,13 +651,261 @@ impl FanSampler {
     }
 }
 
+/// A level renumbered in a visiting order, for [`FanSampler::with_order`]'s walks: walk vertex
+/// `i` is level vertex `order[i]`, and its adjacency row lists the same neighbours in the same
+/// order as the level's.
+struct WalkMesh {
+    positions: Vec<[f32; 3]>,
+    adjacency: Csr,
+}
+
+impl WalkMesh {
+    fn new(level: &Level, order: &[u32]) -> WalkMesh {
+        let n = order.len();
+        let mut inv = vec![0u32; n];
+        for (i, &v) in order.iter().enumerate() {
+            inv[v as usize] = i as u32;
+        }
+        let positions = order.iter().map(|&v| level.positions[v as usize]).collect();
+        let mut offsets = Vec::with_capacity(n + 1);
+        offsets.push(0u32);
+        let mut indices = Vec::with_capacity(level.adjacency.indices.len());
+        for &v in order {
+            indices.extend(
+                level
+                    .adjacency
+                    .row(v as usize)
+                    .iter()
+                    .map(|&w| inv[w as usize]),
+            );
+            offsets.push(indices.len() as u32);
+        }
+        WalkMesh {
+            positions,
+            adjacency: Csr { offsets, indices },
+        }
+    }
+}
+
+/// What every chunk of [`FanSampler::with_order`]'s build shares.
+struct TableJob<'a, 'b> {
+    walk: &'a WalkMesh,
+    /// Level vertex of every walk vertex (the visiting order).
+    order: &'a [u32],
+    frames: &'a Frames,
+    n: usize,
+    nb: usize,
+    cut: f32,
+    cut2: f32,
+    reach: f32,
+    inv2s2: f32,
+    dirs: [[f32; 2]; FAN_ANGLES],
+    rks: [f32; FAN_RADII],
+    tap_rows: &'a ScatterRows<'b, u8>,
+    w_rows: &'a ScatterRows<'b, u16>,
+    cancel: &'a CancelToken,
+}
+
+impl TableJob<'_, '_> {
+    /// The table rows of the vertices `vs` (consecutive in the visiting order): their tap lists,
+    /// concatenated, and their lengths. Compiled twice, for AVX2 where the processor has it (the
+    /// 18-bin loops then run 8 wide) and for the baseline; both give the same bits (no fused
+    /// multiply-adds).
+    fn chunk(&self, vs: std::ops::Range<usize>) -> (Vec<u32>, Vec<u8>) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor supports AVX2 (checked just above).
+            return unsafe { self.chunk_avx2(vs) };
+        }
+        self.chunk_body(vs)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn chunk_avx2(&self, vs: std::ops::Range<usize>) -> (Vec<u32>, Vec<u8>) {
+        self.chunk_body(vs)
+    }
+
+    #[inline(always)]
+    fn chunk_body(&self, vs: std::ops::Range<usize>) -> (Vec<u32>, Vec<u8>) {
+        let TableJob {
+            walk,
+            order,
+            frames,
+            n,
+            nb,
+            cut,
+            cut2,
+            reach,
+            inv2s2,
+            dirs,
+            rks,
+            tap_rows,
+            w_rows,
+            cancel,
+        } = *self;
+        let mut verts: Vec<u32> = Vec::new();
+        let mut counts: Vec<u8> = Vec::new();
+        if cancel.is_cancelled() {
+            return (verts, counts);
+        }
+        let mut stamp = vec![u32::MAX; n];
+        let mut local = vec![u8::MAX; n];
+        // the walk's queue; its last slot takes the writes of rejected neighbours
+        let mut queue = [0u32; MAX_FAN_VERTICES + 1];
+        let mut qlen;
+        // Top taps per bin as (squared distance, vertex), nearest first: ranking by
+        // distance is ranking by Gaussian weight, so exp runs only on the kept taps.
+        let mut top = vec![(f32::INFINITY, 0u32); nb * FAN_TAPS];
+        // per bin, the squared distance a vertex must beat to enter its top list: the
+        // last kept tap's, capped at the Gaussian cut-off
+        let mut worst = [cut2; FAN_RADII * FAN_ANGLES];
+        // final (vertex, weight) per tap
+        let mut fin = vec![(0u32, 0u16); nb * FAN_TAPS];
+        verts.reserve(vs.len() * 48);
+        counts.reserve(vs.len());
+        // `v`, `u` and the taps below are walk vertices; `vl` is `v` on the level
+        for v in vs {
+            let vl = order[v] as usize;
+            // SAFETY: `order` is a permutation (checked above), so row `vl` is taken
+            // here and nowhere else.
+            let (fi, fw) = unsafe { (tap_rows.row(vl), w_rows.row(vl)) };
+            let pv = Vec3::from(walk.positions[v]);
+            let t1 = Vec3::from(frames.t1[vl]);
+            let t2 = Vec3::from(frames.t2[vl]);
+            top.iter_mut().for_each(|x| *x = (f32::INFINITY, v as u32));
+            worst.fill(cut2);
+            queue[0] = v as u32;
+            qlen = 1;
+            stamp[v] = v as u32;
+            let mut head = 0;
+            while head < qlen {
+                let u = queue[head] as usize;
+                head += 1;
+                let d = Vec3::from(walk.positions[u]) - pv;
+                let len = d.length();
+                let (x, y) = (d.dot(t1), d.dot(t2));
+                let pl = (x * x + y * y).sqrt();
+                let (x, y) = if pl > 1e-12 {
+                    (x * len / pl, y * len / pl)
+                } else {
+                    (0.0, 0.0)
+                };
+                let rho = len;
+                // |x - bin|² = ρ² + r_k² - 2 r_k (x cos θ_a + y sin θ_a): the 18
+                // projections are shared by the three rings, so each ring costs one
+                // multiply-add per bin (cheaper than locating the angular window with
+                // atan2/acos).
+                let mut any = false;
+                for &rk in rks.iter() {
+                    any |= (rho - rk).abs() < cut;
+                }
+                if !any {
+                    continue_walk(walk, &mut queue, &mut qlen, &mut stamp, u, v, pv, reach);
+                    continue;
+                }
+                let mut proj = [0.0f32; FAN_ANGLES];
+                for (a, p) in proj.iter_mut().enumerate() {
+                    *p = x * dirs[a][0] + y * dirs[a][1];
+                }
+                let rho2 = x * x + y * y;
+                for (r, &rk) in rks.iter().enumerate() {
+                    if (rho - rk).abs() >= cut {
+                        continue;
+                    }
+                    let base = rho2 + rk * rk;
+                    let two_rk = 2.0 * rk;
+                    // The ring's 18 distances and which of them enter a top list, in a
+                    // branch-free pass; only those then take the (rare) sorted insert.
+                    let wr = &worst[r * FAN_ANGLES..(r + 1) * FAN_ANGLES];
+                    let mut d2s = [0.0f32; FAN_ANGLES];
+                    let mut enter = 0u32;
+                    for a in 0..FAN_ANGLES {
+                        let d2 = (base - two_rk * proj[a]).max(0.0);
+                        d2s[a] = d2;
+                        enter |= ((d2 < wr[a]) as u32) << a;
+                    }
+                    while enter != 0 {
+                        let a = enter.trailing_zeros() as usize;
+                        enter &= enter - 1;
+                        let d2 = d2s[a];
+                        let b = r * FAN_ANGLES + a;
+                        let t = &mut top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
+                        // Insert into the sorted (ascending) top list.
+                        let mut j = FAN_TAPS - 1;
+                        while j > 0 && t[j - 1].0 > d2 {
+                            t[j] = t[j - 1];
+                            j -= 1;
+                        }
+                        t[j] = (d2, u as u32);
+                        worst[b] = t[FAN_TAPS - 1].0.min(cut2);
+                    }
+                }
+                continue_walk(walk, &mut queue, &mut qlen, &mut stamp, u, v, pv, reach);
+            }
+            for e in top.iter_mut() {
+                e.0 = if e.0.is_finite() {
+                    exp_neg(e.0 * inv2s2)
+                } else {
+                    0.0
+                };
+            }
+            for b in 0..nb {
+                let t = &top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
+                let sum: f32 = t.iter().map(|x| x.0).sum();
+                let o = b * FAN_TAPS;
+                if sum > 1e-3 {
+                    // the first two rounded, the last what is left, so they sum to 1
+                    let w0 = (t[0].0 / sum * WEIGHT_ONE).round() as u16;
+                    let w1 = ((t[1].0 / sum * WEIGHT_ONE).round() as u16).min(u16::MAX - w0);
+                    fin[o] = (t[0].1, w0);
+                    fin[o + 1] = (t[1].1, w1);
+                    fin[o + 2] = (t[2].1, u16::MAX - w0 - w1);
+                } else if b < FAN_ANGLES {
+                    fin[o] = (v as u32, u16::MAX);
+                    fin[o + 1] = (v as u32, 0);
+                    fin[o + 2] = (v as u32, 0);
+                } else {
+                    let inner = (b - FAN_ANGLES) * FAN_TAPS;
+                    for j in 0..FAN_TAPS {
+                        fin[o + j] = fin[inner + j];
+                    }
+                }
+            }
+            // the vertex's distinct taps, in order of first use
+            for &(u, _) in &fin {
+                local[u as usize] = u8::MAX;
+            }
+            let first = verts.len();
+            for (j, &(u, w)) in fin.iter().enumerate() {
+                let l = &mut local[u as usize];
+                if *l == u8::MAX {
+                    *l = (verts.len() - first) as u8;
+                    verts.push(order[u as usize]);
+                }
+                fi[j] = *l;
+                let (b, k) = (j / FAN_TAPS, j % FAN_TAPS);
+                if k < 2 {
+                    fw[b * 2 + k] = w;
+                }
+            }
+            counts.push((verts.len() - first) as u8);
+        }
+        verts.shrink_to_fit();
+        (verts, counts)
+    }
+}
+
 /// One step of [`FanSampler::new`]'s breadth-first walk around `v`: queue the unvisited
-/// neighbours of `u` within `reach` (Euclidean) of `pv`, up to [`MAX_FAN_VERTICES`].
-#[inline]
+/// neighbours of `u` within `reach` (Euclidean) of `pv`, up to [`MAX_FAN_VERTICES`]. Branch-free:
+/// every neighbour is written at the queue's end, and the end moves on only for one that is new
+/// and within reach (whether a neighbour was seen before is as good as random to the processor).
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn continue_walk(
-    level: &Level,
-    queue: &mut Vec<u32>,
+    level: &WalkMesh,
+    queue: &mut [u32; MAX_FAN_VERTICES + 1],
+    qlen: &mut usize,
     stamp: &mut [u32],
     u: usize,
     v: usize,
@@ -792,15 +914,12 @@ fn continue_walk(
 ) {
     let reach2 = reach * reach;
     for &w in level.adjacency.row(u) {
-        let w = w as usize;
-        if stamp[w] != v as u32 {
-            stamp[w] = v as u32;
-            if queue.len() < MAX_FAN_VERTICES
-                && (Vec3::from(level.positions[w]) - pv).length_squared() <= reach2
-            {
-                queue.push(w as u32);
-            }
-        }
+        let wi = w as usize;
+        let fresh = stamp[wi] != v as u32;
+        stamp[wi] = v as u32;
+        let near = (Vec3::from(level.positions[wi]) - pv).length_squared() <= reach2;
+        queue[*qlen] = w;
+        *qlen += (fresh & near & (*qlen < MAX_FAN_VERTICES)) as usize;
     }
 }
 
