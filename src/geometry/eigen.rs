@@ -301,7 +301,9 @@ fn krylov_eigen(
             "cannot find {nev} non-null eigenpairs in a Krylov space of size {max_m}"
         )));
     }
-    let first_check = ((5 * nev).max(nev + 40).div_ceil(b) * b).min(max_m);
+    // Shift-invert converges fast on the low end: three basis vectors per wanted pair usually
+    // suffice (five were always enough but cost 1.3-1.5x the time at 2000 and 8000 vertices).
+    let first_check = ((3 * nev).max(nev + 40).div_ceil(b) * b).min(max_m);
     let mut rng = SmallRng::seed_from_u64(0x6d65_7368);
     let mut lx = vec![0.0; nr];
     let mut v: Vec<f64> = Vec::with_capacity(nr * 2 * first_check);

@@ -84,15 +84,27 @@ pub(crate) fn ring_summaries_into(fans: &[f32], out: &mut Vec<f32>) {
         });
 }
 
-/// Squared L2 distance of two equally long feature vectors.
-#[inline]
+/// Squared L2 distance of two equally long feature vectors, summed in eight lanes (so that it
+/// vectorises: one running sum would be a chain of dependent additions), then the lanes pairwise.
+#[inline(always)]
 fn squared_l2(a: &[f32], b: &[f32]) -> f32 {
-    let mut d = 0.0f32;
-    for (x, y) in a.iter().zip(b) {
-        let e = x - y;
-        d += e * e;
+    const L: usize = 8;
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut acc = [0.0f32; L];
+    let (ac, bc) = (a.chunks_exact(L), b.chunks_exact(L));
+    let (ar, br) = (ac.remainder(), bc.remainder());
+    for (x, y) in ac.zip(bc) {
+        for l in 0..L {
+            let e = x[l] - y[l];
+            acc[l] += e * e;
+        }
     }
-    d
+    for (l, (x, y)) in ar.iter().zip(br).enumerate() {
+        let e = x - y;
+        acc[l] += e * e;
+    }
+    ((acc[0] + acc[4]) + (acc[2] + acc[6])) + ((acc[1] + acc[5]) + (acc[3] + acc[7]))
 }
 
 /// Everything the E-step needs on one level.
@@ -110,7 +122,7 @@ pub(crate) struct Ctx<'a> {
 impl Ctx<'_> {
     /// Patch distance D(vS, vT) for rotation k (squared L2 of the weighted feature vectors, colour
     /// fan rotated by a cyclic shift of k angle steps), stopping early once it reaches `best`.
-    #[inline]
+    #[inline(always)]
     pub fn dist(&self, t: usize, s: usize, k: usize, best: f32) -> f32 {
         let d = self.shape_dist(t, s);
         if d >= best || self.wc == 0.0 {
@@ -125,7 +137,7 @@ impl Ctx<'_> {
 
     /// A lower bound of the weighted colour fan distance at every rotation
     /// ([`ring_summaries_into`]); 0 without summaries.
-    #[inline]
+    #[inline(always)]
     fn ring_bound(&self, t: usize, s: usize) -> f32 {
         if self.t.rings.is_empty() || self.s.rings.is_empty() {
             return 0.0;
@@ -140,7 +152,7 @@ impl Ctx<'_> {
 
     /// The rotation-independent part of [`Ctx::dist`]: squared L2 of the weighted shape
     /// features.
-    #[inline]
+    #[inline(always)]
     pub fn shape_dist(&self, t: usize, s: usize) -> f32 {
         let dsh = self.dsh;
         squared_l2(
@@ -151,7 +163,7 @@ impl Ctx<'_> {
 
     /// `d` plus the weighted colour fan distance at rotation k, ring by ring, stopping once the
     /// sum reaches `best`.
-    #[inline]
+    #[inline(always)]
     fn fan_dist(&self, t: usize, s: usize, k: usize, mut d: f32, best: f32) -> f32 {
         let tf = &self.t.fans[t * PER..(t + 1) * PER];
         let sf = &self.s.fans[s * PER..(s + 1) * PER];
@@ -161,15 +173,7 @@ impl Ctx<'_> {
         for r in 0..FAN_RADII {
             let tb = &tf[r * ring..(r + 1) * ring];
             let sb = &sf[r * ring..(r + 1) * ring];
-            let mut acc = 0.0f32;
-            for i in 0..n1 {
-                let x = tb[i] - sb[sh + i];
-                acc += x * x;
-            }
-            for i in 0..sh {
-                let x = tb[n1 + i] - sb[i];
-                acc += x * x;
-            }
+            let acc = squared_l2(&tb[..n1], &sb[sh..]) + squared_l2(&tb[n1..], &sb[..sh]);
             d += self.wc * acc;
             if d >= best {
                 return d;
@@ -179,7 +183,7 @@ impl Ctx<'_> {
     }
 
     /// Best rotation of source vertex `s` for target `t`: (distance, rotation index).
-    #[inline]
+    #[inline(always)]
     pub fn best_rotation(&self, t: usize, s: usize, best: f32) -> (f32, u8) {
         let mut bd = best;
         let mut bk = u8::MAX;
@@ -347,7 +351,7 @@ pub(crate) fn propagate(
                         before[v]
                     }
                 };
-                let r = propagate_one(ctx, vt, before[vt], dist[vt], locked[vt], get);
+                let r = propagate_one_fast(ctx, vt, before[vt], dist[vt], locked[vt], &get);
                 local.push(r);
             }
             Ok(local)
@@ -363,9 +367,39 @@ pub(crate) fn propagate(
     Ok(())
 }
 
+/// [`propagate_one`], compiled for AVX2 too where the processor has it (the patch distances then
+/// run 8 wide).
+#[inline]
+fn propagate_one_fast(
+    ctx: &Ctx,
+    vt: usize,
+    cur: (u32, u8),
+    curd: f32,
+    locked: Option<u32>,
+    get: &dyn Fn(usize) -> (u32, u8),
+) -> ((u32, u8), f32) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        #[target_feature(enable = "avx2")]
+        unsafe fn avx2(
+            ctx: &Ctx,
+            vt: usize,
+            cur: (u32, u8),
+            curd: f32,
+            locked: Option<u32>,
+            get: &dyn Fn(usize) -> (u32, u8),
+        ) -> ((u32, u8), f32) {
+            propagate_one(ctx, vt, cur, curd, locked, get)
+        }
+        // SAFETY: the processor supports AVX2 (checked just above).
+        return unsafe { avx2(ctx, vt, cur, curd, locked, get) };
+    }
+    propagate_one(ctx, vt, cur, curd, locked, get)
+}
+
 /// One propagation step at target vertex `vt` (current match `cur` at distance `curd`;
 /// `get(v)` reads a neighbour's match): the new match and its distance.
-#[inline]
+#[inline(always)]
 fn propagate_one(
     ctx: &Ctx,
     vt: usize,
@@ -386,22 +420,18 @@ fn propagate_one(
     for (ni, &vn) in adj_t.row(vt).iter().enumerate() {
         let (sn, kn) = get(vn as usize);
         let base = ctx.t.eang[off_t + ni] + kn as f32 * STEP;
-        let try_c = |c: u32, ang: f32, bs: &mut u32, bk: &mut u8, bd: &mut f32| {
-            let k = rot_index(ang);
-            if c == *bs && k == *bk {
-                return;
-            }
-            let d = ctx.dist(vt, c as usize, k as usize, *bd);
-            if d < *bd {
-                *bd = d;
-                *bs = c;
-                *bk = k;
-            }
-        };
-        try_c(sn, base, &mut bs, &mut bk, &mut bd);
+        try_candidate(ctx, vt, sn, base, &mut bs, &mut bk, &mut bd);
         let off_s = adj_s.offsets[sn as usize] as usize;
         for (ci, &c) in adj_s.row(sn as usize).iter().enumerate() {
-            try_c(c, base + ctx.s.eang[off_s + ci], &mut bs, &mut bk, &mut bd);
+            try_candidate(
+                ctx,
+                vt,
+                c,
+                base + ctx.s.eang[off_s + ci],
+                &mut bs,
+                &mut bk,
+                &mut bd,
+            );
         }
     }
     if (bs, bk) != cur && ctx.wc > 0.0 {
@@ -415,6 +445,22 @@ fn propagate_one(
         }
     }
     ((bs, bk), bd)
+}
+
+/// [`propagate_one`]'s candidate: source vertex `c` at the rotation nearest `ang`, kept in
+/// (`bs`, `bk`, `bd`) when it beats them.
+#[inline(always)]
+fn try_candidate(ctx: &Ctx, vt: usize, c: u32, ang: f32, bs: &mut u32, bk: &mut u8, bd: &mut f32) {
+    let k = rot_index(ang);
+    if c == *bs && k == *bk {
+        return;
+    }
+    let d = ctx.dist(vt, c as usize, k as usize, *bd);
+    if d < *bd {
+        *bd = d;
+        *bs = c;
+        *bk = k;
+    }
 }
 
 /// Random search (MeshMatch §4.2): candidates at growing distance from the current match by
@@ -433,6 +479,13 @@ pub(crate) fn random_search(
     let l = ctx.l;
     let hops = hs.top().saturating_sub(l);
     let ns = ctx.s.level.len() as u32;
+    let job = RandomSearch {
+        ctx,
+        locked,
+        seed,
+        hops,
+        ns,
+    };
     nnf.par_chunks_mut(1024)
         .zip(dist.par_chunks_mut(1024))
         .enumerate()
@@ -440,34 +493,76 @@ pub(crate) fn random_search(
             if cancel.is_cancelled() {
                 return Err(Error::Cancelled);
             }
-            for (k, (mm, dd)) in m.iter_mut().zip(d.iter_mut()).enumerate() {
-                let t = ci * 1024 + k;
-                if locked[t].is_some() {
-                    continue;
-                }
-                let mut rng = SmallRng::seed_from_u64(
-                    seed ^ (t as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ ((l as u64) << 56),
-                );
-                // Uniform candidates make up for missing hops near the top of the hierarchy.
-                let uniform = 8usize.saturating_sub(hops).max(1);
-                for j in 1..=hops + uniform {
-                    let c = if j <= hops {
-                        hs.random_hop(l, mm.0, j, &mut rng)
-                    } else {
-                        rng.random_range(0..ns)
-                    };
-                    if c == mm.0 {
-                        continue;
-                    }
-                    let (bd, bk) = ctx.best_rotation(t, c as usize, *dd);
-                    if bk != u8::MAX && bd < *dd {
-                        *dd = bd;
-                        *mm = (c, bk);
-                    }
-                }
-            }
+            job.chunk(ci, m, d);
             Ok(())
         })
+}
+
+/// What every chunk of [`random_search`] shares.
+struct RandomSearch<'a, 'b> {
+    ctx: &'a Ctx<'b>,
+    locked: &'a [Option<u32>],
+    seed: u64,
+    hops: usize,
+    ns: u32,
+}
+
+impl RandomSearch<'_, '_> {
+    /// Chunk `ci` (1024 target vertices from `ci * 1024`): its matches `m` and distances `d`.
+    /// Compiled for AVX2 too, where the processor has it (the patch distances then run 8 wide).
+    fn chunk(&self, ci: usize, m: &mut [(u32, u8)], d: &mut [f32]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor supports AVX2 (checked just above).
+            return unsafe { self.chunk_avx2(ci, m, d) };
+        }
+        self.chunk_body(ci, m, d)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn chunk_avx2(&self, ci: usize, m: &mut [(u32, u8)], d: &mut [f32]) {
+        self.chunk_body(ci, m, d)
+    }
+
+    #[inline(always)]
+    fn chunk_body(&self, ci: usize, m: &mut [(u32, u8)], d: &mut [f32]) {
+        let RandomSearch {
+            ctx,
+            locked,
+            seed,
+            hops,
+            ns,
+        } = *self;
+        let hs = ctx.hs;
+        let l = ctx.l;
+        for (k, (mm, dd)) in m.iter_mut().zip(d.iter_mut()).enumerate() {
+            let t = ci * 1024 + k;
+            if locked[t].is_some() {
+                continue;
+            }
+            let mut rng = SmallRng::seed_from_u64(
+                seed ^ (t as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ ((l as u64) << 56),
+            );
+            // Uniform candidates make up for missing hops near the top of the hierarchy.
+            let uniform = 8usize.saturating_sub(hops).max(1);
+            for j in 1..=hops + uniform {
+                let c = if j <= hops {
+                    hs.random_hop(l, mm.0, j, &mut rng)
+                } else {
+                    rng.random_range(0..ns)
+                };
+                if c == mm.0 {
+                    continue;
+                }
+                let (bd, bk) = ctx.best_rotation(t, c as usize, *dd);
+                if bk != u8::MAX && bd < *dd {
+                    *dd = bd;
+                    *mm = (c, bk);
+                }
+            }
+        }
+    }
 }
 
 /// Tangent-plane polar offset of `q` seen from vertex `v` of `level`: (radius, angle).
