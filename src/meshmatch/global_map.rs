@@ -117,8 +117,17 @@ fn spectra(
 /// The map as the solve uses it.
 #[derive(Debug)]
 pub(super) struct GlobalMap {
-    /// Per target level (`0..nl`): the source position of every vertex's mapped point.
+    /// Per target level (`0..nl`): the source position of every vertex's mapped point; empty
+    /// below the map's level, whose values [`GlobalMap::level_pos`] computes when a solve
+    /// reaches them (at a million vertices carrying them to every level took a second before
+    /// the first preview).
     pub target_pos: Vec<Vec<[f32; 3]>>,
+    /// The target level the map was computed on, its faces, its vertices' mapped positions and
+    /// a tree of its triangles, for [`GlobalMap::level_pos`].
+    map_level: usize,
+    map_faces: Vec<[u32; 3]>,
+    base: Vec<[f32; 3]>,
+    bvh: Option<crate::geometry::TriangleBvh>,
     /// Start source vertex (coarsest level `nl - 1`) of every coarsest-level target vertex.
     pub top_init: Vec<u32>,
     /// Source centroid and `1 / sqrt(mean squared distance to it)` (unit variance).
@@ -132,6 +141,36 @@ pub(super) struct GlobalMap {
 }
 
 impl GlobalMap {
+    /// The source position of every mapped point of target level `l` (hierarchy `ht`): the
+    /// stored values on and above the map's level; below it, each vertex's closest point on the
+    /// map level's surface and the barycentric blend of its corners' mapped positions, so the
+    /// term is as fine as the level.
+    pub(super) fn level_pos<'a>(
+        &'a self,
+        ht: &Hierarchy,
+        l: usize,
+    ) -> std::borrow::Cow<'a, [[f32; 3]]> {
+        use std::borrow::Cow;
+        match (&self.bvh, self.target_pos.get(l)) {
+            (_, Some(p)) if !p.is_empty() || l >= self.map_level => Cow::Borrowed(p),
+            (Some(bvh), _) => {
+                let anc = ht.ancestor_map(l, self.map_level);
+                Cow::Owned(
+                    ht.levels[l]
+                        .positions
+                        .par_iter()
+                        .zip(anc.par_iter())
+                        .map(|(&p, &a)| {
+                            blend_at(bvh, &self.map_faces, &self.base, p)
+                                .unwrap_or(self.base[a as usize])
+                        })
+                        .collect(),
+                )
+            }
+            _ => Cow::Owned(Vec::new()),
+        }
+    }
+
     /// The rotation of each coarsest-level match from the map's transport of the local frame:
     /// every edge `(v, u)` of target vertex `v` has an angle in `v`'s frame and a mapped
     /// displacement `T(u) - T(v)` on the source, whose angle in the matched source vertex's frame
@@ -264,22 +303,9 @@ pub(super) fn global_map(
             .collect();
         target_pos[l] = cur;
     }
-    // Finer levels than the map's: the closest point of the map level's surface and the
-    // barycentric blend of its corners' mapped positions, so the term is as fine as the level.
+    // Finer levels than the map's: computed when a solve reaches them (`level_pos`).
     let bvh = crate::geometry::TriangleBvh::new(&mt.positions, &mt.faces);
-    for (l, slot) in target_pos.iter_mut().enumerate().take(lt + 1) {
-        if l == lt {
-            *slot = base.clone();
-            continue;
-        }
-        let anc = ht.ancestor_map(l, lt);
-        *slot = ht.levels[l]
-            .positions
-            .par_iter()
-            .zip(anc.par_iter())
-            .map(|(&p, &a)| blend_at(&bvh, &mt.faces, &base, p).unwrap_or(base[a as usize]))
-            .collect();
-    }
+    target_pos[lt] = base.clone();
     // start: nearest coarsest-level source vertex to every mapped point
     let top = &hs.levels[nl - 1].positions;
     let d2 = |a: [f32; 3], b: [f32; 3]| (0..3).map(|i| (a[i] - b[i]).powi(2)).sum::<f32>();
@@ -311,6 +337,10 @@ pub(super) fn global_map(
     };
     let g = Arc::new(GlobalMap {
         target_pos,
+        map_level: lt,
+        map_faces: mt.faces.clone(),
+        base,
+        bvh: Some(bvh),
         top_init,
         centre: c.map(|x| x as f32),
         scale,
@@ -361,9 +391,11 @@ fn level_map_weight(s: f32, l: usize, nl: usize) -> f32 {
 
 /// Append the mapped-position dimensions to level `l`'s weighted shape vectors (`dsh` per vertex;
 /// `structure` the structure value): returns the new vectors and dimension.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn append_map_term(
     gm: &GlobalMap,
     hs: &Hierarchy,
+    ht: &Hierarchy,
     shapes: (Vec<f32>, Vec<f32>, usize),
     l: usize,
     nl: usize,
@@ -383,7 +415,7 @@ pub(super) fn append_map_term(
     };
     (
         add(s, &hs.levels[l].positions),
-        add(t, &gm.target_pos[l]),
+        add(t, &gm.level_pos(ht, l)),
         dsh + 3,
     )
 }
@@ -610,6 +642,10 @@ mod tests {
         };
         let g = GlobalMap {
             target_pos: vec![mapped],
+            map_level: 0,
+            map_faces: Vec::new(),
+            base: Vec::new(),
+            bvh: None,
             top_init: (0..nv as u32).collect(),
             centre: [0.0; 3],
             scale: 1.0,

@@ -44,9 +44,9 @@ pub fn solve(
 /// updates): fixed vertices keep their signal at every level and in the result.
 ///
 /// The steps, each a function below: [`working_pairs`] (correspondences in working vertices),
-/// [`level_shapes`] (shape features and affinities per level), [`locked_per_level`] and
+/// [`level_affinities`] (correspondence affinities per level), [`locked_per_level`] and
 /// [`fixed_per_level`] (constraints carried up the hierarchy), then per level, coarsest first,
-/// [`Levels::start_level`] (random field plus exhaustive search on the coarsest level, upsampling
+/// [`Levels::build_shapes`] (the level's weighted shape vectors), [`Levels::start_level`] (random field plus exhaustive search on the coarsest level, upsampling
 /// from the coarser level elsewhere) and [`Levels::iterate`] (M-step, fans, E-step), and finally
 /// [`Levels::finish`] (nearest-neighbour copy and the file-order result).
 pub fn solve_constrained(
@@ -110,14 +110,7 @@ pub fn solve_constrained(
         }
     }
     let sw = Stopwatch::start();
-    let mut shapes = level_shapes(source, target, &pairs, params, nl);
-    if let Some(g) = &gmap {
-        shapes = shapes
-            .into_iter()
-            .enumerate()
-            .map(|(l, sh)| global_map::append_map_term(g, hs, sh, l, nl, structure))
-            .collect();
-    }
+    let affinities = level_affinities(source, target, &pairs);
     let locked = locked_per_level(hs, ht, &pairs, nl);
     let fixed = fixed_per_level(ht, constraints, nt0, nl);
     let mut run = Levels {
@@ -125,7 +118,9 @@ pub fn solve_constrained(
         target,
         sig_s,
         fans_s,
-        shapes,
+        affinities,
+        structure,
+        shapes: vec![(Vec::new(), Vec::new(), 0); nl],
         locked,
         fixed,
         params,
@@ -212,38 +207,24 @@ fn working_pairs(
     Ok(pairs)
 }
 
-/// Weighted shape vectors of both meshes on each of the `nl` levels: automatic features plus
-/// correspondence affinities, with the level's shape weight ([`level_shape_weight`]).
-fn level_shapes(
+/// Correspondence affinities of both meshes on every level (`k` per vertex, empty without
+/// correspondences) and `k`.
+fn level_affinities(
     source: &PreparedMesh,
     target: &PreparedMesh,
     pairs: &[(u32, Vec<u32>)],
-    params: &TransferParams,
-    nl: usize,
-) -> Vec<(Vec<f32>, Vec<f32>, usize)> {
+) -> (Vec<Vec<f32>>, Vec<Vec<f32>>, usize) {
     let (hs, ht) = (&source.hierarchy, &target.hierarchy);
     let k = pairs.len();
-    let (aff_s, aff_t) = if k > 0 {
-        let (a, b) = affinities(source, target, pairs);
-        (to_levels(hs, a, k), to_levels(ht, b, k))
-    } else {
-        (
+    if k == 0 {
+        return (
             vec![Vec::new(); hs.num_levels()],
             vec![Vec::new(); ht.num_levels()],
-        )
-    };
-    (0..nl)
-        .map(|l| {
-            weighted_shape(
-                &source.shape[l],
-                &target.shape[l],
-                &aff_s[l],
-                &aff_t[l],
-                k,
-                level_shape_weight(params, l, nl),
-            )
-        })
-        .collect()
+            0,
+        );
+    }
+    let (a, b) = affinities(source, target, pairs);
+    (to_levels(hs, a, k), to_levels(ht, b, k), k)
 }
 
 /// Locked NNF entries per level: every target vertex of a correspondence (and its ancestors)
@@ -276,6 +257,10 @@ fn fixed_per_level(
     nt0: usize,
     nl: usize,
 ) -> Vec<Vec<Option<[f32; 3]>>> {
+    if constraints.fixed.is_empty() {
+        // nothing fixed: no per-vertex entries (16 bytes a vertex at every level)
+        return vec![Vec::new(); nl];
+    }
     let mut f0 = vec![None; nt0];
     for &(v, c) in &constraints.fixed {
         f0[v as usize] = Some(c);
@@ -321,6 +306,14 @@ struct Levels<'a> {
     target: &'a PreparedMesh,
     sig_s: &'a [Vec<[f32; 3]>],
     fans_s: &'a [Vec<f32>],
+    /// Correspondence affinities per level (source, target, `k`), each level's taken when its
+    /// shape vectors are built.
+    affinities: (Vec<Vec<f32>>, Vec<Vec<f32>>, usize),
+    structure: f32,
+    /// Weighted shape vectors (source, target, dimension) of the level being solved and of
+    /// the finest once reached; built as each level starts ([`Levels::build_shapes`]), so the
+    /// first preview does not wait for every level's, and a level's are dropped when the next
+    /// finer one starts.
     shapes: Vec<(Vec<f32>, Vec<f32>, usize)>,
     locked: Vec<Vec<Option<u32>>>,
     fixed: Vec<Vec<Option<[f32; 3]>>>,
@@ -421,8 +414,34 @@ impl<'a> Levels<'a> {
         }
     }
 
-    /// One level: its sampler, its starting NNF, then the EM iterations.
+    /// Level `l`'s weighted shape vectors: automatic features plus correspondence affinities
+    /// with the level's shape weight ([`level_shape_weight`]), and the global map's term when
+    /// the solve uses it; the coarser level's are dropped.
+    fn build_shapes(&mut self, l: usize) {
+        let (hs, ht) = (&self.source.hierarchy, &self.target.hierarchy);
+        let k = self.affinities.2;
+        let aff_s = std::mem::take(&mut self.affinities.0[l]);
+        let aff_t = std::mem::take(&mut self.affinities.1[l]);
+        let mut sh = weighted_shape(
+            &self.source.shape[l],
+            &self.target.shape[l],
+            &aff_s,
+            &aff_t,
+            k,
+            level_shape_weight(self.params, l, self.nl),
+        );
+        if let Some(g) = &self.gmap {
+            sh = global_map::append_map_term(g, hs, ht, sh, l, self.nl, self.structure);
+        }
+        self.shapes[l] = sh;
+        if l + 1 < self.nl {
+            self.shapes[l + 1] = (Vec::new(), Vec::new(), 0);
+        }
+    }
+
+    /// One level: its shape vectors and sampler, its starting NNF, then the EM iterations.
     fn level(&mut self, l: usize) -> Result<()> {
+        self.build_shapes(l);
         let (source, target) = (self.source, self.target);
         let lt = &target.hierarchy.levels[l];
         let fan_r = source.fan_radius * lt.mean_edge;
