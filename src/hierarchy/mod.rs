@@ -15,6 +15,7 @@ use crate::error::{Error, Result};
 use crate::mesh::{Csr, vertex_adjacency};
 use glam::Vec3;
 use rand::Rng;
+use rayon::slice::ParallelSliceMut;
 
 /// One level of the hierarchy: a triangle mesh with its adjacency, normals and edge scale.
 #[derive(Clone, Debug, Default)]
@@ -284,7 +285,8 @@ fn collapse_level(fine: &Level, target: usize) -> (Level, Vec<u32>) {
             }
         }
     }
-    edges.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+    // a total order (ties by the ends), so the parallel sort gives the one result
+    edges.par_sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
 
     let mut rep: Vec<u32> = (0..n as u32).collect();
     let mut touched = vec![false; n];

@@ -25,19 +25,47 @@ impl Csr {
     pub fn row(&self, i: usize) -> &[u32] {
         &self.indices[self.offsets[i] as usize..self.offsets[i + 1] as usize]
     }
-    /// Build from a list of (row, col) pairs; duplicates removed, rows sorted.
+    /// Build from a list of (row, col) pairs; duplicates removed, rows sorted. Every row must
+    /// be below `n`. The pairs are bucketed by row (a counting sort) and each row, a handful of
+    /// entries, sorted on its own: at a million vertices this is several times faster than
+    /// sorting the pairs whole. `pairs` is left empty.
     pub fn from_pairs(n: usize, pairs: &mut Vec<(u32, u32)>) -> Csr {
-        pairs.sort_unstable();
-        pairs.dedup();
-        let mut offsets = vec![0u32; n + 1];
+        let mut start = vec![0u32; n + 1];
         for &(r, _) in pairs.iter() {
-            offsets[r as usize + 1] += 1;
+            start[r as usize + 1] += 1;
         }
         for i in 0..n {
-            offsets[i + 1] += offsets[i];
+            start[i + 1] += start[i];
         }
-        let indices = pairs.iter().map(|&(_, c)| c).collect();
-        Csr { offsets, indices }
+        let mut fill = start.clone();
+        let mut cols = vec![0u32; pairs.len()];
+        for &(r, c) in pairs.iter() {
+            let f = &mut fill[r as usize];
+            cols[*f as usize] = c;
+            *f += 1;
+        }
+        pairs.clear();
+        pairs.shrink_to_fit();
+        // sort and deduplicate each row, compacting towards the front
+        let mut offsets = vec![0u32; n + 1];
+        let mut w = 0usize;
+        for i in 0..n {
+            let (a, b) = (start[i] as usize, start[i + 1] as usize);
+            cols[a..b].sort_unstable();
+            for k in a..b {
+                let c = cols[k];
+                if k == a || c != cols[k - 1] {
+                    cols[w] = c;
+                    w += 1;
+                }
+            }
+            offsets[i + 1] = w as u32;
+        }
+        cols.truncate(w);
+        Csr {
+            offsets,
+            indices: cols,
+        }
     }
 }
 
