@@ -568,7 +568,8 @@ impl FanSampler {
         };
         let lists: Vec<(Vec<u32>, Vec<u8>)> = (0..n.div_ceil(chunk))
             .into_par_iter()
-            .map(|c| job.chunk(c * chunk..((c + 1) * chunk).min(n)))
+            // SAFETY: `order` is a permutation (checked above) and the ranges are disjoint.
+            .map(|c| unsafe { job.chunk(c * chunk..((c + 1) * chunk).min(n)) })
             .collect();
         cancel.check()?;
         let mut off = vec![0u32; n];
@@ -711,23 +712,35 @@ impl TableJob<'_, '_> {
     /// concatenated, and their lengths. Compiled twice, for AVX2 where the processor has it (the
     /// 18-bin loops then run 8 wide) and for the baseline; both give the same bits (no fused
     /// multiply-adds).
-    fn chunk(&self, vs: std::ops::Range<usize>) -> (Vec<u32>, Vec<u8>) {
+    ///
+    /// # Safety
+    /// `order` must be a permutation of the level's vertices, and no two calls on one job may
+    /// run on overlapping ranges: each writes the table rows of `order[vs]` through
+    /// `ScatterRows`, which hands out rows without checking that they are taken once.
+    unsafe fn chunk(&self, vs: std::ops::Range<usize>) -> (Vec<u32>, Vec<u8>) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the processor supports AVX2 (checked just above).
+            // and the caller keeps `chunk`'s contract.
             return unsafe { self.chunk_avx2(vs) };
         }
-        self.chunk_body(vs)
+        // SAFETY: the caller keeps `chunk`'s contract.
+        unsafe { self.chunk_body(vs) }
     }
 
+    /// # Safety
+    /// As [`TableJob::chunk`], and the processor must support AVX2.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn chunk_avx2(&self, vs: std::ops::Range<usize>) -> (Vec<u32>, Vec<u8>) {
-        self.chunk_body(vs)
+        // SAFETY: the caller keeps `chunk`'s contract.
+        unsafe { self.chunk_body(vs) }
     }
 
+    /// # Safety
+    /// As [`TableJob::chunk`].
     #[inline(always)]
-    fn chunk_body(&self, vs: std::ops::Range<usize>) -> (Vec<u32>, Vec<u8>) {
+    unsafe fn chunk_body(&self, vs: std::ops::Range<usize>) -> (Vec<u32>, Vec<u8>) {
         let TableJob {
             walk,
             order,
@@ -767,8 +780,8 @@ impl TableJob<'_, '_> {
         // `v`, `u` and the taps below are walk vertices; `vl` is `v` on the level
         for v in vs {
             let vl = order[v] as usize;
-            // SAFETY: `order` is a permutation (checked above), so row `vl` is taken
-            // here and nowhere else.
+            // SAFETY: `order` is a permutation and the ranges of the calls are disjoint
+            // (`chunk`'s contract), so row `vl` is taken here and nowhere else.
             let (fi, fw) = unsafe { (tap_rows.row(vl), w_rows.row(vl)) };
             let pv = Vec3::from(walk.positions[v]);
             let t1 = Vec3::from(frames.t1[vl]);

@@ -120,7 +120,9 @@ pub(super) struct GlobalMap {
     /// Per target level (`0..nl`): the source position of every vertex's mapped point; empty
     /// below the map's level, whose values [`GlobalMap::level_pos`] computes when a solve
     /// reaches them (at a million vertices carrying them to every level took a second before
-    /// the first preview).
+    /// the first preview). They are not kept: a solve that reuses a cached map computes them
+    /// again (about a second at a million vertices, spread over the fine levels), which keeps
+    /// them out of the peak memory of a million-vertex solve.
     pub target_pos: Vec<Vec<[f32; 3]>>,
     /// The target level the map was computed on, its faces, its vertices' mapped positions and
     /// a tree of its triangles, for [`GlobalMap::level_pos`].
