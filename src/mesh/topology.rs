@@ -110,16 +110,17 @@ pub fn connected_components(n: usize, faces: &[[u32; 3]]) -> (Vec<u32>, usize) {
         x
     }
     for f in faces {
-        let r0 = find(&mut parent, f[0]);
+        // `r0` stays the root of the face's set: linking a stale root would overwrite its link
+        // and split a component
+        let mut r0 = find(&mut parent, f[0]);
         for &v in &f[1..] {
             let r = find(&mut parent, v);
             if r != r0 {
                 let (a, b) = (r0.min(r), r0.max(r));
                 parent[b as usize] = a;
+                r0 = a;
             }
         }
-        // re-find root after merges
-        let _ = find(&mut parent, f[0]);
     }
     let mut label = vec![u32::MAX; n];
     let mut used = vec![false; n];
@@ -271,6 +272,25 @@ mod tests {
         let adj = vertex_adjacency(4, &faces);
         assert_eq!(adj.row(0), &[1, 2, 3]);
         assert_eq!(adj.row(1), &[0, 2]);
+    }
+    /// A face whose first vertex's set is joined under a lower root before its last vertex is
+    /// linked: `[5, 2, 1]` after `[2, 3, 4]` and `[5, 6, 7]` must give one component, and so
+    /// must every renumbering of a connected strip.
+    #[test]
+    fn components_do_not_split_when_a_faces_root_changes_midway() {
+        let faces = vec![[2, 3, 4], [5, 6, 7], [5, 2, 1]];
+        let (label, c) = connected_components(8, &faces);
+        assert_eq!(c, 1);
+        assert!((1..8).all(|v| label[v] == label[1]));
+        assert_ne!(label[0], label[1], "vertex 0 is in no face");
+        // a strip of 40 triangles, renumbered by a few permutations
+        let strip: Vec<[u32; 3]> = (0..40u32).map(|i| [i, i + 1, i + 2]).collect();
+        for mult in [1u32, 7, 11, 13, 17, 19, 23] {
+            let perm = |v: u32| (v * mult) % 43;
+            let faces: Vec<[u32; 3]> = strip.iter().map(|f| f.map(perm)).collect();
+            let (_, c) = connected_components(43, &faces);
+            assert_eq!(c, 1, "permutation x{mult}");
+        }
     }
     #[test]
     fn tetrahedron_is_closed() {
