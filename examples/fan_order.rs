@@ -1,17 +1,17 @@
 //! Does the visiting order matter to the fan sampling table and the fans? The horse refined to
 //! `N` working vertices (default 256K), its fan table built and one 3-channel fan gather run
 //! visiting the vertices in the refinement's order (the identity) and in the Morton order that
-//! `FanSampler::new` uses, both on the mesh as refined; then the same mesh renumbered in Morton
-//! order (what a cache-friendly mesh would give). Best of three each.
+//! `FanSampler::new` uses (its walks on a copy of the level renumbered in that order), both on
+//! the mesh as refined; then the same mesh renumbered in Morton order and visited in vertex
+//! order on the level itself, as MeshMatch's working meshes are (`meshmatch::prepare` renumbers
+//! them; `FanSampler::in_vertex_order`). Best of three each.
 //! `cargo run --release --example fan_order` (`N=1000000` for a film-resolution mesh).
 //!
-//! Working meshes keep the refinement's order: renumbering them was tried, and with a Morton
-//! ordered source completion by example lost its quality (mean patch distance 1.2 against 0.07;
-//! the hierarchy's edge collapse breaks ties by vertex index). The table's build instead walks a
-//! copy of the level renumbered in its visiting order (`WalkMesh`), which gives the locality
-//! without renumbering the mesh (the third case then measures that copy's cost). The gather stays
-//! in vertex order: in Morton order its scattered row writes made it slower (0.151 s against
-//! 0.112 s at 256K).
+//! Renumbering the working meshes was once tried and dropped: with a Morton ordered example,
+//! completion by example lost its quality. The cause was a bug in `mesh::connected_components`
+//! (a face's stale root could be relinked, splitting a component, and the HKS eigen-solve then
+//! saw spurious components), not the order; it is fixed, and the hierarchy breaks its ties by
+//! the refinement's numbering (`Hierarchy::build_keyed`), so renumbering leaves it unchanged.
 use meshmatch::features::{FanSampler, tangent_frames};
 use meshmatch::hierarchy::Level;
 use meshmatch::work::CancelToken;

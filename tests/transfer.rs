@@ -33,7 +33,7 @@ fn params(vertices: usize) -> TransferParams {
 
 /// A different tessellation of Spot (refined to `n` vertices, each vertex jittered by a quarter
 /// edge within its tangent plane) and the true colour of every vertex (the texture at its UV).
-fn retessellated(n: usize) -> (TriMesh, Vec<[f32; 3]>) {
+fn retessellated(n: usize) -> (TriMesh, Vec<[f32; 3]>, Vec<u32>) {
     let cancel = CancelToken::new();
     let p = prepare(&spot(), &params(n), &|_| {}, &cancel).unwrap();
     let w = p.working_mesh();
@@ -51,7 +51,11 @@ fn retessellated(n: usize) -> (TriMesh, Vec<[f32; 3]>) {
         let d = 0.25 * e * (a.cos() * t1 + a.sin() * t2);
         *q = (Vec3::from(*q) + d).to_array();
     }
-    (TriMesh::new(positions, w.faces.clone()), truth)
+    (
+        TriMesh::new(positions, w.faces.clone()),
+        truth,
+        p.file_to_working().to_vec(),
+    )
 }
 
 /// Median and mean colour error (CIE76 dE) of a transferred signal against the truth.
@@ -70,7 +74,7 @@ fn de_stats(signal: &[[f32; 3]], truth: &[[f32; 3]]) -> (f32, f32) {
 fn spot_onto_retessellated_spot() {
     let cancel = CancelToken::new();
     let t0 = Instant::now();
-    let (target, truth) = retessellated(11_000);
+    let (target, truth, _) = retessellated(11_000);
     let prm = params(20_000);
     let ps = prepare(&spot(), &prm, &|_| {}, &cancel).unwrap();
     let pt = prepare(&target, &prm, &|_| {}, &cancel).unwrap();
@@ -108,7 +112,7 @@ fn spot_onto_retessellated_spot() {
 #[test]
 fn levels_stop_at_convergence_without_losing_quality() {
     let cancel = CancelToken::new();
-    let (target, truth) = retessellated(8_000);
+    let (target, truth, _) = retessellated(8_000);
     let every = TransferParams {
         tolerance: 0.0,
         ..params(12_000)
@@ -150,13 +154,13 @@ fn spot_onto_stretched_moved_spot_with_correspondences() {
     let cancel = CancelToken::new();
     let t0 = Instant::now();
     let src = spot();
-    let (mut target, truth) = retessellated(11_000);
+    let (mut target, truth, spot_vertex) = retessellated(11_000);
     let rot = Mat3::from_axis_angle(Vec3::new(0.3, 1.0, 0.2).normalize(), 1.1);
     for p in target.positions.iter_mut() {
         *p = deform(Vec3::from(*p), rot).to_array();
     }
-    // Six source vertices spread over the body (farthest-point sampling); the target's first
-    // vertices are Spot's own vertices (refinement keeps them), so counterparts share indices.
+    // Six source vertices spread over the body (farthest-point sampling); every Spot vertex is
+    // one of the target's (refinement keeps them), at `spot_vertex[i]`.
     let mut picks = vec![0usize];
     let mut dmin: Vec<f32> = src
         .positions
@@ -176,7 +180,7 @@ fn spot_onto_stretched_moved_spot_with_correspondences() {
         .iter()
         .map(|&i| Correspondence {
             source_vertex: i as u32,
-            target_vertices: vec![i as u32],
+            target_vertices: vec![spot_vertex[i]],
         })
         .collect();
     let prm = params(20_000);

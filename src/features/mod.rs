@@ -505,6 +505,20 @@ impl FanSampler {
         Self::with_order(level, frames, radius, &order, cancel)
     }
 
+    /// [`FanSampler::new_cancellable`] visiting the vertices in the level's own order, on the
+    /// level itself (no renumbered copy): for levels already numbered in a cache-friendly order,
+    /// as MeshMatch's working meshes and their hierarchies are (Morton order, see
+    /// `meshmatch::prepare`).
+    pub fn in_vertex_order(
+        level: &Level,
+        frames: &Frames,
+        radius: f32,
+        cancel: &CancelToken,
+    ) -> Result<FanSampler> {
+        let identity: Vec<u32> = (0..level.len() as u32).collect();
+        Self::with_order(level, frames, radius, &identity, cancel)
+    }
+
     /// [`FanSampler::new_cancellable`] visiting the vertices in `order` (a permutation of the
     /// level's vertices; anything else is an `InvalidInput` error). The table is the same for
     /// every order; the order decides how well the walks around consecutive vertices share the
@@ -655,13 +669,22 @@ impl FanSampler {
 /// A level renumbered in a visiting order, for [`FanSampler::with_order`]'s walks: walk vertex
 /// `i` is level vertex `order[i]`, and its adjacency row lists the same neighbours in the same
 /// order as the level's.
-struct WalkMesh {
-    positions: Vec<[f32; 3]>,
-    adjacency: Csr,
+/// The level itself, not a copy, when the order is the identity (a level already numbered in a
+/// cache-friendly order, as MeshMatch's working meshes are).
+struct WalkMesh<'a> {
+    positions: std::borrow::Cow<'a, [[f32; 3]]>,
+    adjacency: std::borrow::Cow<'a, Csr>,
 }
 
-impl WalkMesh {
-    fn new(level: &Level, order: &[u32]) -> WalkMesh {
+impl<'a> WalkMesh<'a> {
+    fn new(level: &'a Level, order: &[u32]) -> WalkMesh<'a> {
+        use std::borrow::Cow;
+        if order.iter().enumerate().all(|(i, &v)| v as usize == i) {
+            return WalkMesh {
+                positions: Cow::Borrowed(&level.positions),
+                adjacency: Cow::Borrowed(&level.adjacency),
+            };
+        }
         let n = order.len();
         let mut inv = vec![0u32; n];
         for (i, &v) in order.iter().enumerate() {
@@ -682,15 +705,15 @@ impl WalkMesh {
             offsets.push(indices.len() as u32);
         }
         WalkMesh {
-            positions,
-            adjacency: Csr { offsets, indices },
+            positions: Cow::Owned(positions),
+            adjacency: Cow::Owned(Csr { offsets, indices }),
         }
     }
 }
 
 /// What every chunk of [`FanSampler::with_order`]'s build shares.
 struct TableJob<'a, 'b> {
-    walk: &'a WalkMesh,
+    walk: &'a WalkMesh<'a>,
     /// Level vertex of every walk vertex (the visiting order).
     order: &'a [u32],
     frames: &'a Frames,

@@ -1,9 +1,8 @@
-//! A cache-friendly visiting order: vertices sorted along the Morton (Z-order) curve of their
-//! positions, so that vertices visited one after the other are near each other in space.
-//! Neighbourhood walks (the fan sampling table's) that visit vertices in this order find most
-//! of the next vertex's neighbourhood still in cache, whatever the mesh's own vertex order
-//! (`cargo run --release --example fan_order` measures it). The meshes themselves are not
-//! renumbered: results stay independent of the order, only their cost changes.
+//! A cache-friendly vertex order: vertices sorted along the Morton (Z-order) curve of their
+//! positions, so that vertices one after the other are near each other in space. MeshMatch
+//! numbers its working meshes in this order (`meshmatch::prepare`), so neighbourhood reads in
+//! every stage find most of the next vertex's neighbourhood still in cache; the fan sampling
+//! table visits other meshes' vertices in it (`examples/fan_order` measures both).
 
 /// Spreads the low 21 bits of `x` to every third bit.
 fn spread3(x: u32) -> u64 {

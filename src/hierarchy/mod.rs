@@ -142,6 +142,26 @@ impl Hierarchy {
         opts: HierarchyOptions,
         cancel: &crate::work::CancelToken,
     ) -> Result<Hierarchy> {
+        Self::build_keyed(positions, faces, None, opts, cancel)
+    }
+
+    /// [`Hierarchy::build_cancellable`] breaking ties between equally long edges by `tie_keys`
+    /// (one distinct key per vertex; `None`: the vertex indices). The collapses depend on the
+    /// keys' order only, so a mesh renumbered with its old indices as keys gets the same
+    /// hierarchy, renumbered: on regular meshes, where most edges tie, the tie order decides the
+    /// hierarchy's shape.
+    pub fn build_keyed(
+        positions: &[[f32; 3]],
+        faces: &[[u32; 3]],
+        tie_keys: Option<&[u32]>,
+        opts: HierarchyOptions,
+        cancel: &crate::work::CancelToken,
+    ) -> Result<Hierarchy> {
+        if tie_keys.is_some_and(|k| k.len() != positions.len()) {
+            return Err(Error::InvalidInput(
+                "hierarchy: one tie key per vertex is needed".into(),
+            ));
+        }
         if positions.is_empty() || faces.is_empty() {
             return Err(Error::InvalidMesh(
                 "hierarchy: the mesh has no vertices or no faces".into(),
@@ -159,6 +179,10 @@ impl Hierarchy {
         };
         let max_levels = opts.max_levels.unwrap_or(usize::MAX).max(1);
         let min_v = opts.min_vertices.max(4);
+        let mut keys: Vec<u32> = match tie_keys {
+            Some(k) => k.to_vec(),
+            None => (0..n).collect(),
+        };
         while h.levels.len() < max_levels {
             cancel.check()?;
             let cur = h.levels.last().expect("one level");
@@ -166,7 +190,8 @@ impl Hierarchy {
                 break;
             }
             let target = (cur.len() / 2).max(min_v);
-            let (next, parent) = collapse_level(cur, target);
+            let (next, parent, next_keys) = collapse_level(cur, target, &keys);
+            keys = next_keys;
             // A level that barely shrank (collapses blocked everywhere) ends the hierarchy.
             if next.len() as f64 > 0.9 * cur.len() as f64 || next.faces.is_empty() {
                 break;
@@ -250,9 +275,11 @@ impl Hierarchy {
 }
 
 /// One level of collapses: a greedy shortest-first matching of edges, each accepted collapse
-/// merging its two (so far untouched) ends into their midpoint. Returns the coarse level and the
-/// parent of every fine vertex.
-fn collapse_level(fine: &Level, target: usize) -> (Level, Vec<u32>) {
+/// merging its two (so far untouched) ends into their midpoint. Equally long edges are taken in
+/// the order of their ends' `keys` (lower, then higher), and the end with the lower key
+/// survives. Returns the coarse level, the parent of every fine vertex and the coarse vertices'
+/// keys (their survivors').
+fn collapse_level(fine: &Level, target: usize, keys: &[u32]) -> (Level, Vec<u32>, Vec<u32>) {
     let n = fine.len();
     let pos = &fine.positions;
     let faces = &fine.faces;
@@ -276,17 +303,28 @@ fn collapse_level(fine: &Level, target: usize) -> (Level, Vec<u32>) {
     }
     // Candidate edges sorted by length (lengths of untouched vertices never change in a level).
     let adj = &fine.adjacency;
-    let mut edges: Vec<(f32, u32, u32)> = Vec::with_capacity(adj.indices.len() / 2);
+    // (length², lower key, higher key, end with the lower key, the other end)
+    let mut edges: Vec<(f32, u32, u32, u32, u32)> = Vec::with_capacity(adj.indices.len() / 2);
     for a in 0..n {
         for &b in adj.row(a) {
             if (b as usize) > a {
                 let l = (Vec3::from(pos[a]) - Vec3::from(pos[b as usize])).length_squared();
-                edges.push((l, a as u32, b));
+                let (ka, kb) = (keys[a], keys[b as usize]);
+                edges.push(if ka <= kb {
+                    (l, ka, kb, a as u32, b)
+                } else {
+                    (l, kb, ka, b, a as u32)
+                });
             }
         }
     }
-    // a total order (ties by the ends), so the parallel sort gives the one result
-    edges.par_sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)).then(x.2.cmp(&y.2)));
+    // a total order (ties by the ends' keys), so the parallel sort gives the one result
+    edges.par_sort_unstable_by(|x, y| {
+        x.0.total_cmp(&y.0)
+            .then(x.1.cmp(&y.1))
+            .then(x.2.cmp(&y.2))
+            .then(x.3.cmp(&y.3))
+    });
 
     let mut rep: Vec<u32> = (0..n as u32).collect();
     let mut touched = vec![false; n];
@@ -295,7 +333,7 @@ fn collapse_level(fine: &Level, target: usize) -> (Level, Vec<u32>) {
     let mut na: Vec<u32> = Vec::with_capacity(32);
     let mut nb: Vec<u32> = Vec::with_capacity(32);
     let r = |rep: &[u32], i: u32| rep[i as usize];
-    for &(_, a, b) in &edges {
+    for &(_, _, _, a, b) in &edges {
         if remaining <= target {
             break;
         }
@@ -397,10 +435,12 @@ fn collapse_level(fine: &Level, target: usize) -> (Level, Vec<u32>) {
     // Compact the surviving representatives.
     let mut new_index = vec![u32::MAX; n];
     let mut positions = Vec::with_capacity(remaining);
+    let mut coarse_keys = Vec::with_capacity(remaining);
     for v in 0..n {
         if rep[v] == v as u32 {
             new_index[v] = positions.len() as u32;
             positions.push(cur[v].to_array());
+            coarse_keys.push(keys[v]);
         }
     }
     let parent: Vec<u32> = (0..n).map(|v| new_index[rep[v] as usize]).collect();
@@ -411,7 +451,7 @@ fn collapse_level(fine: &Level, target: usize) -> (Level, Vec<u32>) {
             new_faces.push(q);
         }
     }
-    (Level::new(positions, new_faces), parent)
+    (Level::new(positions, new_faces), parent, coarse_keys)
 }
 
 #[cfg(test)]
@@ -566,5 +606,77 @@ mod tests {
             prev = mean;
         }
         assert!(prev > 3.0);
+    }
+
+    /// A regular grid (every edge ties with thousands of others) renumbered in Morton order,
+    /// with its old indices as tie keys, gets the grid's own hierarchy: the same vertex tree and
+    /// positions at every level, up to the renumbering.
+    #[test]
+    fn renumbered_mesh_with_old_indices_as_keys_gets_the_same_hierarchy() {
+        let n = 48usize;
+        let mut p = Vec::new();
+        for y in 0..n {
+            for x in 0..n {
+                p.push([x as f32, y as f32, 0.0]);
+            }
+        }
+        let mut f = Vec::new();
+        for y in 0..n - 1 {
+            for x in 0..n - 1 {
+                let v = (y * n + x) as u32;
+                let (r, u, ru) = (v + 1, v + n as u32, v + n as u32 + 1);
+                f.push([v, r, ru]);
+                f.push([v, ru, u]);
+            }
+        }
+        let opts = HierarchyOptions::default();
+        let plain = Hierarchy::build(&p, &f, opts).unwrap();
+        let order = crate::geometry::morton_order(&p);
+        assert!(order.iter().enumerate().any(|(i, &o)| i as u32 != o));
+        let mut renumber = vec![0u32; p.len()];
+        for (new, &old) in order.iter().enumerate() {
+            renumber[old as usize] = new as u32;
+        }
+        let pm: Vec<[f32; 3]> = order.iter().map(|&o| p[o as usize]).collect();
+        let fm: Vec<[u32; 3]> = f.iter().map(|t| t.map(|v| renumber[v as usize])).collect();
+        let keyed = Hierarchy::build_keyed(
+            &pm,
+            &fm,
+            Some(&order),
+            opts,
+            &crate::work::CancelToken::new(),
+        )
+        .unwrap();
+        let unkeyed = Hierarchy::build(&pm, &fm, opts).unwrap();
+        assert_eq!(keyed.num_levels(), plain.num_levels());
+        // a coarse vertex is the same when its (sorted) finest descendants are
+        let descendants = |h: &Hierarchy, l: usize, to_old: &dyn Fn(u32) -> u32| {
+            let mut sets = vec![Vec::new(); h.levels[l].len()];
+            for (v, &a) in h.ancestor_map(0, l).iter().enumerate() {
+                sets[a as usize].push(to_old(v as u32));
+            }
+            for s in &mut sets {
+                s.sort_unstable();
+            }
+            sets.sort();
+            sets
+        };
+        let mut differs_without_keys = false;
+        for l in 1..plain.num_levels() {
+            assert_eq!(keyed.levels[l].len(), plain.levels[l].len(), "level {l}");
+            let a = descendants(&plain, l, &|v| v);
+            let b = descendants(&keyed, l, &|v| order[v as usize]);
+            assert_eq!(a, b, "level {l}: the vertex trees differ");
+            let mut pa = plain.levels[l].positions.clone();
+            let mut pb = keyed.levels[l].positions.clone();
+            pa.sort_by(|x, y| x.partial_cmp(y).unwrap());
+            pb.sort_by(|x, y| x.partial_cmp(y).unwrap());
+            assert_eq!(pa, pb, "level {l}: positions differ");
+            if l < unkeyed.num_levels() {
+                differs_without_keys |= descendants(&unkeyed, l, &|v| order[v as usize]) != a;
+            }
+        }
+        // without the keys the renumbering changes the hierarchy (what the keys are for)
+        assert!(differs_without_keys);
     }
 }

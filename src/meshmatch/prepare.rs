@@ -45,7 +45,8 @@ pub struct PreparedMesh {
 }
 
 impl PreparedMesh {
-    /// The working mesh (welded and refined; per-vertex colours when it has a signal).
+    /// The working mesh (welded, refined and numbered in Morton order; per-vertex colours when
+    /// it has a signal).
     pub fn working_mesh(&self) -> &TriMesh {
         &self.working
     }
@@ -166,7 +167,8 @@ impl Drop for CancelOnDrop<'_> {
 const HKS_VERTICES: usize = 2000;
 
 /// Prepare a mesh for MeshMatch: weld, refine to `params.vertices` by longest-edge bisection
-/// (signal sampled from the texture/colours at every new vertex), build the hierarchy (§3), tangent
+/// (signal sampled from the texture/colours at every new vertex), renumber along the Morton
+/// curve (`working_to_file` and `file_to_working` map through it), build the hierarchy (§3), tangent
 /// frames, HKS + normal·up shape features and, with a signal, per-level signals (children means)
 /// and geodesic colour fans.
 pub fn prepare(
@@ -304,7 +306,7 @@ pub fn prepare(
         }
     }
     let file_of_input = |i: u32| mesh.file_index.get(i as usize).copied().unwrap_or(i);
-    let working_to_file: Vec<u32> = (0..r.mesh.positions.len())
+    let mut working_to_file: Vec<u32> = (0..r.mesh.positions.len())
         .map(|v| {
             let wv = if v < nw {
                 v as u32
@@ -316,11 +318,26 @@ pub fn prepare(
             file_of_input(welded_first[wv as usize])
         })
         .collect();
+    // The working mesh renumbered along the Morton curve of its positions: refinement appends
+    // its vertices in split order, scattered over the surface, and every later stage (hierarchy,
+    // fan tables and gathers, the EM's neighbourhood reads) reads a vertex's neighbours, which
+    // this order keeps close in memory. `order[new] = old` (kept for the hierarchy's ties).
+    let order = crate::geometry::morton_order(&r.mesh.positions);
+    let mut renumber = vec![0u32; order.len()];
+    for (new, &old) in order.iter().enumerate() {
+        renumber[old as usize] = new as u32;
+    }
+    let permute = |v: &mut Vec<[f32; 3]>| *v = order.iter().map(|&o| v[o as usize]).collect();
+    working_to_file = order.iter().map(|&o| working_to_file[o as usize]).collect();
+    let signal0 = signal0.map(|mut s| {
+        permute(&mut s);
+        s
+    });
     let mut file_to_working = vec![0u32; mesh.file_vertex_count.max(mesh.positions.len())];
     file_to_working.truncate(mesh.file_vertex_count.max(1));
     for (i, &w) in map.iter().enumerate() {
         if let Some(slot) = file_to_working.get_mut(file_of_input(i as u32) as usize) {
-            *slot = w;
+            *slot = renumber[w as usize];
         }
     }
     let face_input: Vec<u32> = r
@@ -328,7 +345,16 @@ pub fn prepare(
         .iter()
         .map(|&f| welded_to_input[f as usize])
         .collect();
-    let mut working = TriMesh::new(r.mesh.positions, r.mesh.faces);
+    let mut positions = r.mesh.positions;
+    permute(&mut positions);
+    let faces: Vec<[u32; 3]> = r
+        .mesh
+        .faces
+        .iter()
+        .map(|f| f.map(|v| renumber[v as usize]))
+        .collect();
+    drop(renumber);
+    let mut working = TriMesh::new(positions, faces);
     working.colors = signal0.clone();
     // A textured input keeps its texture on the working mesh (UVs interpolated into every working
     // corner), so views draw it per pixel rather than through the vertex colours.
@@ -355,9 +381,13 @@ pub fn prepare(
 
     sink(Event::Progress(progress("hierarchy", &watch, 0.2)));
     let sw = Stopwatch::start();
-    let hierarchy = Hierarchy::build_cancellable(
+    // Ties between equally long edges are broken by the refinement's numbering, so the
+    // hierarchy is the one the mesh had before its Morton renumbering (on a regular grid most
+    // edges tie, and the tie order shapes every level).
+    let hierarchy = Hierarchy::build_keyed(
         &working.positions,
         &working.faces,
+        Some(&order),
         HierarchyOptions {
             min_vertices: 128,
             max_levels: params.levels,
@@ -407,7 +437,7 @@ pub fn prepare(
     let sw = Stopwatch::start();
     let table = |l: usize| {
         let lev = &hierarchy.levels[l];
-        FanSampler::new_cancellable(lev, &frames[l], params.fan_radius * lev.mean_edge, cancel)
+        FanSampler::in_vertex_order(lev, &frames[l], params.fan_radius * lev.mean_edge, cancel)
     };
     let mut samplers = Vec::new();
     let (signal, fans) = if let Some(s0) = signal0 {

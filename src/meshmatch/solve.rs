@@ -450,7 +450,7 @@ impl<'a> Levels<'a> {
         let sampler_t = if target.fan_radius == source.fan_radius && target.samplers.len() > l {
             &target.samplers[l]
         } else {
-            built = FanSampler::new_cancellable(lt, &target.frames[l], fan_r, self.cancel)?;
+            built = FanSampler::in_vertex_order(lt, &target.frames[l], fan_r, self.cancel)?;
             &built
         };
         self.t.fans += sw.secs();
