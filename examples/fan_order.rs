@@ -64,10 +64,7 @@ fn main() {
     );
     drop(lev);
     let order = meshmatch::geometry::morton_order(&p);
-    let mut inv = vec![0u32; p.len()];
-    for (new, &old) in order.iter().enumerate() {
-        inv[old as usize] = new as u32;
-    }
+    let inv = meshmatch::geometry::inverse_order(&order);
     let pm: Vec<[f32; 3]> = order.iter().map(|&i| p[i as usize]).collect();
     let mut fm: Vec<[u32; 3]> = f.iter().map(|t| t.map(|v| inv[v as usize])).collect();
     fm.sort_by_key(|t| *t.iter().min().unwrap_or(&0));

@@ -686,10 +686,7 @@ impl<'a> WalkMesh<'a> {
             };
         }
         let n = order.len();
-        let mut inv = vec![0u32; n];
-        for (i, &v) in order.iter().enumerate() {
-            inv[v as usize] = i as u32;
-        }
+        let inv = crate::geometry::inverse_order(order);
         let positions = order.iter().map(|&v| level.positions[v as usize]).collect();
         let mut offsets = Vec::with_capacity(n + 1);
         offsets.push(0u32);

@@ -76,7 +76,7 @@ pub use functional_map::{FmapParams, MapQuality, ShapeMap, Spectrum, functional_
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
 pub use laplacian_editing::laplacian_deform;
-pub use morton_order::morton_order;
+pub use morton_order::{inverse_order, morton_order};
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
 pub(crate) use refine::IntMap;
 pub use refine::{Refined, nearest_original, refine_to_density};

@@ -52,6 +52,16 @@ pub fn morton_order(positions: &[[f32; 3]]) -> Vec<u32> {
     keyed.into_iter().map(|(_, i)| i).collect()
 }
 
+/// The inverse of a visiting order: `inverse[old] = new` for `order[new] = old` (the new number
+/// of every vertex when a mesh is renumbered in `order`). `order` must be a permutation.
+pub fn inverse_order(order: &[u32]) -> Vec<u32> {
+    let mut inverse = vec![0u32; order.len()];
+    for (new, &old) in order.iter().enumerate() {
+        inverse[old as usize] = new as u32;
+    }
+    inverse
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

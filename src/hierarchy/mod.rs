@@ -613,30 +613,12 @@ mod tests {
     /// positions at every level, up to the renumbering.
     #[test]
     fn renumbered_mesh_with_old_indices_as_keys_gets_the_same_hierarchy() {
-        let n = 48usize;
-        let mut p = Vec::new();
-        for y in 0..n {
-            for x in 0..n {
-                p.push([x as f32, y as f32, 0.0]);
-            }
-        }
-        let mut f = Vec::new();
-        for y in 0..n - 1 {
-            for x in 0..n - 1 {
-                let v = (y * n + x) as u32;
-                let (r, u, ru) = (v + 1, v + n as u32, v + n as u32 + 1);
-                f.push([v, r, ru]);
-                f.push([v, ru, u]);
-            }
-        }
+        let (p, f) = crate::testdata::grid(48);
         let opts = HierarchyOptions::default();
         let plain = Hierarchy::build(&p, &f, opts).unwrap();
         let order = crate::geometry::morton_order(&p);
         assert!(order.iter().enumerate().any(|(i, &o)| i as u32 != o));
-        let mut renumber = vec![0u32; p.len()];
-        for (new, &old) in order.iter().enumerate() {
-            renumber[old as usize] = new as u32;
-        }
+        let renumber = crate::geometry::inverse_order(&order);
         let pm: Vec<[f32; 3]> = order.iter().map(|&o| p[o as usize]).collect();
         let fm: Vec<[u32; 3]> = f.iter().map(|t| t.map(|v| renumber[v as usize])).collect();
         let keyed = Hierarchy::build_keyed(

@@ -124,10 +124,9 @@ pub(super) struct GlobalMap {
     /// again (about a second at a million vertices, spread over the fine levels), which keeps
     /// them out of the peak memory of a million-vertex solve.
     pub target_pos: Vec<Vec<[f32; 3]>>,
-    /// The target level the map was computed on, its faces, its vertices' mapped positions and
-    /// a tree of its triangles, for [`GlobalMap::level_pos`].
+    /// The target level the map was computed on, its vertices' mapped positions and a tree of
+    /// its triangles (over that level of the target's hierarchy), for [`GlobalMap::level_pos`].
     map_level: usize,
-    map_faces: Vec<[u32; 3]>,
     base: Vec<[f32; 3]>,
     bvh: Option<crate::geometry::TriangleBvh>,
     /// Start source vertex (coarsest level `nl - 1`) of every coarsest-level target vertex.
@@ -143,7 +142,8 @@ pub(super) struct GlobalMap {
 }
 
 impl GlobalMap {
-    /// The source position of every mapped point of target level `l` (hierarchy `ht`): the
+    /// The source position of every mapped point of target level `l` (hierarchy `ht`, the one
+    /// the map was computed on): the
     /// stored values on and above the map's level; below it, each vertex's closest point on the
     /// map level's surface and the barycentric blend of its corners' mapped positions, so the
     /// term is as fine as the level.
@@ -157,14 +157,14 @@ impl GlobalMap {
             (_, Some(p)) if !p.is_empty() || l >= self.map_level => Cow::Borrowed(p),
             (Some(bvh), _) => {
                 let anc = ht.ancestor_map(l, self.map_level);
+                let faces = &ht.levels[self.map_level].faces;
                 Cow::Owned(
                     ht.levels[l]
                         .positions
                         .par_iter()
                         .zip(anc.par_iter())
                         .map(|(&p, &a)| {
-                            blend_at(bvh, &self.map_faces, &self.base, p)
-                                .unwrap_or(self.base[a as usize])
+                            blend_at(bvh, faces, &self.base, p).unwrap_or(self.base[a as usize])
                         })
                         .collect(),
                 )
@@ -340,7 +340,6 @@ pub(super) fn global_map(
     let g = Arc::new(GlobalMap {
         target_pos,
         map_level: lt,
-        map_faces: mt.faces.clone(),
         base,
         bvh: Some(bvh),
         top_init,
@@ -645,7 +644,6 @@ mod tests {
         let g = GlobalMap {
             target_pos: vec![mapped],
             map_level: 0,
-            map_faces: Vec::new(),
             base: Vec::new(),
             bvh: None,
             top_init: (0..nv as u32).collect(),

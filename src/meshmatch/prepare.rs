@@ -323,10 +323,7 @@ pub fn prepare(
     // fan tables and gathers, the EM's neighbourhood reads) reads a vertex's neighbours, which
     // this order keeps close in memory. `order[new] = old` (kept for the hierarchy's ties).
     let order = crate::geometry::morton_order(&r.mesh.positions);
-    let mut renumber = vec![0u32; order.len()];
-    for (new, &old) in order.iter().enumerate() {
-        renumber[old as usize] = new as u32;
-    }
+    let renumber = crate::geometry::inverse_order(&order);
     let permute = |v: &mut Vec<[f32; 3]>| *v = order.iter().map(|&o| v[o as usize]).collect();
     working_to_file = order.iter().map(|&o| working_to_file[o as usize]).collect();
     let signal0 = signal0.map(|mut s| {
