@@ -397,7 +397,8 @@ pub const FAN_TAPS: usize = 3;
 /// A precomputed fan sampling table of one level: for every vertex and fan bin, the `FAN_TAPS`
 /// vertices with the largest Gaussian splat weights and their normalised weights. Building it
 /// costs one geodesic-neighbourhood walk per vertex; applying it to a signal is a cheap gather,
-/// so target fans can be recomputed after every M-step.
+/// so a target's fans can follow its signal after every M-step (MeshMatch gathers each target
+/// fan as its E-step visits the vertex, [`FanSampler::gather`]).
 ///
 /// Compact layout (at a million vertices the table is the largest structure of a transfer):
 /// each vertex lists its distinct tap vertices once (about 40, never more than
@@ -619,12 +620,17 @@ impl FanSampler {
         &self.lists[self.part[v] as usize][o..o + self.len[v] as usize]
     }
 
-    /// Tap vertices and weights of bin `b` of vertex `v` (the one decoder of the compact
-    /// layout: [`FanSampler::fans_into`] gathers through it).
+    /// Tap vertices and weights of bin `b` of vertex `v`.
     #[inline]
     pub fn taps(&self, v: usize, b: usize) -> [(u32, f32); FAN_TAPS] {
+        self.decode(self.list(v), v, b)
+    }
+
+    /// Bin `b` of vertex `v` whose tap list is `list` (the one decoder of the compact layout:
+    /// [`FanSampler::taps`] and [`FanSampler::gather`] go through it).
+    #[inline(always)]
+    fn decode(&self, list: &[u32], v: usize, b: usize) -> [(u32, f32); FAN_TAPS] {
         let nb = FAN_RADII * FAN_ANGLES;
-        let list = self.list(v);
         let o = (v * nb + b) * FAN_TAPS;
         let (w0, w1) = (self.w[(v * nb + b) * 2], self.w[(v * nb + b) * 2 + 1]);
         let w2 = u16::MAX - w0 - w1;
@@ -634,6 +640,24 @@ impl FanSampler {
             (list[self.tap[o + 1] as usize], w1 as f32 * s),
             (list[self.tap[o + 2] as usize], w2 as f32 * s),
         ]
+    }
+
+    /// Vertex `v`'s fan of `sig` (`channels` values per vertex, already pre-filtered as
+    /// [`FanSampler::fans`] does with [`smooth`]) into `fan` (`R * A * channels` values, layout
+    /// as [`FanSampler::fans`]'s rows): the one gather, so a fan taken alone (MeshMatch's
+    /// E-step takes the target's as it visits a vertex) has the same bits as the whole table's.
+    #[inline(always)]
+    pub fn gather(&self, v: usize, sig: &[f32], channels: usize, fan: &mut [f32]) {
+        let c = channels;
+        let list = self.list(v);
+        for b in 0..FAN_RADII * FAN_ANGLES {
+            let dst = &mut fan[b * c..(b + 1) * c];
+            let [(u0, w0), (u1, w1), (u2, w2)] = self.decode(list, v, b);
+            let (u0, u1, u2) = (u0 as usize * c, u1 as usize * c, u2 as usize * c);
+            for ch in 0..c {
+                dst[ch] = w0 * sig[u0 + ch] + w1 * sig[u1 + ch] + w2 * sig[u2 + ch];
+            }
+        }
     }
 
     /// Fans of a signal with `channels` values per vertex, pre-filtered by one pass of 1-ring
@@ -653,16 +677,9 @@ impl FanSampler {
         out.resize(level.len() * nb * c, 0.0);
         // In vertex order: visiting in the build's Morton order made the gather slower
         // (`examples/fan_order`: the scattered row writes cost more than the taps' locality gains).
-        out.par_chunks_mut(nb * c).enumerate().for_each(|(v, fan)| {
-            for b in 0..nb {
-                let dst = &mut fan[b * c..(b + 1) * c];
-                let [(u0, w0), (u1, w1), (u2, w2)] = self.taps(v, b);
-                let (u0, u1, u2) = (u0 as usize * c, u1 as usize * c, u2 as usize * c);
-                for ch in 0..c {
-                    dst[ch] = w0 * sig[u0 + ch] + w1 * sig[u1 + ch] + w2 * sig[u2 + ch];
-                }
-            }
-        });
+        out.par_chunks_mut(nb * c)
+            .enumerate()
+            .for_each(|(v, fan)| self.gather(v, &sig, c, fan));
     }
 }
 
@@ -1033,6 +1050,23 @@ mod tests {
                 }
             }
             assert_eq!(want, other.fans(&l, &signal, 3));
+        }
+        // One vertex's fan alone (as MeshMatch's E-step takes the target's) has the bits of the
+        // whole table's row, and is the decoded taps' weighted sum of the pre-filtered signal.
+        let sig = smooth(&l, &signal, 3);
+        let nb = FAN_RADII * FAN_ANGLES;
+        let mut fan = vec![f32::NAN; nb * 3];
+        for v in 0..n {
+            plain.gather(v, &sig, 3, &mut fan);
+            assert_eq!(fan, want[v * nb * 3..(v + 1) * nb * 3], "vertex {v}");
+            for b in 0..nb {
+                let [(u0, w0), (u1, w1), (u2, w2)] = plain.taps(v, b);
+                let (u0, u1, u2) = (u0 as usize * 3, u1 as usize * 3, u2 as usize * 3);
+                for c in 0..3 {
+                    let x = w0 * sig[u0 + c] + w1 * sig[u1 + c] + w2 * sig[u2 + c];
+                    assert_eq!(fan[b * 3 + c], x, "vertex {v}, bin {b}");
+                }
+            }
         }
         // an order that is not a permutation is refused, not a data race
         for bad in [

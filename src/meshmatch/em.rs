@@ -3,7 +3,9 @@
 //! Gaussian voting and coarse-to-fine upsampling of the nearest-neighbour field.
 
 use crate::error::{Error, Result};
-use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, FAN_RADII, Frames, exp_neg, transport_angle};
+use crate::features::{
+    ANGLE_STEP_DEG, FAN_ANGLES, FAN_RADII, FanSampler, Frames, exp_neg, transport_angle,
+};
 use crate::hierarchy::{Hierarchy, Level};
 use crate::work::CancelToken;
 use glam::Vec3;
@@ -25,7 +27,8 @@ pub(crate) struct Side<'a> {
     pub eang: &'a [f32],
     /// Weighted shape features (`dsh` per vertex), already scaled so that plain squared L2 applies.
     pub shape: &'a [f32],
-    /// Colour fans (`PER` per vertex), unweighted.
+    /// Colour fans (`PER` per vertex), unweighted; empty on the target side, whose fans the
+    /// E-step takes as it visits each vertex ([`TargetFans`]).
     pub fans: &'a [f32],
     /// Rotation-invariant summaries of the fans ([`ring_summaries_into`], `RING` per vertex); empty
     /// = no lower bound, every candidate's fan is compared.
@@ -55,33 +58,66 @@ pub(crate) fn ring_summaries_into(fans: &[f32], out: &mut Vec<f32>) {
     let n = fans.len() / PER;
     out.clear();
     out.resize(n * RING, 0.0);
-    let sa = (FAN_ANGLES as f32).sqrt();
     out.par_chunks_mut(RING)
         .zip(fans.par_chunks(PER))
-        .for_each(|(o, f)| {
-            for r in 0..FAN_RADII {
-                let ring = &f[r * FAN_ANGLES * C..(r + 1) * FAN_ANGLES * C];
-                let mut mu = [0.0f32; C];
-                for x in ring.chunks_exact(C) {
-                    for c in 0..C {
-                        mu[c] += x[c];
-                    }
-                }
-                mu.iter_mut().for_each(|m| *m /= FAN_ANGLES as f32);
-                let mut ss = 0.0f32;
-                for x in ring.chunks_exact(C) {
-                    for c in 0..C {
-                        let d = x[c] - mu[c];
-                        ss += d * d;
-                    }
-                }
-                let o = &mut o[r * (C + 1)..(r + 1) * (C + 1)];
-                for c in 0..C {
-                    o[c] = mu[c] * sa;
-                }
-                o[C] = ss.sqrt();
+        .for_each(|(o, f)| ring_summary(f, o));
+}
+
+/// [`ring_summaries_into`] of one fan (`PER` floats) into `o` (`RING` floats).
+#[inline(always)]
+fn ring_summary(f: &[f32], o: &mut [f32]) {
+    let sa = (FAN_ANGLES as f32).sqrt();
+    for r in 0..FAN_RADII {
+        let ring = &f[r * FAN_ANGLES * C..(r + 1) * FAN_ANGLES * C];
+        let mut mu = [0.0f32; C];
+        for x in ring.chunks_exact(C) {
+            for c in 0..C {
+                mu[c] += x[c];
             }
-        });
+        }
+        mu.iter_mut().for_each(|m| *m /= FAN_ANGLES as f32);
+        let mut ss = 0.0f32;
+        for x in ring.chunks_exact(C) {
+            for c in 0..C {
+                let d = x[c] - mu[c];
+                ss += d * d;
+            }
+        }
+        let o = &mut o[r * (C + 1)..(r + 1) * (C + 1)];
+        for c in 0..C {
+            o[c] = mu[c] * sa;
+        }
+        o[C] = ss.sqrt();
+    }
+}
+
+/// The target's colour fans, never stored whole: the E-step gathers a vertex's fan through the
+/// level's sampling table when it visits the vertex ([`Ctx::load`]). A stored table of the
+/// target's fans held 648 bytes per vertex (648 MB at a million vertices) and was refilled
+/// after every M-step; the gather is the same arithmetic, so the fans have the same bits.
+pub(crate) struct TargetFans<'a> {
+    pub sampler: &'a FanSampler,
+    /// The target's current signal, pre-filtered as [`FanSampler::fans`] does
+    /// ([`crate::features::smooth`]), `C` values per vertex.
+    pub signal: &'a [f32],
+}
+
+/// One target vertex as the E-step compares it: its index, colour fan and the fan's ring
+/// summary ([`ring_summaries_into`]), filled by [`Ctx::load`] and reused from vertex to vertex.
+pub(crate) struct Patch {
+    t: usize,
+    fan: [f32; PER],
+    ring: [f32; RING],
+}
+
+impl Patch {
+    pub fn empty() -> Patch {
+        Patch {
+            t: 0,
+            fan: [0.0; PER],
+            ring: [0.0; RING],
+        }
+    }
 }
 
 /// Squared L2 distance of two equally long feature vectors, summed in eight lanes (so that it
@@ -117,37 +153,47 @@ pub(crate) struct Ctx<'a> {
     /// Source hierarchy (for random hops) and the level index.
     pub hs: &'a Hierarchy,
     pub l: usize,
+    /// The target's colour fans; `None` before the target has colour (`wc` is 0 then).
+    pub tf: Option<TargetFans<'a>>,
 }
 
 impl Ctx<'_> {
+    /// Target vertex `t` into `p`: its colour fan and ring summary when the colour part counts.
+    #[inline(always)]
+    pub fn load(&self, t: usize, p: &mut Patch) {
+        p.t = t;
+        if self.wc == 0.0 {
+            return;
+        }
+        if let Some(tf) = &self.tf {
+            tf.sampler.gather(t, tf.signal, C, &mut p.fan);
+            ring_summary(&p.fan, &mut p.ring);
+        }
+    }
+
     /// Patch distance D(vS, vT) for rotation k (squared L2 of the weighted feature vectors, colour
     /// fan rotated by a cyclic shift of k angle steps), stopping early once it reaches `best`.
     #[inline(always)]
-    pub fn dist(&self, t: usize, s: usize, k: usize, best: f32) -> f32 {
-        let d = self.shape_dist(t, s);
+    pub fn dist(&self, p: &Patch, s: usize, k: usize, best: f32) -> f32 {
+        let d = self.shape_dist(p.t, s);
         if d >= best || self.wc == 0.0 {
             return d;
         }
-        let lb = d + self.ring_bound(t, s);
+        let lb = d + self.ring_bound(p, s);
         if lb >= best {
             return lb;
         }
-        self.fan_dist(t, s, k, d, best)
+        self.fan_dist(p, s, k, d, best)
     }
 
     /// A lower bound of the weighted colour fan distance at every rotation
     /// ([`ring_summaries_into`]); 0 without summaries.
     #[inline(always)]
-    fn ring_bound(&self, t: usize, s: usize) -> f32 {
-        if self.t.rings.is_empty() || self.s.rings.is_empty() {
+    fn ring_bound(&self, p: &Patch, s: usize) -> f32 {
+        if self.s.rings.is_empty() {
             return 0.0;
         }
-        BOUND_SLACK
-            * self.wc
-            * squared_l2(
-                &self.t.rings[t * RING..(t + 1) * RING],
-                &self.s.rings[s * RING..(s + 1) * RING],
-            )
+        BOUND_SLACK * self.wc * squared_l2(&p.ring, &self.s.rings[s * RING..(s + 1) * RING])
     }
 
     /// The rotation-independent part of [`Ctx::dist`]: squared L2 of the weighted shape
@@ -164,8 +210,8 @@ impl Ctx<'_> {
     /// `d` plus the weighted colour fan distance at rotation k, ring by ring, stopping once the
     /// sum reaches `best`.
     #[inline(always)]
-    fn fan_dist(&self, t: usize, s: usize, k: usize, mut d: f32, best: f32) -> f32 {
-        let tf = &self.t.fans[t * PER..(t + 1) * PER];
+    fn fan_dist(&self, p: &Patch, s: usize, k: usize, mut d: f32, best: f32) -> f32 {
+        let tf = &p.fan;
         let sf = &self.s.fans[s * PER..(s + 1) * PER];
         let ring = FAN_ANGLES * C;
         let sh = (k % FAN_ANGLES) * C;
@@ -184,21 +230,21 @@ impl Ctx<'_> {
 
     /// Best rotation of source vertex `s` for target `t`: (distance, rotation index).
     #[inline(always)]
-    pub fn best_rotation(&self, t: usize, s: usize, best: f32) -> (f32, u8) {
+    pub fn best_rotation(&self, p: &Patch, s: usize, best: f32) -> (f32, u8) {
         let mut bd = best;
         let mut bk = u8::MAX;
         if self.wc == 0.0 {
-            let d = self.dist(t, s, 0, f32::INFINITY);
+            let d = self.dist(p, s, 0, f32::INFINITY);
             return if d < best { (d, 0) } else { (best, u8::MAX) };
         }
         // The shape part is the same for every rotation: once, and out early if it already
         // loses.
-        let sd = self.shape_dist(t, s);
-        if sd >= bd || sd + self.ring_bound(t, s) >= bd {
+        let sd = self.shape_dist(p.t, s);
+        if sd >= bd || sd + self.ring_bound(p, s) >= bd {
             return (bd, bk);
         }
         for k in 0..FAN_ANGLES {
-            let d = self.fan_dist(t, s, k, sd, bd);
+            let d = self.fan_dist(p, s, k, sd, bd);
             if d < bd {
                 bd = d;
                 bk = k as u8;
@@ -213,10 +259,11 @@ pub(crate) fn exact_distances(ctx: &Ctx, targets: &[usize]) -> Vec<f32> {
     let ns = ctx.s.level.len();
     targets
         .par_iter()
-        .map(|&t| {
+        .map_init(Patch::empty, |p, &t| {
+            ctx.load(t, p);
             let mut best = f32::INFINITY;
             for s in 0..ns {
-                best = ctx.best_rotation(t, s, best).0;
+                best = ctx.best_rotation(p, s, best).0;
             }
             best
         })
@@ -233,7 +280,10 @@ pub(crate) fn rot_index(angle: f32) -> u8 {
 pub(crate) fn all_distances(ctx: &Ctx, nnf: &[(u32, u8)]) -> Vec<f32> {
     nnf.par_iter()
         .enumerate()
-        .map(|(t, &(s, k))| ctx.dist(t, s as usize, k as usize, f32::INFINITY))
+        .map_init(Patch::empty, |p, (t, &(s, k))| {
+            ctx.load(t, p);
+            ctx.dist(p, s as usize, k as usize, f32::INFINITY)
+        })
         .collect()
 }
 
@@ -250,10 +300,11 @@ pub(crate) fn exhaustive(
     nnf.par_iter_mut()
         .zip(dist.par_iter_mut())
         .enumerate()
-        .try_for_each(|(t, (m, d))| {
+        .try_for_each_init(Patch::empty, |p, (t, (m, d))| {
             if cancel.is_cancelled() {
                 return Err(Error::Cancelled);
             }
+            ctx.load(t, p);
             let (lo, hi) = match locked[t] {
                 Some(s) => (s as usize, s as usize + 1),
                 None => (0, ns),
@@ -261,14 +312,14 @@ pub(crate) fn exhaustive(
             let mut bd = f32::INFINITY;
             let mut best = (lo as u32, 0u8);
             for s in lo..hi {
-                let (dd, k) = ctx.best_rotation(t, s, bd);
+                let (dd, k) = ctx.best_rotation(p, s, bd);
                 if k != u8::MAX && dd < bd {
                     bd = dd;
                     best = (s as u32, k);
                 }
             }
             *m = best;
-            *d = ctx.dist(t, best.0 as usize, best.1 as usize, f32::INFINITY);
+            *d = ctx.dist(p, best.0 as usize, best.1 as usize, f32::INFINITY);
             Ok(())
         })
 }
@@ -331,13 +382,16 @@ pub(crate) fn propagate(
     for (i, &v) in order.iter().enumerate() {
         pos[v as usize] = i as u32;
     }
-    let before: Vec<(u32, u8)> = nnf.to_vec();
+    // Nothing writes `nnf` until every part is done: the parts read the matches from before
+    // this sweep from it directly.
+    let before: &[(u32, u8)] = nnf;
     let results: Vec<Vec<((u32, u8), f32)>> = order
         .par_chunks(len)
         .enumerate()
         .map(|(p, chunk)| {
             let lo = p * len;
             let mut local: Vec<((u32, u8), f32)> = Vec::with_capacity(chunk.len());
+            let mut patch = Patch::empty();
             for (i, &vt) in chunk.iter().enumerate() {
                 if i % 2048 == 0 {
                     cancel.check()?;
@@ -351,7 +405,8 @@ pub(crate) fn propagate(
                         before[v]
                     }
                 };
-                let r = propagate_one_fast(ctx, vt, before[vt], dist[vt], locked[vt], &get);
+                let r =
+                    propagate_one_fast(ctx, &mut patch, vt, before[vt], dist[vt], locked[vt], &get);
                 local.push(r);
             }
             Ok(local)
@@ -372,6 +427,7 @@ pub(crate) fn propagate(
 #[inline]
 fn propagate_one_fast(
     ctx: &Ctx,
+    p: &mut Patch,
     vt: usize,
     cur: (u32, u8),
     curd: f32,
@@ -383,25 +439,27 @@ fn propagate_one_fast(
         #[target_feature(enable = "avx2")]
         unsafe fn avx2(
             ctx: &Ctx,
+            p: &mut Patch,
             vt: usize,
             cur: (u32, u8),
             curd: f32,
             locked: Option<u32>,
             get: &dyn Fn(usize) -> (u32, u8),
         ) -> ((u32, u8), f32) {
-            propagate_one(ctx, vt, cur, curd, locked, get)
+            propagate_one(ctx, p, vt, cur, curd, locked, get)
         }
         // SAFETY: the processor supports AVX2 (checked just above).
-        return unsafe { avx2(ctx, vt, cur, curd, locked, get) };
+        return unsafe { avx2(ctx, p, vt, cur, curd, locked, get) };
     }
-    propagate_one(ctx, vt, cur, curd, locked, get)
+    propagate_one(ctx, p, vt, cur, curd, locked, get)
 }
 
 /// One propagation step at target vertex `vt` (current match `cur` at distance `curd`;
-/// `get(v)` reads a neighbour's match): the new match and its distance.
+/// `get(v)` reads a neighbour's match), `vt` loaded into `p`: the new match and its distance.
 #[inline(always)]
 fn propagate_one(
     ctx: &Ctx,
+    p: &mut Patch,
     vt: usize,
     cur: (u32, u8),
     curd: f32,
@@ -410,8 +468,10 @@ fn propagate_one(
 ) -> ((u32, u8), f32) {
     let adj_t = &ctx.t.level.adjacency;
     let adj_s = &ctx.s.level.adjacency;
+    ctx.load(vt, p);
+    let p = &*p;
     if let Some(s) = locked {
-        let (d, k) = ctx.best_rotation(vt, s as usize, f32::INFINITY);
+        let (d, k) = ctx.best_rotation(p, s as usize, f32::INFINITY);
         return ((s, k), d);
     }
     let (mut bs, mut bk) = cur;
@@ -420,12 +480,12 @@ fn propagate_one(
     for (ni, &vn) in adj_t.row(vt).iter().enumerate() {
         let (sn, kn) = get(vn as usize);
         let base = ctx.t.eang[off_t + ni] + kn as f32 * STEP;
-        try_candidate(ctx, vt, sn, base, &mut bs, &mut bk, &mut bd);
+        try_candidate(ctx, p, sn, base, &mut bs, &mut bk, &mut bd);
         let off_s = adj_s.offsets[sn as usize] as usize;
         for (ci, &c) in adj_s.row(sn as usize).iter().enumerate() {
             try_candidate(
                 ctx,
-                vt,
+                p,
                 c,
                 base + ctx.s.eang[off_s + ci],
                 &mut bs,
@@ -437,7 +497,7 @@ fn propagate_one(
     if (bs, bk) != cur && ctx.wc > 0.0 {
         for dk in [1, FAN_ANGLES - 1] {
             let k = (bk as usize + dk) % FAN_ANGLES;
-            let d = ctx.dist(vt, bs as usize, k, bd);
+            let d = ctx.dist(p, bs as usize, k, bd);
             if d < bd {
                 bd = d;
                 bk = k as u8;
@@ -450,12 +510,12 @@ fn propagate_one(
 /// [`propagate_one`]'s candidate: source vertex `c` at the rotation nearest `ang`, kept in
 /// (`bs`, `bk`, `bd`) when it beats them.
 #[inline(always)]
-fn try_candidate(ctx: &Ctx, vt: usize, c: u32, ang: f32, bs: &mut u32, bk: &mut u8, bd: &mut f32) {
+fn try_candidate(ctx: &Ctx, p: &Patch, c: u32, ang: f32, bs: &mut u32, bk: &mut u8, bd: &mut f32) {
     let k = rot_index(ang);
     if c == *bs && k == *bk {
         return;
     }
-    let d = ctx.dist(vt, c as usize, k as usize, *bd);
+    let d = ctx.dist(p, c as usize, k as usize, *bd);
     if d < *bd {
         *bd = d;
         *bs = c;
@@ -536,11 +596,13 @@ impl RandomSearch<'_, '_> {
         } = *self;
         let hs = ctx.hs;
         let l = ctx.l;
+        let mut p = Patch::empty();
         for (k, (mm, dd)) in m.iter_mut().zip(d.iter_mut()).enumerate() {
             let t = ci * 1024 + k;
             if locked[t].is_some() {
                 continue;
             }
+            ctx.load(t, &mut p);
             let mut rng = SmallRng::seed_from_u64(
                 seed ^ (t as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ ((l as u64) << 56),
             );
@@ -555,7 +617,7 @@ impl RandomSearch<'_, '_> {
                 if c == mm.0 {
                     continue;
                 }
-                let (bd, bk) = ctx.best_rotation(t, c as usize, *dd);
+                let (bd, bk) = ctx.best_rotation(&p, c as usize, *dd);
                 if bk != u8::MAX && bd < *dd {
                     *dd = bd;
                     *mm = (c, bk);

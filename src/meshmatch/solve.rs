@@ -7,7 +7,7 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
 use super::affinities::{affinities, to_levels, weighted_shape};
-use super::em::{self, C, Ctx, PER, Side};
+use super::em::{self, C, Ctx, PER, Patch, Side, TargetFans};
 use super::global_map;
 use super::{
     Constraints, ExactCheck, PreparedMesh, TransferParams, TransferResult, level_shape_weight,
@@ -140,7 +140,7 @@ pub fn solve_constrained(
         notices,
         iterations: vec![0; nl],
         rings_s: Vec::new(),
-        rings_t: Vec::new(),
+        signal_t: Vec::new(),
         nnf: Vec::new(),
         signal: Vec::new(),
         energy: 0.0,
@@ -330,10 +330,11 @@ struct Levels<'a> {
     notices: Vec<String>,
     /// E-steps run per level.
     iterations: Vec<usize>,
-    /// Ring summaries of the current level's source fans and of the target's latest fans
-    /// ([`em::ring_summaries_into`]): the E-step's rotation-invariant lower bound.
+    /// Ring summaries of the current level's source fans ([`em::ring_summaries_into`]): the
+    /// E-step's rotation-invariant lower bound (the target's are taken with its fans).
     rings_s: Vec<f32>,
-    rings_t: Vec<f32>,
+    /// The target's current signal pre-filtered for its fans ([`em::TargetFans`]).
+    signal_t: Vec<f32>,
     nnf: Vec<(u32, u8)>,
     signal: Vec<[f32; 3]>,
     energy: f64,
@@ -368,25 +369,31 @@ impl<'a> Levels<'a> {
         }
     }
 
-    fn target_side<'s>(&'s self, l: usize, fans: &'s [f32]) -> Side<'s> {
+    fn target_side(&self, l: usize) -> Side<'_> {
         Side {
             level: &self.target.hierarchy.levels[l],
             frames: &self.target.frames[l],
             eang: &self.target.edge_angles[l],
             shape: &self.shapes[l].1,
-            fans,
-            rings: if fans.is_empty() { &[] } else { &self.rings_t },
+            fans: &[],
+            rings: &[],
         }
     }
 
-    fn ctx<'s>(&'s self, l: usize, fans_t: &'s [f32], wc: f32) -> Ctx<'s> {
+    /// The E-step's context on level `l`; `sampler_t`, the target level's fan table, gives it
+    /// the target's colour fans of `signal_t` (none before the target has colour).
+    fn ctx<'s>(&'s self, l: usize, sampler_t: Option<&'s FanSampler>, wc: f32) -> Ctx<'s> {
         Ctx {
             s: self.source_side(l),
-            t: self.target_side(l, fans_t),
+            t: self.target_side(l),
             dsh: self.shapes[l].2,
             wc,
             hs: &self.source.hierarchy,
             l,
+            tf: sampler_t.map(|sampler| TargetFans {
+                sampler,
+                signal: &self.signal_t,
+            }),
         }
     }
 
@@ -454,21 +461,18 @@ impl<'a> Levels<'a> {
             &built
         };
         self.t.fans += sw.secs();
-        let mut fans_t =
-            crate::error::try_filled(lt.len().saturating_mul(PER), 0.0f32, "the target's fans")?;
         let mut dist = vec![0.0f32; lt.len()];
         let sw = Stopwatch::start();
         em::ring_summaries_into(&self.fans_s[l], &mut self.rings_s);
-        self.rings_t.clear();
         self.t.fans += sw.secs();
-        self.start_level(l, &fans_t, &mut dist)?;
-        self.iterate(l, sampler_t, &mut fans_t, &mut dist)
+        self.start_level(l, &mut dist)?;
+        self.iterate(l, sampler_t, &mut dist)
     }
 
     /// The level's starting NNF: on the coarsest level a random field (respecting the locked
     /// entries) improved by exhaustive search on shape; elsewhere the coarser level's field
     /// upsampled (§4.3).
-    fn start_level(&mut self, l: usize, fans_t: &[f32], dist: &mut [f32]) -> Result<()> {
+    fn start_level(&mut self, l: usize, dist: &mut [f32]) -> Result<()> {
         let (hs, ht) = (&self.source.hierarchy, &self.target.hierarchy);
         let (ls, lt) = (&hs.levels[l], &ht.levels[l]);
         if l == self.nl - 1 {
@@ -492,7 +496,7 @@ impl<'a> Levels<'a> {
             }
             if self.exhaustive_top {
                 let sw = Stopwatch::start();
-                let ctx = self.ctx(l, fans_t, 0.0);
+                let ctx = self.ctx(l, None, 0.0);
                 em::exhaustive(&ctx, &mut nnf, dist, &self.locked[l], self.cancel)?;
                 self.t.search += sw.secs();
             }
@@ -506,9 +510,11 @@ impl<'a> Levels<'a> {
                     &mut nnf,
                     &self.locked[l],
                 );
-                let ctx = self.ctx(l, fans_t, 0.0);
+                let ctx = self.ctx(l, None, 0.0);
+                let mut p = Patch::empty();
                 for (v, e) in nnf.iter().enumerate() {
-                    dist[v] = ctx.dist(v, e.0 as usize, e.1 as usize, f32::INFINITY);
+                    ctx.load(v, &mut p);
+                    dist[v] = ctx.dist(&p, e.0 as usize, e.1 as usize, f32::INFINITY);
                 }
             }
             self.nnf = nnf;
@@ -527,16 +533,10 @@ impl<'a> Levels<'a> {
         Ok(())
     }
 
-    /// The EM iterations of level `l` (§4.1): M-step (vote the signal from the NNF, refill the
-    /// target's colour fans), progress and a partial result, then the E-step (exhaustive search
+    /// The EM iterations of level `l` (§4.1): M-step (vote the signal from the NNF, pre-filter
+    /// it for the target's colour fans), progress and a partial result, then the E-step (exhaustive search
     /// on the coarsest level, else propagation in breadth-first order plus random search).
-    fn iterate(
-        &mut self,
-        l: usize,
-        sampler_t: &FanSampler,
-        fans_t: &mut Vec<f32>,
-        dist: &mut Vec<f32>,
-    ) -> Result<()> {
+    fn iterate(&mut self, l: usize, sampler_t: &FanSampler, dist: &mut Vec<f32>) -> Result<()> {
         let (hs, ht) = (&self.source.hierarchy, &self.target.hierarchy);
         let (ls, lt) = (&hs.levels[l], &ht.levels[l]);
         let ratio = ls.mean_edge / lt.mean_edge.max(1e-12);
@@ -554,7 +554,7 @@ impl<'a> Levels<'a> {
             let sw = Stopwatch::start();
             let mut signal = em::vote(
                 &self.source_side(l),
-                &self.target_side(l, &[]),
+                &self.target_side(l),
                 &self.sig_s[l],
                 &self.nnf,
                 ratio,
@@ -566,11 +566,10 @@ impl<'a> Levels<'a> {
                 self.t.vote0 += sw.secs();
             }
             let sw = Stopwatch::start();
-            sampler_t.fans_into(lt, self.signal.as_flattened(), C, fans_t);
-            em::ring_summaries_into(fans_t, &mut self.rings_t);
+            self.signal_t = crate::features::smooth(lt, self.signal.as_flattened(), C);
             self.t.fans += sw.secs();
             let mut nnf = std::mem::take(&mut self.nnf);
-            let ctx = self.ctx(l, fans_t, wc);
+            let ctx = self.ctx(l, Some(sampler_t), wc);
             *dist = em::all_distances(&ctx, &nnf);
             let energy = dist.iter().map(|&d| d as f64).sum::<f64>() / dist.len().max(1) as f64;
             // Converged: the last E-step gained less than `tolerance` of the energy (MeshMatch's
@@ -752,6 +751,10 @@ fn exact_check(
         wc: ctx.wc,
         hs: ctx.hs,
         l: ctx.l,
+        tf: ctx.tf.as_ref().map(|tf| TargetFans {
+            sampler: tf.sampler,
+            signal: tf.signal,
+        }),
     };
     let coherence = em::exact_distances(&colour_only, &sample);
     let check_seconds = sw.secs();
