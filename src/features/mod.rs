@@ -623,22 +623,26 @@ impl FanSampler {
     /// Tap vertices and weights of bin `b` of vertex `v`.
     #[inline]
     pub fn taps(&self, v: usize, b: usize) -> [(u32, f32); FAN_TAPS] {
-        self.decode(self.list(v), v, b)
+        let i = v * FAN_RADII * FAN_ANGLES + b;
+        Self::decode(
+            self.list(v),
+            &self.tap[i * FAN_TAPS..(i + 1) * FAN_TAPS],
+            &self.w[i * 2..i * 2 + 2],
+        )
     }
 
-    /// Bin `b` of vertex `v` whose tap list is `list` (the one decoder of the compact layout:
-    /// [`FanSampler::taps`] and [`FanSampler::gather`] go through it).
+    /// One bin of a vertex whose tap list is `list`, from its `FAN_TAPS` tap indices and two
+    /// stored weights: the one decoder of the compact layout ([`FanSampler::taps`] and
+    /// [`FanSampler::gather`] go through it).
     #[inline(always)]
-    fn decode(&self, list: &[u32], v: usize, b: usize) -> [(u32, f32); FAN_TAPS] {
-        let nb = FAN_RADII * FAN_ANGLES;
-        let o = (v * nb + b) * FAN_TAPS;
-        let (w0, w1) = (self.w[(v * nb + b) * 2], self.w[(v * nb + b) * 2 + 1]);
+    fn decode(list: &[u32], tap: &[u8], w: &[u16]) -> [(u32, f32); FAN_TAPS] {
+        let (w0, w1) = (w[0], w[1]);
         let w2 = u16::MAX - w0 - w1;
         let s = 1.0 / WEIGHT_ONE;
         [
-            (list[self.tap[o] as usize], w0 as f32 * s),
-            (list[self.tap[o + 1] as usize], w1 as f32 * s),
-            (list[self.tap[o + 2] as usize], w2 as f32 * s),
+            (list[tap[0] as usize], w0 as f32 * s),
+            (list[tap[1] as usize], w1 as f32 * s),
+            (list[tap[2] as usize], w2 as f32 * s),
         ]
     }
 
@@ -648,14 +652,40 @@ impl FanSampler {
     /// E-step takes the target's as it visits a vertex) has the same bits as the whole table's.
     #[inline(always)]
     pub fn gather(&self, v: usize, sig: &[f32], channels: usize, fan: &mut [f32]) {
-        let c = channels;
+        match channels {
+            // colour: whole pixels, one bounds check per tap
+            3 => self.gather_n(v, sig.as_chunks::<3>().0, fan.as_chunks_mut::<3>().0),
+            1 => self.gather_n(v, sig.as_chunks::<1>().0, fan.as_chunks_mut::<1>().0),
+            c => {
+                let nb = FAN_RADII * FAN_ANGLES;
+                let list = self.list(v);
+                let tap = &self.tap[v * nb * FAN_TAPS..(v + 1) * nb * FAN_TAPS];
+                let w = &self.w[v * nb * 2..(v + 1) * nb * 2];
+                let bins = tap.chunks_exact(FAN_TAPS).zip(w.chunks_exact(2));
+                for (dst, (t, w)) in fan.chunks_exact_mut(c).zip(bins) {
+                    let [(u0, w0), (u1, w1), (u2, w2)] = Self::decode(list, t, w);
+                    let (u0, u1, u2) = (u0 as usize * c, u1 as usize * c, u2 as usize * c);
+                    for ch in 0..c {
+                        dst[ch] = w0 * sig[u0 + ch] + w1 * sig[u1 + ch] + w2 * sig[u2 + ch];
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`FanSampler::gather`] of `N` channels per vertex.
+    #[inline(always)]
+    fn gather_n<const N: usize>(&self, v: usize, sig: &[[f32; N]], fan: &mut [[f32; N]]) {
+        let nb = FAN_RADII * FAN_ANGLES;
         let list = self.list(v);
-        for b in 0..FAN_RADII * FAN_ANGLES {
-            let dst = &mut fan[b * c..(b + 1) * c];
-            let [(u0, w0), (u1, w1), (u2, w2)] = self.decode(list, v, b);
-            let (u0, u1, u2) = (u0 as usize * c, u1 as usize * c, u2 as usize * c);
-            for ch in 0..c {
-                dst[ch] = w0 * sig[u0 + ch] + w1 * sig[u1 + ch] + w2 * sig[u2 + ch];
+        let tap = &self.tap[v * nb * FAN_TAPS..(v + 1) * nb * FAN_TAPS];
+        let w = &self.w[v * nb * 2..(v + 1) * nb * 2];
+        let bins = tap.chunks_exact(FAN_TAPS).zip(w.chunks_exact(2));
+        for (dst, (t, w)) in fan[..nb].iter_mut().zip(bins) {
+            let [(u0, w0), (u1, w1), (u2, w2)] = Self::decode(list, t, w);
+            let (a, b, c) = (&sig[u0 as usize], &sig[u1 as usize], &sig[u2 as usize]);
+            for ch in 0..N {
+                dst[ch] = w0 * a[ch] + w1 * b[ch] + w2 * c[ch];
             }
         }
     }
