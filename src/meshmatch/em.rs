@@ -102,10 +102,13 @@ pub(crate) struct TargetFans<'a> {
     pub signal: &'a [f32],
 }
 
-/// One target vertex as the E-step compares it: its index, colour fan and the fan's ring
-/// summary ([`ring_summaries_into`]), filled by [`Ctx::load`] and reused from vertex to vertex.
+/// One target vertex as the E-step compares it: its index and, once a candidate gets past the
+/// shape part of the distance, its colour fan and the fan's ring summary
+/// ([`ring_summaries_into`]). Set by [`Ctx::load`], reused from vertex to vertex.
 pub(crate) struct Patch {
     t: usize,
+    /// Whether `fan` and `ring` are `t`'s.
+    coloured: bool,
     fan: [f32; PER],
     ring: [f32; RING],
 }
@@ -114,6 +117,7 @@ impl Patch {
     pub fn empty() -> Patch {
         Patch {
             t: 0,
+            coloured: false,
             fan: [0.0; PER],
             ring: [0.0; RING],
         }
@@ -158,15 +162,23 @@ pub(crate) struct Ctx<'a> {
 }
 
 impl Ctx<'_> {
-    /// Target vertex `t` into `p`: its colour fan and ring summary when the colour part counts.
+    /// Target vertex `t` into `p`; its colour fan is gathered when a distance first needs it
+    /// ([`Ctx::colour`]): a vertex whose candidates all lose on shape alone needs none.
     #[inline(always)]
     pub fn load(&self, t: usize, p: &mut Patch) {
         p.t = t;
-        if self.wc == 0.0 {
+        p.coloured = false;
+    }
+
+    /// `p`'s colour fan and ring summary, gathered once per [`Ctx::load`].
+    #[inline(always)]
+    fn colour(&self, p: &mut Patch) {
+        if p.coloured {
             return;
         }
+        p.coloured = true;
         if let Some(tf) = &self.tf {
-            tf.sampler.gather(t, tf.signal, C, &mut p.fan);
+            tf.sampler.gather(p.t, tf.signal, C, &mut p.fan);
             ring_summary(&p.fan, &mut p.ring);
         }
     }
@@ -174,11 +186,12 @@ impl Ctx<'_> {
     /// Patch distance D(vS, vT) for rotation k (squared L2 of the weighted feature vectors, colour
     /// fan rotated by a cyclic shift of k angle steps), stopping early once it reaches `best`.
     #[inline(always)]
-    pub fn dist(&self, p: &Patch, s: usize, k: usize, best: f32) -> f32 {
+    pub fn dist(&self, p: &mut Patch, s: usize, k: usize, best: f32) -> f32 {
         let d = self.shape_dist(p.t, s);
         if d >= best || self.wc == 0.0 {
             return d;
         }
+        self.colour(p);
         let lb = d + self.ring_bound(p, s);
         if lb >= best {
             return lb;
@@ -230,7 +243,7 @@ impl Ctx<'_> {
 
     /// Best rotation of source vertex `s` for target `t`: (distance, rotation index).
     #[inline(always)]
-    pub fn best_rotation(&self, p: &Patch, s: usize, best: f32) -> (f32, u8) {
+    pub fn best_rotation(&self, p: &mut Patch, s: usize, best: f32) -> (f32, u8) {
         let mut bd = best;
         let mut bk = u8::MAX;
         if self.wc == 0.0 {
@@ -240,7 +253,11 @@ impl Ctx<'_> {
         // The shape part is the same for every rotation: once, and out early if it already
         // loses.
         let sd = self.shape_dist(p.t, s);
-        if sd >= bd || sd + self.ring_bound(p, s) >= bd {
+        if sd >= bd {
+            return (bd, bk);
+        }
+        self.colour(p);
+        if sd + self.ring_bound(p, s) >= bd {
             return (bd, bk);
         }
         for k in 0..FAN_ANGLES {
@@ -469,7 +486,6 @@ fn propagate_one(
     let adj_t = &ctx.t.level.adjacency;
     let adj_s = &ctx.s.level.adjacency;
     ctx.load(vt, p);
-    let p = &*p;
     if let Some(s) = locked {
         let (d, k) = ctx.best_rotation(p, s as usize, f32::INFINITY);
         return ((s, k), d);
@@ -510,7 +526,15 @@ fn propagate_one(
 /// [`propagate_one`]'s candidate: source vertex `c` at the rotation nearest `ang`, kept in
 /// (`bs`, `bk`, `bd`) when it beats them.
 #[inline(always)]
-fn try_candidate(ctx: &Ctx, p: &Patch, c: u32, ang: f32, bs: &mut u32, bk: &mut u8, bd: &mut f32) {
+fn try_candidate(
+    ctx: &Ctx,
+    p: &mut Patch,
+    c: u32,
+    ang: f32,
+    bs: &mut u32,
+    bk: &mut u8,
+    bd: &mut f32,
+) {
     let k = rot_index(ang);
     if c == *bs && k == *bk {
         return;
@@ -617,7 +641,7 @@ impl RandomSearch<'_, '_> {
                 if c == mm.0 {
                     continue;
                 }
-                let (bd, bk) = ctx.best_rotation(&p, c as usize, *dd);
+                let (bd, bk) = ctx.best_rotation(&mut p, c as usize, *dd);
                 if bk != u8::MAX && bd < *dd {
                     *dd = bd;
                     *mm = (c, bk);

@@ -514,7 +514,7 @@ impl<'a> Levels<'a> {
                 let mut p = Patch::empty();
                 for (v, e) in nnf.iter().enumerate() {
                     ctx.load(v, &mut p);
-                    dist[v] = ctx.dist(&p, e.0 as usize, e.1 as usize, f32::INFINITY);
+                    dist[v] = ctx.dist(&mut p, e.0 as usize, e.1 as usize, f32::INFINITY);
                 }
             }
             self.nnf = nnf;
