@@ -88,10 +88,12 @@ fn progress(stage: &'static str, watch: &Stopwatch, fraction: f32) -> Progress {
 /// target's parallel loops run in rayon's global pool.
 ///
 /// One after the other instead, as [`prepare`] twice: when called from a rayon pool's thread
-/// (`bench --threads` measures that pool's cores; a blocked worker could starve the HKS solve),
-/// with one thread, and for meshes above `KEEP_SAMPLERS_UP_TO` working vertices, where
-/// both preparations are memory-bound and at a million target vertices overlapping them
-/// measured no faster (100.5 s against 99.3 s end to end) for 77 MiB more peak memory.
+/// (`bench --threads` measures that pool's cores; a blocked worker could starve the HKS solve)
+/// and with one thread. At a million target vertices the overlap takes the target's sequential
+/// refinement and hierarchy (about 9 s) beside the source's parallel fan tables: 42.1-42.2 ->
+/// 38.2-38.4 s end to end for 70 MiB more peak memory (1890 -> 1960 MiB). It was once left
+/// out above 300K vertices, when it measured no faster there and the target's stored fans
+/// left no memory to spare.
 pub fn prepare_pair(
     source: &TriMesh,
     source_params: &TransferParams,
@@ -100,13 +102,10 @@ pub fn prepare_pair(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<(PreparedMesh, PreparedMesh)> {
-    let working = |m: &TriMesh, p: &TransferParams| m.positions.len().max(p.vertices);
-    let large =
-        working(source, source_params).max(working(target, target_params)) > KEEP_SAMPLERS_UP_TO;
     // Inside a rayon pool (`bench --threads`, a caller's `install`) the target's thread could
     // not use that pool, and a blocked worker is what the HKS solve must not meet.
     let in_pool = rayon::current_thread_index().is_some();
-    if large || in_pool || rayon::current_num_threads() < 2 {
+    if in_pool || rayon::current_num_threads() < 2 {
         let ps = prepare(source, source_params, sink, cancel)?;
         let pt = prepare(target, target_params, sink, cancel)?;
         return Ok((ps, pt));
