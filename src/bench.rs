@@ -18,7 +18,9 @@ pub struct BenchRow {
     pub hierarchy_s: f64,
     /// Shape features (HKS and frames), source + target, seconds.
     pub hks_s: f64,
-    /// Geodesic fans (source preparation + target fans during the solve), seconds.
+    /// Geodesic fans: both preparations' fan tables and the source's fans, plus the solve's
+    /// "fan updates" (target tables built there, the per-iteration pre-filter of the target's
+    /// signal; the target's fans themselves are gathered inside the E-step), seconds.
     pub fans_s: f64,
     /// E-step (propagation + random search) per EM iteration at the finest level, seconds.
     pub estep_s_per_iter: f64,

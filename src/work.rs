@@ -76,14 +76,28 @@ pub struct Detached<T>(crossbeam_channel::Receiver<T>);
 /// Start `work` on its own thread and return at once, so the caller can do other work meanwhile
 /// (a preparation builds its fan tables while the eigen-solve runs). Dropping the handle
 /// abandons the result; the work still finishes in the background.
+///
+/// The work's parallel loops get as many threads as the caller's: called from a rayon pool of
+/// another size than the global one (`bench --threads 1`), `work` runs in a pool of that size of
+/// its own, so a one-thread row measures one core instead of handing its eigen-solves to every
+/// core.
 pub fn spawn_detached<T: Send + 'static>(
     work: impl FnOnce() -> T + Send + 'static,
 ) -> crate::error::Result<Detached<T>> {
     let (tx, rx) = crossbeam_channel::bounded(1);
+    let callers = rayon::current_thread_index().map(|_| rayon::current_num_threads());
     std::thread::Builder::new()
         .name("meshmatch-detached".into())
         .spawn(move || {
-            let _ = tx.send(work());
+            // On this thread (outside every pool) `current_num_threads` is the global pool's.
+            let own = callers
+                .filter(|&n| n != rayon::current_num_threads())
+                .and_then(|n| rayon::ThreadPoolBuilder::new().num_threads(n).build().ok());
+            let out = match own {
+                Some(pool) => pool.install(work),
+                None => work(),
+            };
+            let _ = tx.send(out);
         })
         .map_err(|e| crate::error::Error::InvalidInput(format!("cannot start a thread: {e}")))?;
     Ok(Detached(rx))

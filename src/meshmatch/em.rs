@@ -30,8 +30,10 @@ pub(crate) struct Side<'a> {
     /// Colour fans (`PER` per vertex), unweighted; empty on the target side, whose fans the
     /// E-step takes as it visits each vertex ([`TargetFans`]).
     pub fans: &'a [f32],
-    /// Rotation-invariant summaries of the fans ([`ring_summaries_into`], `RING` per vertex); empty
-    /// = no lower bound, every candidate's fan is compared.
+    /// Rotation-invariant summaries of the fans ([`ring_summaries_into`], `RING` per vertex).
+    /// Read on the source side only, empty on the target's (a target vertex's summary comes
+    /// with its gathered fan); an empty source side = no lower bound, every candidate's fan is
+    /// compared.
     pub rings: &'a [f32],
 }
 
@@ -52,8 +54,8 @@ const BOUND_SLACK: f32 = 0.9999;
 /// summaries is a lower bound of the colour fan distance at every rotation: a candidate whose
 /// shape distance plus this bound already loses needs none of its 18 rotations compared.
 ///
-/// Written into `out`, reusing its allocation: the target's summaries are refreshed after every
-/// M-step, and a second buffer would add 48 MB at a million vertices.
+/// Written into `out`, reusing its allocation (the source's, once per level; a target vertex's
+/// summary is taken with its gathered fan, [`Ctx::colour`]).
 pub(crate) fn ring_summaries_into(fans: &[f32], out: &mut Vec<f32>) {
     let n = fans.len() / PER;
     out.clear();
@@ -92,7 +94,8 @@ fn ring_summary(f: &[f32], o: &mut [f32]) {
 }
 
 /// The target's colour fans, never stored whole: the E-step gathers a vertex's fan through the
-/// level's sampling table when it visits the vertex ([`Ctx::load`]). A stored table of the
+/// level's sampling table when it visits the vertex and a candidate first gets past the shape
+/// part of the distance ([`Ctx::load`], [`Ctx::colour`]). A stored table of the
 /// target's fans held 648 bytes per vertex (648 MB at a million vertices) and was refilled
 /// after every M-step; the gather is the same arithmetic, so the fans have the same bits.
 pub(crate) struct TargetFans<'a> {
@@ -177,6 +180,7 @@ impl Ctx<'_> {
             return;
         }
         p.coloured = true;
+        debug_assert!(self.tf.is_some(), "a colour weight needs the target's fans");
         if let Some(tf) = &self.tf {
             tf.sampler.gather(p.t, tf.signal, C, &mut p.fan);
             ring_summary(&p.fan, &mut p.ring);

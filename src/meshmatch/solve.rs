@@ -292,6 +292,8 @@ fn fixed_per_level(
 struct Timers {
     search: f64,
     vote: f64,
+    /// "fan updates": the target's tables built in the solve (large targets), the source's ring
+    /// summaries and the per-iteration pre-filter of the target's signal.
     fans: f64,
     /// Finest level alone (the per-iteration figures the benchmark reports).
     search0: f64,
