@@ -655,7 +655,6 @@ impl FanSampler {
         match channels {
             // colour: whole pixels, one bounds check per tap
             3 => self.gather_n(v, sig.as_chunks::<3>().0, fan.as_chunks_mut::<3>().0),
-            1 => self.gather_n(v, sig.as_chunks::<1>().0, fan.as_chunks_mut::<1>().0),
             c => {
                 let nb = FAN_RADII * FAN_ANGLES;
                 let list = self.list(v);

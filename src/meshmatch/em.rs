@@ -98,6 +98,7 @@ fn ring_summary(f: &[f32], o: &mut [f32]) {
 /// part of the distance ([`Ctx::load`], [`Ctx::colour`]). A stored table of the
 /// target's fans held 648 bytes per vertex (648 MB at a million vertices) and was refilled
 /// after every M-step; the gather is the same arithmetic, so the fans have the same bits.
+#[derive(Clone, Copy)]
 pub(crate) struct TargetFans<'a> {
     pub sampler: &'a FanSampler,
     /// The target's current signal, pre-filtered as [`FanSampler::fans`] does

@@ -753,10 +753,7 @@ fn exact_check(
         wc: ctx.wc,
         hs: ctx.hs,
         l: ctx.l,
-        tf: ctx.tf.as_ref().map(|tf| TargetFans {
-            sampler: tf.sampler,
-            signal: tf.signal,
-        }),
+        tf: ctx.tf,
     };
     let coherence = em::exact_distances(&colour_only, &sample);
     let check_seconds = sw.secs();
