@@ -365,3 +365,81 @@ fn auto_structure_follows_similar_shapes_and_leaves_different_ones_alone() {
         kin.score
     );
 }
+
+/// A correspondence edit in the app: the first preview comes from the map the previous solve
+/// left (before the new map is computed), lands the colours about as well as the new map's
+/// first preview, and the finished transfer is the one a fresh solve gives.
+#[test]
+fn an_edit_previews_from_the_previous_map_and_finishes_as_a_fresh_solve() {
+    use meshmatch::meshmatch::{TransferParams, prepare_pair, solve};
+    use meshmatch::work::Event;
+    use std::sync::Mutex;
+    let (mut man, woman) = (load("human_man"), load("human_woman"));
+    let truth: Vec<[f32; 3]> = man.positions.iter().map(|&p| vertex_colour(p)).collect();
+    man.colors = Some(truth.clone());
+    let corr = same_vertex_pairs(&EXTREMITIES);
+    let params = TransferParams {
+        vertices: 6_890,
+        iterations: 3,
+        ..TransferParams::default()
+    };
+    let cancel = CancelToken::new();
+    let prepared =
+        || prepare_pair(&man, &params, &woman, &params, &|_| {}, &cancel).expect("prepare");
+    // Each event of a solve in order ("P" a partial result, else the stage's name) and the
+    // first partial result.
+    let run = |ps, pt, corr: &[meshmatch::correspondence::Correspondence]| {
+        let events = Mutex::new(Vec::<String>::new());
+        let first = Mutex::new(None::<Vec<[f32; 3]>>);
+        let sink = |e: Event| match e {
+            Event::Partial { signal, .. } => {
+                events.lock().unwrap().push("P".into());
+                first.lock().unwrap().get_or_insert_with(|| signal.to_vec());
+            }
+            Event::StageTime(name, _) => events.lock().unwrap().push(name.into()),
+            _ => {}
+        };
+        let r = solve(ps, pt, corr, &params, &sink, &cancel).expect("solve");
+        (
+            r,
+            events.into_inner().unwrap(),
+            first.into_inner().unwrap().unwrap(),
+        )
+    };
+    // mean dE76 of a working signal of the woman against the truth (same vertex ids)
+    let de = |pt: &meshmatch::meshmatch::PreparedMesh, sig: &[[f32; 3]]| {
+        let f2w = pt.file_to_working();
+        (0..6890)
+            .map(|v| meshmatch::color::delta_e76(sig[f2w[v] as usize], truth[v]) as f64)
+            .sum::<f64>()
+            / 6890.0
+    };
+
+    let (ps, pt) = prepared();
+    let (before, ..) = run(&ps, &pt, &corr[..2]);
+    assert!(before.structure > 0.6, "the map steers this pair");
+    // the edit: a third correspondence
+    let (edited, events, preview) = run(&ps, &pt, &corr[..3]);
+    let at = |name: &str| events.iter().position(|e| e == name).unwrap();
+    assert!(
+        at("P") < at("global map"),
+        "the first preview waited for the new map: {events:?}"
+    );
+    // the same edit on meshes prepared afresh (no earlier map): the map comes first
+    let (fs, ft) = prepared();
+    let (fresh, events_fresh, fresh_preview) = run(&fs, &ft, &corr[..3]);
+    let at = |name: &str| events_fresh.iter().position(|e| e == name).unwrap();
+    assert!(at("global map") < at("P"), "{events_fresh:?}");
+    assert_eq!(edited.file_signal, fresh.file_signal);
+    assert_eq!(edited.file_nnf, fresh.file_nnf);
+    let (e_preview, e_fresh) = (de(&pt, &preview), de(&ft, &fresh_preview));
+    let e_final = de(&pt, &edited.working_signal);
+    eprintln!(
+        "edit preview dE76 {e_preview:.2} (from the previous map), {e_fresh:.2} (new map), \
+         finished {e_final:.2}"
+    );
+    assert!(
+        e_preview <= 1.2 * e_fresh,
+        "preview from the previous map {e_preview:.2} against the new map's {e_fresh:.2}"
+    );
+}

@@ -230,6 +230,55 @@ fn map_level(h: &Hierarchy, nl: usize) -> usize {
         .unwrap_or(nl - 1)
 }
 
+/// The correspondences `pairs` (working vertices) as landmarks on the map levels `ls`, `lt`:
+/// sorted, one per target vertex.
+fn landmarks(
+    hs: &Hierarchy,
+    ht: &Hierarchy,
+    pairs: &[(u32, Vec<u32>)],
+    (ls, lt): (usize, usize),
+) -> Vec<(u32, u32)> {
+    let mut landmarks: Vec<(u32, u32)> = pairs
+        .iter()
+        .flat_map(|(s, ts)| {
+            let s = hs.ancestor(0, *s, ls);
+            ts.iter().map(move |&t| (s, ht.ancestor(0, t, lt)))
+        })
+        .collect();
+    landmarks.sort_unstable();
+    landmarks.dedup_by_key(|p| p.1);
+    landmarks
+}
+
+/// The target's latest map, if it was computed from this source with `nl` levels, and whether
+/// it was computed with these `landmarks`.
+fn cached_map(
+    source: &PreparedMesh,
+    target: &PreparedMesh,
+    landmarks: &[(u32, u32)],
+    nl: usize,
+) -> Option<(Arc<GlobalMap>, bool)> {
+    let key = Arc::as_ptr(&source.map_cache) as usize;
+    let g = target.map_cache.map.lock().ok()?;
+    let (k, l, m) = g.as_ref()?;
+    (*k == key && m.target_pos.len() == nl).then(|| (m.clone(), l.as_slice() == landmarks))
+}
+
+/// The map an earlier solve on these two prepared meshes left, when the correspondences have
+/// changed since (so [`global_map`] will compute a new one): the preview after a
+/// correspondence edit starts from it while the new map is computed.
+pub(super) fn previous_map(
+    source: &PreparedMesh,
+    target: &PreparedMesh,
+    pairs: &[(u32, Vec<u32>)],
+    nl: usize,
+) -> Option<Arc<GlobalMap>> {
+    let (hs, ht) = (&source.hierarchy, &target.hierarchy);
+    let lv = (map_level(hs, nl), map_level(ht, nl));
+    let (m, same) = cached_map(source, target, &landmarks(hs, ht, pairs, lv), nl)?;
+    (!same).then_some(m)
+}
+
 /// Compute the map between the two prepared meshes (see the module docs). `pairs` are the
 /// correspondences in working vertices.
 pub(super) fn global_map(
@@ -254,24 +303,13 @@ pub(super) fn global_map(
             "shape map: meshes too coarse ({nmin} vertices)"
         )));
     }
-    let mut landmarks: Vec<(u32, u32)> = pairs
-        .iter()
-        .flat_map(|(s, ts)| {
-            let s = hs.ancestor(0, *s, ls);
-            ts.iter().map(move |&t| (s, ht.ancestor(0, t, lt)))
-        })
-        .collect();
-    landmarks.sort_unstable();
-    landmarks.dedup_by_key(|p| p.1);
-    let key = Arc::as_ptr(&source.map_cache) as usize;
-    if let Ok(g) = target.map_cache.map.lock()
-        && let Some((k, l, m)) = g.as_ref()
-        && *k == key
-        && *l == landmarks
-        && m.target_pos.len() == nl
+    let landmarks = landmarks(hs, ht, pairs, (ls, lt));
+    if let Some((m, same)) = cached_map(source, target, &landmarks, nl)
+        && same
     {
-        return Ok(m.clone());
+        return Ok(m);
     }
+    let key = Arc::as_ptr(&source.map_cache) as usize;
     let k = params.k_final.max(params.k_init).max(params.k_descriptors);
     let (ss, st) = spectra(source, target, (ls, lt), k, cancel)?;
     let eigen_s = sw.secs();

@@ -81,6 +81,48 @@ pub fn solve_constrained(
         nl = nl.min(k.max(1));
     }
 
+    // Correspondences and constraints per level (they do not depend on the global map).
+    let sw = Stopwatch::start();
+    let mut affinities = level_affinities(source, target, &pairs);
+    let mut locked = locked_per_level(hs, ht, &pairs, nl);
+    let mut fixed = fixed_per_level(ht, constraints, nt0, nl);
+    let affinities_s = sw.secs();
+
+    // After a correspondence edit the map is computed anew (about half a second at any size);
+    // the first preview does not wait for it: the coarsest level is solved once with the map
+    // the previous solve left and the new correspondences, and shown. The solve below is the
+    // same as without it (its own random numbers, nothing carried over).
+    let previous = (params.structure != Some(0.0) && nl > 1)
+        .then(|| global_map::previous_map(source, target, &pairs, nl))
+        .flatten();
+    if let Some(prev) = previous {
+        let top = nl - 1;
+        let kept = (affinities.0[top].clone(), affinities.1[top].clone());
+        let s = params
+            .structure
+            .unwrap_or_else(|| super::auto_structure(prev.score));
+        let preview_params = TransferParams {
+            iterations: 0,
+            exact_samples: 0,
+            ..params.clone()
+        };
+        let mut preview = Levels::new(
+            (source, target, sig_s, fans_s),
+            (affinities, locked, fixed),
+            s,
+            (s > 0.0).then_some(prev),
+            Vec::new(),
+            &preview_params,
+            sink,
+            cancel,
+            nl,
+        );
+        let r = preview.level(top);
+        (affinities, locked, fixed) = (preview.affinities, preview.locked, preview.fixed);
+        (affinities.0[top], affinities.1[top]) = kept;
+        r?;
+    }
+
     let mut notices = Vec::new();
     let mut gmap = None;
     let mut map_secs = None;
@@ -109,53 +151,25 @@ pub fn solve_constrained(
             }
         }
     }
-    let sw = Stopwatch::start();
-    let affinities = level_affinities(source, target, &pairs);
-    let locked = locked_per_level(hs, ht, &pairs, nl);
-    let fixed = fixed_per_level(ht, constraints, nt0, nl);
-    let mut run = Levels {
-        source,
-        target,
-        sig_s,
-        fans_s,
-        affinities,
+    let mut run = Levels::new(
+        (source, target, sig_s, fans_s),
+        (affinities, locked, fixed),
         structure,
-        shapes: vec![(Vec::new(), Vec::new(), 0); nl],
-        locked,
-        fixed,
+        gmap,
+        notices,
         params,
         sink,
         cancel,
-        watch,
         nl,
-        // The coarsest level is searched exhaustively when that is cheap (the usual ~128-250
-        // vertices); a hierarchy cut short by `levels` starts from the random field instead.
-        exhaustive_top: (hs.levels[nl - 1].len() as f64) * (ht.levels[nl - 1].len() as f64)
-            <= 4.0e6,
-        total_work: (0..nl)
-            .map(|l| ht.levels[l].len() as f64 * (params.iterations + 1) as f64)
-            .sum(),
-        done_work: 0.0,
-        gmap,
-        notices,
-        iterations: vec![0; nl],
-        rings_s: Vec::new(),
-        signal_t: Vec::new(),
-        nnf: Vec::new(),
-        signal: Vec::new(),
-        energy: 0.0,
-        exact: None,
-        rng: SmallRng::seed_from_u64(params.seed),
-        t: Timers::default(),
-        timings: Vec::new(),
-    };
+    );
+    run.watch = watch;
     if let Some(t) = map_secs {
         run.stage("global map", t);
         for (name, t) in map_stages {
             run.stage(name, t);
         }
     }
-    run.stage("affinities", sw.secs());
+    run.stage("affinities", affinities_s);
     cancel.check()?;
     for l in (0..nl).rev() {
         let sw_level = Stopwatch::start();
@@ -346,7 +360,77 @@ struct Levels<'a> {
     timings: Vec<(String, f64)>,
 }
 
+/// Per-level correspondence affinities, locked entries and fixed signal, as [`Levels`] holds
+/// them.
+type PerLevel = (
+    (Vec<Vec<f32>>, Vec<Vec<f32>>, usize),
+    Vec<Vec<Option<u32>>>,
+    Vec<Vec<Option<[f32; 3]>>>,
+);
+
+/// The two prepared meshes and the source's per-level signal and colour fans.
+type Inputs<'a> = (
+    &'a PreparedMesh,
+    &'a PreparedMesh,
+    &'a [Vec<[f32; 3]>],
+    &'a [Vec<f32>],
+);
+
 impl<'a> Levels<'a> {
+    /// A level loop over both prepared meshes (and the source's per-level signal and fans),
+    /// with nothing solved yet.
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        (source, target, sig_s, fans_s): Inputs<'a>,
+        (affinities, locked, fixed): PerLevel,
+        structure: f32,
+        gmap: Option<Arc<global_map::GlobalMap>>,
+        notices: Vec<String>,
+        params: &'a TransferParams,
+        sink: &'a dyn Fn(Event),
+        cancel: &'a CancelToken,
+        nl: usize,
+    ) -> Self {
+        let (hs, ht) = (&source.hierarchy, &target.hierarchy);
+        Levels {
+            source,
+            target,
+            sig_s,
+            fans_s,
+            affinities,
+            structure,
+            shapes: vec![(Vec::new(), Vec::new(), 0); nl],
+            locked,
+            fixed,
+            params,
+            sink,
+            cancel,
+            watch: Stopwatch::start(),
+            nl,
+            // The coarsest level is searched exhaustively when that is cheap (the usual
+            // ~128-250 vertices); a hierarchy cut short by `levels` starts from the random
+            // field instead.
+            exhaustive_top: (hs.levels[nl - 1].len() as f64) * (ht.levels[nl - 1].len() as f64)
+                <= 4.0e6,
+            total_work: (0..nl)
+                .map(|l| ht.levels[l].len() as f64 * (params.iterations + 1) as f64)
+                .sum(),
+            done_work: 0.0,
+            gmap,
+            notices,
+            iterations: vec![0; nl],
+            rings_s: Vec::new(),
+            signal_t: Vec::new(),
+            nnf: Vec::new(),
+            signal: Vec::new(),
+            energy: 0.0,
+            exact: None,
+            rng: SmallRng::seed_from_u64(params.seed),
+            t: Timers::default(),
+            timings: Vec::new(),
+        }
+    }
+
     fn stage(&mut self, name: &'static str, t: f64) {
         (self.sink)(Event::StageTime(name, t));
         self.timings.push((name.to_string(), t));
