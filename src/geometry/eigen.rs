@@ -171,6 +171,10 @@ fn project_null(y: &mut [f64], nr: usize, mass: &[f64], label: &[u32], comp_mass
 /// M-orthonormalise the columns of `w` (nr × b) against the first `used` columns of `v` and among
 /// themselves (two passes of classical Gram–Schmidt against `v`, then modified Gram–Schmidt
 /// within the block); columns that vanish are replaced by fresh random directions.
+///
+/// Returns the coefficients, `w = v[.., ..used] C + Q R` for the `w` given and the `Q` left in
+/// it (`C` column-major `used × b`, `R` column-major upper-triangular `b × b`), or `None` when a
+/// column was replaced (then no such relation holds).
 #[allow(clippy::too_many_arguments)]
 fn orthonormalize_block(
     v: &[f64],
@@ -181,10 +185,13 @@ fn orthonormalize_block(
     label: &[u32],
     comp_mass: &[f64],
     rng: &mut SmallRng,
-) {
+) -> Option<(Vec<f64>, Vec<f64>)> {
     let b = w.len() / nr;
     let mut mw = vec![0.0; nr * b];
     let mut c = vec![0.0; used * b];
+    let mut c_total = vec![0.0; used * b];
+    let mut r_coef = vec![0.0; b * b];
+    let mut replaced = false;
     for _attempt in 0..3 {
         for _pass in 0..2 {
             if used == 0 {
@@ -213,6 +220,7 @@ fn orthonormalize_block(
                 -1.0,
                 par(),
             );
+            c_total.iter_mut().zip(&c).for_each(|(t, x)| *t += x);
         }
         let mut redo = false;
         for j in 0..b {
@@ -225,12 +233,14 @@ fn orthonormalize_block(
                     for r in 0..nr {
                         cj[r] -= d * qi[r];
                     }
+                    r_coef[j * b + i] += d;
                 }
             }
             let cj = &mut w[j * nr..(j + 1) * nr];
             let norm = (0..nr).map(|r| mass[r] * cj[r] * cj[r]).sum::<f64>().sqrt();
             if norm > 1e-10 && norm.is_finite() {
                 cj.iter_mut().for_each(|x| *x /= norm);
+                r_coef[j * b + j] = norm;
             } else {
                 cj.iter_mut().for_each(|x| *x = rng.random_range(-1.0..1.0));
                 project_null(cj, nr, mass, label, comp_mass);
@@ -238,9 +248,12 @@ fn orthonormalize_block(
             }
         }
         if !redo {
-            return;
+            return (!replaced).then_some((c_total, r_coef));
         }
+        // the relation is lost with the replaced column; orthonormalise what is there
+        replaced = true;
     }
+    None
 }
 
 /// Sparse path: null space from components, the rest by block Krylov on `(L + σM)⁻¹ M`.
@@ -322,6 +335,10 @@ fn krylov_eigen(
     let mut w = vec![0.0; nr * b];
     let mut next_check = first_check;
     let mut blocks = 0usize;
+    // Per basis vector, `A v_k` in the basis (a column of `H`), while every block kept the
+    // Krylov relation (no column replaced).
+    let mut h_cols: Vec<Vec<f64>> = Vec::with_capacity(2 * first_check);
+    let mut arnoldi = true;
     loop {
         // W = (L + σM)⁻¹ M V_j, kept M-orthogonal to the null space
         let j = blocks;
@@ -335,9 +352,32 @@ fn krylov_eigen(
         av.extend_from_slice(&w);
         blocks += 1;
         let m = blocks * b;
+        // The next block: W orthonormalised against the basis. Its coefficients are the block
+        // column of `H = Vᵀ M A V` (`A V_j = V C + V_(j+1) R`), so the Rayleigh–Ritz step
+        // below needs no product of the whole basis with `A V`.
+        if m < max_m {
+            match orthonormalize_block(&v, m, &mut w, nr, mass, label, &comp_mass, &mut rng) {
+                Some((c, r)) if arnoldi => {
+                    for cc in 0..b {
+                        let mut col = c[cc * m..(cc + 1) * m].to_vec();
+                        col.extend_from_slice(&r[cc * b..(cc + 1) * b]);
+                        h_cols.push(col);
+                    }
+                }
+                _ => arnoldi = false,
+            }
+        }
         if m >= next_check || m >= max_m {
+            let h = if arnoldi && m < max_m {
+                Mat::<f64>::from_fn(m, m, |i, k| {
+                    let at = |i: usize, k: usize| h_cols[k].get(i).copied().unwrap_or(0.0);
+                    0.5 * (at(i, k) + at(k, i))
+                })
+            } else {
+                projected(&v[..nr * m], &av, nr, m, mass)
+            };
             let (lam, x, worst) =
-                rayleigh_ritz(&v[..nr * m], &av, nr, m, nev, mass, sigma, &lmat, &mut lx)?;
+                rayleigh_ritz(&v[..nr * m], h, nr, m, nev, mass, sigma, &lmat, &mut lx)?;
             if worst <= RESIDUAL_TOL || m >= max_m {
                 evals.extend_from_slice(&lam);
                 evecs.extend_from_slice(&x);
@@ -352,12 +392,6 @@ fn krylov_eigen(
             }
             next_check = (m + more_vectors(worst, b)).min(max_m);
         }
-        if m + b > max_m {
-            // the space cannot grow by a whole block: check what we have
-            next_check = m;
-            continue;
-        }
-        orthonormalize_block(&v, m, &mut w, nr, mass, label, &comp_mass, &mut rng);
         v.extend_from_slice(&w);
     }
 }
@@ -374,22 +408,9 @@ fn more_vectors(worst: f64, b: usize) -> usize {
     vectors.div_ceil(b).max(1) * b
 }
 
-/// Rayleigh–Ritz on the M-orthonormal basis `v` (nr × m) with `av = A v`: the `nev` Ritz pairs
-/// of largest θ, mapped back to `λ = 1/θ - σ`, and the worst relative residual
-/// `|L x - λ M x| / (λ |M x|)`.
-#[allow(clippy::too_many_arguments)]
-fn rayleigh_ritz(
-    v: &[f64],
-    av: &[f64],
-    nr: usize,
-    m: usize,
-    nev: usize,
-    mass: &[f64],
-    sigma: f64,
-    lmat: &SparseColMat<usize, f64>,
-    lx: &mut [f64],
-) -> Result<(Vec<f64>, Vec<f64>, f64)> {
-    let mut mav = av.to_vec();
+/// `Vᵀ M (A V)` of the M-orthonormal basis `v` (nr × m) and `av = A v`, symmetrised.
+fn projected(v: &[f64], av: &[f64], nr: usize, m: usize, mass: &[f64]) -> Mat<f64> {
+    let mut mav = av[..nr * m].to_vec();
     for col in mav.chunks_mut(nr) {
         for r in 0..nr {
             col[r] *= mass[r];
@@ -404,7 +425,24 @@ fn rayleigh_ritz(
         1.0,
         par(),
     );
-    let hs = Mat::<f64>::from_fn(m, m, |i, j| 0.5 * (h[(i, j)] + h[(j, i)]));
+    Mat::<f64>::from_fn(m, m, |i, j| 0.5 * (h[(i, j)] + h[(j, i)]))
+}
+
+/// Rayleigh–Ritz on the M-orthonormal basis `v` (nr × m) with `hs = Vᵀ M A V` (symmetric):
+/// the `nev` Ritz pairs of largest θ, mapped back to `λ = 1/θ - σ`, and the worst relative
+/// residual `|L x - λ M x| / (λ |M x|)`, measured on the Ritz vectors themselves.
+#[allow(clippy::too_many_arguments)]
+fn rayleigh_ritz(
+    v: &[f64],
+    hs: Mat<f64>,
+    nr: usize,
+    m: usize,
+    nev: usize,
+    mass: &[f64],
+    sigma: f64,
+    lmat: &SparseColMat<usize, f64>,
+    lx: &mut [f64],
+) -> Result<(Vec<f64>, Vec<f64>, f64)> {
     let evd = hs
         .self_adjoint_eigen(Side::Lower)
         .map_err(|e| Error::InvalidMesh(format!("Ritz eigen-decomposition failed: {e:?}")))?;
