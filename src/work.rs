@@ -167,6 +167,7 @@ pub enum Event {
 pub fn no_events(_: Event) {}
 
 /// Wall-clock helper for stage timings.
+#[derive(Clone, Copy, Debug)]
 pub struct Stopwatch(Instant);
 
 impl Stopwatch {

@@ -115,6 +115,7 @@ pub fn solve_constrained(
             &preview_params,
             sink,
             cancel,
+            watch,
             nl,
         );
         let r = preview.level(top);
@@ -160,9 +161,9 @@ pub fn solve_constrained(
         params,
         sink,
         cancel,
+        watch,
         nl,
     );
-    run.watch = watch;
     if let Some(t) = map_secs {
         run.stage("global map", t);
         for (name, t) in map_stages {
@@ -378,7 +379,7 @@ type Inputs<'a> = (
 
 impl<'a> Levels<'a> {
     /// A level loop over both prepared meshes (and the source's per-level signal and fans),
-    /// with nothing solved yet.
+    /// with nothing solved yet; `watch` is the solve's clock (progress events' elapsed time).
     #[allow(clippy::too_many_arguments)]
     fn new(
         (source, target, sig_s, fans_s): Inputs<'a>,
@@ -389,6 +390,7 @@ impl<'a> Levels<'a> {
         params: &'a TransferParams,
         sink: &'a dyn Fn(Event),
         cancel: &'a CancelToken,
+        watch: Stopwatch,
         nl: usize,
     ) -> Self {
         let (hs, ht) = (&source.hierarchy, &target.hierarchy);
@@ -405,7 +407,7 @@ impl<'a> Levels<'a> {
             params,
             sink,
             cancel,
-            watch: Stopwatch::start(),
+            watch,
             nl,
             // The coarsest level is searched exhaustively when that is cheap (the usual
             // ~128-250 vertices); a hierarchy cut short by `levels` starts from the random
