@@ -223,6 +223,39 @@ impl GlobalMap {
     }
 }
 
+/// The map's parameters inside a solve whose smaller map level has `nmin` vertices.
+fn map_params(nmin: usize) -> FmapParams {
+    FmapParams {
+        k_final: SOLVE_MAP_K.min(nmin / 4),
+        k_step: 10,
+        ..FmapParams::default()
+    }
+}
+
+/// Eigenpairs of each mesh's spectrum a map with `params` needs.
+fn spectrum_size(params: &FmapParams) -> usize {
+    params.k_final.max(params.k_init).max(params.k_descriptors)
+}
+
+/// The spectrum a solve's map will ask of a mesh with hierarchy `h`, as (level, eigenpairs),
+/// when the other mesh's map level is no coarser and the solve keeps every level: computed
+/// while the mesh is prepared ([`super::prepare`], beside the fan tables), it is found in the
+/// mesh's cache by [`global_map`]. `None` for a mesh too coarse for a map.
+pub(super) fn expected_spectrum(h: &Hierarchy) -> Option<(usize, usize)> {
+    let l = map_level(h, h.num_levels());
+    let params = map_params(h.levels[l].len());
+    (params.k_final >= params.k_init).then(|| (l, spectrum_size(&params)))
+}
+
+impl MapCache {
+    /// A cache holding the spectrum of level `l` with `k` eigenpairs.
+    pub(super) fn with_spectrum(l: usize, k: usize, sp: Spectrum) -> MapCache {
+        let cache = MapCache::default();
+        cache.store_spectrum(l, k, Arc::new(sp));
+        cache
+    }
+}
+
 /// Finest level with at most `MAP_LEVEL_VERTICES` vertices (at most `nl - 1`).
 fn map_level(h: &Hierarchy, nl: usize) -> usize {
     (0..nl)
@@ -293,11 +326,7 @@ pub(super) fn global_map(
     let (ls, lt) = (map_level(hs, nl), map_level(ht, nl));
     let (ms, mt) = (&hs.levels[ls], &ht.levels[lt]);
     let nmin = ms.len().min(mt.len());
-    let params = FmapParams {
-        k_final: SOLVE_MAP_K.min(nmin / 4),
-        k_step: 10,
-        ..FmapParams::default()
-    };
+    let params = map_params(nmin);
     if params.k_final < params.k_init {
         return Err(Error::InvalidInput(format!(
             "shape map: meshes too coarse ({nmin} vertices)"
@@ -310,7 +339,7 @@ pub(super) fn global_map(
         return Ok(m);
     }
     let key = Arc::as_ptr(&source.map_cache) as usize;
-    let k = params.k_final.max(params.k_init).max(params.k_descriptors);
+    let k = spectrum_size(&params);
     let (ss, st) = spectra(source, target, (ls, lt), k, cancel)?;
     let eigen_s = sw.secs();
     cancel.check()?;
@@ -710,5 +739,37 @@ mod tests {
                 "turn {turn} frame {frame}: {got:?}, want {want}"
             );
         }
+    }
+
+    /// A preparation computes the spectrum the solve's map asks for, beside its fan tables,
+    /// and it is the one the solve would compute itself; with the map off it computes none.
+    #[test]
+    fn a_prepared_mesh_holds_the_spectrum_its_solve_asks_for() {
+        let (positions, faces) = crate::testdata::uv_sphere(48, 96);
+        let mesh = crate::mesh::TriMesh::new(positions, faces);
+        let params = super::super::TransferParams {
+            vertices: 12_000,
+            ..Default::default()
+        };
+        let cancel = CancelToken::new();
+        let p = super::super::prepare(&mesh, &params, &crate::work::no_events, &cancel)
+            .expect("prepared");
+        let (l, k) = expected_spectrum(&p.hierarchy).expect("a mesh fine enough for a map");
+        assert_eq!(l, map_level(&p.hierarchy, p.hierarchy.num_levels()));
+        assert!(p.hierarchy.levels[l].len() <= MAP_LEVEL_VERTICES);
+        assert_eq!(k, SOLVE_MAP_K);
+        let held = p.map_cache.cached_spectrum(l, k).expect("held");
+        let lev = &p.hierarchy.levels[l];
+        let fresh = Spectrum::new(&lev.positions, &lev.faces, k).expect("spectrum");
+        assert_eq!(held.evals, fresh.evals);
+        assert_eq!(held.evecs, fresh.evecs);
+
+        let off = super::super::TransferParams {
+            structure: Some(0.0),
+            ..params
+        };
+        let q =
+            super::super::prepare(&mesh, &off, &crate::work::no_events, &cancel).expect("prepared");
+        assert!(q.map_cache.cached_spectrum(l, k).is_none());
     }
 }

@@ -7,8 +7,10 @@ use glam::Vec3;
 use super::TransferParams;
 use super::deliver::BakeLayout;
 use super::em::C;
+use super::global_map;
 use crate::error::{Error, Result};
 use crate::features::{self, FanSampler, Frames, edge_transport_angles, tangent_frames};
+use crate::geometry::Spectrum;
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
 use crate::mesh::{SignalKind, TriMesh, sample_texture};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
@@ -417,12 +419,36 @@ pub fn prepare(
             (hks, sw.secs())
         })?
     };
-    // In a one-thread pool (`bench --threads 1` measures one core) the solve is waited for
+    // The spectrum the solve's global map will want, beside the tables too: the eigen-solve
+    // scales less well than the tables, and after the preparation it would run alone.
+    let spectrum = match global_map::expected_spectrum(&hierarchy) {
+        Some((l, k)) if params.structure != Some(0.0) => {
+            let lev = &hierarchy.levels[l];
+            let (p, f) = (lev.positions.clone(), lev.faces.clone());
+            Some((
+                l,
+                k,
+                crate::work::spawn_detached(move || {
+                    let sw = Stopwatch::start();
+                    (Spectrum::new(&p, &f, k), sw.secs())
+                })?,
+            ))
+        }
+        _ => None,
+    };
+    // In a one-thread pool (`bench --threads 1` measures one core) the solves are waited for
     // before the tables, as the pair's preparations are run one after the other there.
-    let hks = if rayon::current_num_threads() == 1 {
+    let one_thread = rayon::current_num_threads() == 1;
+    let hks = if one_thread {
         crate::work::Detached::done(hks.wait(cancel)?)
     } else {
         hks
+    };
+    let spectrum = match spectrum {
+        Some((l, k, job)) if one_thread => {
+            Some((l, k, crate::work::Detached::done(job.wait(cancel)?)))
+        }
+        s => s,
     };
 
     // Fan sampling tables of every level. A mesh with a signal builds each level's table, takes
@@ -471,6 +497,18 @@ pub fn prepare(
     let (hks, secs) = hks.wait(cancel)?;
     let shape = features::shape_features_from(&hierarchy, lc, hks?);
     stage("features", secs, &mut timings);
+    // A spectrum that failed is left to the solve, which reports why its map is not used.
+    let map_cache = match spectrum {
+        Some((l, k, job)) => {
+            let (sp, secs) = job.wait(cancel)?;
+            stage("map spectrum", secs, &mut timings);
+            match sp {
+                Ok(sp) => global_map::MapCache::with_spectrum(l, k, sp),
+                Err(_) => global_map::MapCache::default(),
+            }
+        }
+        None => global_map::MapCache::default(),
+    };
     cancel.check()?;
     sink(Event::Progress(progress("prepare", &watch, 1.0)));
     let layout = Arc::new(BakeLayout {
@@ -494,6 +532,6 @@ pub fn prepare(
         samplers,
         fan_radius: params.fan_radius,
         timings,
-        map_cache: Arc::default(),
+        map_cache: Arc::new(map_cache),
     })
 }
