@@ -23,7 +23,9 @@ impl Engine for MeshMatchEngine {
     type Prepared = PreparedMesh;
 
     fn prepare_key(&self, p: &TransferParams) -> String {
-        // Everything `prepare` reads: working density, hierarchy depth and fan radius.
+        // Everything `prepare` reads: working density, hierarchy depth and fan radius. (It
+        // reads `structure` too, only to skip the global map's spectrum when the map is off;
+        // a solve with the map on computes a missing spectrum itself.)
         format!("{}|{:?}|{}", p.vertices, p.levels, p.fan_radius)
     }
 
