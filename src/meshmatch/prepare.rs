@@ -145,6 +145,28 @@ pub fn prepare_pair(
     })
 }
 
+/// `work` on a copy of `level`'s positions and faces, timed, on a thread of its own, so an
+/// eigen-solve runs beside the fan tables. In a one-thread pool (`bench --threads 1` measures
+/// one core) it is waited for at once, as the pair's preparations are run one after the other
+/// there.
+fn beside_tables<T: Send + 'static>(
+    level: &crate::hierarchy::Level,
+    cancel: &CancelToken,
+    work: impl FnOnce(&[[f32; 3]], &[[u32; 3]]) -> T + Send + 'static,
+) -> Result<crate::work::Detached<(T, f64)>> {
+    let (p, f) = (level.positions.clone(), level.faces.clone());
+    let job = crate::work::spawn_detached(move || {
+        let sw = Stopwatch::start();
+        let out = work(&p, &f);
+        (out, sw.secs())
+    })?;
+    Ok(if rayon::current_num_threads() == 1 {
+        crate::work::Detached::done(job.wait(cancel)?)
+    } else {
+        job
+    })
+}
+
 /// Cancels its token when dropped armed: on an error or a panic in one mesh's preparation, so
 /// that the other stops instead of running to its end.
 struct CancelOnDrop<'a>(Option<&'a CancelToken>);
@@ -410,45 +432,20 @@ pub fn prepare(
     // eigen-solve is sequential and the tables are parallel, so together they fill the cores.
     sink(Event::Progress(progress("features", &watch, 0.5)));
     let lc = features::hks_level(&hierarchy, HKS_VERTICES);
-    let hks = {
-        let lev = &hierarchy.levels[lc];
-        let (p, f) = (lev.positions.clone(), lev.faces.clone());
-        crate::work::spawn_detached(move || {
-            let sw = Stopwatch::start();
-            let hks = features::hks_scaled(&p, &f, features::HKS_EIGENPAIRS);
-            (hks, sw.secs())
-        })?
-    };
+    let hks = beside_tables(&hierarchy.levels[lc], cancel, |p, f| {
+        features::hks_scaled(p, f, features::HKS_EIGENPAIRS)
+    })?;
     // The spectrum the solve's global map will want, beside the tables too: the eigen-solve
     // scales less well than the tables, and after the preparation it would run alone.
     let spectrum = match global_map::expected_spectrum(&hierarchy) {
-        Some((l, k)) if params.structure != Some(0.0) => {
-            let lev = &hierarchy.levels[l];
-            let (p, f) = (lev.positions.clone(), lev.faces.clone());
-            Some((
-                l,
-                k,
-                crate::work::spawn_detached(move || {
-                    let sw = Stopwatch::start();
-                    (Spectrum::new(&p, &f, k), sw.secs())
-                })?,
-            ))
-        }
+        Some((l, k)) if params.structure != Some(0.0) => Some((
+            l,
+            k,
+            beside_tables(&hierarchy.levels[l], cancel, move |p, f| {
+                Spectrum::new(p, f, k)
+            })?,
+        )),
         _ => None,
-    };
-    // In a one-thread pool (`bench --threads 1` measures one core) the solves are waited for
-    // before the tables, as the pair's preparations are run one after the other there.
-    let one_thread = rayon::current_num_threads() == 1;
-    let hks = if one_thread {
-        crate::work::Detached::done(hks.wait(cancel)?)
-    } else {
-        hks
-    };
-    let spectrum = match spectrum {
-        Some((l, k, job)) if one_thread => {
-            Some((l, k, crate::work::Detached::done(job.wait(cancel)?)))
-        }
-        s => s,
     };
 
     // Fan sampling tables of every level. A mesh with a signal builds each level's table, takes
