@@ -1083,8 +1083,8 @@ where
                 .last_frame_start
                 .map_or(0.0, |t| clock.duration_since(t).as_secs_f32() * 1000.0);
             eprintln!(
-                "frame-ms {frame_ms:.3} interval-ms {interval:.3} running {} partials {}",
-                self.state.job.running as u8, self.state.job.partials
+                "frame-ms {frame_ms:.3} interval-ms {interval:.3} running {} partials {} outcome {}",
+                self.state.job.running as u8, self.state.job.partials, self.state.job.outcome
             );
         }
         self.last_frame_start = Some(clock);
