@@ -229,7 +229,7 @@ fn orthonormalize_block(
                     let (prev, cur) = w.split_at_mut(j * nr);
                     let qi = &prev[i * nr..(i + 1) * nr];
                     let cj = &mut cur[..nr];
-                    let d: f64 = (0..nr).map(|r| mass[r] * qi[r] * cj[r]).sum();
+                    let d = mass_dot(mass, qi, cj);
                     for r in 0..nr {
                         cj[r] -= d * qi[r];
                     }
@@ -237,7 +237,7 @@ fn orthonormalize_block(
                 }
             }
             let cj = &mut w[j * nr..(j + 1) * nr];
-            let norm = (0..nr).map(|r| mass[r] * cj[r] * cj[r]).sum::<f64>().sqrt();
+            let norm = mass_dot(mass, cj, cj).sqrt();
             if norm > 1e-10 && norm.is_finite() {
                 cj.iter_mut().for_each(|x| *x /= norm);
                 r_coef[j * b + j] = norm;
@@ -254,6 +254,30 @@ fn orthonormalize_block(
         replaced = true;
     }
     None
+}
+
+/// `Σ mass[r] a[r] b[r]` in eight interleaved partial sums, so that it vectorises (a single
+/// running sum is a chain of dependent additions, which the compiler may not reorder).
+fn mass_dot(mass: &[f64], a: &[f64], b: &[f64]) -> f64 {
+    const L: usize = 8;
+    let n = mass.len().min(a.len()).min(b.len());
+    let (mc, mt) = mass[..n].as_chunks::<L>();
+    let (ac, at) = a[..n].as_chunks::<L>();
+    let (bc, bt) = b[..n].as_chunks::<L>();
+    let mut acc = [0.0f64; L];
+    for ((m, x), y) in mc.iter().zip(ac).zip(bc) {
+        for l in 0..L {
+            acc[l] += m[l] * x[l] * y[l];
+        }
+    }
+    let tail: f64 = mt.iter().zip(at).zip(bt).map(|((m, x), y)| m * x * y).sum();
+    let pairs = [
+        acc[0] + acc[4],
+        acc[1] + acc[5],
+        acc[2] + acc[6],
+        acc[3] + acc[7],
+    ];
+    (pairs[0] + pairs[2]) + (pairs[1] + pairs[3]) + tail
 }
 
 /// Sparse path: null space from components, the rest by block Krylov on `(L + σM)⁻¹ M`.
