@@ -79,43 +79,51 @@ pub fn draw_mesh(mesh: &TriMesh, with_uvs: bool) -> DrawMesh {
         let q = |x: f32| (((x.clamp(-1.0, 1.0) + 1.0) * 32767.5) as u64) & 0xffff;
         q(n.x) | (q(n.y) << 16) | (q(n.z) << 32)
     };
-    let mut keys: Vec<(u32, u64, u64, u32)> = Vec::with_capacity(3 * faces.len());
-    let mut normals_of: Vec<glam::Vec3> = Vec::with_capacity(3 * faces.len());
-    for (k, (f, face)) in faces.iter().enumerate() {
-        for c in 0..3 {
-            let v = face[c];
-            let nrm = corner_normal(k, v);
-            let uv = uvs.map_or(0u64, |u| {
-                let t = u[3 * f + c];
-                (t[0].to_bits() as u64) | ((t[1].to_bits() as u64) << 32)
-            });
-            keys.push((v, uv, quant(nrm), (3 * k + c) as u32));
-            normals_of.push(nrm);
-        }
-    }
-    keys.sort_unstable();
     let mut out = DrawMesh {
         first: vec![u32::MAX; n],
         triangles: vec![0; 3 * faces.len()],
         ..Default::default()
     };
-    let mut prev: Option<(u32, u64, u64)> = None;
-    for &(v, uv, qn, corner) in &keys {
-        if prev != Some((v, uv, qn)) {
-            prev = Some((v, uv, qn));
-            let (f, _) = faces[corner as usize / 3];
-            out.positions.push(mesh.positions[v as usize]);
-            out.normals.push(normals_of[corner as usize].to_array());
-            out.uvs.push(uvs.map_or([0.0; 2], |u| {
-                let t = u[3 * f + corner as usize % 3];
-                [t[0], 1.0 - t[1]]
-            }));
-            out.vertex.push(v);
-            if out.first[v as usize] == u32::MAX {
-                out.first[v as usize] = out.positions.len() as u32 - 1;
+    // Corners are merged per vertex: a vertex's corners (its faces' CSR row, a handful) sorted by
+    // (uv bits, quantised normal, corner) and deduplicated, vertices in ascending order; drawn
+    // vertices come out ordered by (vertex, uv, normal), as a sort of every corner would give,
+    // without sorting three entries per face at once.
+    let mut group: Vec<(u64, u64, u32, glam::Vec3)> = Vec::new();
+    for v in 0..nv {
+        group.clear();
+        for &k in vf.row(v as usize) {
+            let (f, face) = faces[k as usize];
+            for (c, &fv) in face.iter().enumerate() {
+                if fv != v {
+                    continue;
+                }
+                let nrm = corner_normal(k as usize, v);
+                let uv = uvs.map_or(0u64, |u| {
+                    let t = u[3 * f + c];
+                    (t[0].to_bits() as u64) | ((t[1].to_bits() as u64) << 32)
+                });
+                group.push((uv, quant(nrm), 3 * k + c as u32, nrm));
             }
         }
-        out.triangles[corner as usize] = out.positions.len() as u32 - 1;
+        group.sort_unstable_by_key(|&(uv, qn, corner, _)| (uv, qn, corner));
+        let mut prev: Option<(u64, u64)> = None;
+        for &(uv, qn, corner, nrm) in &group {
+            if prev != Some((uv, qn)) {
+                prev = Some((uv, qn));
+                let (f, _) = faces[corner as usize / 3];
+                out.positions.push(mesh.positions[v as usize]);
+                out.normals.push(nrm.to_array());
+                out.uvs.push(uvs.map_or([0.0; 2], |u| {
+                    let t = u[3 * f + corner as usize % 3];
+                    [t[0], 1.0 - t[1]]
+                }));
+                out.vertex.push(v);
+                if out.first[v as usize] == u32::MAX {
+                    out.first[v as usize] = out.positions.len() as u32 - 1;
+                }
+            }
+            out.triangles[corner as usize] = out.positions.len() as u32 - 1;
+        }
     }
     out
 }
