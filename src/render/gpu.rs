@@ -557,19 +557,18 @@ impl GpuMesh {
         let textured = textured && can_texture;
         let cols = expand_colors(&d.vertex, colors, textured, verts.len());
         let nv = mesh.positions.len() as u32;
-        let mut edge_list: Vec<[u32; 2]> = mesh
+        // Each edge once, ordered by (lower end, higher end): bucketed by the lower end.
+        let mut edge_pairs: Vec<(u32, u32)> = mesh
             .faces
             .iter()
             .filter(|f| f.iter().all(|&i| i < nv))
-            .flat_map(|f| [[f[0], f[1]], [f[1], f[2]], [f[2], f[0]]])
-            .map(|[a, b]| if a < b { [a, b] } else { [b, a] })
+            .flat_map(|f| [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])])
+            .map(|(a, b)| (a.min(b), a.max(b)))
             .collect();
-        edge_list.sort_unstable();
-        edge_list.dedup();
-        let edges: Vec<u32> = edge_list
-            .into_iter()
-            .flatten()
-            .map(|v| d.first[v as usize])
+        let edge_rows = crate::mesh::Csr::from_pairs(nv as usize, &mut edge_pairs);
+        let edges: Vec<u32> = (0..nv as usize)
+            .flat_map(|a| edge_rows.row(a).iter().map(move |&b| (a, b as usize)))
+            .flat_map(|(a, b)| [d.first[a], d.first[b]])
             .collect();
         let tris = d.triangles;
         let init = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
