@@ -117,15 +117,16 @@ impl TriangleBvh {
             .filter(|&f| faces[f as usize].iter().all(|&v| (v as usize) < n))
             .collect();
         let corner = |f: u32| faces[f as usize].map(|v| Vec3::from(positions[v as usize]));
-        let centroid: Vec<Vec3> = faces
+        // Per face: its bounds and centroid (zero for a face left out), read once per level of
+        // the build.
+        let fbox: Vec<[Vec3; 3]> = faces
             .iter()
-            .enumerate()
-            .map(|(f, _)| {
-                if order.binary_search(&(f as u32)).is_ok() {
-                    let [a, b, c] = corner(f as u32);
-                    (a + b + c) / 3.0
+            .map(|f| {
+                if f.iter().all(|&v| (v as usize) < n) {
+                    let [a, b, c] = f.map(|v| Vec3::from(positions[v as usize]));
+                    [a.min(b).min(c), a.max(b).max(c), (a + b + c) / 3.0]
                 } else {
-                    Vec3::ZERO
+                    [Vec3::ZERO; 3]
                 }
             })
             .collect();
@@ -143,12 +144,11 @@ impl TriangleBvh {
                 let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
                 let (mut clo, mut chi) = (lo, hi);
                 for &f in &order[s..e] {
-                    for p in corner(f) {
-                        lo = lo.min(p);
-                        hi = hi.max(p);
-                    }
-                    clo = clo.min(centroid[f as usize]);
-                    chi = chi.max(centroid[f as usize]);
+                    let [flo, fhi, fc] = fbox[f as usize];
+                    lo = lo.min(flo);
+                    hi = hi.max(fhi);
+                    clo = clo.min(fc);
+                    chi = chi.max(fc);
                 }
                 nodes[ni].lo = lo;
                 nodes[ni].hi = hi;
@@ -167,7 +167,7 @@ impl TriangleBvh {
                 };
                 let mid = (s + e) / 2;
                 order[s..e].select_nth_unstable_by(mid - s, |&a, &b| {
-                    centroid[a as usize][axis].total_cmp(&centroid[b as usize][axis])
+                    fbox[a as usize][2][axis].total_cmp(&fbox[b as usize][2][axis])
                 });
                 let left = nodes.len();
                 let blank = Node {
