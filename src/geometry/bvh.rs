@@ -113,8 +113,9 @@ impl TriangleBvh {
     /// Build over `faces` (faces with out-of-range indices are left out).
     pub fn new(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Self {
         let n = positions.len();
+        let in_range = |f: &[u32; 3]| f.iter().all(|&v| (v as usize) < n);
         let mut order: Vec<u32> = (0..faces.len() as u32)
-            .filter(|&f| faces[f as usize].iter().all(|&v| (v as usize) < n))
+            .filter(|&f| in_range(&faces[f as usize]))
             .collect();
         let corner = |f: u32| faces[f as usize].map(|v| Vec3::from(positions[v as usize]));
         // Per face: its bounds and centroid (zero for a face left out), read once per level of
@@ -122,7 +123,7 @@ impl TriangleBvh {
         let fbox: Vec<[Vec3; 3]> = faces
             .iter()
             .map(|f| {
-                if f.iter().all(|&v| (v as usize) < n) {
+                if in_range(f) {
                     let [a, b, c] = f.map(|v| Vec3::from(positions[v as usize]));
                     [a.min(b).min(c), a.max(b).max(c), (a + b + c) / 3.0]
                 } else {

@@ -773,10 +773,7 @@ fn argmin_distance_body(snorm: &[f32], dots: &[f32]) -> u32 {
     let (sn, dt) = (&snorm[..n], &dots[..n]);
     let mut best = [f32::INFINITY; L];
     let mut at = [0u32; L];
-    let mut row = [0u32; L];
-    for (l, r) in row.iter_mut().enumerate() {
-        *r = l as u32;
-    }
+    let mut row: [u32; L] = std::array::from_fn(|l| l as u32);
     let (sc, st) = sn.as_chunks::<L>();
     let (dc, dt_tail) = dt.as_chunks::<L>();
     for (s, d) in sc.iter().zip(dc) {
