@@ -13,6 +13,7 @@ pub mod demo;
 pub mod error;
 pub mod features;
 pub mod geometry;
+pub mod ground_truth;
 pub mod hierarchy;
 pub mod jobs;
 pub mod mesh;

@@ -135,6 +135,7 @@ impl Engine for TestEngine {
             working_signal: out.clone(),
             file_signal: out,
             layout: None,
+            full: None,
         })
     }
 }

@@ -29,6 +29,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("synthesis", 7),
     ("applications", 7),
     ("demo", 7),
+    ("ground_truth", 7),
     ("jobs", 8),
     ("bench", 8),
     ("render", 9),

@@ -95,6 +95,7 @@ fn atlas_bake_export_round_trip_reproduces_the_signal_on_a_mesh_without_uvs() {
         &file,
         "glb",
         size,
+        None,
         &CancelToken::new(),
     )
     .expect("deliver");
@@ -147,6 +148,7 @@ fn no_background_bleeds_at_chart_borders_at_mip_level_2() {
         &file,
         "obj",
         512,
+        None,
         &CancelToken::new(),
     )
     .expect("deliver");
@@ -186,6 +188,7 @@ fn a_target_that_has_uvs_keeps_them() {
         &file,
         "glb",
         256,
+        None,
         &CancelToken::new(),
     )
     .unwrap();
@@ -199,6 +202,7 @@ fn a_target_that_has_uvs_keeps_them() {
         &file,
         "ply",
         256,
+        None,
         &CancelToken::new(),
     )
     .unwrap();

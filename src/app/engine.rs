@@ -68,10 +68,18 @@ impl Engine for MeshMatchEngine {
         cancel: &CancelToken,
     ) -> Result<Solved> {
         let r = meshmatch::solve(source, target, corr, params, sink, cancel)?;
+        // The source at full resolution through the solution: the view shows each working
+        // vertex's colour read there, and export bakes every texel from it.
+        let full = meshmatch::Resampler::new(source, target, &r.nnf, cancel)?.map(Arc::new);
+        let working_signal = match &full {
+            Some(f) => f.vertex_signal(),
+            None => r.working_signal,
+        };
         Ok(Solved {
-            working_signal: r.working_signal,
+            working_signal,
             file_signal: r.file_signal,
             layout: Some(meshmatch::BakeLayout::of(target)),
+            full,
         })
     }
 }

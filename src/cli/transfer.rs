@@ -27,7 +27,8 @@ pub struct TransferArgs {
     /// Output: .ply (vertex colours), .glb (baked texture if the target has UVs, else COLOR_0), .obj (+MTL+PNG).
     #[arg(long)]
     pub out: PathBuf,
-    /// Also write the dense working-resolution target with its colours (.ply/.glb/.obj).
+    /// Also write the dense working-resolution target with its colours (.ply/.glb/.obj), each
+    /// vertex read from the source at full resolution through the solution.
     #[arg(long)]
     pub out_dense: Option<PathBuf>,
     /// Write the nearest-neighbour field as CSV: target_vertex,source_vertex,rotation_deg.
@@ -70,6 +71,10 @@ pub struct TransferArgs {
     /// Size of the baked texture (pixels per side) when the target has UVs, 1 to 8192.
     #[arg(long, default_value_t = 1024)]
     pub texture_size: u32,
+    /// Bake the texture from the working vertices' colours (interpolated between them) instead
+    /// of reading the source at full resolution through the solution at every texel.
+    #[arg(long)]
+    pub working_resolution: bool,
 }
 
 impl TransferArgs {
@@ -148,6 +153,12 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
 
     // Deliver on the target's own vertices (file order), or baked into its UV layout.
     let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let t = std::time::Instant::now();
+    let full = if a.working_resolution {
+        None
+    } else {
+        mm::Resampler::new(&prepared_source, &prepared_target, &result.nnf, &cancel)?
+    };
     let out_mesh = mm::deliver(
         &target,
         &mm::BakeLayout::of(&prepared_target),
@@ -155,15 +166,32 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         &result.file_signal,
         ext,
         a.texture_size,
-        &crate::work::CancelToken::new(),
+        full.as_ref(),
+        &cancel,
     )?;
+    if !ext.eq_ignore_ascii_case("ply") {
+        eprintln!(
+            "  {:<12} {:8.3} s ({} texels per side{})",
+            "texture",
+            t.elapsed().as_secs_f64(),
+            a.texture_size,
+            if full.is_some() {
+                ", source read at full resolution"
+            } else {
+                ", working vertices interpolated"
+            }
+        );
+    }
     if let Some(line) = out_mesh.atlas_line(a.texture_size) {
         eprintln!("{line}");
     }
     io::save(&out_mesh.mesh, &a.out)?;
     eprintln!("wrote {}", a.out.display());
     if let Some(dense) = &a.out_dense {
-        let d = mm::deliver_dense(prepared_target.working_mesh(), &result.working_signal);
+        let d = match &full {
+            Some(r) => mm::deliver_dense(prepared_target.working_mesh(), &r.vertex_signal()),
+            None => mm::deliver_dense(prepared_target.working_mesh(), &result.working_signal),
+        };
         io::save(&d, dense)?;
         eprintln!("wrote {}", dense.display());
     }

@@ -132,6 +132,7 @@ impl WeatherArgs {
             &out.file_colors,
             ext,
             a.texture_size,
+            None,
             &crate::work::CancelToken::new(),
         )?;
         if let Some(line) = out_mesh.atlas_line(a.texture_size) {

@@ -28,6 +28,9 @@ pub struct Solved {
     /// Where the target's working faces lie in its file faces, to bake a texture into its UV
     /// layout on export; `None` from an engine without one (export then writes vertex colours).
     pub layout: Option<Arc<crate::meshmatch::BakeLayout>>,
+    /// The source read at full resolution through the solution, for textures baked on export
+    /// (`None` from an engine without one: export then interpolates `working_signal`).
+    pub full: Option<Arc<crate::meshmatch::Resampler>>,
 }
 
 /// The computation a worker runs: preparation of one mesh and the solve between two.

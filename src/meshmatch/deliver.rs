@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use super::PreparedMesh;
+use super::resample::Resampler;
 use crate::mesh::TriMesh;
 
 /// Bake a working-mesh signal into the target's own UV layout: every texel inside a UV triangle
@@ -53,6 +54,58 @@ impl BakeLayout {
         }
     }
 
+    /// The UVs of every working face's corners in `target`'s UV layout (`target` is the mesh
+    /// this layout was made from), or `None` without UVs or for another mesh.
+    pub fn working_uvs(&self, target: &TriMesh) -> Option<Vec<[f32; 2]>> {
+        let uvs = target.uvs.as_ref()?;
+        if self.input_faces != target.faces.len()
+            || self.face_input.len() != self.working_faces.len()
+            || uvs.len() < 3 * target.faces.len()
+        {
+            return None;
+        }
+        Some(
+            self.face_input
+                .iter()
+                .zip(&self.face_bary)
+                .flat_map(|(&f, cb)| {
+                    let f = f as usize;
+                    cb.map(|b| {
+                        (0..3).fold([0.0f32; 2], |a, k| {
+                            let u = uvs[3 * f + k];
+                            [a[0] + b[k] * u[0], a[1] + b[k] * u[1]]
+                        })
+                    })
+                })
+                .collect(),
+        )
+    }
+
+    /// Bake the source read at full resolution through a solution ([`Resampler::sample`]) into
+    /// `target`'s UV layout: the working faces are rasterised in UV space, so every texel knows
+    /// its working face and barycentric coordinates at once; gutters are filled by pull-push. A
+    /// target without UVs (or another mesh) gives a black image.
+    pub fn bake_resampled(&self, target: &TriMesh, r: &Resampler, size: u32) -> image::RgbImage {
+        let size = size.max(1);
+        let Some(wuv) = self.working_uvs(target) else {
+            return image::RgbImage::new(size, size);
+        };
+        let s2 = (size as f32) * (size as f32);
+        let area: Vec<f32> = wuv
+            .chunks_exact(3)
+            .map(|t| {
+                let (a, b, c) = (t[0], t[1], t[2]);
+                ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])).abs() * 0.5 * s2
+            })
+            .collect();
+        let (w, h) = (size as usize, size as usize);
+        let mut baked = crate::geometry::bake_uv(&wuv, self.working_faces.len(), w, h, |wf, b| {
+            r.sample(wf, b, area[wf])
+        });
+        crate::geometry::fill_gutters(&mut baked);
+        baked.to_rgb8()
+    }
+
     /// [`bake_texture`] through this layout (`target` is the mesh it was prepared from).
     pub fn bake(
         &self,
@@ -90,7 +143,10 @@ impl Delivered {
 /// the target file mesh with the signal on its own vertices, and, for `.glb`/`.obj`, a
 /// `baseColorTexture` of `texture_size` pixels baked into its UV layout (a `.glb` then carries
 /// the texture alone, without vertex colours). A target without UVs first gets a generated atlas
-/// ([`crate::geometry::uv_atlas`]); `cancel` stops that.
+/// ([`crate::geometry::uv_atlas`]); `cancel` stops that. With a [`Resampler`] every texel reads
+/// the source at full resolution through the solution; without one the texture interpolates
+/// `working_signal`.
+#[allow(clippy::too_many_arguments)]
 pub fn deliver(
     target: &TriMesh,
     layout: &BakeLayout,
@@ -98,6 +154,7 @@ pub fn deliver(
     file_signal: &[[f32; 3]],
     ext: &str,
     texture_size: u32,
+    full: Option<&Resampler>,
     cancel: &crate::work::CancelToken,
 ) -> crate::error::Result<Delivered> {
     let ext = ext.to_ascii_lowercase();
@@ -119,7 +176,10 @@ pub fn deliver(
             out.uvs = Some(a.uvs.clone());
             atlas = Some(a);
         }
-        let image = layout.bake(&out, working_signal, texture_size);
+        let image = match full {
+            Some(r) => layout.bake_resampled(&out, r, texture_size),
+            None => layout.bake(&out, working_signal, texture_size),
+        };
         out.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
             image,
             path: None,

@@ -16,10 +16,12 @@
 //! - [`deliver`] (`deliver.rs`): colours on the file's vertices, baking into UVs, the dense mesh.
 
 mod affinities;
+mod coincident;
 mod deliver;
 mod em;
 mod global_map;
 mod prepare;
+mod resample;
 mod solve;
 
 use crate::error::{Error, Result};
@@ -29,6 +31,7 @@ use crate::work::{CancelToken, Event};
 pub use deliver::{BakeLayout, Delivered, bake_texture, deliver, deliver_dense};
 pub use global_map::{POINT_MAP_VERTICES, PointMap, map_meshes};
 pub use prepare::{PreparedMesh, prepare, prepare_pair};
+pub use resample::Resampler;
 pub use solve::{solve, solve_constrained};
 
 /// Parameters of a MeshMatch transfer.

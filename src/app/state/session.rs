@@ -146,6 +146,7 @@ impl<P: AppParams> AppState<P> {
                         &res.file_signal,
                         ext,
                         EXPORT_TEXTURE_SIZE,
+                        res.full.as_deref(),
                         cancel,
                     )?;
                     let note = d.atlas_line(EXPORT_TEXTURE_SIZE);

@@ -1,0 +1,256 @@
+//! Where the target coincides with the source up to a similarity (a re-tessellated or remeshed
+//! copy, a moved or scaled one, the untouched part of an edited mesh), the exact answer is known:
+//! the source point under the target point. The NNF finds it only to within a fraction of a
+//! working edge (its matches are vertices, and the global map drifts by about half an edge),
+//! which at texel scale shifts thin lines and small features by several texels. This step
+//! recovers the exact answer where it exists.
+//!
+//! 1. [`umeyama`]: the similarity (rotation, uniform scale, translation) that best takes the
+//!    target's working vertices to their matched source points (Umeyama 1991), trimmed of the
+//!    matches farthest from it.
+//! 2. ICP (Besl and McKay 1992): the similarity refitted to the closest source points of the
+//!    moved target vertices, a few rounds.
+//! 3. A target vertex is snapped where its moved position lies on the source surface (within a
+//!    quarter of a source edge), facing the same way, near its own match; its patch map becomes
+//!    the similarity itself. Where fewer than half the vertices qualify the shapes do not
+//!    coincide and nothing is snapped.
+
+use glam::{DMat3, DVec3, Vec2, Vec3};
+use rayon::prelude::*;
+
+use super::resample::PatchMap;
+use crate::features::Frames;
+use crate::geometry::TriangleBvh;
+use crate::hierarchy::Level;
+
+/// A moved target vertex is on the source surface within this many source mean edges.
+const ON_SURFACE_EDGES: f32 = 0.25;
+/// ... and within this many source mean edges of its own match.
+const NEAR_MATCH_EDGES: f32 = 3.0;
+/// Fewest snapped vertices, as a share of all, for the shapes to count as coinciding.
+const MIN_SHARE: f64 = 0.5;
+/// ICP rounds after the fit to the matches.
+const ICP_ROUNDS: usize = 4;
+
+/// `x -> scale * rot * x + shift`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Similarity {
+    pub rot: DMat3,
+    pub scale: f64,
+    pub shift: DVec3,
+}
+
+impl Similarity {
+    #[inline]
+    fn apply(&self, x: Vec3) -> Vec3 {
+        (self.scale * (self.rot * x.as_dvec3()) + self.shift).as_vec3()
+    }
+}
+
+/// The least-squares similarity taking `x[i]` to `y[i]` over the pairs `keep` selects
+/// (Umeyama 1991); `None` with fewer than three pairs or a degenerate spread.
+pub(crate) fn umeyama(x: &[[f32; 3]], y: &[[f32; 3]], keep: &[bool]) -> Option<Similarity> {
+    let n = keep.iter().filter(|&&k| k).count();
+    if n < 3 {
+        return None;
+    }
+    let (mut mx, mut my) = (DVec3::ZERO, DVec3::ZERO);
+    for i in (0..x.len()).filter(|&i| keep[i]) {
+        mx += Vec3::from(x[i]).as_dvec3();
+        my += Vec3::from(y[i]).as_dvec3();
+    }
+    mx /= n as f64;
+    my /= n as f64;
+    let mut cov = faer::Mat::<f64>::zeros(3, 3);
+    let mut var = 0.0f64;
+    for i in (0..x.len()).filter(|&i| keep[i]) {
+        let a = Vec3::from(x[i]).as_dvec3() - mx;
+        let b = Vec3::from(y[i]).as_dvec3() - my;
+        var += a.length_squared();
+        for r in 0..3 {
+            for c in 0..3 {
+                cov[(r, c)] += b[r] * a[c];
+            }
+        }
+    }
+    var /= n as f64;
+    if var <= 1e-30 {
+        return None;
+    }
+    for r in 0..3 {
+        for c in 0..3 {
+            cov[(r, c)] /= n as f64;
+        }
+    }
+    let svd = cov.thin_svd().ok()?;
+    let (u, v) = (svd.U(), svd.V());
+    let s = svd.S().column_vector();
+    let to = |m: faer::MatRef<f64>| {
+        DMat3::from_cols(
+            DVec3::new(m[(0, 0)], m[(1, 0)], m[(2, 0)]),
+            DVec3::new(m[(0, 1)], m[(1, 1)], m[(2, 1)]),
+            DVec3::new(m[(0, 2)], m[(1, 2)], m[(2, 2)]),
+        )
+    };
+    let (u, v) = (to(u), to(v));
+    let flip = if u.determinant() * v.determinant() < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let d = DMat3::from_diagonal(DVec3::new(1.0, 1.0, flip));
+    let rot = u * d * v.transpose();
+    let scale = (s[0] + s[1] + flip * s[2]) / var;
+    if !(scale.is_finite() && scale > 0.0) {
+        return None;
+    }
+    Some(Similarity {
+        rot,
+        scale,
+        shift: my - scale * (rot * mx),
+    })
+}
+
+/// The snapped patch maps (see the module doc): `Some(map)` for every snapped target vertex,
+/// or `None` when the shapes do not coincide. `matched[v]` is target vertex `v`'s source
+/// point under its fitted patch map.
+pub(crate) fn snap_coincident(
+    source: &Level,
+    source_frames: &Frames,
+    target: &Level,
+    target_frames: &Frames,
+    matched: &[[f32; 3]],
+) -> Option<Vec<Option<PatchMap>>> {
+    let n = target.len();
+    if n < 3 || matched.len() != n {
+        return None;
+    }
+    let edge = source.mean_edge.max(1e-12);
+    // 1. The similarity to the matches, trimmed twice.
+    let mut keep = vec![true; n];
+    let mut sim = umeyama(&target.positions, matched, &keep)?;
+    for _ in 0..2 {
+        let res: Vec<f32> = (0..n)
+            .into_par_iter()
+            .map(|v| (sim.apply(Vec3::from(target.positions[v])) - Vec3::from(matched[v])).length())
+            .collect();
+        let cut = 3.0 * median(&res).max(0.25 * edge);
+        for (k, r) in keep.iter_mut().zip(&res) {
+            *k = *r < cut;
+        }
+        sim = umeyama(&target.positions, matched, &keep)?;
+    }
+    // 2. ICP against the source surface.
+    let bvh = TriangleBvh::new(&source.positions, &source.faces);
+    let closest = |sim: &Similarity| -> Vec<([f32; 3], f32, u32, [f32; 3])> {
+        (0..n)
+            .into_par_iter()
+            .map(|v| {
+                let z = sim.apply(Vec3::from(target.positions[v]));
+                match bvh.closest_point(z.to_array()) {
+                    Some((f, b, d)) => {
+                        let c = source.faces[f as usize]
+                            .map(|u| Vec3::from(source.positions[u as usize]));
+                        let q = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
+                        (q.to_array(), d, f, b)
+                    }
+                    None => (z.to_array(), f32::INFINITY, u32::MAX, [0.0; 3]),
+                }
+            })
+            .collect()
+    };
+    for _ in 0..ICP_ROUNDS {
+        let c = closest(&sim);
+        let d: Vec<f32> = c.iter().map(|x| x.1).collect();
+        let cut = 3.0 * median(&d).max(0.05 * edge);
+        let keep: Vec<bool> = d.iter().map(|&x| x < cut).collect();
+        let y: Vec<[f32; 3]> = c.iter().map(|x| x.0).collect();
+        match umeyama(&target.positions, &y, &keep) {
+            Some(s) => sim = s,
+            None => break,
+        }
+    }
+    // 3. Snap.
+    let c = closest(&sim);
+    let snapped: Vec<Option<PatchMap>> = (0..n)
+        .into_par_iter()
+        .map(|v| {
+            let (q, d, f, b) = c[v];
+            if f == u32::MAX || d > ON_SURFACE_EDGES * edge {
+                return None;
+            }
+            let q = Vec3::from(q);
+            if (q - Vec3::from(matched[v])).length() > NEAR_MATCH_EDGES * edge {
+                return None;
+            }
+            let face = source.faces[f as usize];
+            let a = face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize;
+            let ns = Vec3::from(source.normals[a]);
+            let nt = (sim.rot * Vec3::from(target.normals[v]).as_dvec3()).as_vec3();
+            if ns.dot(nt) < 0.5 {
+                return None;
+            }
+            let (t1a, t2a) = (
+                Vec3::from(source_frames.t1[a]),
+                Vec3::from(source_frames.t2[a]),
+            );
+            let z = sim.apply(Vec3::from(target.positions[v]));
+            let e = z - Vec3::from(source.positions[a]);
+            let lin3 = |t: Vec3| (sim.scale * (sim.rot * t.as_dvec3())).as_vec3();
+            let w1 = lin3(Vec3::from(target_frames.t1[v]));
+            let w2 = lin3(Vec3::from(target_frames.t2[v]));
+            let origin = Vec2::new(e.dot(t1a), e.dot(t2a));
+            Some(PatchMap {
+                anchor: a as u32,
+                origin: origin.to_array(),
+                lin: [w1.dot(t1a), w2.dot(t1a), w1.dot(t2a), w2.dot(t2a)],
+            })
+        })
+        .collect();
+    let share = snapped.iter().filter(|m| m.is_some()).count() as f64 / n as f64;
+    (share >= MIN_SHARE).then_some(snapped)
+}
+
+fn median(x: &[f32]) -> f32 {
+    if x.is_empty() {
+        return 0.0;
+    }
+    let mut v: Vec<f32> = x.iter().copied().filter(|a| a.is_finite()).collect();
+    if v.is_empty() {
+        return 0.0;
+    }
+    let k = v.len() / 2;
+    v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    v[k]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn umeyama_recovers_a_similarity() {
+        let x: Vec<[f32; 3]> = (0..50)
+            .map(|i| {
+                let t = i as f32 * 0.37;
+                [t.sin() * 2.0, (t * 1.3).cos(), t * 0.1]
+            })
+            .collect();
+        let rot = DMat3::from_rotation_z(0.4) * DMat3::from_rotation_x(-0.3);
+        let truth = Similarity {
+            rot,
+            scale: 1.7,
+            shift: DVec3::new(0.5, -2.0, 3.0),
+        };
+        let y: Vec<[f32; 3]> = x
+            .iter()
+            .map(|p| truth.apply(Vec3::from(*p)).to_array())
+            .collect();
+        let s = umeyama(&x, &y, &vec![true; x.len()]).expect("fit");
+        assert!((s.scale - 1.7).abs() < 1e-4, "scale {}", s.scale);
+        for p in &x {
+            let d = s.apply(Vec3::from(*p)) - truth.apply(Vec3::from(*p));
+            assert!(d.length() < 1e-4, "{d}");
+        }
+    }
+}
