@@ -136,6 +136,7 @@ impl Engine for TestEngine {
             file_signal: out,
             layout: None,
             full: None,
+            texture: None,
         })
     }
 }

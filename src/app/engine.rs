@@ -80,6 +80,7 @@ impl Engine for MeshMatchEngine {
             file_signal: r.file_signal,
             layout: Some(meshmatch::BakeLayout::of(target)),
             full,
+            texture: None,
         })
     }
 }

@@ -18,7 +18,9 @@ pub struct BenchArgs {
     /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
     /// Spot -> horse at each size), features (feature-aligned texturing of a cube of each size,
     /// curves, field, synthesis and optimisation at that many vertices), quilt (chain mail on a plane and on the bunny), map (the
-    /// global shape map man -> woman at each size, and a transfer with structure 0 and auto) or
+    /// global shape map man -> woman at each size, and a transfer with structure 0 and auto),
+    /// texture (full-resolution delivery of a ground-truth task solved at the first size, at
+    /// 1024, 2048 and 4096 texels per side, with its scores) or
     /// synth (`synth` with its defaults, every shared texture on every shared mesh, on the
     /// surface) or synth-texture (the same into each mesh's texture space, as `--out o.glb`).
     #[arg(long, default_value = "meshmatch")]

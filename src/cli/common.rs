@@ -262,6 +262,10 @@ pub fn check_rays(rays: usize) -> Result<()> {
 /// Largest baked texture side accepted by `--texture-size`.
 pub const MAX_TEXTURE_SIZE: u32 = 8192;
 
+/// Texels per side of a baked result texture when neither `--texture-size` nor the target's own
+/// texture says.
+pub const DEFAULT_TEXTURE_SIZE: u32 = 2048;
+
 /// Refuse a `--texture-size` outside 1..=[`MAX_TEXTURE_SIZE`].
 pub fn check_texture_size(size: u32) -> Result<()> {
     if !(1..=MAX_TEXTURE_SIZE).contains(&size) {

@@ -68,9 +68,10 @@ pub struct TransferArgs {
     /// bent copy, 0 between different animals, linear in between). stderr says what was chosen.
     #[arg(long, default_value = "auto", value_parser = parse_structure, allow_hyphen_values = true)]
     pub structure: StructureArg,
-    /// Size of the baked texture (pixels per side) when the target has UVs, 1 to 8192.
-    #[arg(long, default_value_t = 1024)]
-    pub texture_size: u32,
+    /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:
+    /// the target's own texture's size, else 2048).
+    #[arg(long)]
+    pub texture_size: Option<u32>,
     /// Bake the texture from the working vertices' colours (interpolated between them) instead
     /// of reading the source at full resolution through the solution at every texel.
     #[arg(long)]
@@ -99,7 +100,9 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         ..TransferParams::default()
     };
     params.validate()?;
-    check_texture_size(a.texture_size)?;
+    if let Some(size) = a.texture_size {
+        check_texture_size(size)?;
+    }
     // Make sure every output can be written before spending minutes on the transfer.
     let inputs = input_paths(&[
         Some(&a.source),
@@ -117,6 +120,19 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     check_outputs(&inputs, &outputs)?;
     let source = load_signal_source(&a.source, a.source_texture.as_deref())?;
     let target = load_usable(&a.target)?;
+    let texture_size = a.texture_size.unwrap_or_else(|| {
+        target
+            .texture
+            .as_ref()
+            .map(|t| {
+                t.image
+                    .width()
+                    .max(t.image.height())
+                    .clamp(1, MAX_TEXTURE_SIZE)
+            })
+            .unwrap_or(DEFAULT_TEXTURE_SIZE)
+    });
+    check_texture_size(texture_size)?;
     let corr = match &a.correspondences {
         Some(p) => CorrespondenceFile::load(p)?.correspondences,
         None => Vec::new(),
@@ -165,7 +181,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         &result.working_signal,
         &result.file_signal,
         ext,
-        a.texture_size,
+        texture_size,
         full.as_ref(),
         &cancel,
     )?;
@@ -174,7 +190,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
             "  {:<12} {:8.3} s ({} texels per side{})",
             "texture",
             t.elapsed().as_secs_f64(),
-            a.texture_size,
+            texture_size,
             if full.is_some() {
                 ", source read at full resolution"
             } else {
@@ -182,7 +198,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
             }
         );
     }
-    if let Some(line) = out_mesh.atlas_line(a.texture_size) {
+    if let Some(line) = out_mesh.atlas_line(texture_size) {
         eprintln!("{line}");
     }
     io::save(&out_mesh.mesh, &a.out)?;

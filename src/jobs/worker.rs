@@ -31,6 +31,33 @@ pub struct Solved {
     /// The source read at full resolution through the solution, for textures baked on export
     /// (`None` from an engine without one: export then interpolates `working_signal`).
     pub full: Option<Arc<crate::meshmatch::Resampler>>,
+    /// The result as a texture in the target's own UV layout, for the view: the UVs of every
+    /// working corner and the texture read from the source at full resolution (a target with
+    /// UVs and a full-resolution result only).
+    pub texture: Option<(Arc<[[f32; 2]]>, Arc<crate::mesh::Texture>)>,
+}
+
+/// Texels per side of the texture a result is shown with: the target's own texture's size
+/// where it has one, else this.
+pub const VIEW_TEXTURE_SIZE: u32 = 2048;
+
+/// The view texture of a solve (see [`Solved::texture`]).
+fn view_texture(
+    target: &TriMesh,
+    solved: &Solved,
+) -> Option<(Arc<[[f32; 2]]>, Arc<crate::mesh::Texture>)> {
+    let (layout, full) = (solved.layout.as_ref()?, solved.full.as_ref()?);
+    let uvs = layout.working_uvs(target)?;
+    let size = target
+        .texture
+        .as_ref()
+        .map(|t| t.image.width().max(t.image.height()).clamp(256, 8192))
+        .unwrap_or(VIEW_TEXTURE_SIZE);
+    let image = layout.bake_resampled(target, full, size);
+    Some((
+        uvs.into(),
+        Arc::new(crate::mesh::Texture { image, path: None }),
+    ))
 }
 
 /// The computation a worker runs: preparation of one mesh and the solve between two.
@@ -365,5 +392,8 @@ fn run_job<E: Engine>(
     let s = &cache[&(meshes[&Side::Source].id, key.clone())];
     let t = &cache[&(meshes[&Side::Target].id, key)];
     cancel.check()?;
-    engine.solve(s, t, corr, params, &sink, cancel)
+    let mut solved = engine.solve(s, t, corr, params, &sink, cancel)?;
+    cancel.check()?;
+    solved.texture = view_texture(&target.mesh, &solved);
+    Ok(solved)
 }

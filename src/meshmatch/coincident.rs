@@ -25,12 +25,15 @@ use crate::hierarchy::Level;
 
 /// A moved target vertex is on the source surface within this many source mean edges.
 const ON_SURFACE_EDGES: f32 = 0.25;
-/// ... and within this many source mean edges of its own match.
+/// ... and, for the shapes to count as coinciding, within this many source mean edges of its
+/// own match.
 const NEAR_MATCH_EDGES: f32 = 3.0;
 /// Fewest snapped vertices, as a share of all, for the shapes to count as coinciding.
 const MIN_SHARE: f64 = 0.5;
 /// ICP rounds after the fit to the matches.
 const ICP_ROUNDS: usize = 4;
+/// Vertices the ICP rounds fit to.
+const ICP_SAMPLES: usize = 8192;
 
 /// `x -> scale * rot * x + shift`.
 #[derive(Clone, Copy, Debug)]
@@ -140,56 +143,75 @@ pub(crate) fn snap_coincident(
         }
         sim = umeyama(&target.positions, matched, &keep)?;
     }
-    // 2. ICP against the source surface.
+    // 2. ICP against the source surface, on a spread subset of the kept vertices (every
+    //    `stride`-th: Morton-ordered working vertices are spread over the surface).
     let bvh = TriangleBvh::new(&source.positions, &source.faces);
-    let closest = |sim: &Similarity| -> Vec<([f32; 3], f32, u32, [f32; 3])> {
-        (0..n)
-            .into_par_iter()
-            .map(|v| {
-                let z = sim.apply(Vec3::from(target.positions[v]));
-                match bvh.closest_point(z.to_array()) {
-                    Some((f, b, d)) => {
-                        let c = source.faces[f as usize]
-                            .map(|u| Vec3::from(source.positions[u as usize]));
-                        let q = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
-                        (q.to_array(), d, f, b)
-                    }
-                    None => (z.to_array(), f32::INFINITY, u32::MAX, [0.0; 3]),
-                }
-            })
-            .collect()
+    let closest_of = |sim: &Similarity, v: usize| -> ([f32; 3], f32, u32, [f32; 3]) {
+        let z = sim.apply(Vec3::from(target.positions[v]));
+        match bvh.closest_point(z.to_array()) {
+            Some((f, b, d)) => {
+                let c = source.faces[f as usize].map(|u| Vec3::from(source.positions[u as usize]));
+                let q = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
+                (q.to_array(), d, f, b)
+            }
+            None => (z.to_array(), f32::INFINITY, u32::MAX, [0.0; 3]),
+        }
     };
+    let stride = (n / ICP_SAMPLES).max(1);
+    let sample: Vec<usize> = (0..n).step_by(stride).collect();
+    let xs: Vec<[f32; 3]> = sample.iter().map(|&v| target.positions[v]).collect();
     for _ in 0..ICP_ROUNDS {
-        let c = closest(&sim);
+        let c: Vec<([f32; 3], f32, u32, [f32; 3])> =
+            sample.par_iter().map(|&v| closest_of(&sim, v)).collect();
         let d: Vec<f32> = c.iter().map(|x| x.1).collect();
         let cut = 3.0 * median(&d).max(0.05 * edge);
         let keep: Vec<bool> = d.iter().map(|&x| x < cut).collect();
         let y: Vec<[f32; 3]> = c.iter().map(|x| x.0).collect();
-        match umeyama(&target.positions, &y, &keep) {
+        match umeyama(&xs, &y, &keep) {
             Some(s) => sim = s,
             None => break,
         }
     }
     // 3. Snap.
-    let c = closest(&sim);
+    let c: Vec<([f32; 3], f32, u32, [f32; 3])> = (0..n)
+        .into_par_iter()
+        .map(|v| closest_of(&sim, v))
+        .collect();
+    // A vertex is on the source where its moved position lies on the surface facing the same
+    // way; the shapes coincide where enough of them are also near their own matches (so the
+    // similarity is the NNF's, not a chance fit), and then every vertex on the source snaps,
+    // the ones the NNF placed badly included.
+    let on: Vec<bool> = (0..n)
+        .into_par_iter()
+        .map(|v| {
+            let (_, d, f, b) = c[v];
+            if f == u32::MAX || d > ON_SURFACE_EDGES * edge {
+                return false;
+            }
+            let face = source.faces[f as usize];
+            let a = face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize;
+            let nt = (sim.rot * Vec3::from(target.normals[v]).as_dvec3()).as_vec3();
+            Vec3::from(source.normals[a]).dot(nt) >= 0.5
+        })
+        .collect();
+    let agreeing = (0..n)
+        .filter(|&v| {
+            on[v]
+                && (Vec3::from(c[v].0) - Vec3::from(matched[v])).length() <= NEAR_MATCH_EDGES * edge
+        })
+        .count();
+    if (agreeing as f64) < MIN_SHARE * n as f64 {
+        return None;
+    }
     let snapped: Vec<Option<PatchMap>> = (0..n)
         .into_par_iter()
         .map(|v| {
-            let (q, d, f, b) = c[v];
-            if f == u32::MAX || d > ON_SURFACE_EDGES * edge {
-                return None;
-            }
-            let q = Vec3::from(q);
-            if (q - Vec3::from(matched[v])).length() > NEAR_MATCH_EDGES * edge {
+            let (_, _, f, b) = c[v];
+            if !on[v] {
                 return None;
             }
             let face = source.faces[f as usize];
             let a = face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize;
-            let ns = Vec3::from(source.normals[a]);
-            let nt = (sim.rot * Vec3::from(target.normals[v]).as_dvec3()).as_vec3();
-            if ns.dot(nt) < 0.5 {
-                return None;
-            }
             let (t1a, t2a) = (
                 Vec3::from(source_frames.t1[a]),
                 Vec3::from(source_frames.t2[a]),
@@ -207,8 +229,7 @@ pub(crate) fn snap_coincident(
             })
         })
         .collect();
-    let share = snapped.iter().filter(|m| m.is_some()).count() as f64 / n as f64;
-    (share >= MIN_SHARE).then_some(snapped)
+    Some(snapped)
 }
 
 fn median(x: &[f32]) -> f32 {

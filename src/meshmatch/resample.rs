@@ -28,7 +28,22 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::PreparedMesh;
-use crate::color::linear_to_srgb;
+/// Linear light -> sRGB through a table of 4096 steps (within 1/255 of the exact curve; the
+/// bake quantises to 8 bits).
+#[inline]
+fn linear_to_srgb(c: f32) -> f32 {
+    static TABLE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    let t = TABLE.get_or_init(|| {
+        (0..=SRGB_STEPS)
+            .map(|i| crate::color::linear_to_srgb(i as f32 / SRGB_STEPS as f32))
+            .collect()
+    });
+    let x = c.clamp(0.0, 1.0) * SRGB_STEPS as f32;
+    let i = (x as usize).min(SRGB_STEPS - 1);
+    let f = x - i as f32;
+    t[i] + (t[i + 1] - t[i]) * f
+}
+const SRGB_STEPS: usize = 4096;
 use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, Frames};
 use crate::geometry::closest_on_triangle;
 use crate::hierarchy::Level;
@@ -471,9 +486,14 @@ pub struct Resampler {
     agree: f32,
     /// Target vertices where the shapes coincide, read exactly ([`super::coincident`]).
     snapped: usize,
+    /// Seconds of each step of [`Resampler::new`].
+    timings: Vec<(&'static str, f64)>,
 }
 
-/// Step 2: every working target face's corner images (see the module doc).
+/// Step 2: every working target face's corner images (see the module doc). A face's corner
+/// `k` maps the face's corners `j`: the vertex itself, or a neighbour along an edge, so the
+/// images are computed once per vertex and per directed edge (about 7 per vertex instead of 9
+/// per face) and gathered per face.
 fn corner_images(
     src: &SourceSurface,
     lt: &Level,
@@ -485,22 +505,47 @@ fn corner_images(
         Look::Texture { mips, .. } => (mips[0].w as f32, mips[0].h as f32),
         Look::Colors => (1.0, 1.0),
     };
+    let adj = &lt.adjacency;
+    // Per vertex: its own image, then one per neighbour in adjacency order.
+    let image = |v: usize, x: Vec3| {
+        let m = &maps[v];
+        let g = map_point(src, &lt.positions, ft, m, v, x);
+        (g.to_array(), src.locate(g, m.anchor))
+    };
+    let per_vertex: Vec<Vec<([f32; 3], Spot)>> = (0..lt.len())
+        .into_par_iter()
+        .map(|v| {
+            if cancel.is_cancelled() {
+                return Vec::new();
+            }
+            std::iter::once(v as u32)
+                .chain(adj.row(v).iter().copied())
+                .map(|u| image(v, Vec3::from(lt.positions[u as usize])))
+                .collect()
+        })
+        .collect();
+    cancel.check()?;
+    let find = |v: usize, u: u32| -> ([f32; 3], Spot) {
+        let row = &per_vertex[v];
+        if u as usize == v {
+            return row[0];
+        }
+        match adj.row(v).binary_search(&u) {
+            Ok(i) if i + 1 < row.len() => row[i + 1],
+            _ => image(v, Vec3::from(lt.positions[u as usize])),
+        }
+    };
     let out: Vec<[CornerImage; 3]> = lt
         .faces
         .par_iter()
         .map(|f| {
-            if cancel.is_cancelled() {
-                return [CornerImage::default(); 3];
-            }
-            let x = f.map(|v| Vec3::from(lt.positions[v as usize]));
             std::array::from_fn(|k| {
                 let v = f[k] as usize;
-                let m = &maps[v];
                 let mut img = CornerImage::default();
-                for (j, &xj) in x.iter().enumerate() {
-                    let g = map_point(src, &lt.positions, ft, m, v, xj);
-                    img.goal[j] = g.to_array();
-                    img.at[j] = src.locate(g, m.anchor);
+                for (j, &u) in f.iter().enumerate() {
+                    let (g, at) = find(v, u);
+                    img.goal[j] = g;
+                    img.at[j] = at;
                 }
                 let c0 = src.chart(&img.at[0]);
                 img.one_chart = (1..3).all(|j| src.chart(&img.at[j]) == c0);
@@ -518,7 +563,6 @@ fn corner_images(
             })
         })
         .collect();
-    cancel.check()?;
     Ok(out)
 }
 
@@ -586,10 +630,14 @@ impl Resampler {
         if nnf.len() != lt.len() {
             return Ok(None);
         }
+        let watch = crate::work::Stopwatch::start();
+        let mut timings = Vec::new();
         let Some(src) = SourceSurface::new(ps) else {
             return Ok(None);
         };
+        timings.push(("source", watch.secs()));
         let mut maps = fit_patch_maps(ps, pt, nnf);
+        timings.push(("patch maps", watch.secs()));
         cancel.check()?;
         let matched = mapped_points(&src, &lt.positions, &pt.frames[0], &maps);
         let snap = super::coincident::snap_coincident(
@@ -608,8 +656,14 @@ impl Resampler {
                 }
             }
         }
+        timings.push(("coincident", watch.secs()));
         cancel.check()?;
         let images = corner_images(&src, lt, &pt.frames[0], &maps, cancel)?;
+        timings.push(("corner images", watch.secs()));
+        // cumulative -> per stage
+        for i in (1..timings.len()).rev() {
+            timings[i].1 -= timings[i - 1].1;
+        }
         let agree = AGREE_EDGES * src.level.mean_edge;
         Ok(Some(Resampler {
             src,
@@ -619,6 +673,7 @@ impl Resampler {
             images,
             agree,
             snapped,
+            timings,
         }))
     }
 
@@ -711,6 +766,11 @@ impl Resampler {
             &self.target_frames,
             &self.maps,
         )
+    }
+
+    /// Seconds of each step of [`Resampler::new`].
+    pub fn timings(&self) -> &[(&'static str, f64)] {
+        &self.timings
     }
 
     /// The share of working target vertices where the target coincides with the source up to a

@@ -31,7 +31,7 @@ pub const DEBOUNCE: Duration = Duration::from_millis(150);
 /// Most undo steps kept.
 pub const UNDO_LIMIT: usize = 100;
 /// Size (pixels per side) of the texture baked on export, as `transfer --texture-size` defaults.
-pub const EXPORT_TEXTURE_SIZE: u32 = 1024;
+pub const EXPORT_TEXTURE_SIZE: u32 = 2048;
 
 /// Parameters the app can edit, save and send to the worker.
 pub trait AppParams:
@@ -439,6 +439,7 @@ impl<P: AppParams> AppState<P> {
                 self.job.finished_secs = Some(elapsed);
                 self.job.outcome = format!("done in {elapsed:.2} s");
                 self.set_target_colors(&result.working_signal);
+                self.show_result_texture(&result);
                 self.result = Some(result);
             }
             WorkerEvent::Cancelled { job } => {
@@ -454,6 +455,26 @@ impl<P: AppParams> AppState<P> {
                     self.report(format!("Transfer failed: {message}"));
                 }
             }
+        }
+    }
+
+    /// Show a finished result at its texture's resolution: the target's working mesh takes the
+    /// result's UVs and texture and is drawn through it, per pixel (until the next partial
+    /// result, which is shown in vertex colours again).
+    fn show_result_texture(&mut self, result: &Solved) {
+        let Some((uvs, texture)) = &result.texture else {
+            return;
+        };
+        if let Some(slot) = self.slot_mut(Side::Target)
+            && let Some(working) = slot.working.as_ref()
+            && uvs.len() == 3 * working.faces.len()
+        {
+            let mut shown = (**working).clone();
+            shown.uvs = Some(uvs.to_vec());
+            shown.texture = Some(texture.clone());
+            slot.working = Some(Arc::new(shown));
+            slot.own_signal = true;
+            slot.geometry_dirty = true;
         }
     }
 
