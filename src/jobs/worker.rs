@@ -34,18 +34,18 @@ pub struct Solved {
     /// The result as a texture in the target's own UV layout, for the view: the UVs of every
     /// working corner and the texture read from the source at full resolution (a target with
     /// UVs and a full-resolution result only).
-    pub texture: Option<(Arc<[[f32; 2]]>, Arc<crate::mesh::Texture>)>,
+    pub texture: Option<ResultTexture>,
 }
+
+/// A result texture and the UVs of every working corner in it.
+pub type ResultTexture = (Arc<[[f32; 2]]>, Arc<crate::mesh::Texture>);
 
 /// Texels per side of the texture a result is shown with: the target's own texture's size
 /// where it has one, else this.
 pub const VIEW_TEXTURE_SIZE: u32 = 2048;
 
 /// The view texture of a solve (see [`Solved::texture`]).
-fn view_texture(
-    target: &TriMesh,
-    solved: &Solved,
-) -> Option<(Arc<[[f32; 2]]>, Arc<crate::mesh::Texture>)> {
+fn view_texture(target: &TriMesh, solved: &Solved) -> Option<ResultTexture> {
     let (layout, full) = (solved.layout.as_ref()?, solved.full.as_ref()?);
     let uvs = layout.working_uvs(target)?;
     let size = target
