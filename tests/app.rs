@@ -1383,7 +1383,8 @@ fn export_delivers_like_transfer_out_a_baked_texture_in_glb_and_the_dense_mesh_i
         .texture
         .as_ref()
         .expect("a .glb of a target with UVs has a texture");
-    assert_eq!(tex.image.dimensions(), (1024, 1024));
+    let side = meshmatch::app::state::EXPORT_TEXTURE_SIZE;
+    assert_eq!(tex.image.dimensions(), (side, side));
     assert!(
         m.colors.is_none(),
         "the texture replaces vertex colours in .glb"

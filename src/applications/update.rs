@@ -6,9 +6,12 @@ use crate::error::{Error, Result};
 use crate::geometry::{TriangleBvh, mean_edge_length, refine_to_density};
 use crate::mesh::TriMesh;
 use crate::mesh::{SignalKind, sample_texture};
-use crate::meshmatch::{Constraints, TransferParams, prepare_pair, solve_constrained};
+use crate::meshmatch::{
+    BakeLayout, Constraints, Resampler, TransferParams, prepare_pair, solve_constrained,
+};
 use crate::work::{CancelToken, Event};
 use glam::Vec3;
+use std::sync::Arc;
 
 /// A new vertex coincides with the old surface when its closest-point distance to it is at most
 /// this fraction of the old mesh's mean edge length.
@@ -27,6 +30,10 @@ pub struct UpdateResult {
     pub energy: f64,
     /// Stage timings (seconds).
     pub timings: Vec<(String, f64)>,
+    /// The result at full resolution, where something changed: the old surface read through
+    /// the solution (exactly where the new surface coincides with it), and where the working
+    /// faces lie in the new mesh's faces, for [`crate::meshmatch::deliver`].
+    pub full: Option<(Arc<Resampler>, Arc<BakeLayout>)>,
 }
 
 /// Colour of the old surface at a closest point (face, barycentric): a corner's own colour, bit
@@ -116,6 +123,7 @@ pub fn update_texture(
     let changed_w: Vec<bool> = copied.iter().map(|c| c.is_none()).collect();
     let changed_in: Vec<bool> = changed_w[..n].to_vec();
     let mut timings = Vec::new();
+    let mut full = None;
     let (out_w, energy) = if !changed_w.iter().any(|&c| c) {
         (copied.iter().map(|c| c.unwrap_or([0.0; 3])).collect(), 0.0)
     } else {
@@ -162,6 +170,16 @@ pub fn update_texture(
                 ),
         );
         timings.extend(r.timings.iter().cloned());
+        let t = std::time::Instant::now();
+        if let Some(res) = Resampler::new(&ps, &pt, &r.nnf, cancel)? {
+            let layout = BakeLayout::of(&pt).through(
+                &refined.source_face,
+                &refined.source_bary,
+                new.faces.len(),
+            );
+            full = Some((Arc::new(res), Arc::new(layout)));
+        }
+        timings.push(("resampler".into(), t.elapsed().as_secs_f64()));
         (
             (0..nw)
                 .map(|v| copied[v].unwrap_or(r.working_signal[f2w[v] as usize]))
@@ -178,5 +196,6 @@ pub fn update_texture(
         working,
         energy,
         timings,
+        full,
     })
 }

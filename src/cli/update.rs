@@ -16,9 +16,14 @@ pub struct UpdateArgs {
     /// The edited mesh.
     #[arg(long)]
     pub new: PathBuf,
-    /// Output: the edited mesh with vertex colours (.ply, .glb, .obj).
+    /// Output: the edited mesh with vertex colours (.ply), or with a texture baked into its UVs
+    /// (or a generated atlas) from the old texture read at full resolution (.glb, .obj).
     #[arg(long)]
     pub out: PathBuf,
+    /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:
+    /// the old mesh's texture's size, else 2048).
+    #[arg(long)]
+    pub texture_size: Option<u32>,
     #[command(flatten)]
     pub solve: SolveArgs,
 }
@@ -32,6 +37,9 @@ impl UpdateArgs {
 
 fn update(a: &UpdateArgs) -> Result<i32> {
     let params = a.solve.params(1.0)?;
+    if let Some(size) = a.texture_size {
+        check_texture_size(size)?;
+    }
     check_outputs(&[&a.old, &a.new], &[("--out", &a.out, OutKind::Mesh)])?;
     let old = load_usable(&a.old)?;
     if old.vertex_signal().is_none() {
@@ -53,14 +61,52 @@ fn update(a: &UpdateArgs) -> Result<i32> {
         t.elapsed().as_secs_f64(),
         r.energy
     );
-    let mut out = new.clone();
-    out.colors = Some(
-        new.file_index
-            .iter()
-            .map(|&f| r.colors[f as usize])
-            .collect(),
-    );
-    out.texture = None;
+    let colors: Vec<[f32; 3]> = new
+        .file_index
+        .iter()
+        .map(|&f| r.colors[f as usize])
+        .collect();
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let out = match &r.full {
+        Some((full, layout)) if !ext.eq_ignore_ascii_case("ply") => {
+            let size = a.texture_size.unwrap_or_else(|| {
+                old.texture
+                    .as_ref()
+                    .map(|t| {
+                        t.image
+                            .width()
+                            .max(t.image.height())
+                            .clamp(1, MAX_TEXTURE_SIZE)
+                    })
+                    .unwrap_or(DEFAULT_TEXTURE_SIZE)
+            });
+            let d = crate::meshmatch::deliver(
+                &new,
+                layout,
+                &[],
+                &colors,
+                ext,
+                size,
+                Some(full),
+                &CancelToken::new(),
+            )?;
+            if let Some(line) = d.atlas_line(size) {
+                eprintln!("{line}");
+            }
+            eprintln!(
+                "baked a {size}x{size} texture, the old one read at full resolution ({:.0}% of the \
+                 surface unchanged, read exactly)",
+                100.0 * full.coincident_share()
+            );
+            d.mesh
+        }
+        _ => {
+            let mut out = new.clone();
+            out.colors = Some(colors);
+            out.texture = None;
+            out
+        }
+    };
     io::save(&out, &a.out)?;
     eprintln!("wrote {}", a.out.display());
     Ok(0)

@@ -54,6 +54,44 @@ impl BakeLayout {
         }
     }
 
+    /// This layout carried one refinement further out: `self` lies in the faces of a mesh that
+    /// was itself made by refining another (`outer_face[f]` and `outer_bary[f]` say where face
+    /// `f` of it lies in that other mesh, which has `input_faces` faces), as when an application
+    /// prepares an already refined copy of the caller's mesh. The result lies in the other mesh.
+    pub fn through(
+        &self,
+        outer_face: &[u32],
+        outer_bary: &[[[f32; 3]; 3]],
+        input_faces: usize,
+    ) -> BakeLayout {
+        let mut face_input = Vec::with_capacity(self.face_input.len());
+        let mut face_bary = Vec::with_capacity(self.face_bary.len());
+        for (&f, cb) in self.face_input.iter().zip(&self.face_bary) {
+            let f = f as usize;
+            let (of, ob) = match (outer_face.get(f), outer_bary.get(f)) {
+                (Some(&of), Some(ob)) => (of, *ob),
+                _ => (0, [[1.0, 0.0, 0.0]; 3]),
+            };
+            face_input.push(of);
+            face_bary.push(cb.map(|b| {
+                let mut out = [0.0f32; 3];
+                for (j, bj) in b.iter().enumerate() {
+                    for (i, o) in out.iter_mut().enumerate() {
+                        *o += bj * ob[j][i];
+                    }
+                }
+                out
+            }));
+        }
+        BakeLayout {
+            working_faces: self.working_faces.clone(),
+            working_vertices: self.working_vertices,
+            face_input,
+            face_bary,
+            input_faces,
+        }
+    }
+
     /// The UVs of every working face's corners in `target`'s UV layout (`target` is the mesh
     /// this layout was made from), or `None` without UVs or for another mesh.
     pub fn working_uvs(&self, target: &TriMesh) -> Option<Vec<[f32; 2]>> {
