@@ -4,6 +4,7 @@
 //! A new subcommand is its file plus one line in the `commands!` list below.
 
 mod bake;
+mod batch;
 mod bench;
 mod common;
 mod complete;
@@ -103,6 +104,9 @@ commands! {
     Curves(curves::CurvesArgs),
     /// Time the transfer's stages at several working resolutions (Spot -> horse from the shared data).
     Bench(bench::BenchArgs),
+    /// Run many subcommands from a job file (TOML or JSON), N at a time, each as a child process,
+    /// with logs, a summary and resume; or write it as an OpenJD job template for a render farm.
+    Batch(batch::BatchArgs),
     /// Render a mesh to a PNG offscreen (headlight Lambert shading, vertex colours or texture).
     #[cfg(feature = "gui")]
     Render(render::RenderArgs),
@@ -144,17 +148,7 @@ pub fn main() -> i32 {
                 let _ = e.print();
                 return e.exit_code();
             }
-            // A bad argument is one line, like every other refusal (clap's own text adds a
-            // usage hint on further lines).
-            let text = e.to_string();
-            let first: Vec<&str> = text
-                .lines()
-                .map(str::trim)
-                .skip_while(|l| l.is_empty())
-                .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
-                .collect();
-            let first = first.join(" ");
-            let first = first.trim_start_matches("error: ");
+            let first = clap_error_line(&e);
             let _ = writeln!(std::io::stderr().lock(), "meshmatch: {first} (see --help)");
             return 2;
         }
@@ -186,6 +180,19 @@ pub fn main() -> i32 {
             if is_broken_pipe(&msg) { 0 } else { 2 }
         }
     }
+}
+
+/// A bad argument as one line, like every other refusal (clap's own text adds a usage hint on
+/// further lines), without clap's "error: " prefix.
+pub(crate) fn clap_error_line(e: &clap::Error) -> String {
+    let text = e.to_string();
+    let first: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .skip_while(|l| l.is_empty())
+        .take_while(|l| !l.is_empty() && !l.starts_with("Usage:"))
+        .collect();
+    first.join(" ").trim_start_matches("error: ").to_string()
 }
 
 /// True for the panic of `print!`/`println!` when stdout is a closed pipe: the reader (e.g.
