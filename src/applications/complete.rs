@@ -5,9 +5,13 @@
 use super::fill_from_known;
 use crate::error::{Error, Result};
 use crate::geometry::refine_to_density;
+use crate::mesh::SignalKind;
 use crate::mesh::TriMesh;
-use crate::meshmatch::{Constraints, TransferParams, prepare_pair, solve_constrained};
+use crate::meshmatch::{
+    BakeLayout, Constraints, Resampler, TransferParams, prepare_pair, solve_constrained,
+};
 use crate::work::{CancelToken, Event};
+use std::sync::Arc;
 
 /// Result of [`complete`].
 #[derive(Clone, Debug)]
@@ -22,6 +26,10 @@ pub struct CompletionResult {
     pub energy: f64,
     /// Stage timings (seconds).
     pub timings: Vec<(String, f64)>,
+    /// The result at full resolution: the example read through the solution (exactly where the
+    /// mesh is painted), and where the working faces lie in the mesh's faces, for
+    /// [`crate::meshmatch::deliver`]. A textured mesh's example carries the texture itself.
+    pub full: Option<(Arc<Resampler>, Arc<BakeLayout>)>,
 }
 
 /// Which file vertices of a painted copy are unpainted: a vertex is unpainted when its colour,
@@ -111,6 +119,7 @@ pub fn complete(
             synthesized: vec![false; n],
             energy: 0.0,
             timings: Vec::new(),
+            full: None,
         });
     }
     // Working mesh: unpainted colours pre-filled from the nearest painted vertex so that
@@ -118,6 +127,12 @@ pub fn complete(
     let mut plain = TriMesh::new(mesh.positions.clone(), mesh.faces.clone());
     plain.colors = Some(fill_from_known(&plain.adjacency(), &base, &painted_in));
     let refined = refine_to_density(&plain, params.vertices);
+    let textured = mesh.signal_kind() == SignalKind::Texture;
+    let sources = if textured {
+        refined.vertex_sources()
+    } else {
+        Vec::new()
+    };
     let wmesh = refined.mesh;
     let nw = wmesh.positions.len();
     let mut painted_w = vec![false; nw];
@@ -129,14 +144,43 @@ pub fn complete(
             painted_w[a as usize] && painted_w[b as usize]
         };
     }
-    let wcols = wmesh.colors.clone().unwrap_or_else(|| vec![[0.0; 3]; nw]);
+    let mut wcols = wmesh.colors.clone().unwrap_or_else(|| vec![[0.0; 3]; nw]);
+    // A textured mesh: the example carries the texture itself (per-corner UVs through the
+    // refinement), and the fixed colours are the texture's at the working vertices.
+    let corner_uv = |wf: usize, c: usize| -> [f32; 2] {
+        let uvs = mesh.uvs.as_deref().unwrap_or(&[]);
+        let f = refined.source_face[wf] as usize;
+        let b = refined.source_bary[wf][c];
+        (0..3).fold([0.0f32; 2], |a, k| {
+            let u = uvs.get(3 * f + k).copied().unwrap_or([0.0; 2]);
+            [a[0] + b[k] * u[0], a[1] + b[k] * u[1]]
+        })
+    };
+    if textured && let Some(tex) = mesh.texture.as_ref() {
+        for (v, (f, b)) in sources.into_iter().enumerate() {
+            if f == u32::MAX {
+                continue;
+            }
+            let uvs = mesh.uvs.as_deref().unwrap_or(&[]);
+            let f = f as usize;
+            let uv = (0..3).fold([0.0f32; 2], |a, k| {
+                let u = uvs.get(3 * f + k).copied().unwrap_or([0.0; 2]);
+                [a[0] + b[k] * u[0], a[1] + b[k] * u[1]]
+            });
+            wcols[v] = crate::mesh::sample_texture(tex, uv);
+        }
+    }
     // Example: the fully painted working faces, compacted.
     let mut remap = vec![u32::MAX; nw];
     let mut spos = Vec::new();
     let mut scol = Vec::new();
     let mut sfaces = Vec::new();
-    for f in &wmesh.faces {
+    let mut suvs = Vec::new();
+    for (wf, f) in wmesh.faces.iter().enumerate() {
         if f.iter().all(|&v| painted_w[v as usize]) {
+            if textured {
+                suvs.extend((0..3).map(|c| corner_uv(wf, c)));
+            }
             let g = f.map(|v| {
                 if remap[v as usize] == u32::MAX {
                     remap[v as usize] = spos.len() as u32;
@@ -154,7 +198,12 @@ pub fn complete(
         ));
     }
     let mut source = TriMesh::new(spos, sfaces);
-    source.colors = Some(scol);
+    if textured {
+        source.uvs = Some(suvs);
+        source.texture = mesh.texture.clone();
+    } else {
+        source.colors = Some(scol);
+    }
     let target = TriMesh::new(wmesh.positions.clone(), wmesh.faces.clone());
     let (ps, pt) = prepare_pair(
         &source,
@@ -178,6 +227,14 @@ pub fn complete(
         .map(|(w, &v)| (w as u32, wcols[v as usize]))
         .collect();
     let r = solve_constrained(&ps, &pt, &[], &Constraints { fixed }, params, sink, cancel)?;
+    let full = Resampler::in_place(&ps, &pt, &r.nnf, cancel)?.map(|res| {
+        let layout = BakeLayout::of(&pt).through(
+            &refined.source_face,
+            &refined.source_bary,
+            mesh.faces.len(),
+        );
+        (Arc::new(res), Arc::new(layout))
+    });
     let f2w = pt.file_to_working();
     let out_w: Vec<[f32; 3]> = (0..nw)
         .map(|v| {
@@ -210,5 +267,6 @@ pub fn complete(
         synthesized: painted_w.iter().map(|&p| !p).collect(),
         energy: r.energy,
         timings,
+        full,
     })
 }

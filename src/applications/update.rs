@@ -171,7 +171,7 @@ pub fn update_texture(
         );
         timings.extend(r.timings.iter().cloned());
         let t = std::time::Instant::now();
-        if let Some(res) = Resampler::new(&ps, &pt, &r.nnf, cancel)? {
+        if let Some(res) = Resampler::in_place(&ps, &pt, &r.nnf, cancel)? {
             let layout = BakeLayout::of(&pt).through(
                 &refined.source_face,
                 &refined.source_bary,

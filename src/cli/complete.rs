@@ -24,9 +24,14 @@ pub struct CompleteArgs {
     /// Clay (unpainted) colour as R,G,B in 0-255, for --painted.
     #[arg(long)]
     pub clay: Option<String>,
-    /// Output mesh with vertex colours (.ply, .glb, .obj).
+    /// Output: the mesh with vertex colours (.ply), or with a texture baked into its UVs (or a
+    /// generated atlas), the example read at full resolution (.glb, .obj).
     #[arg(long)]
     pub out: PathBuf,
+    /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:
+    /// the mesh's texture's size, else 2048).
+    #[arg(long)]
+    pub texture_size: Option<u32>,
     #[command(flatten)]
     pub solve: SolveArgs,
 }
@@ -40,6 +45,9 @@ impl CompleteArgs {
 
 fn complete(a: &CompleteArgs) -> Result<i32> {
     let params = a.solve.params(1.0)?;
+    if let Some(size) = a.texture_size {
+        check_texture_size(size)?;
+    }
     let inputs = input_paths(&[Some(&a.mesh), a.painted.as_ref(), a.mask.as_ref()]);
     check_outputs(&inputs, &[("--out", &a.out, OutKind::Mesh)])?;
     let mut mesh = load_usable(&a.mesh)?;
@@ -88,14 +96,48 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
         t.elapsed().as_secs_f64(),
         r.energy
     );
-    let mut out = mesh.clone();
-    out.colors = Some(
-        mesh.file_index
-            .iter()
-            .map(|&f| r.colors[f as usize])
-            .collect(),
-    );
-    out.texture = None;
+    let colors: Vec<[f32; 3]> = mesh
+        .file_index
+        .iter()
+        .map(|&f| r.colors[f as usize])
+        .collect();
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let out = match &r.full {
+        Some((full, layout)) if !ext.eq_ignore_ascii_case("ply") => {
+            let size = a.texture_size.unwrap_or_else(|| {
+                mesh.texture
+                    .as_ref()
+                    .map(|t| {
+                        t.image
+                            .width()
+                            .max(t.image.height())
+                            .clamp(1, MAX_TEXTURE_SIZE)
+                    })
+                    .unwrap_or(DEFAULT_TEXTURE_SIZE)
+            });
+            let d = crate::meshmatch::deliver(
+                &mesh,
+                layout,
+                &[],
+                &colors,
+                ext,
+                size,
+                Some(full),
+                &CancelToken::new(),
+            )?;
+            if let Some(line) = d.atlas_line(size) {
+                eprintln!("{line}");
+            }
+            eprintln!("baked a {size}x{size} texture, the example read at full resolution");
+            d.mesh
+        }
+        _ => {
+            let mut out = mesh.clone();
+            out.colors = Some(colors);
+            out.texture = None;
+            out
+        }
+    };
     io::save(&out, &a.out)?;
     eprintln!("wrote {}", a.out.display());
     Ok(0)

@@ -146,16 +146,8 @@ pub(crate) fn snap_coincident(
     // 2. ICP against the source surface, on a spread subset of the kept vertices (every
     //    `stride`-th: Morton-ordered working vertices are spread over the surface).
     let bvh = TriangleBvh::new(&source.positions, &source.faces);
-    let closest_of = |sim: &Similarity, v: usize| -> ([f32; 3], f32, u32, [f32; 3]) {
-        let z = sim.apply(Vec3::from(target.positions[v]));
-        match bvh.closest_point(z.to_array()) {
-            Some((f, b, d)) => {
-                let c = source.faces[f as usize].map(|u| Vec3::from(source.positions[u as usize]));
-                let q = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
-                (q.to_array(), d, f, b)
-            }
-            None => (z.to_array(), f32::INFINITY, u32::MAX, [0.0; 3]),
-        }
+    let closest_of = |sim: &Similarity, v: usize| {
+        closest_on(&bvh, source, sim.apply(Vec3::from(target.positions[v])))
     };
     let stride = (n / ICP_SAMPLES).max(1);
     let sample: Vec<usize> = (0..n).step_by(stride).collect();
@@ -173,10 +165,58 @@ pub(crate) fn snap_coincident(
         }
     }
     // 3. Snap.
-    let c: Vec<([f32; 3], f32, u32, [f32; 3])> = (0..n)
-        .into_par_iter()
-        .map(|v| closest_of(&sim, v))
-        .collect();
+    snap(
+        &bvh,
+        source,
+        source_frames,
+        target,
+        target_frames,
+        &sim,
+        Some(matched),
+    )
+}
+
+/// Where the target lies on the source in the same space (an edited copy, a mesh completed from
+/// its own painted part): every target vertex on the source surface, facing the same way, snaps
+/// to the point under it.
+pub(crate) fn snap_in_place(
+    source: &Level,
+    source_frames: &Frames,
+    target: &Level,
+    target_frames: &Frames,
+) -> Option<Vec<Option<PatchMap>>> {
+    let identity = Similarity {
+        rot: DMat3::IDENTITY,
+        scale: 1.0,
+        shift: DVec3::ZERO,
+    };
+    let bvh = TriangleBvh::new(&source.positions, &source.faces);
+    snap(
+        &bvh,
+        source,
+        source_frames,
+        target,
+        target_frames,
+        &identity,
+        None,
+    )
+}
+
+/// Step 3 under the similarity `sim`: with `matched`, only when enough vertices also lie near
+/// their own matches (see the module doc).
+fn snap(
+    bvh: &TriangleBvh,
+    source: &Level,
+    source_frames: &Frames,
+    target: &Level,
+    target_frames: &Frames,
+    sim: &Similarity,
+    matched: Option<&[[f32; 3]]>,
+) -> Option<Vec<Option<PatchMap>>> {
+    let n = target.len();
+    let edge = source.mean_edge.max(1e-12);
+    let closest_of = |v: usize| closest_on(bvh, source, sim.apply(Vec3::from(target.positions[v])));
+    let c: Vec<([f32; 3], f32, u32, [f32; 3])> = (0..n).into_par_iter().map(closest_of).collect();
     // A vertex is on the source where its moved position lies on the surface facing the same
     // way; the shapes coincide where enough of them are also near their own matches (so the
     // similarity is the NNF's, not a chance fit), and then every vertex on the source snaps,
@@ -194,14 +234,17 @@ pub(crate) fn snap_coincident(
             Vec3::from(source.normals[a]).dot(nt) >= 0.5
         })
         .collect();
-    let agreeing = (0..n)
-        .filter(|&v| {
-            on[v]
-                && (Vec3::from(c[v].0) - Vec3::from(matched[v])).length() <= NEAR_MATCH_EDGES * edge
-        })
-        .count();
-    if (agreeing as f64) < MIN_SHARE * n as f64 {
-        return None;
+    if let Some(matched) = matched {
+        let agreeing = (0..n)
+            .filter(|&v| {
+                on[v]
+                    && (Vec3::from(c[v].0) - Vec3::from(matched[v])).length()
+                        <= NEAR_MATCH_EDGES * edge
+            })
+            .count();
+        if (agreeing as f64) < MIN_SHARE * n as f64 {
+            return None;
+        }
     }
     let snapped: Vec<Option<PatchMap>> = (0..n)
         .into_par_iter()
@@ -230,6 +273,19 @@ pub(crate) fn snap_coincident(
         })
         .collect();
     Some(snapped)
+}
+
+/// The closest point of the source surface to `z`: (point, distance, face, barycentric); face
+/// `u32::MAX` when there is none.
+fn closest_on(bvh: &TriangleBvh, source: &Level, z: Vec3) -> ([f32; 3], f32, u32, [f32; 3]) {
+    match bvh.closest_point(z.to_array()) {
+        Some((f, b, d)) => {
+            let c = source.faces[f as usize].map(|u| Vec3::from(source.positions[u as usize]));
+            let q = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
+            (q.to_array(), d, f, b)
+        }
+        None => (z.to_array(), f32::INFINITY, u32::MAX, [0.0; 3]),
+    }
 }
 
 fn median(x: &[f32]) -> f32 {

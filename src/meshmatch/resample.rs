@@ -626,6 +626,29 @@ impl Resampler {
         nnf: &[(u32, u8)],
         cancel: &CancelToken,
     ) -> crate::error::Result<Option<Self>> {
+        Self::build(ps, pt, nnf, false, cancel)
+    }
+
+    /// [`Self::new`] for a target that lies in the same space as the source where they share
+    /// surface (an edited copy of it, a mesh completed from its own painted part): every target
+    /// vertex on the source surface reads the source exactly under it, however little of the
+    /// target that is.
+    pub fn in_place(
+        ps: &PreparedMesh,
+        pt: &PreparedMesh,
+        nnf: &[(u32, u8)],
+        cancel: &CancelToken,
+    ) -> crate::error::Result<Option<Self>> {
+        Self::build(ps, pt, nnf, true, cancel)
+    }
+
+    fn build(
+        ps: &PreparedMesh,
+        pt: &PreparedMesh,
+        nnf: &[(u32, u8)],
+        in_place: bool,
+        cancel: &CancelToken,
+    ) -> crate::error::Result<Option<Self>> {
         let lt = &pt.hierarchy.levels[0];
         if nnf.len() != lt.len() {
             return Ok(None);
@@ -639,14 +662,12 @@ impl Resampler {
         let mut maps = fit_patch_maps(ps, pt, nnf);
         timings.push(("patch maps", watch.secs()));
         cancel.check()?;
-        let matched = mapped_points(&src, &lt.positions, &pt.frames[0], &maps);
-        let snap = super::coincident::snap_coincident(
-            &src.level,
-            &src.frames,
-            lt,
-            &pt.frames[0],
-            &matched,
-        );
+        let snap = if in_place {
+            super::coincident::snap_in_place(&src.level, &src.frames, lt, &pt.frames[0])
+        } else {
+            let matched = mapped_points(&src, &lt.positions, &pt.frames[0], &maps);
+            super::coincident::snap_coincident(&src.level, &src.frames, lt, &pt.frames[0], &matched)
+        };
         let mut snapped = 0;
         if let Some(snap) = snap {
             for (m, s) in maps.iter_mut().zip(snap) {
@@ -682,18 +703,15 @@ impl Resampler {
     /// output texels (it picks the source's mip level; 0 = the finest).
     pub fn sample(&self, wf: usize, bary: [f32; 3], texel_area: f32) -> [f32; 3] {
         let imgs = &self.images[wf];
-        let lead = (0..3)
-            .max_by(|&a, &b| bary[a].total_cmp(&bary[b]))
-            .unwrap_or(0);
         let goal = |k: usize| {
             let g = &imgs[k].goal;
             Vec3::from(g[0]) * bary[0] + Vec3::from(g[1]) * bary[1] + Vec3::from(g[2]) * bary[2]
         };
-        let gl = goal(lead);
-        let mut take = [false; 3];
-        for (k, t) in take.iter_mut().enumerate() {
-            *t = k == lead || (goal(k) - gl).length() < self.agree;
-        }
+        let g = [goal(0), goal(1), goal(2)];
+        let spread = (g[0] - g[1])
+            .length()
+            .max((g[1] - g[2]).length())
+            .max((g[0] - g[2]).length());
         let lod = |k: usize| {
             if texel_area > 0.0 && imgs[k].texel_area > 0.0 {
                 0.5 * (imgs[k].texel_area / texel_area).log2()
@@ -701,40 +719,41 @@ impl Resampler {
                 0.0
             }
         };
-        // One lookup at the blended UV when every agreeing corner stays in the lead's chart.
-        if let Look::Texture { .. } = self.src.look {
-            let chart = self.src.chart(&imgs[lead].at[0]);
-            let same = (0..3).all(|k| {
-                !take[k] || (imgs[k].one_chart && self.src.chart(&imgs[k].at[0]) == chart)
-            });
-            if same {
-                let (mut uv, mut wsum, mut l) = (Vec2::ZERO, 0.0f32, 0.0f32);
-                for k in (0..3).filter(|&k| take[k]) {
-                    let u = &imgs[k].uv;
-                    let p = Vec2::from(u[0]) * bary[0]
-                        + Vec2::from(u[1]) * bary[1]
-                        + Vec2::from(u[2]) * bary[2];
-                    let wk = bary[k].max(1e-6);
-                    uv += wk * p;
-                    l += wk * lod(k);
-                    wsum += wk;
+        let at_uv = |k: usize| {
+            let u = &imgs[k].uv;
+            Vec2::from(u[0]) * bary[0] + Vec2::from(u[1]) * bary[1] + Vec2::from(u[2]) * bary[2]
+        };
+        // Inside a patch the three maps agree: one lookup at their blended UV (the sharpest
+        // reading, and the exact one where the shapes coincide).
+        if let Look::Texture { .. } = self.src.look
+            && spread < self.agree
+        {
+            let chart = self.src.chart(&imgs[0].at[0]);
+            if (0..3).all(|k| imgs[k].one_chart && self.src.chart(&imgs[k].at[0]) == chart) {
+                let (mut uv, mut l) = (Vec2::ZERO, 0.0f32);
+                for (k, &w) in bary.iter().enumerate() {
+                    uv += w * at_uv(k);
+                    l += w * lod(k);
                 }
-                let c = self.src.texel((uv / wsum).to_array(), l / wsum);
-                return c.to_array().map(linear_to_srgb);
+                return self
+                    .src
+                    .texel(uv.to_array(), l)
+                    .to_array()
+                    .map(linear_to_srgb);
             }
         }
+        // Across a patch border (or a chart border of the source) each corner reads the source
+        // through its own map and the readings are blended with squared barycentric weights:
+        // continuous, and within half a triangle of the border each side shows its own patch.
         let (mut acc, mut wsum) = (Vec3::ZERO, 0.0f32);
-        for k in (0..3).filter(|&k| take[k]) {
-            let img = &imgs[k];
+        for (k, img) in imgs.iter().enumerate() {
+            let w = bary[k] * bary[k];
+            if w < 1e-8 {
+                continue;
+            }
             let c = if img.one_chart {
                 match self.src.look {
-                    Look::Texture { .. } => {
-                        let u = &img.uv;
-                        let p = Vec2::from(u[0]) * bary[0]
-                            + Vec2::from(u[1]) * bary[1]
-                            + Vec2::from(u[2]) * bary[2];
-                        self.src.texel(p.to_array(), lod(k))
-                    }
+                    Look::Texture { .. } => self.src.texel(at_uv(k).to_array(), lod(k)),
                     Look::Colors => {
                         let c = &img.col;
                         Vec3::from(c[0]) * bary[0]
@@ -747,12 +766,14 @@ impl Resampler {
                     .max_by(|&a, &b| bary[a].total_cmp(&bary[b]))
                     .unwrap_or(0)]
                 .near;
-                let s = self.src.locate(goal(k), near);
+                let s = self.src.locate(g[k], near);
                 self.src.colour(&s, lod(k))
             };
-            let wk = bary[k].max(1e-6);
-            acc += wk * c;
-            wsum += wk;
+            acc += w * c;
+            wsum += w;
+        }
+        if wsum <= 0.0 {
+            return [0.0; 3];
         }
         (acc / wsum).to_array().map(linear_to_srgb)
     }
