@@ -743,11 +743,12 @@ impl Resampler {
             }
         }
         // Across a patch border (or a chart border of the source) each corner reads the source
-        // through its own map and the readings are blended with squared barycentric weights:
-        // continuous, and within half a triangle of the border each side shows its own patch.
+        // through its own map and the readings are blended with barycentric weights:
+        // continuous, each reading sharp, the border's transition one triangle wide as the
+        // patch synthesis placed it.
         let (mut acc, mut wsum) = (Vec3::ZERO, 0.0f32);
         for (k, img) in imgs.iter().enumerate() {
-            let w = bary[k] * bary[k];
+            let w = bary[k];
             if w < 1e-8 {
                 continue;
             }
