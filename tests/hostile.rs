@@ -1011,3 +1011,80 @@ fn texture_optimisation_flags_are_checked_in_one_line() {
     );
     assert!(!d.join("o.ply").exists());
 }
+
+/// Two outputs, or an output and an input, are compared by where they lead, not how they are
+/// spelt: another spelling of the same folder (`..`, `.`, doubled slashes, a folder that does
+/// not exist yet), a symbolic link on the way or a hard link is refused before any work, in one
+/// line naming both options, and nothing is written or changed. So is an OBJ output's material
+/// file taken by another output, and an output inside a file.
+#[test]
+fn outputs_are_compared_by_where_they_lead_whatever_the_spelling() {
+    let d = scene("spelling");
+    exemplar_png(&d, 16);
+    std::fs::create_dir_all(d.join("kept")).unwrap();
+    std::fs::write(d.join("kept/o.ply"), b"old").unwrap();
+    std::os::unix::fs::symlink("fresh", d.join("link")).unwrap();
+    std::fs::hard_link(d.join("tgt.ply"), d.join("hard.ply")).unwrap();
+    std::fs::write(d.join("afile"), b"a file").unwrap();
+    let transfer = ["transfer", "--source", "src.ply", "--target", "tgt.ply"];
+    let synth = ["synth", "--exemplar", "ex.png", "--target", "tgt.ply"];
+    let weather = ["weather", "--source", "src.ply", "--target", "tgt.ply"];
+    for cmd in [&transfer[..], &synth[..], &weather[..]] {
+        for (out, dense) in [
+            ("fresh/o.ply", "fresh/../fresh/o.ply"),
+            ("./fresh//o.ply", "fresh/o.ply"),
+            ("fresh/o.ply", "link/o.ply"),
+            ("kept/sub/../o.ply", "kept/o.ply"),
+            ("kept/o.ply", "link/../kept/./o.ply"),
+        ] {
+            let args = with(cmd, &["--out", out, "--out-dense", dense]);
+            let (code, err) = run(&d, &args);
+            assert_eq!(code, 2, "{args:?}: {err}");
+            assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+            assert!(
+                err.contains(&format!("--out-dense {dense}"))
+                    && err.contains(&format!("--out {out}")),
+                "{args:?}: should name both options: {err}"
+            );
+            assert!(!d.join("fresh").exists(), "{args:?}: wrote before refusing");
+            assert!(!d.join("kept/sub").exists(), "{args:?}: made a folder");
+            assert_eq!(std::fs::read(d.join("kept/o.ply")).unwrap(), b"old");
+        }
+    }
+    refused(
+        &d,
+        &with(
+            &transfer,
+            &["--out", "o.ply", "--nnf-out", "fresh/../tgt.ply"],
+        ),
+        "input",
+    );
+    refused(&d, &with(&transfer, &["--out", "hard.ply"]), "input");
+    refused(
+        &d,
+        &with(&transfer, &["--out", "o.obj", "--nnf-out", "o.mtl"]),
+        "--out o.obj",
+    );
+    refused(
+        &d,
+        &with(&transfer, &["--out", "o.OBJ", "--out-dense", "o.obj"]),
+        "o.mtl",
+    );
+    for out in ["afile/o.ply", "afile/deeper/o.ply"] {
+        refused(
+            &d,
+            &with(&transfer, &["--out", out]),
+            &format!("--out {out}: afile is a file, not a folder"),
+        );
+    }
+    refused(
+        &d,
+        &["demo", "--out", "afile/demo"],
+        "afile is a file, not a folder",
+    );
+    assert_eq!(std::fs::read(d.join("afile")).unwrap(), b"a file");
+    assert_eq!(
+        std::fs::read(d.join("hard.ply")).unwrap(),
+        std::fs::read(d.join("tgt.ply")).unwrap()
+    );
+}
