@@ -1088,3 +1088,187 @@ fn outputs_are_compared_by_where_they_lead_whatever_the_spelling() {
         std::fs::read(d.join("tgt.ply")).unwrap()
     );
 }
+
+/// Every numeric flag of every subcommand, found in clap's definition of the command line (so a
+/// new flag is covered without being listed), given `-1` as its own word: the refusal must come
+/// from the flag's range check and name the flag (never clap's "unexpected argument '-1'"), in
+/// one line, before any file is read (the inputs here do not exist). Flags for which a negative
+/// number is a valid value get as far as the missing input instead.
+#[test]
+fn minus_one_reaches_the_range_check_of_every_numeric_flag() {
+    use clap::CommandFactory;
+    use std::any::TypeId;
+    let d = tmpdir("minus_one");
+    // The required arguments of each subcommand (inputs that do not exist, fresh outputs).
+    let bases: &[(&str, &[&str])] = &[
+        ("info", &["in.ply"]),
+        ("convert", &["in.ply", "o.ply"]),
+        (
+            "bake",
+            &["--from", "in.ply", "--to", "in2.ply", "--out", "o.glb"],
+        ),
+        ("demo", &["--out", "demo"]),
+        (
+            "transfer",
+            &[
+                "--source", "in.ply", "--target", "in2.ply", "--out", "o.ply",
+            ],
+        ),
+        (
+            "map",
+            &[
+                "--source", "in.ply", "--target", "in2.ply", "--out", "o.csv",
+            ],
+        ),
+        (
+            "synth",
+            &[
+                "--exemplar",
+                "in.png",
+                "--target",
+                "in.ply",
+                "--out",
+                "o.ply",
+            ],
+        ),
+        ("complete", &["--mesh", "in.ply", "--out", "o.ply"]),
+        (
+            "update",
+            &["--old", "in.ply", "--new", "in2.ply", "--out", "o.ply"],
+        ),
+        (
+            "detail",
+            &[
+                "--source", "in.ply", "--target", "in2.ply", "--out", "o.ply",
+            ],
+        ),
+        (
+            "weather",
+            &[
+                "--source", "in.ply", "--target", "in2.ply", "--out", "o.ply",
+            ],
+        ),
+        ("features", &["in.ply", "--out", "o.ply"]),
+        (
+            "quilt",
+            &["--swatch", "studs", "--base", "in.ply", "--out", "o.ply"],
+        ),
+        ("swatch", &["--kind", "studs", "--out", "o.ply"]),
+        ("curves", &["in.ply", "--out", "o.obj"]),
+        ("bench", &["--sizes", "1"]),
+        ("render", &["in.ply", "--out", "o.png"]),
+    ];
+    // Flags whose value is a number or a list of numbers though clap reads them as text or
+    // through a parser of their own.
+    let textual = ["structure", "sizes", "threads", "size"];
+    // Flags for which -1 is a valid value.
+    let negative_ok = ["strength", "azimuth", "elevation"];
+    let numeric = [
+        TypeId::of::<u8>(),
+        TypeId::of::<u16>(),
+        TypeId::of::<u32>(),
+        TypeId::of::<u64>(),
+        TypeId::of::<usize>(),
+        TypeId::of::<i32>(),
+        TypeId::of::<i64>(),
+        TypeId::of::<f32>(),
+        TypeId::of::<f64>(),
+    ];
+    let cli = meshmatch::cli::Cli::command();
+    let mut failures = Vec::new();
+    let mut checked = 0;
+    for sub in cli.get_subcommands() {
+        let name = sub.get_name();
+        for arg in sub.get_arguments() {
+            let Some(long) = arg.get_long() else { continue };
+            let ty = arg.get_value_parser().type_id();
+            if !numeric.iter().any(|t| ty == *t) && !textual.contains(&long) {
+                continue;
+            }
+            let Some((_, base)) = bases.iter().find(|(n, _)| *n == name) else {
+                failures.push(format!("{name}: no base arguments listed in this test"));
+                continue;
+            };
+            // A flag of the base (bench --sizes) is replaced by the one under test.
+            let flag = format!("--{long}");
+            let mut args: Vec<&str> = vec![name];
+            let mut i = 0;
+            while i < base.len() {
+                if base[i] == flag {
+                    i += 2;
+                    continue;
+                }
+                args.push(base[i]);
+                i += 1;
+            }
+            args.extend([flag.as_str(), "-1"]);
+            let (code, err) = run(&d, &args);
+            checked += 1;
+            let line = err.trim_end();
+            let ok = if negative_ok.contains(&long) {
+                code == 2 && line.contains("in.ply") && !line.contains("unexpected")
+            } else {
+                code == 2
+                    && line.lines().count() == 1
+                    && line.contains(&format!("{flag} -1"))
+                    && !line.contains("unexpected")
+            };
+            if !ok {
+                failures.push(format!("{}: exit {code}: {line}", args.join(" ")));
+            }
+        }
+    }
+    assert!(checked >= 21, "only {checked} numeric flags found");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// `detail --vertices` has the lower bound of every MeshMatch command (the hierarchy's coarsest
+/// level): 0 or 1 working vertices would collapse the target. The refusal names the option and
+/// its range, before any work; the library's front door refuses it too.
+#[test]
+fn working_vertices_below_the_coarsest_level_are_refused_by_every_meshmatch_command() {
+    let d = scene("min_vertices");
+    let min = meshmatch::mesh::MIN_WORKING_VERTICES;
+    let max = meshmatch::mesh::MAX_WORKING_VERTICES;
+    let cmds: [&[&str]; 4] = [
+        &[
+            "detail", "--source", "src.ply", "--target", "tgt.ply", "--out", "o.ply",
+        ],
+        &[
+            "transfer", "--source", "src.ply", "--target", "tgt.ply", "--out", "o.ply",
+        ],
+        &["complete", "--mesh", "src.ply", "--out", "o.ply"],
+        &[
+            "update", "--old", "src.ply", "--new", "tgt.ply", "--out", "o.ply",
+        ],
+    ];
+    for cmd in cmds {
+        for v in ["0", "1", "127"] {
+            refused(
+                &d,
+                &with(cmd, &["--vertices", v]),
+                &format!("--vertices {v}: use {min} to {max}"),
+            );
+        }
+        assert!(!d.join("o.ply").exists());
+    }
+    let m = {
+        let (p, f) = meshmatch::testdata::grid(12);
+        meshmatch::TriMesh::new(p, f)
+    };
+    let p = meshmatch::meshmatch::TransferParams {
+        vertices: 1,
+        ..Default::default()
+    };
+    let e = meshmatch::applications::transfer_detail(
+        &m,
+        &m,
+        1.0,
+        &p,
+        &|_| {},
+        &meshmatch::work::CancelToken::new(),
+    )
+    .expect_err("refused")
+    .to_string();
+    assert!(e.contains("--vertices 1"), "{e}");
+}

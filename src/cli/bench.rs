@@ -2,18 +2,22 @@
 
 use crate::error::Result;
 
+/// Most `--cancel-probes`.
+const MAX_CANCEL_PROBES: usize = 1000;
+
 /// Arguments of `meshmatch bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
     /// Working resolutions, e.g. `16k,64k,256k,1m` (each at most 4m).
-    #[arg(long, default_value = "16k,64k")]
+    #[arg(long, default_value = "16k,64k", allow_negative_numbers = true)]
     pub sizes: String,
     /// One JSON object per line per size.
     #[arg(long)]
     pub json: bool,
     /// After each size, cancel that many whole transfers at evenly spaced moments and
     /// report how long each took to stop (at most 1000).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true,
+          value_parser = super::common::whole(0, MAX_CANCEL_PROBES))]
     pub cancel_probes: usize,
     /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
     /// Spot -> horse at each size), features (feature-aligned texturing of a cube of each size,
@@ -25,7 +29,7 @@ pub struct BenchArgs {
     pub system: String,
     /// Worker threads, one run of the whole table per count, e.g. `1,2` for the parallel
     /// scaling of every stage (default: every core).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub threads: Option<String>,
 }
 
@@ -58,9 +62,9 @@ impl BenchArgs {
     }
 
     fn run_once(&self) -> Result<i32> {
-        if self.cancel_probes > 1000 {
+        if self.cancel_probes > MAX_CANCEL_PROBES {
             return Err(crate::error::Error::InvalidInput(format!(
-                "--cancel-probes {}: use 0 to 1000",
+                "--cancel-probes {}: use 0 to {MAX_CANCEL_PROBES}",
                 self.cancel_probes
             )));
         }

@@ -119,6 +119,9 @@ pub fn check_geometry(m: &TriMesh, path: &Path) -> Result<()> {
         }
     }
     let has_area = m.faces.iter().any(|f| {
+        if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
+            return false;
+        }
         let [a, b, c] = f.map(|i| {
             let p = m.positions[i as usize];
             [p[0] as f64, p[1] as f64, p[2] as f64]
@@ -136,7 +139,8 @@ pub fn check_geometry(m: &TriMesh, path: &Path) -> Result<()> {
     });
     if !has_area {
         return Err(Error::InvalidMesh(format!(
-            "{name}: every face has zero area (the vertices coincide or lie on one line)"
+            "{name}: {} degenerate (zero area or repeated vertices)",
+            crate::mesh::all_faces(m.faces.len())
         )));
     }
     let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
@@ -352,6 +356,108 @@ pub fn check_outputs(inputs: &[&Path], outputs: &[(&str, &Path, OutKind)]) -> Re
     Ok(())
 }
 
+/// The parser of a whole-number flag: a number from `lo` to `hi`. Anything else, a negative
+/// number or a fraction included, is refused in one line naming the flag and its range
+/// ("--rays -1: use 1 to 4096 rays per vertex"), before any work; a negative number reaches it
+/// (rather than clap's "unexpected argument") where the flag has `allow_negative_numbers`.
+#[derive(Clone, Copy, Debug)]
+pub struct Whole<T> {
+    lo: T,
+    hi: Option<T>,
+    unit: &'static str,
+}
+
+/// A [`Whole`] from `lo` to `hi`.
+pub const fn whole<T>(lo: T, hi: T) -> Whole<T> {
+    Whole {
+        lo,
+        hi: Some(hi),
+        unit: "",
+    }
+}
+
+/// A [`Whole`] of at least `lo`, as large as the type holds.
+pub const fn at_least<T>(lo: T) -> Whole<T> {
+    Whole {
+        lo,
+        hi: None,
+        unit: "",
+    }
+}
+
+impl<T> Whole<T> {
+    /// What the number counts, for the message ("rays per vertex").
+    pub const fn unit(mut self, unit: &'static str) -> Self {
+        self.unit = unit;
+        self
+    }
+
+    /// The refusal of `value` for `flag`.
+    fn message(&self, flag: &str, value: &str) -> String
+    where
+        T: std::fmt::Display,
+    {
+        let unit = if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {}", self.unit)
+        };
+        match &self.hi {
+            Some(hi) => format!("{flag} {value}: use {} to {hi}{unit}", self.lo),
+            None => format!("{flag} {value}: use {} or more{unit}", self.lo),
+        }
+    }
+}
+
+impl<T> clap::builder::TypedValueParser for Whole<T>
+where
+    T: std::str::FromStr + PartialOrd + std::fmt::Display + Clone + Send + Sync + 'static,
+{
+    type Value = T;
+
+    fn parse_ref(
+        &self,
+        _cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> std::result::Result<T, clap::Error> {
+        let text = value.to_string_lossy();
+        match text.trim().parse::<T>() {
+            Ok(v) if v >= self.lo && self.hi.as_ref().is_none_or(|hi| v <= *hi) => Ok(v),
+            _ => {
+                let flag = arg
+                    .and_then(|a| a.get_long())
+                    .map(|l| format!("--{l}"))
+                    .unwrap_or_else(|| "value".into());
+                Err(clap::Error::raw(
+                    clap::error::ErrorKind::ValueValidation,
+                    format!("{}\n", self.message(&flag, &text)),
+                ))
+            }
+        }
+    }
+}
+
+/// `--vertices` of the MeshMatch commands (`transfer`, `complete`, `update`, `detail`): from the
+/// hierarchy's coarsest level (below it `detail` would collapse its meshes) to the working
+/// budget that `TransferParams::validate` checks.
+pub const VERTICES: Whole<usize> = whole(
+    crate::mesh::MIN_WORKING_VERTICES,
+    crate::mesh::MAX_WORKING_VERTICES,
+)
+.unit("working vertices");
+/// `--levels` of the MeshMatch commands.
+pub const LEVELS: Whole<usize> = whole(1, crate::meshmatch::MAX_LEVELS).unit("levels");
+/// `--iterations` of the MeshMatch commands.
+pub const ITERATIONS: Whole<usize> =
+    whole(0, crate::meshmatch::MAX_ITERATIONS).unit("iterations per level");
+/// Every `--seed`.
+pub const SEED: Whole<u64> = whole(0, u64::MAX);
+/// Every `--texture-size`.
+pub const TEXTURE_SIZE: Whole<u32> = whole(1, MAX_TEXTURE_SIZE).unit("pixels per side");
+/// Every `--rays`.
+pub const RAYS: Whole<usize> = whole(1, MAX_RAYS).unit("rays per vertex");
+
 /// Most occlusion rays per vertex accepted by `--rays`.
 pub const MAX_RAYS: usize = 4096;
 
@@ -448,21 +554,22 @@ pub fn parse_rgb(s: &str) -> Result<[f32; 3]> {
 /// Solver settings shared by `complete`, `update` and `detail`.
 #[derive(clap::Args, Debug)]
 pub struct SolveArgs {
-    /// Working resolution (vertices; coarser meshes are refined to it), at most 4,000,000.
-    #[arg(long, default_value_t = 64_000)]
+    /// Working resolution (vertices; coarser meshes are refined to it), 128 to 4,000,000.
+    #[arg(long, default_value_t = 64_000, allow_negative_numbers = true,
+          value_parser = VERTICES)]
     pub vertices: usize,
     /// Number of hierarchy levels, 1 to 16 (default: down to about 128 vertices).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = LEVELS)]
     pub levels: Option<usize>,
     /// EM iterations per level at most, 0 to 1000.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, allow_negative_numbers = true, value_parser = ITERATIONS)]
     pub iterations: usize,
     /// A level stops iterating once an iteration lowers its energy by less than this fraction
     /// (0 = always run every iteration).
-    #[arg(long, default_value_t = crate::meshmatch::DEFAULT_TOLERANCE)]
+    #[arg(long, default_value_t = crate::meshmatch::DEFAULT_TOLERANCE, allow_negative_numbers = true)]
     pub tolerance: f32,
     /// Random seed (runs with the same seed are identical).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = SEED)]
     pub seed: u64,
     /// Weight of shape features against colour (1 = equal); finite, 0 or more.
     #[arg(long, allow_hyphen_values = true)]

@@ -253,6 +253,15 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     max_v.check(pos.len(), "vertex", path)?;
     max_vt.check(tex.len(), "texture coordinate", path)?;
     max_vn.check(nrm.len(), "normal", path)?;
+    if short_faces > 0 && faces.is_empty() {
+        return Err(Error::format(
+            path,
+            format!(
+                "{} degenerate (fewer than 3 vertices)",
+                crate::mesh::all_faces(short_faces)
+            ),
+        ));
+    }
     if short_faces > 0 {
         warn(format!(
             "{}: skipped {short_faces} faces with fewer than 3 vertices",

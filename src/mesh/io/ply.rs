@@ -579,6 +579,15 @@ pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     if !have_vertices {
         return Err(Error::format(path, "no vertex element"));
     }
+    if short_faces > 0 && faces.is_empty() {
+        return Err(Error::format(
+            path,
+            format!(
+                "{} degenerate (fewer than 3 vertices)",
+                crate::mesh::all_faces(short_faces)
+            ),
+        ));
+    }
     if short_faces > 0 {
         super::warn(format!(
             "{}: skipped {short_faces} faces with fewer than 3 vertices",
