@@ -1272,3 +1272,26 @@ fn working_vertices_below_the_coarsest_level_are_refused_by_every_meshmatch_comm
     .to_string();
     assert!(e.contains("--vertices 1"), "{e}");
 }
+
+/// `bench --threads` beyond what memory allows is refused up front in one line, like a working
+/// size beyond it, instead of aborting when the 200th worker thread's buffers cannot be had.
+#[test]
+fn thread_counts_beyond_the_memory_limit_are_refused_before_work() {
+    let d = tmpdir("bench_threads");
+    let t0 = Instant::now();
+    let out = run_under_memory_limit(&d, 4_000_000, "bench --sizes 1k --threads 1,256");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("--threads 256") && err.contains("MiB of memory"),
+        "{err}"
+    );
+    // refused before the first count's run: nothing on stdout
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(t0.elapsed() < Duration::from_secs(10));
+}

@@ -50,6 +50,25 @@ impl BenchArgs {
                 }
             }
         }
+        // Every worker thread takes memory of its own besides the work's: refuse up front what
+        // cannot fit, as the working sizes are (an allocation failing on the 200th thread
+        // aborts the process).
+        let sizes = crate::bench::parse_sizes(&self.sizes)?;
+        let work = if self.system == "meshmatch" {
+            let largest = sizes.iter().copied().max().unwrap_or(0) as u64;
+            largest.saturating_mul(crate::meshmatch::WORKING_VERTEX_BYTES)
+        } else {
+            0
+        };
+        for &n in &counts {
+            crate::work::check_memory(
+                (n as u64)
+                    .saturating_mul(crate::work::per_thread_bytes())
+                    .saturating_add(work),
+                &format!("--threads {n} (each worker thread with its own buffers)"),
+                "use fewer --threads",
+            )?;
+        }
         for n in counts {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
