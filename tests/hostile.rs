@@ -3,15 +3,15 @@
 //! Every case must end in exit 0 or 2 with a one-line error, within a time bound, and must not
 //! damage a file.
 
+mod scratch;
+use scratch::Scratch;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meshmatch-hostile-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tmpdir(name: &str) -> Scratch {
+    Scratch::new(&format!("hostile-{name}"))
 }
 
 /// Exit code and stderr of `meshmatch args`, killed (and the test failed) after `limit`.
@@ -160,7 +160,7 @@ fn plain(i: usize, j: usize) -> String {
 }
 
 /// `src.ply` (coloured), `tgt.ply` and a few hostile variants in a fresh folder.
-fn scene(name: &str) -> PathBuf {
+fn scene(name: &str) -> Scratch {
     let d = tmpdir(name);
     grid_ply(&d.join("src.ply"), 10, true, plain);
     grid_ply(&d.join("tgt.ply"), 10, false, plain);

@@ -1,19 +1,19 @@
 //! Loader/exporter tests on the shared real meshes: documented counts, the tristrip cow, round
 //! trips through PLY/OBJ/GLB/glTF, Spot's texture signal, and bad inputs.
 
+mod scratch;
+use scratch::Scratch;
+
 use meshmatch::TriMesh;
 use meshmatch::color::srgb_to_lab;
 use meshmatch::mesh::io::{self, GlbOptions};
 use meshmatch::testdata::data_path;
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A fresh scratch directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meshmatch_io_{}_{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(name: &str) -> Scratch {
+    Scratch::new(&format!("io-{name}"))
 }
 
 fn load(rel: &str) -> TriMesh {
