@@ -90,7 +90,7 @@ pub fn parse_sizes(s: &str) -> Result<Vec<usize>> {
                 .map(|v| v as usize)
                 .ok_or_else(|| {
                     crate::error::Error::InvalidInput(format!(
-                        "--sizes: cannot use '{t}' (use e.g. 16k,64k; each from 1 to {max} vertices)"
+                        "--sizes {s}: cannot use '{t}' (use e.g. 16k,64k; each from 1 to {max} vertices)"
                     ))
                 })
         })

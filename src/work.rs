@@ -205,6 +205,31 @@ pub fn memory_limit() -> Option<u64> {
     }
 }
 
+/// Memory each worker thread takes of its own, whatever the work: its stack and the packing
+/// buffers of dense matrix products (faer's products keep two buffers the size of the
+/// last-level cache on every thread that multiplies, so on a CPU with a 260 MiB L3 a thread
+/// takes 520 MiB of address space). The cache size is read from `/sys`; 32 MiB where unknown.
+pub fn per_thread_bytes() -> u64 {
+    let llc = (0..8)
+        .filter_map(|i| {
+            let dir = format!("/sys/devices/system/cpu/cpu0/cache/index{i}");
+            let size = std::fs::read_to_string(format!("{dir}/size")).ok()?;
+            let size = size.trim();
+            let (num, mul) = match size.strip_suffix('K') {
+                Some(n) => (n, 1u64 << 10),
+                None => match size.strip_suffix('M') {
+                    Some(n) => (n, 1 << 20),
+                    None => (size, 1),
+                },
+            };
+            num.parse::<u64>().ok().map(|n| n.saturating_mul(mul))
+        })
+        .max()
+        .unwrap_or(32 << 20);
+    // the stack (2 MiB) and room for the allocator's per-thread arenas
+    llc.saturating_mul(2).saturating_add(8 << 20)
+}
+
 /// Refuse work that needs more memory than this process may use ([`memory_limit`]), before any
 /// of it is allocated: `need` bytes for `what` ("400000 working vertices", "a 8192x8192
 /// texture"), with `advice` for the user ("use fewer --vertices"). Systems call it with their

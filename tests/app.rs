@@ -1,7 +1,11 @@
 //! The app driven through its UI (egui_kittest, no window) and its state: correspondences added,
 //! moved and deleted by simulated clicks, one-to-many, undo/redo, parameter edits restarting the
 //! transfer, progressive results, cancel, and errors from bad files shown as messages.
+
 #![cfg(feature = "gui")]
+
+mod scratch;
+use scratch::Scratch;
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -434,8 +438,7 @@ fn cancel_stops_a_running_job_quickly() {
 
 #[test]
 fn a_bad_file_shows_a_dismissable_error_and_the_app_keeps_running() {
-    let dir = std::env::temp_dir().join(format!("meshmatch_app_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("app");
     let bad = dir.join("broken.ply");
     std::fs::write(
         &bad,
@@ -471,8 +474,7 @@ fn a_bad_file_shows_a_dismissable_error_and_the_app_keeps_running() {
 
 #[test]
 fn session_round_trip_keeps_correspondences_and_params() {
-    let dir = std::env::temp_dir().join(format!("meshmatch_session_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("session");
     let (src, tgt) = (dir.join("src.ply"), dir.join("tgt.ply"));
     meshmatch::mesh::io::save(&sphere(10, 12), &src).unwrap();
     meshmatch::mesh::io::save(&sphere(12, 14), &tgt).unwrap();
@@ -846,7 +848,8 @@ fn paint_with_exemplar_streams_partials_resembles_the_exemplar_and_undo_restores
     );
 
     // A file that is not an image: a dismissable error, no panic, colours untouched.
-    let bad = std::env::temp_dir().join(format!("meshmatch_not_image_{}.png", std::process::id()));
+    let scratch = Scratch::new("not_image");
+    let bad = scratch.join("not_image.png");
     std::fs::write(&bad, b"not an image").unwrap();
     let shown = h.state().state.slot(Side::Target).unwrap().display_colors();
     h.state_mut().open_exemplar_dialog(Some(bad.clone()));
@@ -903,10 +906,8 @@ fn reordering_app() -> App {
     )
 }
 
-fn temp_dir(name: &str) -> std::path::PathBuf {
-    let dir = std::env::temp_dir().join(format!("meshmatch_{name}_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn temp_dir(name: &str) -> Scratch {
+    Scratch::new(name)
 }
 
 /// A sphere with (constant) UVs, so that a texture can be applied to it.
@@ -1634,7 +1635,7 @@ fn markers_are_spheres_in_the_views_that_the_mesh_hides() {
 
 #[test]
 fn file_open_works_without_a_system_dialog_through_the_built_in_browser() {
-    let dir = std::env::temp_dir().join(format!("meshmatch_browser_{}", std::process::id()));
+    let dir = Scratch::new("browser");
     let sub = dir.join("meshes");
     std::fs::create_dir_all(&sub).unwrap();
     let mesh = sub.join("ball.ply");
@@ -2306,7 +2307,8 @@ fn paint_with_exemplar_into_a_texture_textures_the_mesh_through_its_uvs_and_undo
     let before = app.state.slot(Side::Target).unwrap().displayed().clone();
     let own = before.texture.clone().expect("Spot is textured");
     // A small green speckle exemplar: few texels, a short run.
-    let ex = std::env::temp_dir().join(format!("meshmatch_tex_ex_{}.png", std::process::id()));
+    let scratch = Scratch::new("tex_ex");
+    let ex = scratch.join("ex.png");
     image::RgbImage::from_fn(48, 48, |x, y| {
         let h = ((x * 73 + y * 151) % 29) as u8;
         image::Rgb([20 + h, 150 + h, 30 + h])

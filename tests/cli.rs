@@ -1,6 +1,9 @@
 //! End-to-end tests of the `meshmatch` command line: `info` on every shared mesh, bad inputs,
 //! `convert`, `demo`, `synth`.
 
+mod scratch;
+use scratch::Scratch;
+
 use meshmatch::testdata::data_path;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -9,10 +12,8 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_meshmatch"))
 }
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meshmatch-cli-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tmpdir(name: &str) -> Scratch {
+    Scratch::new(&format!("cli-{name}"))
 }
 
 fn info_json(path: &Path) -> serde_json::Value {

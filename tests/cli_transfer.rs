@@ -1,19 +1,20 @@
 //! `meshmatch transfer` end to end: outputs in the target's own vertex order, the NNF CSV, the
 //! dense mesh, baked textures, and clean failures on bad correspondences.
 
+mod scratch;
+use scratch::Scratch;
+
 use meshmatch::mesh::io;
 use meshmatch::testdata::data_path;
-use std::path::PathBuf;
+
 use std::process::Command;
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_meshmatch"))
 }
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meshmatch-transfer-{name}-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tmpdir(name: &str) -> Scratch {
+    Scratch::new(&format!("transfer-{name}"))
 }
 
 #[test]

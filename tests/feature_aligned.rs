@@ -2,6 +2,9 @@
 //! recall), the curve-guided field runs along the curves, and synthesis driven by it lays stripes
 //! along the field. Meshes and exemplars are generated here.
 
+mod scratch;
+use scratch::Scratch;
+
 use std::collections::HashMap;
 use std::time::Instant;
 
@@ -646,8 +649,7 @@ fn stripes_run_along_the_feature_field() {
 #[test]
 fn cli_curves_and_synth_features() {
     use clap::Parser;
-    let dir = std::env::temp_dir().join(format!("meshmatch-xu-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("xu-cli");
     let mesh = cube(8, |q| q);
     let obj = dir.join("cube.obj");
     let mut s = String::new();

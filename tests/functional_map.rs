@@ -1,6 +1,9 @@
 //! Global intrinsic shape map (functional maps + ZoomOut) on the SMPL bodies, which share
 //! connectivity (man vertex i ↔ woman vertex i is the ground truth).
 
+mod scratch;
+use scratch::Scratch;
+
 use meshmatch::geometry::{FmapParams, refine_to_density, shape_map};
 use meshmatch::mesh::TriMesh;
 use meshmatch::testdata::data_path;
@@ -263,8 +266,7 @@ fn transfer_man_to_woman_lands_colours_better_with_the_map() {
 
 #[test]
 fn map_command_writes_every_target_vertex_within_tolerance() {
-    let dir = std::env::temp_dir().join(format!("meshmatch-map-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("map");
     let corr = meshmatch::correspondence::CorrespondenceFile {
         correspondences: same_vertex_pairs(&EXTREMITIES),
     };

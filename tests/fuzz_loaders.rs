@@ -5,6 +5,9 @@
 //! input must give `Ok` with a consistent mesh or `Err` with a one-line message naming the
 //! file, never a panic. `PROPTEST_CASES=20000` runs a long campaign.
 
+mod scratch;
+use scratch::Scratch;
+
 use meshmatch::TriMesh;
 use meshmatch::mesh::io;
 use meshmatch::testdata::data_path;
@@ -65,8 +68,7 @@ fn seeds() -> &'static Seeds {
     static S: OnceLock<Seeds> = OnceLock::new();
     S.get_or_init(|| {
         let read = |rel: &str| std::fs::read(data_path(rel)).unwrap();
-        let dir = std::env::temp_dir().join(format!("meshmatch_fuzz_{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = Scratch::new("fuzz");
         // A small textured, coloured mesh with UV seams: a cube-ish fan cut from the cow.
         let mut m = io::load(&data_path("cow/cow.ply")).unwrap();
         m.faces.truncate(300);

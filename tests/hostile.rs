@@ -3,15 +3,15 @@
 //! Every case must end in exit 0 or 2 with a one-line error, within a time bound, and must not
 //! damage a file.
 
+mod scratch;
+use scratch::Scratch;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meshmatch-hostile-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tmpdir(name: &str) -> Scratch {
+    Scratch::new(&format!("hostile-{name}"))
 }
 
 /// Exit code and stderr of `meshmatch args`, killed (and the test failed) after `limit`.
@@ -160,7 +160,7 @@ fn plain(i: usize, j: usize) -> String {
 }
 
 /// `src.ply` (coloured), `tgt.ply` and a few hostile variants in a fresh folder.
-fn scene(name: &str) -> PathBuf {
+fn scene(name: &str) -> Scratch {
     let d = tmpdir(name);
     grid_ply(&d.join("src.ply"), 10, true, plain);
     grid_ply(&d.join("tgt.ply"), 10, false, plain);
@@ -1010,4 +1010,288 @@ fn texture_optimisation_flags_are_checked_in_one_line() {
         "no salient curve",
     );
     assert!(!d.join("o.ply").exists());
+}
+
+/// Two outputs, or an output and an input, are compared by where they lead, not how they are
+/// spelt: another spelling of the same folder (`..`, `.`, doubled slashes, a folder that does
+/// not exist yet), a symbolic link on the way or a hard link is refused before any work, in one
+/// line naming both options, and nothing is written or changed. So is an OBJ output's material
+/// file taken by another output, and an output inside a file.
+#[test]
+fn outputs_are_compared_by_where_they_lead_whatever_the_spelling() {
+    let d = scene("spelling");
+    exemplar_png(&d, 16);
+    std::fs::create_dir_all(d.join("kept")).unwrap();
+    std::fs::write(d.join("kept/o.ply"), b"old").unwrap();
+    std::os::unix::fs::symlink("fresh", d.join("link")).unwrap();
+    std::fs::hard_link(d.join("tgt.ply"), d.join("hard.ply")).unwrap();
+    std::fs::write(d.join("afile"), b"a file").unwrap();
+    let transfer = ["transfer", "--source", "src.ply", "--target", "tgt.ply"];
+    let synth = ["synth", "--exemplar", "ex.png", "--target", "tgt.ply"];
+    let weather = ["weather", "--source", "src.ply", "--target", "tgt.ply"];
+    for cmd in [&transfer[..], &synth[..], &weather[..]] {
+        for (out, dense) in [
+            ("fresh/o.ply", "fresh/../fresh/o.ply"),
+            ("./fresh//o.ply", "fresh/o.ply"),
+            ("fresh/o.ply", "link/o.ply"),
+            ("kept/sub/../o.ply", "kept/o.ply"),
+            ("kept/o.ply", "link/../kept/./o.ply"),
+        ] {
+            let args = with(cmd, &["--out", out, "--out-dense", dense]);
+            let (code, err) = run(&d, &args);
+            assert_eq!(code, 2, "{args:?}: {err}");
+            assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
+            assert!(
+                err.contains(&format!("--out-dense {dense}"))
+                    && err.contains(&format!("--out {out}")),
+                "{args:?}: should name both options: {err}"
+            );
+            assert!(!d.join("fresh").exists(), "{args:?}: wrote before refusing");
+            assert!(!d.join("kept/sub").exists(), "{args:?}: made a folder");
+            assert_eq!(std::fs::read(d.join("kept/o.ply")).unwrap(), b"old");
+        }
+    }
+    refused(
+        &d,
+        &with(
+            &transfer,
+            &["--out", "o.ply", "--nnf-out", "fresh/../tgt.ply"],
+        ),
+        "input",
+    );
+    refused(&d, &with(&transfer, &["--out", "hard.ply"]), "input");
+    refused(
+        &d,
+        &with(&transfer, &["--out", "o.obj", "--nnf-out", "o.mtl"]),
+        "--out o.obj",
+    );
+    refused(
+        &d,
+        &with(&transfer, &["--out", "o.OBJ", "--out-dense", "o.obj"]),
+        "o.mtl",
+    );
+    for out in ["afile/o.ply", "afile/deeper/o.ply"] {
+        refused(
+            &d,
+            &with(&transfer, &["--out", out]),
+            &format!("--out {out}: afile is a file, not a folder"),
+        );
+    }
+    refused(
+        &d,
+        &["demo", "--out", "afile/demo"],
+        "afile is a file, not a folder",
+    );
+    assert_eq!(std::fs::read(d.join("afile")).unwrap(), b"a file");
+    assert_eq!(
+        std::fs::read(d.join("hard.ply")).unwrap(),
+        std::fs::read(d.join("tgt.ply")).unwrap()
+    );
+}
+
+/// Every numeric flag of every subcommand, found in clap's definition of the command line (so a
+/// new flag is covered without being listed), given `-1` as its own word: the refusal must come
+/// from the flag's range check and name the flag (never clap's "unexpected argument '-1'"), in
+/// one line, before any file is read (the inputs here do not exist). Flags for which a negative
+/// number is a valid value get as far as the missing input instead.
+#[test]
+fn minus_one_reaches_the_range_check_of_every_numeric_flag() {
+    use clap::CommandFactory;
+    use std::any::TypeId;
+    let d = tmpdir("minus_one");
+    // The required arguments of each subcommand (inputs that do not exist, fresh outputs).
+    let bases: &[(&str, &[&str])] = &[
+        ("info", &["in.ply"]),
+        ("convert", &["in.ply", "o.ply"]),
+        (
+            "bake",
+            &["--from", "in.ply", "--to", "in2.ply", "--out", "o.glb"],
+        ),
+        ("demo", &["--out", "demo"]),
+        (
+            "transfer",
+            &[
+                "--source", "in.ply", "--target", "in2.ply", "--out", "o.ply",
+            ],
+        ),
+        (
+            "map",
+            &[
+                "--source", "in.ply", "--target", "in2.ply", "--out", "o.csv",
+            ],
+        ),
+        (
+            "synth",
+            &[
+                "--exemplar",
+                "in.png",
+                "--target",
+                "in.ply",
+                "--out",
+                "o.ply",
+            ],
+        ),
+        ("complete", &["--mesh", "in.ply", "--out", "o.ply"]),
+        (
+            "update",
+            &["--old", "in.ply", "--new", "in2.ply", "--out", "o.ply"],
+        ),
+        (
+            "detail",
+            &[
+                "--source", "in.ply", "--target", "in2.ply", "--out", "o.ply",
+            ],
+        ),
+        (
+            "weather",
+            &[
+                "--source", "in.ply", "--target", "in2.ply", "--out", "o.ply",
+            ],
+        ),
+        ("features", &["in.ply", "--out", "o.ply"]),
+        (
+            "quilt",
+            &["--swatch", "studs", "--base", "in.ply", "--out", "o.ply"],
+        ),
+        ("swatch", &["--kind", "studs", "--out", "o.ply"]),
+        ("curves", &["in.ply", "--out", "o.obj"]),
+        ("bench", &["--sizes", "1"]),
+        ("render", &["in.ply", "--out", "o.png"]),
+    ];
+    // Flags whose value is a number or a list of numbers though clap reads them as text or
+    // through a parser of their own.
+    let textual = ["structure", "sizes", "threads", "size"];
+    // Flags for which -1 is a valid value.
+    let negative_ok = ["strength", "azimuth", "elevation"];
+    let numeric = [
+        TypeId::of::<u8>(),
+        TypeId::of::<u16>(),
+        TypeId::of::<u32>(),
+        TypeId::of::<u64>(),
+        TypeId::of::<usize>(),
+        TypeId::of::<i32>(),
+        TypeId::of::<i64>(),
+        TypeId::of::<f32>(),
+        TypeId::of::<f64>(),
+    ];
+    let cli = meshmatch::cli::Cli::command();
+    let mut failures = Vec::new();
+    let mut checked = 0;
+    for sub in cli.get_subcommands() {
+        let name = sub.get_name();
+        for arg in sub.get_arguments() {
+            let Some(long) = arg.get_long() else { continue };
+            let ty = arg.get_value_parser().type_id();
+            if !numeric.iter().any(|t| ty == *t) && !textual.contains(&long) {
+                continue;
+            }
+            let Some((_, base)) = bases.iter().find(|(n, _)| *n == name) else {
+                failures.push(format!("{name}: no base arguments listed in this test"));
+                continue;
+            };
+            // A flag of the base (bench --sizes) is replaced by the one under test.
+            let flag = format!("--{long}");
+            let mut args: Vec<&str> = vec![name];
+            let mut i = 0;
+            while i < base.len() {
+                if base[i] == flag {
+                    i += 2;
+                    continue;
+                }
+                args.push(base[i]);
+                i += 1;
+            }
+            args.extend([flag.as_str(), "-1"]);
+            let (code, err) = run(&d, &args);
+            checked += 1;
+            let line = err.trim_end();
+            let ok = if negative_ok.contains(&long) {
+                code == 2 && line.contains("in.ply") && !line.contains("unexpected")
+            } else {
+                code == 2
+                    && line.lines().count() == 1
+                    && line.contains(&format!("{flag} -1"))
+                    && !line.contains("unexpected")
+            };
+            if !ok {
+                failures.push(format!("{}: exit {code}: {line}", args.join(" ")));
+            }
+        }
+    }
+    assert!(checked >= 21, "only {checked} numeric flags found");
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// `detail --vertices` has the lower bound of every MeshMatch command (the hierarchy's coarsest
+/// level): 0 or 1 working vertices would collapse the target. The refusal names the option and
+/// its range, before any work; the library's front door refuses it too.
+#[test]
+fn working_vertices_below_the_coarsest_level_are_refused_by_every_meshmatch_command() {
+    let d = scene("min_vertices");
+    let min = meshmatch::mesh::MIN_WORKING_VERTICES;
+    let max = meshmatch::mesh::MAX_WORKING_VERTICES;
+    let cmds: [&[&str]; 4] = [
+        &[
+            "detail", "--source", "src.ply", "--target", "tgt.ply", "--out", "o.ply",
+        ],
+        &[
+            "transfer", "--source", "src.ply", "--target", "tgt.ply", "--out", "o.ply",
+        ],
+        &["complete", "--mesh", "src.ply", "--out", "o.ply"],
+        &[
+            "update", "--old", "src.ply", "--new", "tgt.ply", "--out", "o.ply",
+        ],
+    ];
+    for cmd in cmds {
+        for v in ["0", "1", "127"] {
+            refused(
+                &d,
+                &with(cmd, &["--vertices", v]),
+                &format!("--vertices {v}: use {min} to {max}"),
+            );
+        }
+        assert!(!d.join("o.ply").exists());
+    }
+    let m = {
+        let (p, f) = meshmatch::testdata::grid(12);
+        meshmatch::TriMesh::new(p, f)
+    };
+    let p = meshmatch::meshmatch::TransferParams {
+        vertices: 1,
+        ..Default::default()
+    };
+    let e = meshmatch::applications::transfer_detail(
+        &m,
+        &m,
+        1.0,
+        &p,
+        &|_| {},
+        &meshmatch::work::CancelToken::new(),
+    )
+    .expect_err("refused")
+    .to_string();
+    assert!(e.contains("--vertices 1"), "{e}");
+}
+
+/// `bench --threads` beyond what memory allows is refused up front in one line, like a working
+/// size beyond it, instead of aborting when the 200th worker thread's buffers cannot be had.
+#[test]
+fn thread_counts_beyond_the_memory_limit_are_refused_before_work() {
+    let d = tmpdir("bench_threads");
+    let t0 = Instant::now();
+    let out = run_under_memory_limit(&d, 4_000_000, "bench --sizes 1k --threads 1,256");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("--threads 256") && err.contains("MiB of memory"),
+        "{err}"
+    );
+    // refused before the first count's run: nothing on stdout
+    assert!(
+        out.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(t0.elapsed() < Duration::from_secs(10));
 }

@@ -1,19 +1,19 @@
 //! Loader/exporter tests on the shared real meshes: documented counts, the tristrip cow, round
 //! trips through PLY/OBJ/GLB/glTF, Spot's texture signal, and bad inputs.
 
+mod scratch;
+use scratch::Scratch;
+
 use meshmatch::TriMesh;
 use meshmatch::color::srgb_to_lab;
 use meshmatch::mesh::io::{self, GlbOptions};
 use meshmatch::testdata::data_path;
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A fresh scratch directory for one test.
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meshmatch_io_{}_{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn scratch(name: &str) -> Scratch {
+    Scratch::new(&format!("io-{name}"))
 }
 
 fn load(rel: &str) -> TriMesh {
@@ -961,4 +961,51 @@ fn repair_reports_counts_and_keeps_the_map_to_file_indices() {
     assert_eq!(m.faces, vec![[0, 1, 2], [1, 3, 2]]);
     assert_eq!(m.positions[0], [0.0, 0.0, 0.0]);
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A failed export leaves nothing behind: an OBJ's material file and texture (and a PLY's
+/// texture) are written with the mesh as one, under temporary names renamed together, so when
+/// the mesh itself cannot be written (here its name is taken by a folder) neither sidecar nor
+/// temporary remains, and an existing sidecar is not replaced.
+#[test]
+fn a_failed_export_leaves_no_sidecar_behind() {
+    let d = scratch("failed_export");
+    let mut m = TriMesh::new(
+        vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+        vec![[0, 1, 2]],
+    );
+    m.uvs = Some(vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]);
+    m.texture = Some(std::sync::Arc::new(meshmatch::mesh::Texture {
+        image: image::RgbImage::from_pixel(4, 4, image::Rgb([200, 10, 10])),
+        path: None,
+    }));
+    let listing = || {
+        let mut v: Vec<String> = std::fs::read_dir(&d)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    for name in ["o.obj", "p.ply"] {
+        std::fs::create_dir_all(d.join(name)).unwrap();
+    }
+    std::fs::write(d.join("o_texture.png"), b"old").unwrap();
+    assert!(io::save(&m, &d.join("o.obj")).is_err());
+    assert!(io::save(&m, &d.join("p.ply")).is_err());
+    assert_eq!(listing(), ["o.obj", "o_texture.png", "p.ply"]);
+    assert_eq!(std::fs::read(d.join("o_texture.png")).unwrap(), b"old");
+    // and a successful one writes all three
+    io::save(&m, &d.join("ok.obj")).unwrap();
+    assert_eq!(
+        listing(),
+        [
+            "o.obj",
+            "o_texture.png",
+            "ok.mtl",
+            "ok.obj",
+            "ok_texture.png",
+            "p.ply"
+        ]
+    );
 }

@@ -1,6 +1,9 @@
 //! Mesh quilting (Zhou et al. 2006): integrity, coverage, shell, non-overlap, planar
 //! reproduction, errors, writers.
 
+mod scratch;
+use scratch::Scratch;
+
 use std::collections::HashMap;
 
 use glam::Vec3;
@@ -600,8 +603,7 @@ fn field_orients_the_swatch_and_writers_round_trip() {
         }
         v0 += nv;
     }
-    let dir = std::env::temp_dir().join(format!("meshmatch_quilt_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("quilt");
     let obj = dir.join("q.obj");
     quilting::save_quilt_obj(&out, Some(&base), &obj).unwrap();
     let text = std::fs::read_to_string(&obj).unwrap();

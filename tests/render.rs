@@ -1,5 +1,9 @@
 //! Offscreen rendering: a coloured mesh renders to a PNG that shows its colours.
+
 #![cfg(feature = "gui")]
+
+mod scratch;
+use scratch::Scratch;
 
 use meshmatch::TriMesh;
 use meshmatch::render::{
@@ -61,8 +65,7 @@ fn is_blue(p: &image::Rgba<u8>) -> bool {
 fn half_red_half_blue_sphere_renders_both_colours_on_background() {
     let mesh = sphere(32, 64);
     let colors = half_red_half_blue(&mesh);
-    let dir = std::env::temp_dir().join(format!("meshmatch_render_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = Scratch::new("render");
     let out = dir.join("sphere.png");
     let opts = RenderOptions {
         azimuth_deg: 0.0,

@@ -3,12 +3,14 @@
 //! failure leaves every file as it was and no temporary behind. (Its own test binary: the group
 //! is process-wide.)
 
+mod scratch;
+use scratch::Scratch;
+
 use meshmatch::mesh::io::{StagedWrites, write_atomic};
 
 #[test]
 fn a_failed_command_replaces_nothing_and_a_committed_one_replaces_everything() {
-    let d = std::env::temp_dir().join(format!("meshmatch-staged-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
+    let d = Scratch::new("staged");
     let (a, b) = (d.join("a.ply"), d.join("b.csv"));
     std::fs::write(&a, "old a").unwrap();
     std::fs::write(&b, "old b").unwrap();

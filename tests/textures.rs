@@ -1,6 +1,9 @@
 //! Textures as artists use them: a UV atlas generated for a mesh without UVs, a result baked
 //! into it and exported, read back and sampled where the surface is.
 
+mod scratch;
+use scratch::Scratch;
+
 use meshmatch::TriMesh;
 use meshmatch::geometry::{mip_chain, refine_to_density, sample_bilinear};
 use meshmatch::mesh::io;
@@ -209,10 +212,8 @@ fn a_target_that_has_uvs_keeps_them() {
     assert!(ply.mesh.texture.is_none() && ply.atlas.is_none());
 }
 
-fn tempfile_dir(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("meshmatch_textures_{name}_{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
+fn tempfile_dir(name: &str) -> Scratch {
+    Scratch::new(&format!("textures-{name}"))
 }
 
 #[test]

@@ -137,6 +137,18 @@ pub fn transfer_detail(
     cancel: &CancelToken,
 ) -> Result<DetailResult> {
     params.validate()?;
+    // Both meshes are simplified or refined to `vertices`: fewer than the hierarchy's coarsest
+    // level would collapse them.
+    let (min_v, max_v) = (
+        crate::mesh::MIN_WORKING_VERTICES,
+        crate::mesh::MAX_WORKING_VERTICES,
+    );
+    if params.vertices < min_v {
+        return Err(Error::InvalidInput(format!(
+            "--vertices {}: use {min_v} to {max_v} working vertices",
+            params.vertices
+        )));
+    }
     // No global shape map here (detail is synthesised from the source's statistics, not its layout).
     let params = &TransferParams {
         structure: Some(0.0),

@@ -23,7 +23,7 @@ pub struct BakeArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Side of the baked texture in pixels.
-    #[arg(long, default_value_t = 2048)]
+    #[arg(long, default_value_t = 2048, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: u32,
     /// Lay out a new atlas even if the mesh has UVs (overlapping or tiled UVs bake badly).
     #[arg(long)]

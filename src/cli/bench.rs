@@ -2,18 +2,22 @@
 
 use crate::error::Result;
 
+/// Most `--cancel-probes`.
+const MAX_CANCEL_PROBES: usize = 1000;
+
 /// Arguments of `meshmatch bench`.
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
     /// Working resolutions, e.g. `16k,64k,256k,1m` (each at most 4m).
-    #[arg(long, default_value = "16k,64k")]
+    #[arg(long, default_value = "16k,64k", allow_negative_numbers = true)]
     pub sizes: String,
     /// One JSON object per line per size.
     #[arg(long)]
     pub json: bool,
     /// After each size, cancel that many whole transfers at evenly spaced moments and
     /// report how long each took to stop (at most 1000).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true,
+          value_parser = super::common::whole(0, MAX_CANCEL_PROBES))]
     pub cancel_probes: usize,
     /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
     /// Spot -> horse at each size), features (feature-aligned texturing of a cube of each size,
@@ -27,7 +31,7 @@ pub struct BenchArgs {
     pub system: String,
     /// Worker threads, one run of the whole table per count, e.g. `1,2` for the parallel
     /// scaling of every stage (default: every core).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub threads: Option<String>,
 }
 
@@ -48,6 +52,25 @@ impl BenchArgs {
                 }
             }
         }
+        // Every worker thread takes memory of its own besides the work's: refuse up front what
+        // cannot fit, as the working sizes are (an allocation failing on the 200th thread
+        // aborts the process).
+        let sizes = crate::bench::parse_sizes(&self.sizes)?;
+        let work = if self.system == "meshmatch" {
+            let largest = sizes.iter().copied().max().unwrap_or(0) as u64;
+            largest.saturating_mul(crate::meshmatch::WORKING_VERTEX_BYTES)
+        } else {
+            0
+        };
+        for &n in &counts {
+            crate::work::check_memory(
+                (n as u64)
+                    .saturating_mul(crate::work::per_thread_bytes())
+                    .saturating_add(work),
+                &format!("--threads {n} (each worker thread with its own buffers)"),
+                "use fewer --threads",
+            )?;
+        }
         for n in counts {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
@@ -60,9 +83,9 @@ impl BenchArgs {
     }
 
     fn run_once(&self) -> Result<i32> {
-        if self.cancel_probes > 1000 {
+        if self.cancel_probes > MAX_CANCEL_PROBES {
             return Err(crate::error::Error::InvalidInput(format!(
-                "--cancel-probes {}: use 0 to 1000",
+                "--cancel-probes {}: use 0 to {MAX_CANCEL_PROBES}",
                 self.cancel_probes
             )));
         }

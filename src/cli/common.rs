@@ -119,6 +119,9 @@ pub fn check_geometry(m: &TriMesh, path: &Path) -> Result<()> {
         }
     }
     let has_area = m.faces.iter().any(|f| {
+        if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
+            return false;
+        }
         let [a, b, c] = f.map(|i| {
             let p = m.positions[i as usize];
             [p[0] as f64, p[1] as f64, p[2] as f64]
@@ -136,7 +139,8 @@ pub fn check_geometry(m: &TriMesh, path: &Path) -> Result<()> {
     });
     if !has_area {
         return Err(Error::InvalidMesh(format!(
-            "{name}: every face has zero area (the vertices coincide or lie on one line)"
+            "{name}: {} degenerate (zero area or repeated vertices)",
+            crate::mesh::all_faces(m.faces.len())
         )));
     }
     let diag = (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt();
@@ -166,31 +170,118 @@ pub fn input_paths<'a>(paths: &[Option<&'a std::path::PathBuf>]) -> Vec<&'a Path
     paths.iter().flatten().map(|p| p.as_path()).collect()
 }
 
-/// The identity of a path for comparisons: canonical when it exists, else its canonical folder
-/// joined with its name, else the absolute path.
-fn identity(p: &Path) -> std::path::PathBuf {
-    if let Ok(c) = std::fs::canonicalize(p) {
-        return c;
-    }
-    if let (Some(dir), Some(name)) = (p.parent(), p.file_name()) {
-        let dir = if dir.as_os_str().is_empty() {
-            Path::new(".")
-        } else {
-            dir
-        };
-        if let Ok(c) = std::fs::canonicalize(dir) {
-            return c.join(name);
-        }
-    }
-    std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf())
+/// Where a path leads, for comparing outputs with inputs and with each other whatever the
+/// spelling (`out/o.ply`, `./out//o.ply`, `out/../out/o.ply`) or the links on the way: the path
+/// resolved one component at a time as the system will once its folders exist (symbolic links
+/// followed, dangling ones included; `..` after a folder that does not exist yet undoes it),
+/// plus the device and inode of the file when it exists (a hard link is the same file under
+/// another name).
+#[derive(Debug)]
+struct Location {
+    path: std::path::PathBuf,
+    inode: Option<(u64, u64)>,
 }
 
-/// Check every output before any work: the extension its kind needs, not a directory, distinct
-/// from every input and from each other (`outputs` are `(flag, path, kind)`); then create their
-/// folders. A command that passes this writes nothing until its work has succeeded.
+impl Location {
+    fn same(&self, other: &Location) -> bool {
+        self.path == other.path || (self.inode.is_some() && self.inode == other.inode)
+    }
+}
+
+/// The [`Location`] of `p`; an error naming `flag` when a folder on its way is a file
+/// ("--out a/b.ply: a is a file, not a folder").
+fn locate(flag: &str, p: &Path) -> Result<Location> {
+    use std::collections::VecDeque;
+    use std::os::unix::fs::MetadataExt as _;
+    use std::path::{Component, PathBuf};
+    let inode = std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()));
+    let start = if p.is_absolute() {
+        PathBuf::from("/")
+    } else {
+        std::env::current_dir().map_err(|e| Error::io(Path::new("."), e))?
+    };
+    // (component, the user's spelling of the path up to it; None inside a link's target)
+    let mut queue: VecDeque<(PathBuf, Option<PathBuf>)> = VecDeque::new();
+    let mut shown = PathBuf::new();
+    for c in p.components() {
+        shown.push(c);
+        queue.push_back((PathBuf::from(c.as_os_str()), Some(shown.clone())));
+    }
+    let mut path = start;
+    let mut links = 0;
+    while let Some((c, spelt)) = queue.pop_front() {
+        match c.components().next() {
+            Some(Component::RootDir) => path = PathBuf::from("/"),
+            Some(Component::ParentDir) => {
+                path.pop();
+            }
+            Some(Component::Normal(n)) => {
+                let next = path.join(n);
+                match std::fs::symlink_metadata(&next) {
+                    Ok(m) if m.file_type().is_symlink() && links < 40 => {
+                        links += 1;
+                        let target = std::fs::read_link(&next).map_err(|e| Error::io(&next, e))?;
+                        // The link's own spelling names where its target ends.
+                        let mut last = spelt;
+                        for t in target.components().rev() {
+                            queue.push_front((PathBuf::from(t.as_os_str()), last.take()));
+                        }
+                        continue;
+                    }
+                    Ok(m) if !m.is_dir() && !queue.is_empty() => {
+                        let name = spelt.unwrap_or_else(|| next.clone());
+                        return Err(Error::InvalidInput(format!(
+                            "{flag} {}: {} is a file, not a folder",
+                            p.display(),
+                            name.display()
+                        )));
+                    }
+                    _ => path = next,
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(Location { path, inode })
+}
+
+/// The files an output writes beside itself when its mesh has a texture: an OBJ's material
+/// file and texture (`<stem>.mtl`, `<stem>_texture.png`), a PLY's texture; no other output may
+/// take their names.
+fn sidecars(p: &Path) -> Vec<(&'static str, std::path::PathBuf)> {
+    let ext = p
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let Some(stem) = p.file_stem().map(|s| s.to_string_lossy().into_owned()) else {
+        return Vec::new();
+    };
+    let texture = ("texture", p.with_file_name(format!("{stem}_texture.png")));
+    match ext.as_deref() {
+        Some("obj") => vec![
+            ("material file", p.with_file_name(format!("{stem}.mtl"))),
+            texture,
+        ],
+        Some("ply") => vec![texture],
+        _ => Vec::new(),
+    }
+}
+
+/// Check every output before any work: the extension its kind needs, not a directory, its
+/// folder not a file, and distinct from every input and from each other (and from the files an
+/// OBJ output writes beside itself) by where it leads, not how it is spelt (`outputs` are
+/// `(flag, path, kind)`); then create their folders. A command that passes this writes nothing
+/// until its work has succeeded.
 pub fn check_outputs(inputs: &[&Path], outputs: &[(&str, &Path, OutKind)]) -> Result<()> {
-    let ins: Vec<_> = inputs.iter().map(|p| identity(p)).collect();
-    let mut seen: Vec<(&str, std::path::PathBuf)> = Vec::new();
+    let mut ins = Vec::with_capacity(inputs.len());
+    for p in inputs {
+        // An input's folder being a file fails when it is read, with the reader's message.
+        if let Ok(l) = locate("", p) {
+            ins.push(l);
+        }
+    }
+    // (what claims it, its location): each output and the files it writes beside itself.
+    let mut seen: Vec<(String, Location)> = Vec::new();
     for &(flag, p, kind) in outputs {
         let ext = p
             .extension()
@@ -223,28 +314,149 @@ pub fn check_outputs(inputs: &[&Path], outputs: &[(&str, &Path, OutKind)]) -> Re
                 p.display()
             )));
         }
-        let id = identity(p);
-        if ins.contains(&id) {
+        let here = locate(flag, p)?;
+        if ins.iter().any(|i| i.same(&here)) {
             return Err(Error::InvalidInput(format!(
                 "{flag} {}: is also an input of this command; write elsewhere",
                 p.display()
             )));
         }
-        if let Some((other, _)) = seen.iter().find(|(_, q)| *q == id) {
+        if let Some((other, _)) = seen.iter().find(|(_, q)| q.same(&here)) {
             return Err(Error::InvalidInput(format!(
                 "{flag} {}: the same file as {other}; give each output its own path",
                 p.display()
             )));
         }
-        seen.push((flag, id));
+        let mut mine = Vec::new();
+        for (what, side) in sidecars(p) {
+            let l = locate(flag, &side)?;
+            if let Some((other, _)) = seen.iter().find(|(_, q)| q.same(&l)) {
+                return Err(Error::InvalidInput(format!(
+                    "{flag} {}: its {what} {} is the same file as {other}; give each output its \
+                     own name",
+                    p.display(),
+                    side.display()
+                )));
+            }
+            mine.push((format!("the {what} of {flag} {}", p.display()), l));
+        }
+        seen.push((format!("{flag} {}", p.display()), here));
+        seen.extend(mine);
     }
-    for &(_, p, _) in outputs {
+    for &(flag, p, _) in outputs {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            std::fs::create_dir_all(dir).map_err(|e| {
+                Error::InvalidInput(format!(
+                    "{flag} {}: cannot create its folder ({e})",
+                    p.display()
+                ))
+            })?;
         }
     }
     Ok(())
 }
+
+/// The parser of a whole-number flag: a number from `lo` to `hi`. Anything else, a negative
+/// number or a fraction included, is refused in one line naming the flag and its range
+/// ("--rays -1: use 1 to 4096 rays per vertex"), before any work; a negative number reaches it
+/// (rather than clap's "unexpected argument") where the flag has `allow_negative_numbers`.
+#[derive(Clone, Copy, Debug)]
+pub struct Whole<T> {
+    lo: T,
+    hi: Option<T>,
+    unit: &'static str,
+}
+
+/// A [`Whole`] from `lo` to `hi`.
+pub const fn whole<T>(lo: T, hi: T) -> Whole<T> {
+    Whole {
+        lo,
+        hi: Some(hi),
+        unit: "",
+    }
+}
+
+/// A [`Whole`] of at least `lo`, as large as the type holds.
+pub const fn at_least<T>(lo: T) -> Whole<T> {
+    Whole {
+        lo,
+        hi: None,
+        unit: "",
+    }
+}
+
+impl<T> Whole<T> {
+    /// What the number counts, for the message ("rays per vertex").
+    pub const fn unit(mut self, unit: &'static str) -> Self {
+        self.unit = unit;
+        self
+    }
+
+    /// The refusal of `value` for `flag`.
+    fn message(&self, flag: &str, value: &str) -> String
+    where
+        T: std::fmt::Display,
+    {
+        let unit = if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {}", self.unit)
+        };
+        match &self.hi {
+            Some(hi) => format!("{flag} {value}: use {} to {hi}{unit}", self.lo),
+            None => format!("{flag} {value}: use {} or more{unit}", self.lo),
+        }
+    }
+}
+
+impl<T> clap::builder::TypedValueParser for Whole<T>
+where
+    T: std::str::FromStr + PartialOrd + std::fmt::Display + Clone + Send + Sync + 'static,
+{
+    type Value = T;
+
+    fn parse_ref(
+        &self,
+        _cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> std::result::Result<T, clap::Error> {
+        let text = value.to_string_lossy();
+        match text.trim().parse::<T>() {
+            Ok(v) if v >= self.lo && self.hi.as_ref().is_none_or(|hi| v <= *hi) => Ok(v),
+            _ => {
+                let flag = arg
+                    .and_then(|a| a.get_long())
+                    .map(|l| format!("--{l}"))
+                    .unwrap_or_else(|| "value".into());
+                Err(clap::Error::raw(
+                    clap::error::ErrorKind::ValueValidation,
+                    format!("{}\n", self.message(&flag, &text)),
+                ))
+            }
+        }
+    }
+}
+
+/// `--vertices` of the MeshMatch commands (`transfer`, `complete`, `update`, `detail`): from the
+/// hierarchy's coarsest level (below it `detail` would collapse its meshes) to the working
+/// budget that `TransferParams::validate` checks.
+pub const VERTICES: Whole<usize> = whole(
+    crate::mesh::MIN_WORKING_VERTICES,
+    crate::mesh::MAX_WORKING_VERTICES,
+)
+.unit("working vertices");
+/// `--levels` of the MeshMatch commands.
+pub const LEVELS: Whole<usize> = whole(1, crate::meshmatch::MAX_LEVELS).unit("levels");
+/// `--iterations` of the MeshMatch commands.
+pub const ITERATIONS: Whole<usize> =
+    whole(0, crate::meshmatch::MAX_ITERATIONS).unit("iterations per level");
+/// Every `--seed`.
+pub const SEED: Whole<u64> = whole(0, u64::MAX);
+/// Every `--texture-size`.
+pub const TEXTURE_SIZE: Whole<u32> = whole(1, MAX_TEXTURE_SIZE).unit("pixels per side");
+/// Every `--rays`.
+pub const RAYS: Whole<usize> = whole(1, MAX_RAYS).unit("rays per vertex");
 
 /// Most occlusion rays per vertex accepted by `--rays`.
 pub const MAX_RAYS: usize = 4096;
@@ -346,21 +558,22 @@ pub fn parse_rgb(s: &str) -> Result<[f32; 3]> {
 /// Solver settings shared by `complete`, `update` and `detail`.
 #[derive(clap::Args, Debug)]
 pub struct SolveArgs {
-    /// Working resolution (vertices; coarser meshes are refined to it), at most 4,000,000.
-    #[arg(long, default_value_t = 64_000)]
+    /// Working resolution (vertices; coarser meshes are refined to it), 128 to 4,000,000.
+    #[arg(long, default_value_t = 64_000, allow_negative_numbers = true,
+          value_parser = VERTICES)]
     pub vertices: usize,
     /// Number of hierarchy levels, 1 to 16 (default: down to about 128 vertices).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = LEVELS)]
     pub levels: Option<usize>,
     /// EM iterations per level at most, 0 to 1000.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, allow_negative_numbers = true, value_parser = ITERATIONS)]
     pub iterations: usize,
     /// A level stops iterating once an iteration lowers its energy by less than this fraction
     /// (0 = always run every iteration).
-    #[arg(long, default_value_t = crate::meshmatch::DEFAULT_TOLERANCE)]
+    #[arg(long, default_value_t = crate::meshmatch::DEFAULT_TOLERANCE, allow_negative_numbers = true)]
     pub tolerance: f32,
     /// Random seed (runs with the same seed are identical).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = SEED)]
     pub seed: u64,
     /// Weight of shape features against colour (1 = equal); finite, 0 or more.
     #[arg(long, allow_hyphen_values = true)]

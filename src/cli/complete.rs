@@ -30,7 +30,7 @@ pub struct CompleteArgs {
     pub out: PathBuf,
     /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:
     /// the mesh's texture's size, else 2048).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: Option<u32>,
     #[command(flatten)]
     pub solve: SolveArgs,

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use super::common::*;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geometry::{CurveKind, CurveParams, salient_curves};
 
 /// Arguments of `meshmatch curves`.
@@ -17,13 +17,13 @@ pub struct CurvesArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Minimum strength of a curve, `∫ |k| ds` (dimensionless).
-    #[arg(long, default_value_t = CurveParams::default().threshold)]
+    #[arg(long, default_value_t = CurveParams::default().threshold, allow_negative_numbers = true)]
     pub threshold: f32,
     /// Minimum curve length in mesh units (default: 5 mean edge lengths).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub min_length: Option<f32>,
     /// Dihedral angle (degrees) above which an edge is a sharp crease (180 = none).
-    #[arg(long, default_value_t = CurveParams::default().crease_angle_deg)]
+    #[arg(long, default_value_t = CurveParams::default().crease_angle_deg, allow_negative_numbers = true)]
     pub crease_angle: f32,
     /// Creases only (no ridges or ravines).
     #[arg(long)]
@@ -36,6 +36,25 @@ pub struct CurvesArgs {
 impl CurvesArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
+        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
+            return Err(Error::InvalidInput(format!(
+                "--threshold {}: use a finite number, 0 or more",
+                self.threshold
+            )));
+        }
+        if let Some(l) = self.min_length
+            && !(l.is_finite() && l > 0.0)
+        {
+            return Err(Error::InvalidInput(format!(
+                "--min-length {l}: use a positive length in mesh units"
+            )));
+        }
+        if !(0.0..=180.0).contains(&self.crease_angle) {
+            return Err(Error::InvalidInput(format!(
+                "--crease-angle {}: use 0 to 180 degrees",
+                self.crease_angle
+            )));
+        }
         check_outputs(
             &[self.mesh.as_path()],
             &[("--out", self.out.as_path(), OutKind::File)],

@@ -21,6 +21,16 @@ impl DemoArgs {
 }
 
 fn demo(out: &Path) -> Result<i32> {
+    if let Some(file) = out
+        .ancestors()
+        .find(|a| !a.as_os_str().is_empty() && a.exists() && !a.is_dir())
+    {
+        return Err(Error::InvalidInput(format!(
+            "--out {}: {} is a file, not a folder",
+            out.display(),
+            file.display()
+        )));
+    }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let t = std::time::Instant::now();
     let scene = crate::demo::scene();
@@ -54,9 +64,11 @@ fn demo(out: &Path) -> Result<i32> {
         block.num_faces()
     );
     let path = out.join("line.png");
+    let mut png = Vec::new();
     crate::demo::line_exemplar()
-        .save(&path)
+        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .map_err(|e| Error::InvalidInput(format!("{}: {e}", path.display())))?;
+    io::write_atomic(&path, &png)?;
     println!("{}", path.display());
     // The default correspondences the app starts with, for `meshmatch transfer --correspondences`.
     let zebra_marks = crate::demo::landmarks_zebra();

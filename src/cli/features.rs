@@ -27,10 +27,10 @@ pub struct FeaturesArgs {
     #[arg(long, default_value = "y")]
     pub up: String,
     /// Occlusion rays per vertex, 1 to 4096.
-    #[arg(long, default_value_t = Params::default().rays)]
+    #[arg(long, default_value_t = Params::default().rays, allow_negative_numbers = true, value_parser = RAYS)]
     pub rays: usize,
     /// Random seed (ray directions).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = SEED)]
     pub seed: u64,
 }
 

@@ -138,7 +138,7 @@ pub fn main() -> i32 {
     let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) => {
-            use clap::error::ErrorKind;
+            use clap::error::{ContextKind, ContextValue, ErrorKind};
             if matches!(
                 e.kind(),
                 ErrorKind::DisplayHelp
@@ -147,6 +147,19 @@ pub fn main() -> i32 {
             ) {
                 let _ = e.print();
                 return e.exit_code();
+            }
+            // A value refused by a flag's own parser reads like every other range check:
+            // "--structure 2: use auto or ...".
+            if e.kind() == ErrorKind::ValueValidation
+                && let (Some(ContextValue::String(arg)), Some(ContextValue::String(value))) = (
+                    e.get(ContextKind::InvalidArg),
+                    e.get(ContextKind::InvalidValue),
+                )
+                && let Some(why) = std::error::Error::source(&e)
+            {
+                let flag = arg.split_whitespace().next().unwrap_or(arg);
+                let _ = writeln!(std::io::stderr().lock(), "meshmatch: {flag} {value}: {why}");
+                return 2;
             }
             let first = clap_error_line(&e);
             let _ = writeln!(std::io::stderr().lock(), "meshmatch: {first} (see --help)");

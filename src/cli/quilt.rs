@@ -26,10 +26,10 @@ pub struct QuiltArgs {
     pub out: PathBuf,
     /// Swatch width (its x extent) in base units; default a tenth of the base's bounding-box
     /// diagonal.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub swatch_size: Option<f32>,
     /// Shell thickness in base units; default the swatch height scaled like its width.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub thickness: Option<f32>,
     /// Which axis of a swatch file points away from the surface: x, y or z.
     #[arg(long, default_value = "z")]
@@ -38,7 +38,7 @@ pub struct QuiltArgs {
     #[arg(long)]
     pub elements_only: bool,
     /// Random seed.
-    #[arg(long, default_value_t = Params::default().seed)]
+    #[arg(long, default_value_t = Params::default().seed, allow_negative_numbers = true, value_parser = super::common::SEED)]
     pub seed: u64,
     /// Merge threads (elongated elements) that continue each other across patch seams:
     /// deform both half-way and stitch them into one instead of dropping one copy. Slower;
@@ -195,7 +195,7 @@ pub struct SwatchArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Random seed (jitter of nuts and scales).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true, value_parser = super::common::SEED)]
     pub seed: u64,
 }
 

@@ -20,7 +20,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
     pub elevation: f32,
     /// Image size as WxH, each 1 to 8192.
-    #[arg(long, default_value = "800x600")]
+    #[arg(long, default_value = "800x600", allow_negative_numbers = true)]
     pub size: String,
     /// Draw the wireframe over the shading.
     #[arg(long)]
@@ -114,7 +114,11 @@ fn render_markers(
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32)> {
-    let bad = || Error::InvalidInput(format!("--size {s}: expected WxH, e.g. 800x600"));
+    let bad = || {
+        Error::InvalidInput(format!(
+            "--size {s}: expected WxH, each 1 to 8192 pixels, e.g. 800x600"
+        ))
+    };
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let (w, h): (u32, u32) = (
         w.trim().parse().map_err(|_| bad())?,

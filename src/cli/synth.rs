@@ -25,19 +25,20 @@ pub struct SynthArgs {
     #[arg(long)]
     pub out_dense: Option<PathBuf>,
     /// Side of the baked texture in pixels (textured outputs).
-    #[arg(long, default_value_t = 2048)]
+    #[arg(long, default_value_t = 2048, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: u32,
     /// Mesh units spanned by the exemplar's width (default: a quarter of the bounding-box
     /// diagonal); positive, finite.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub scale: Option<f32>,
     /// Shrink the exemplar to at most this many pixels wide first (aspect kept): the texel
     /// spacing is scale / width, so this sets the synthesized vertex count (grows with its square).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = at_least(MIN_EXEMPLAR_WIDTH).unit("pixels"))]
     pub exemplar_width: Option<u32>,
     /// Most vertices to synthesize: without --exemplar-width, a larger exemplar is shrunk until
     /// the texel spacing fits this budget (stderr says what was chosen); 1,000 to 2,000,000.
-    #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET)]
+    #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET, allow_negative_numbers = true,
+          value_parser = whole(MIN_VERTEX_BUDGET, MAX_BUDGET).unit("vertices"))]
     pub vertex_budget: usize,
     /// Texture orientation field: auto (from the exemplar's anisotropy: random, relax2 or
     /// relax4; stderr says which), random (isotropic textures), up
@@ -46,7 +47,7 @@ pub struct SynthArgs {
     #[arg(long, default_value = crate::synthesis::Orientation::default().as_str())]
     pub orientation: String,
     /// Pyramid levels, 1 to 12.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, allow_negative_numbers = true, value_parser = whole(1, MAX_PYRAMID_LEVELS))]
     pub levels: usize,
     /// Vertex indices (file numbering, one per line) to synthesize; the rest keep their colours.
     #[arg(long)]
@@ -55,7 +56,7 @@ pub struct SynthArgs {
     #[arg(long, default_value = crate::synthesis::Search::default().as_str())]
     pub search: String,
     /// Random seed.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = SEED)]
     pub seed: u64,
     /// Treat the exemplar as a grey displacement map and displace the surface along its normals.
     #[arg(long)]
@@ -84,7 +85,8 @@ pub struct SynthArgs {
     pub space: String,
     /// Most texels synthesized in texture space (1,000 to 2,000,000); the output texture is
     /// magnified from them.
-    #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_TEXEL_BUDGET)]
+    #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_TEXEL_BUDGET, allow_negative_numbers = true,
+          value_parser = whole(MIN_VERTEX_BUDGET, MAX_BUDGET).unit("texels"))]
     pub texel_budget: usize,
 }
 
@@ -95,8 +97,18 @@ impl SynthArgs {
     }
 }
 
-/// The smallest `--vertex-budget`: fewer vertices cannot show an exemplar's structure.
+/// The smallest `--vertex-budget` and `--texel-budget`: fewer samples cannot show an exemplar's
+/// structure.
 const MIN_VERTEX_BUDGET: usize = 1000;
+
+/// The largest `--vertex-budget` and `--texel-budget` (`SynthParams::max_vertices`' default).
+const MAX_BUDGET: usize = 2_000_000;
+
+/// Most pyramid `--levels`.
+const MAX_PYRAMID_LEVELS: usize = 12;
+
+/// The narrowest `--exemplar-width`.
+const MIN_EXEMPLAR_WIDTH: u32 = 8;
 
 fn synth(a: &SynthArgs) -> Result<i32> {
     use crate::synthesis::{Orientation, Search, SynthParams};
@@ -153,14 +165,14 @@ fn synth(a: &SynthArgs) -> Result<i32> {
             "--scale {s}: must be a positive finite number"
         )));
     }
-    if !(1..=12).contains(&a.levels) {
+    if !(1..=MAX_PYRAMID_LEVELS).contains(&a.levels) {
         return Err(Error::InvalidInput(format!(
-            "--levels {}: use 1 to 12",
+            "--levels {}: use 1 to {MAX_PYRAMID_LEVELS}",
             a.levels
         )));
     }
     check_texture_size(a.texture_size)?;
-    let max_budget = crate::synthesis::SynthParams::default().max_vertices;
+    let max_budget = MAX_BUDGET.min(crate::synthesis::SynthParams::default().max_vertices);
     if !(MIN_VERTEX_BUDGET..=max_budget).contains(&a.vertex_budget) {
         return Err(Error::InvalidInput(format!(
             "--vertex-budget {}: use {MIN_VERTEX_BUDGET} to {max_budget} vertices",
@@ -243,9 +255,9 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         );
     }
     if let Some(w) = a.exemplar_width {
-        if w < 8 {
+        if w < MIN_EXEMPLAR_WIDTH {
             return Err(Error::InvalidInput(format!(
-                "--exemplar-width {w}: use at least 8 pixels"
+                "--exemplar-width {w}: use {MIN_EXEMPLAR_WIDTH} or more pixels"
             )));
         }
         exemplar = crate::synthesis::wei_levoy::shrink_exemplar(exemplar, w);

@@ -34,22 +34,23 @@ pub struct TransferArgs {
     /// Write the nearest-neighbour field as CSV: target_vertex,source_vertex,rotation_deg.
     #[arg(long)]
     pub nnf_out: Option<PathBuf>,
-    /// Working resolution (vertices per mesh; denser meshes are used as they are), at most
+    /// Working resolution (vertices per mesh; denser meshes are used as they are), 128 to
     /// 4,000,000.
-    #[arg(long, default_value_t = 64_000)]
+    #[arg(long, default_value_t = 64_000, allow_negative_numbers = true,
+          value_parser = VERTICES)]
     pub vertices: usize,
     /// Number of hierarchy levels, 1 to 16 (default: down to about 128 vertices, at most 7).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = LEVELS)]
     pub levels: Option<usize>,
     /// EM iterations per level at most, 0 to 1000.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, allow_negative_numbers = true, value_parser = ITERATIONS)]
     pub iterations: usize,
     /// A level stops iterating once an iteration lowers its energy by less than this fraction
     /// (0 = always run every iteration).
-    #[arg(long, default_value_t = crate::meshmatch::DEFAULT_TOLERANCE)]
+    #[arg(long, default_value_t = crate::meshmatch::DEFAULT_TOLERANCE, allow_negative_numbers = true)]
     pub tolerance: f32,
     /// Random seed (runs with the same seed are identical).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = SEED)]
     pub seed: u64,
     /// Weight of shape features against colour (1 = equal); finite, 0 or more.
     #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
@@ -70,7 +71,7 @@ pub struct TransferArgs {
     pub structure: StructureArg,
     /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:
     /// the target's own texture's size, else 2048).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: Option<u32>,
     /// Bake the texture from the working vertices' colours (interpolated between them) instead
     /// of reading the source at full resolution through the solution at every texel.
@@ -251,8 +252,6 @@ pub(crate) fn parse_structure(s: &str) -> std::result::Result<StructureArg, Stri
     }
     match s.parse::<f32>() {
         Ok(x) if (0.0..=1.0).contains(&x) => Ok(StructureArg(Some(x))),
-        _ => Err(format!(
-            "'{s}': use auto or a number from 0 (pure synthesis) to 1 (follow the map)"
-        )),
+        _ => Err("use auto or a number from 0 (pure synthesis) to 1 (follow the map)".into()),
     }
 }

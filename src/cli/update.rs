@@ -22,7 +22,7 @@ pub struct UpdateArgs {
     pub out: PathBuf,
     /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:
     /// the old mesh's texture's size, else 2048).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: Option<u32>,
     #[command(flatten)]
     pub solve: SolveArgs,

@@ -9,6 +9,9 @@ use crate::mesh::io;
 use crate::synthesis::mertens::{self, Method, Params, Up};
 use crate::work::CancelToken;
 
+/// Most `--clusters`.
+const MAX_CLUSTERS: usize = 1000;
+
 /// Arguments of `meshmatch weather`.
 #[derive(clap::Args, Debug)]
 pub struct WeatherArgs {
@@ -38,19 +41,21 @@ pub struct WeatherArgs {
     #[arg(long, default_value = "y")]
     pub up: String,
     /// Working vertices per mesh (meshes are refined to about this many), at most 4,000,000.
-    #[arg(long, default_value_t = Params::default().working_vertices)]
+    #[arg(long, default_value_t = Params::default().working_vertices, allow_negative_numbers = true,
+          value_parser = whole(0, crate::mesh::MAX_WORKING_VERTICES).unit("working vertices"))]
     pub vertices: usize,
     /// Occlusion rays per vertex, 1 to 4096.
-    #[arg(long, default_value_t = Params::default().rays)]
+    #[arg(long, default_value_t = Params::default().rays, allow_negative_numbers = true, value_parser = RAYS)]
     pub rays: usize,
     /// Clusters of the guidance field (the paper's only parameter), 1 to 1000.
-    #[arg(long, default_value_t = Params::default().clusters)]
+    #[arg(long, default_value_t = Params::default().clusters, allow_negative_numbers = true,
+          value_parser = whole(1, MAX_CLUSTERS).unit("clusters"))]
     pub clusters: usize,
     /// Random seed.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = SEED)]
     pub seed: u64,
     /// Size of the baked texture (pixels per side) when the target has UVs, 1 to 8192.
-    #[arg(long, default_value_t = 1024)]
+    #[arg(long, default_value_t = 1024, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: u32,
 }
 
@@ -62,9 +67,9 @@ impl WeatherArgs {
         let up: Up = a.up.parse()?;
         check_texture_size(a.texture_size)?;
         check_rays(a.rays)?;
-        if !(1..=1000).contains(&a.clusters) {
+        if !(1..=MAX_CLUSTERS).contains(&a.clusters) {
             return Err(Error::InvalidInput(format!(
-                "--clusters {}: use 1 to 1000",
+                "--clusters {}: use 1 to {MAX_CLUSTERS}",
                 a.clusters
             )));
         }

@@ -16,7 +16,10 @@ pub use topology::{
     Csr, boundary_loops, connected_components, edge_counts, sorted_edges, vertex_adjacency,
     vertex_faces,
 };
-pub use validate::{MAX_FACES, MAX_VERTICES, MAX_WORKING_VERTICES, RepairReport, ValidationReport};
+pub use validate::{
+    MAX_FACES, MAX_VERTICES, MAX_WORKING_VERTICES, MIN_WORKING_VERTICES, RepairReport,
+    ValidationReport, all_faces,
+};
 
 /// An sRGB texture image (8-bit RGB), as referenced by `map_Kd` or `baseColorTexture`.
 #[derive(Clone, Debug)]

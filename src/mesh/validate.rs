@@ -16,6 +16,20 @@ pub const MAX_FACES: usize = 3 * MAX_VERTICES;
 /// a mesh past it, whatever it is asked for.
 pub const MAX_WORKING_VERTICES: usize = 4_000_000;
 
+/// Smallest working resolution accepted: the size MeshMatch's hierarchy stops near (its coarsest
+/// level). Below it there is no level to work through, and detail transfer's simplification
+/// would collapse the target to nothing.
+pub const MIN_WORKING_VERTICES: usize = 128;
+
+/// "all 12 faces are" or "its only face is", for messages about every face of a mesh.
+pub fn all_faces(n: usize) -> String {
+    if n == 1 {
+        "its only face is".into()
+    } else {
+        format!("all {n} faces are")
+    }
+}
+
 /// What a mesh looks like: counts and defects.
 #[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ValidationReport {

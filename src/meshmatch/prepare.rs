@@ -409,7 +409,7 @@ pub fn prepare(
         &working.faces,
         Some(&order),
         HierarchyOptions {
-            min_vertices: 128,
+            min_vertices: crate::mesh::MIN_WORKING_VERTICES,
             max_levels: params.levels,
         },
         cancel,

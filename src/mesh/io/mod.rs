@@ -24,13 +24,48 @@ pub use ply::{PlyOptions, load_ply_bytes, save_ply};
 /// Write `bytes` to `path` atomically: a temporary file beside it, flushed to disk (`sync_all`),
 /// then a rename. On any failure the temporary file is removed and `path` is left untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    use std::io::Write as _;
-    if is_protected(path) {
+    write_atomic_all(&[(path, bytes)])
+}
+
+/// Write several files as one, as a mesh and the files beside it (an OBJ's material file and
+/// texture): each to a temporary name beside it, then all renamed, the first first (inside a
+/// [`StagedWrites`] group, at its commit). If any of them cannot be written none replaces
+/// anything and no temporary is left, so a failed export leaves no sidecar behind.
+pub fn write_atomic_all(files: &[(&Path, &[u8])]) -> Result<()> {
+    if let Some((path, _)) = files.iter().find(|(p, _)| is_protected(p)) {
         return Err(Error::InvalidInput(format!(
             "{}: is a file this command read; not overwritten",
             path.display()
         )));
     }
+    let mut temps: Vec<(PathBuf, PathBuf)> = Vec::with_capacity(files.len());
+    for &(path, bytes) in files {
+        match write_temporary(path, bytes) {
+            Ok(tmp) => temps.push((tmp, path.to_path_buf())),
+            Err(e) => {
+                for (t, _) in &temps {
+                    let _ = std::fs::remove_file(t);
+                }
+                return Err(e);
+            }
+        }
+    }
+    // Inside a group of staged writes the renames wait for the group's commit.
+    if let Ok(mut g) = STAGED.lock()
+        && let Some(list) = g.as_mut()
+    {
+        for (tmp, path) in temps {
+            list.retain(|(_, p)| *p != path);
+            list.push((tmp, path));
+        }
+        return Ok(());
+    }
+    rename_all(temps)
+}
+
+/// Write `bytes` to a temporary file beside `path`, flushed to disk; returns its name.
+fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf> {
+    use std::io::Write as _;
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -47,18 +82,23 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         let _ = std::fs::remove_file(&tmp);
         return Err(Error::io(path, e));
     }
-    // Inside a group of staged writes the rename waits for the group's commit.
-    if let Ok(mut g) = STAGED.lock()
-        && let Some(list) = g.as_mut()
-    {
-        list.retain(|(_, p)| p != path);
-        list.push((tmp, path.to_path_buf()));
-        return Ok(());
+    Ok(tmp)
+}
+
+/// Rename each (temporary, destination) in order; on a failure remove the temporaries not yet
+/// moved and report it.
+fn rename_all(list: Vec<(PathBuf, PathBuf)>) -> Result<()> {
+    let mut it = list.into_iter();
+    while let Some((tmp, path)) = it.next() {
+        if let Err(e) = std::fs::rename(&tmp, &path) {
+            let _ = std::fs::remove_file(&tmp);
+            for (t, _) in it {
+                let _ = std::fs::remove_file(&t);
+            }
+            return Err(Error::io(&path, e));
+        }
     }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io(path, e)
-    })
+    Ok(())
 }
 
 /// Files written under their temporary names while a [`StagedWrites`] group is open:
@@ -90,17 +130,7 @@ impl StagedWrites {
             .ok()
             .and_then(|mut g| g.take())
             .unwrap_or_default();
-        let mut it = list.into_iter();
-        while let Some((tmp, path)) = it.next() {
-            if let Err(e) = std::fs::rename(&tmp, &path) {
-                let _ = std::fs::remove_file(&tmp);
-                for (t, _) in it {
-                    let _ = std::fs::remove_file(&t);
-                }
-                return Err(Error::io(&path, e));
-            }
-        }
-        Ok(())
+        rename_all(list)
     }
 }
 
@@ -114,8 +144,12 @@ impl Drop for StagedWrites {
 }
 
 /// Files read so far, when [`protect_inputs`] was called (the CLI does; the app does not, so it
-/// can save over a file it opened).
-static PROTECTED: std::sync::Mutex<Option<Vec<std::path::PathBuf>>> = std::sync::Mutex::new(None);
+/// can save over a file it opened): canonical paths, and device and inode numbers (a hard link
+/// is the same file under another name).
+static PROTECTED: std::sync::Mutex<Option<Vec<ReadFile>>> = std::sync::Mutex::new(None);
+
+/// A file read since [`protect_inputs`]: its canonical path, and its device and inode numbers.
+type ReadFile = (PathBuf, Option<(u64, u64)>);
 
 /// From now on, remember every file the loaders read (meshes, MTL files, textures, buffers,
 /// correspondences, masks) and never write over one: [`write_atomic`] refuses it and a texture
@@ -125,22 +159,32 @@ pub fn protect_inputs() {
     g.get_or_insert_with(Vec::new);
 }
 
+/// Device and inode numbers of an existing file.
+fn inode(path: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt as _;
+    std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+}
+
 fn note_input(path: &Path) {
     let mut g = PROTECTED.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(list) = g.as_mut()
         && let Ok(c) = std::fs::canonicalize(path)
-        && !list.contains(&c)
+        && !list.iter().any(|(p, _)| *p == c)
     {
-        list.push(c);
+        list.push((c, inode(path)));
     }
 }
 
-/// True when `path` is a file read since [`protect_inputs`].
+/// True when `path` is a file read since [`protect_inputs`] (under any name).
 pub fn is_protected(path: &Path) -> bool {
     let g = PROTECTED.lock().unwrap_or_else(|e| e.into_inner());
     match g.as_ref() {
         Some(list) if !list.is_empty() => {
-            std::fs::canonicalize(path).is_ok_and(|c| list.contains(&c))
+            let id = inode(path);
+            std::fs::canonicalize(path).is_ok_and(|c| {
+                list.iter()
+                    .any(|(p, i)| *p == c || (id.is_some() && *i == id))
+            })
         }
         _ => false,
     }
@@ -552,8 +596,9 @@ fn texture_name_for(path: &Path) -> String {
     format!("{stem}_texture.png")
 }
 
-/// Write `mesh`'s texture as PNG beside `path`, returning the file name used, if it has one.
-fn write_texture_beside(mesh: &TriMesh, path: &Path) -> Result<Option<String>> {
+/// The texture of `mesh` to write beside `path`, if it has one: its file name, path and PNG
+/// bytes (written by the caller with the mesh, through [`write_atomic_all`]).
+fn texture_beside(mesh: &TriMesh, path: &Path) -> Result<Option<(String, PathBuf, Vec<u8>)>> {
     let Some(tex) = &mesh.texture else {
         return Ok(None);
     };
@@ -579,8 +624,8 @@ fn write_texture_beside(mesh: &TriMesh, path: &Path) -> Result<Option<String>> {
         tex_path = path.with_file_name(&name);
         k += 1;
     }
-    write_atomic(&tex_path, &encode_png(tex, &tex_path)?)?;
-    Ok(Some(name))
+    let png = encode_png(tex, &tex_path)?;
+    Ok(Some((name, tex_path, png)))
 }
 
 /// Save a mesh by file extension (.ply binary, .obj + .mtl + .png, .glb, .gltf) with default

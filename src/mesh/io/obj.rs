@@ -1,6 +1,6 @@
 //! Wavefront OBJ reader/writer (hand-written) with MTL `map_Kd` textures.
 
-use super::{check_content, check_exportable, fan, finish, text_lines, warn, write_atomic};
+use super::{check_content, check_exportable, fan, finish, text_lines, warn, write_atomic_all};
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
 use crate::mesh::validate::{MAX_FACES, MAX_VERTICES};
@@ -253,6 +253,15 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     max_v.check(pos.len(), "vertex", path)?;
     max_vt.check(tex.len(), "texture coordinate", path)?;
     max_vn.check(nrm.len(), "normal", path)?;
+    if short_faces > 0 && faces.is_empty() {
+        return Err(Error::format(
+            path,
+            format!(
+                "{} degenerate (fewer than 3 vertices)",
+                crate::mesh::all_faces(short_faces)
+            ),
+        ));
+    }
     if short_faces > 0 {
         warn(format!(
             "{}: skipped {short_faces} faces with fewer than 3 vertices",
@@ -418,8 +427,11 @@ pub fn save_obj(mesh: &TriMesh, path: &Path, opts: &ObjOptions) -> Result<()> {
     check_exportable(mesh, path)?;
     let mut s = String::with_capacity(64 * (mesh.num_vertices() + mesh.num_faces()));
     s.push_str("# written by meshmatch\n");
-    let tex_name = super::write_texture_beside(mesh, path)?;
-    if let Some(tex_name) = &tex_name {
+    // The OBJ, its material file and its texture are written as one (no sidecar is left
+    // behind by a failed export).
+    let texture = super::texture_beside(mesh, path)?;
+    let mut sidecars: Vec<(std::path::PathBuf, Vec<u8>)> = Vec::new();
+    if let Some((tex_name, tex_path, png)) = texture {
         let stem = path
             .file_stem()
             .map(|x| x.to_string_lossy().into_owned())
@@ -428,7 +440,8 @@ pub fn save_obj(mesh: &TriMesh, path: &Path, opts: &ObjOptions) -> Result<()> {
         let mtl = format!(
             "# written by meshmatch\nnewmtl material0\nKa 0 0 0\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd {tex_name}\n"
         );
-        write_atomic(&path.with_file_name(&mtl_name), mtl.as_bytes())?;
+        sidecars.push((path.with_file_name(&mtl_name), mtl.into_bytes()));
+        sidecars.push((tex_path, png));
         let _ = writeln!(s, "mtllib {mtl_name}\nusemtl material0");
     }
     let colors = mesh.colors.as_ref().filter(|_| opts.vertex_colors);
@@ -474,5 +487,7 @@ pub fn save_obj(mesh: &TriMesh, path: &Path, opts: &ObjOptions) -> Result<()> {
         }
         s.push('\n');
     }
-    write_atomic(path, s.as_bytes())
+    let mut files: Vec<(&Path, &[u8])> = vec![(path, s.as_bytes())];
+    files.extend(sidecars.iter().map(|(p, b)| (p.as_path(), b.as_slice())));
+    write_atomic_all(&files)
 }

@@ -1,7 +1,7 @@
 //! Stanford PLY reader (ascii, binary little/big endian; faces and triangle strips) and binary
 //! little-endian writer.
 
-use super::{check_content, check_exportable, fan, finish, write_atomic};
+use super::{check_content, check_exportable, fan, finish, write_atomic_all};
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
 use std::path::Path;
@@ -579,6 +579,15 @@ pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     if !have_vertices {
         return Err(Error::format(path, "no vertex element"));
     }
+    if short_faces > 0 && faces.is_empty() {
+        return Err(Error::format(
+            path,
+            format!(
+                "{} degenerate (fewer than 3 vertices)",
+                crate::mesh::all_faces(short_faces)
+            ),
+        ));
+    }
     if short_faces > 0 {
         super::warn(format!(
             "{}: skipped {short_faces} faces with fewer than 3 vertices",
@@ -688,7 +697,9 @@ pub fn save_ply(mesh: &TriMesh, path: &Path, opts: &PlyOptions) -> Result<()> {
     } else {
         None
     };
-    let tex_name = super::write_texture_beside(mesh, path)?;
+    // The PLY and its texture are written as one (no texture is left behind by a failed export).
+    let texture = super::texture_beside(mesh, path)?;
+    let tex_name = texture.as_ref().map(|(name, _, _)| name.clone());
     let mut h =
         String::from("ply\nformat binary_little_endian 1.0\ncomment written by meshmatch\n");
     if let Some(t) = &tex_name {
@@ -749,5 +760,8 @@ pub fn save_ply(mesh: &TriMesh, path: &Path, opts: &PlyOptions) -> Result<()> {
             }
         }
     }
-    write_atomic(path, &out)
+    match &texture {
+        Some((_, tex_path, png)) => write_atomic_all(&[(path, &out), (tex_path, png)]),
+        None => write_atomic_all(&[(path, &out)]),
+    }
 }
