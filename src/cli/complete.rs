@@ -24,7 +24,7 @@ pub struct CompleteArgs {
     /// Clay (unpainted) colour as R,G,B in 0-255, for --painted.
     #[arg(long)]
     pub clay: Option<String>,
-    /// Output mesh with vertex colours (.ply, .glb, .obj).
+    /// Output mesh with vertex colours (.ply, .glb, .gltf, .obj).
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]

@@ -16,7 +16,7 @@ pub struct UpdateArgs {
     /// The edited mesh.
     #[arg(long)]
     pub new: PathBuf,
-    /// Output: the edited mesh with vertex colours (.ply, .glb, .obj).
+    /// Output: the edited mesh with vertex colours (.ply, .glb, .gltf, .obj).
     #[arg(long)]
     pub out: PathBuf,
     #[command(flatten)]
