@@ -267,6 +267,7 @@ fn map_command_writes_every_target_vertex_within_tolerance() {
     std::fs::create_dir_all(&dir).unwrap();
     let corr = meshmatch::correspondence::CorrespondenceFile {
         correspondences: same_vertex_pairs(&EXTREMITIES),
+        ..Default::default()
     };
     corr.save(&dir.join("lm.json")).unwrap();
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_meshmatch"))
