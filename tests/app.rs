@@ -1125,6 +1125,7 @@ fn dropped_files_open_by_kind_even_without_a_pointer_position() {
             source_vertex: 2,
             target_vertices: vec![3],
         }],
+        ..Default::default()
     }
     .save(&corr)
     .unwrap();

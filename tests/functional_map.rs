@@ -269,6 +269,7 @@ fn map_command_writes_every_target_vertex_within_tolerance() {
     let dir = Scratch::new("map");
     let corr = meshmatch::correspondence::CorrespondenceFile {
         correspondences: same_vertex_pairs(&EXTREMITIES),
+        ..Default::default()
     };
     corr.save(&dir.join("lm.json")).unwrap();
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_meshmatch"))

@@ -486,7 +486,7 @@ fn outputs_are_checked_before_any_work_and_inputs_never_overwritten() {
     refused(
         &d,
         &with(&with(&t, &["--out", "x.txt"]), FAST),
-        ".ply, .glb or .obj",
+        ".ply, .glb, .gltf or .obj",
     );
     refused(&d, &["convert", "src.ply", "src.ply"], "input");
     let src = std::fs::read(d.join("src.ply")).unwrap();

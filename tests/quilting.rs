@@ -607,13 +607,33 @@ fn field_orients_the_swatch_and_writers_round_trip() {
     let obj = dir.join("q.obj");
     quilting::save_quilt_obj(&out, Some(&base), &obj).unwrap();
     let text = std::fs::read_to_string(&obj).unwrap();
-    assert_eq!(text.matches("\ng element_").count(), out.num_elements());
-    assert!(text.contains("\ng base\n"));
+    // One object per element plus the base (Blender's importer makes each a separate object),
+    // each element named by its id, with smooth normals on every face corner.
+    let objects: Vec<&str> = text.lines().filter(|l| l.starts_with("o ")).collect();
+    assert_eq!(objects.len(), out.num_elements() + 1);
+    assert!(!text.contains("\ng "));
+    for e in 0..out.num_elements() {
+        assert!(objects.contains(&format!("o element_{e}").as_str()));
+    }
+    assert_eq!(objects.last(), Some(&"o base"));
+    assert!(text.lines().any(|l| l.starts_with("vn ")));
+    assert!(
+        text.lines()
+            .filter(|l| l.starts_with("f "))
+            .all(|l| l.split_whitespace().skip(1).all(|c| c.contains("//")))
+    );
+    let back = meshmatch::mesh::io::load(&obj).unwrap();
+    assert_eq!(
+        back.num_vertices(),
+        out.elements.num_vertices() + base.num_vertices()
+    );
+    assert!(back.normals.is_some());
     let ply = dir.join("q.ply");
     quilting::save_quilt_ply(&out, &ply).unwrap();
     let back = meshmatch::mesh::io::load(&ply).unwrap();
     assert_eq!(back.num_vertices(), out.elements.num_vertices());
     assert_eq!(back.num_faces(), out.elements.num_faces());
+    assert!(back.normals.is_some(), "the quilted PLY carries nx ny nz");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -81,7 +81,7 @@ impl FileAction {
             }
             FileAction::OpenSession | FileAction::SaveSession => ("session", &["json"]),
             FileAction::ExportResult | FileAction::ExportPainted(_) => {
-                ("mesh", &["ply", "glb", "obj"])
+                ("mesh", &["ply", "glb", "gltf", "obj"])
             }
             FileAction::ExportDense => ("ply", &["ply"]),
         }

@@ -449,7 +449,7 @@ where
                 }
                 if let Some(c) = &s.correspondences {
                     let r = crate::correspondence::CorrespondenceFile::load(c)
-                        .and_then(|f| self.state.set_correspondences(f.correspondences));
+                        .and_then(|f| self.state.set_correspondence_file(f, c));
                     if let Err(e) = r {
                         self.state.report(e);
                     }
@@ -504,11 +504,8 @@ where
             }
             A::OpenTexture => self.state.open_texture(&p),
             A::OpenCorrespondences => crate::correspondence::CorrespondenceFile::load(&p)
-                .and_then(|f| self.state.set_correspondences(f.correspondences)),
-            A::SaveCorrespondences => crate::correspondence::CorrespondenceFile {
-                correspondences: self.state.corr.clone(),
-            }
-            .save(&p),
+                .and_then(|f| self.state.set_correspondence_file(f, &p)),
+            A::SaveCorrespondences => self.state.correspondence_file().save(&p),
             A::ExportResult => {
                 self.start_export(&p);
                 Ok(())

@@ -156,7 +156,7 @@ pub fn check_geometry(m: &TriMesh, path: &Path) -> Result<()> {
 /// What an output path must be.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OutKind {
-    /// A mesh: .ply, .glb or .obj.
+    /// A mesh: .ply, .glb, .gltf or .obj.
     Mesh,
     /// A PNG image.
     #[cfg_attr(not(feature = "gui"), allow(dead_code))]
@@ -288,8 +288,8 @@ pub fn check_outputs(inputs: &[&Path], outputs: &[(&str, &Path, OutKind)]) -> Re
             .and_then(|e| e.to_str())
             .map(|e| e.to_ascii_lowercase());
         let want = match kind {
-            OutKind::Mesh if !matches!(ext.as_deref(), Some("ply" | "glb" | "obj")) => {
-                Some(".ply, .glb or .obj")
+            OutKind::Mesh if !matches!(ext.as_deref(), Some("ply" | "glb" | "gltf" | "obj")) => {
+                Some(".ply, .glb, .gltf or .obj")
             }
             OutKind::Png if ext.as_deref() != Some("png") => Some(".png"),
             _ => None,

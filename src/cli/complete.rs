@@ -25,7 +25,7 @@ pub struct CompleteArgs {
     #[arg(long)]
     pub clay: Option<String>,
     /// Output: the mesh with vertex colours (.ply), or with a texture baked into its UVs (or a
-    /// generated atlas), the example read at full resolution (.glb, .obj).
+    /// generated atlas), the example read at full resolution (.glb, .gltf, .obj).
     #[arg(long)]
     pub out: PathBuf,
     /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:

@@ -16,7 +16,7 @@ pub struct DetailArgs {
     /// The smooth mesh to receive it.
     #[arg(long)]
     pub target: PathBuf,
-    /// Output: the displaced target at the working resolution (.ply, .glb, .obj).
+    /// Output: the displaced target at the working resolution (.ply, .glb, .gltf, .obj).
     #[arg(long)]
     pub out: PathBuf,
     /// Scale of the transferred displacement (1 = the source's amplitude relative to its edge length).

@@ -15,7 +15,7 @@ use crate::work::CancelToken;
 pub struct FeaturesArgs {
     /// The mesh.
     pub mesh: PathBuf,
-    /// Output mesh with the feature as grey vertex colours (.ply, .glb, .obj), on the mesh's own
+    /// Output mesh with the feature as grey vertex colours (.ply, .glb, .gltf, .obj), on the mesh's own
     /// vertices.
     #[arg(long)]
     pub out: PathBuf,

@@ -39,7 +39,7 @@ impl MapArgs {
         let source = load_usable(&self.source)?;
         let target = load_usable(&self.target)?;
         let corr = match &self.correspondences {
-            Some(p) => CorrespondenceFile::load(p)?.correspondences,
+            Some(p) => CorrespondenceFile::load_for(p, Some(&source), Some(&target))?,
             None => Vec::new(),
         };
         let t = std::time::Instant::now();

@@ -20,8 +20,8 @@ pub struct QuiltArgs {
     /// The base surface to cover.
     #[arg(long)]
     pub base: PathBuf,
-    /// Output: .obj (one group per element, `element_N`, and `base`), .ply (the elements with a
-    /// per-vertex `element` id), .glb (elements and base as one mesh).
+    /// Output: .obj (one object per element, `element_N`, and `base`), .ply (the elements with a
+    /// per-vertex `element` id), .glb or .gltf (elements and base as one mesh).
     #[arg(long)]
     pub out: PathBuf,
     /// Swatch width (its x extent) in base units; default a tenth of the base's bounding-box
@@ -173,7 +173,7 @@ impl QuiltArgs {
     }
 }
 
-/// The elements and, when given, the base as one mesh (for formats without groups).
+/// The elements and, when given, the base as one mesh (for formats without objects).
 fn merged(elements: &TriMesh, base: Option<&TriMesh>) -> TriMesh {
     let mut positions = elements.positions.clone();
     let mut faces = elements.faces.clone();
@@ -191,7 +191,7 @@ pub struct SwatchArgs {
     /// chain, weave, nuts, studs or scales.
     #[arg(long)]
     pub kind: String,
-    /// Output mesh (.obj, .ply, .glb): elements over z = 0, z up.
+    /// Output mesh (.obj, .ply, .glb, .gltf): elements over z = 0, z up.
     #[arg(long)]
     pub out: PathBuf,
     /// Random seed (jitter of nuts and scales).

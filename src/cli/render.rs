@@ -62,7 +62,11 @@ impl RenderArgs {
         let m = super::common::load_usable(&self.mesh)?;
         let markers = match &self.correspondences {
             Some(p) => {
-                render_markers(&m, &CorrespondenceFile::load(p)?.correspondences, self.side)?
+                let (s, t) = match self.side {
+                    MarkerSide::Source => (Some(&m), None),
+                    MarkerSide::Target => (None, Some(&m)),
+                };
+                render_markers(&m, &CorrespondenceFile::load_for(p, s, t)?, self.side)?
             }
             None => Vec::new(),
         };

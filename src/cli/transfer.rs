@@ -24,10 +24,10 @@ pub struct TransferArgs {
     /// at most 256 pairs and 1024 target vertices in all.
     #[arg(long)]
     pub correspondences: Option<PathBuf>,
-    /// Output: .ply (vertex colours), .glb (baked texture if the target has UVs, else COLOR_0), .obj (+MTL+PNG).
+    /// Output: .ply (vertex colours), .glb or .gltf (baked texture if the target has UVs, else COLOR_0), .obj (+MTL+PNG).
     #[arg(long)]
     pub out: PathBuf,
-    /// Also write the dense working-resolution target with its colours (.ply/.glb/.obj), each
+    /// Also write the dense working-resolution target with its colours (.ply/.glb/.gltf/.obj), each
     /// vertex read from the source at full resolution through the solution.
     #[arg(long)]
     pub out_dense: Option<PathBuf>,
@@ -69,7 +69,7 @@ pub struct TransferArgs {
     /// bent copy, 0 between different animals, linear in between). stderr says what was chosen.
     #[arg(long, default_value = "auto", value_parser = parse_structure, allow_hyphen_values = true)]
     pub structure: StructureArg,
-    /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:
+    /// Size of the baked texture (pixels per side) for .glb/.gltf/.obj outputs, 1 to 8192 (default:
     /// the target's own texture's size, else 2048).
     #[arg(long, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: Option<u32>,
@@ -135,7 +135,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     });
     check_texture_size(texture_size)?;
     let corr = match &a.correspondences {
-        Some(p) => CorrespondenceFile::load(p)?.correspondences,
+        Some(p) => CorrespondenceFile::load_for(p, Some(&source), Some(&target))?,
         None => Vec::new(),
     };
     let bar = progress_bar();

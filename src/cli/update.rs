@@ -17,7 +17,7 @@ pub struct UpdateArgs {
     #[arg(long)]
     pub new: PathBuf,
     /// Output: the edited mesh with vertex colours (.ply), or with a texture baked into its UVs
-    /// (or a generated atlas) from the old texture read at full resolution (.glb, .obj).
+    /// (or a generated atlas) from the old texture read at full resolution (.glb, .gltf, .obj).
     #[arg(long)]
     pub out: PathBuf,
     /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:

@@ -24,7 +24,7 @@ pub struct WeatherArgs {
     /// The shape to texture (no correspondences needed).
     #[arg(long)]
     pub target: PathBuf,
-    /// Output: .ply (vertex colours), .glb (baked texture if the target has UVs, else COLOR_0),
+    /// Output: .ply (vertex colours), .glb or .gltf (baked texture if the target has UVs, else COLOR_0),
     /// .obj (+MTL+PNG), exactly as `transfer`.
     #[arg(long)]
     pub out: PathBuf,

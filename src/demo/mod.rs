@@ -192,7 +192,5 @@ pub fn default_correspondences(
             });
         }
     }
-    CorrespondenceFile {
-        correspondences: out,
-    }
+    CorrespondenceFile::with_positions(out, source, target)
 }

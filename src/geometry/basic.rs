@@ -107,29 +107,10 @@ pub fn face_areas(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<f64> {
 
 /// Area-weighted vertex normals: `n_v = normalize(sum_{f ∋ v} (b - a) x (c - a))` (the
 /// unnormalised cross product is twice the area times the face normal). Vertices in no
-/// non-degenerate face get `[0, 0, 1]`.
+/// non-degenerate face get `[0, 0, 1]`. The one implementation is the mesh layer's, which the
+/// writers use for files without normals.
 pub fn vertex_normals(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<[f32; 3]> {
-    let mut acc = vec![DVec3::ZERO; positions.len()];
-    for f in faces {
-        let [a, b, c] = f.map(|i| d3(positions[i as usize]));
-        let n = (b - a).cross(c - a);
-        if !n.is_finite() {
-            continue;
-        }
-        for &v in f {
-            acc[v as usize] += n;
-        }
-    }
-    acc.par_iter()
-        .map(|n| {
-            let l = n.length();
-            if l > 0.0 {
-                (*n / l).as_vec3().to_array()
-            } else {
-                [0.0, 0.0, 1.0]
-            }
-        })
-        .collect()
+    crate::mesh::vertex_normals(positions, faces)
 }
 
 /// Mean length of the mesh's undirected edges (each interior edge counted once; 0 without faces).

@@ -6,12 +6,14 @@
 //! When repair drops unreferenced vertices, `file_index` maps every remaining vertex back.
 
 pub mod io;
+mod normals;
 mod topology;
 mod validate;
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
+pub use normals::{SHARP_ANGLE_DEG, corner_normals, vertex_normals};
 pub use topology::{
     Csr, boundary_loops, connected_components, edge_counts, sorted_edges, vertex_adjacency,
     vertex_faces,

@@ -179,7 +179,7 @@ impl Delivered {
 
 /// The result as `transfer --out` delivers it at a path with extension `ext` (case-insensitive):
 /// the target file mesh with the signal on its own vertices, and, for `.glb`/`.obj`, a
-/// `baseColorTexture` of `texture_size` pixels baked into its UV layout (a `.glb` then carries
+/// `baseColorTexture` of `texture_size` pixels baked into its UV layout (a `.glb` or `.gltf` then carries
 /// the texture alone, without vertex colours). A target without UVs first gets a generated atlas
 /// ([`crate::geometry::uv_atlas`]); `cancel` stops that. With a [`Resampler`] every texel reads
 /// the source at full resolution through the solution; without one the texture interpolates
@@ -222,7 +222,7 @@ pub fn deliver(
             image,
             path: None,
         }));
-        if ext == "glb" {
+        if ext == "glb" || ext == "gltf" {
             out.colors = None;
         }
     }

@@ -10,7 +10,7 @@
 use crate::mesh::TriMesh;
 
 /// Faces meeting at a larger dihedral angle than this (degrees) are drawn with a hard edge.
-pub const SHARP_ANGLE_DEG: f32 = 30.0;
+pub const SHARP_ANGLE_DEG: f32 = crate::mesh::SHARP_ANGLE_DEG;
 
 /// A mesh as the GPU draws it.
 #[derive(Clone, Debug, Default)]
@@ -44,16 +44,8 @@ pub fn draw_mesh(mesh: &TriMesh, with_uvs: bool) -> DrawMesh {
         .uvs
         .as_ref()
         .filter(|u| with_uvs && u.len() == 3 * mesh.faces.len());
-    // Area-weighted face normals (length = 2 × area) and their unit directions.
-    let p = |i: u32| glam::Vec3::from(mesh.positions[i as usize]);
-    let fnorm: Vec<glam::Vec3> = faces
-        .iter()
-        .map(|(_, f)| {
-            let c = (p(f[1]) - p(f[0])).cross(p(f[2]) - p(f[0]));
-            if c.is_finite() { c } else { glam::Vec3::ZERO }
-        })
-        .collect();
-    let fdir: Vec<glam::Vec3> = fnorm.iter().map(|c| c.normalize_or_zero()).collect();
+    // Corner normals split at sharp edges (the mesh layer's, as every exported file carries).
+    let cn = crate::mesh::corner_normals(&mesh.positions, &mesh.faces, SHARP_ANGLE_DEG);
     // Vertex -> faces (CSR over the kept faces).
     let mut pairs: Vec<(u32, u32)> = faces
         .iter()
@@ -61,19 +53,6 @@ pub fn draw_mesh(mesh: &TriMesh, with_uvs: bool) -> DrawMesh {
         .flat_map(|(k, (_, f))| f.map(|v| (v, k as u32)))
         .collect();
     let vf = crate::mesh::Csr::from_pairs(n, &mut pairs);
-    let cos_sharp = SHARP_ANGLE_DEG.to_radians().cos();
-    // Corner normals.
-    let corner_normal = |k: usize, v: u32| -> glam::Vec3 {
-        let own = fdir[k];
-        let mut acc = glam::Vec3::ZERO;
-        for &g in vf.row(v as usize) {
-            let g = g as usize;
-            if g == k || own == glam::Vec3::ZERO || fdir[g].dot(own) >= cos_sharp {
-                acc += fnorm[g];
-            }
-        }
-        acc.normalize_or_zero()
-    };
     // Corner keys: (vertex, uv bits, quantised normal), then one drawn vertex per distinct key.
     let quant = |n: glam::Vec3| -> u64 {
         let q = |x: f32| (((x.clamp(-1.0, 1.0) + 1.0) * 32767.5) as u64) & 0xffff;
@@ -97,7 +76,7 @@ pub fn draw_mesh(mesh: &TriMesh, with_uvs: bool) -> DrawMesh {
                 if fv != v {
                     continue;
                 }
-                let nrm = corner_normal(k as usize, v);
+                let nrm = glam::Vec3::from(cn[3 * f + c]);
                 let uv = uvs.map_or(0u64, |u| {
                     let t = u[3 * f + c];
                     (t[0].to_bits() as u64) | ((t[1].to_bits() as u64) << 32)

@@ -137,6 +137,39 @@ impl<P: AppParams> AppState<P> {
         self.schedule_restart_now();
     }
 
+    /// The correspondences as a file, with the positions of their vertices on the loaded meshes
+    /// (none when a mesh is missing).
+    pub fn correspondence_file(&self) -> CorrespondenceFile {
+        match (self.slot(Side::Source), self.slot(Side::Target)) {
+            (Some(s), Some(t)) => {
+                CorrespondenceFile::with_positions(self.corr.clone(), &s.file, &t.file)
+            }
+            _ => CorrespondenceFile {
+                correspondences: self.corr.clone(),
+                positions: Vec::new(),
+            },
+        }
+    }
+
+    /// Replace all correspondences by those of a file read from `path`, each first checked
+    /// against the loaded meshes by its stored positions ([`CorrespondenceFile::resolve`]): pairs
+    /// that point at other vertices than where they were written move to the nearest vertex of
+    /// their stored position, and a note says how many.
+    pub fn set_correspondence_file(
+        &mut self,
+        mut file: CorrespondenceFile,
+        path: &std::path::Path,
+    ) -> Result<()> {
+        let source = self.slot(Side::Source).map(|s| s.file.clone());
+        let target = self.slot(Side::Target).map(|s| s.file.clone());
+        let note = file.resolve(source.as_deref(), target.as_deref(), path);
+        self.set_correspondences(file.correspondences)?;
+        if let Some(note) = note {
+            self.report(format!("warning: {note}"));
+        }
+        Ok(())
+    }
+
     /// Replace all correspondences (e.g. from a file), as one undoable edit.
     pub fn set_correspondences(&mut self, corr: Vec<Correspondence>) -> Result<()> {
         for (side, verts) in [

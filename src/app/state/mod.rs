@@ -237,7 +237,7 @@ impl<P: AppParams> AppState<P> {
                     self.open_session(path)
                 } else {
                     let f = crate::correspondence::CorrespondenceFile::load(path)?;
-                    self.set_correspondences(f.correspondences)
+                    self.set_correspondence_file(f, path)
                 }
             }
             _ => self.open_mesh(side, path),

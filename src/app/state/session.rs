@@ -230,9 +230,7 @@ impl<P: AppParams> AppState<P> {
         let session = Session {
             source,
             target,
-            correspondences: CorrespondenceFile {
-                correspondences: self.corr.clone(),
-            },
+            correspondences: self.correspondence_file(),
             params: self.params.clone(),
             source_paint: src_paint,
             target_paint: tgt_paint,
@@ -254,7 +252,7 @@ impl<P: AppParams> AppState<P> {
     pub fn open_session(&mut self, path: &Path) -> Result<()> {
         // the loaders' rule: a regular file of bounded size (no directory, device or pipe)
         let text = crate::mesh::io::read_text_file(path, "the session file")?;
-        let s: Session<P> = serde_json::from_str(&text)
+        let mut s: Session<P> = serde_json::from_str(&text)
             .map_err(|e| Error::format(path, format!("invalid session JSON: {e}")))?;
         // Relative paths in the session are relative to the session file.
         let dir = path.parent().unwrap_or(Path::new("."));
@@ -332,6 +330,11 @@ impl<P: AppParams> AppState<P> {
                 rgba,
             });
         }
+        // Pairs whose meshes were renumbered since the session was saved (re-exported by another
+        // tool) move to the nearest vertex of their stored position.
+        let note = s
+            .correspondences
+            .resolve(Some(&meshes[0].1), Some(&meshes[1].1), path);
         let counts = [meshes[0].1.positions.len(), meshes[1].1.positions.len()];
         for c in &s.correspondences.correspondences {
             let bad_t = c.target_vertices.iter().any(|&t| t as usize >= counts[1]);
@@ -363,6 +366,9 @@ impl<P: AppParams> AppState<P> {
         }
         self.params = s.params;
         self.set_correspondences(s.correspondences.correspondences)?;
+        if let Some(note) = note {
+            self.report(format!("warning: {note}"));
+        }
         self.undo.clear();
         self.push_recent(path, RecentKind::Session);
         Ok(())

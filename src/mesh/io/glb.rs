@@ -43,6 +43,28 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_texture_transform",
 ];
 
+/// The one-line reason a file that requires extension `ext` is refused.
+fn unsupported_extension(ext: &str) -> String {
+    let (what, fix) = match ext {
+        "KHR_draco_mesh_compression" => ("Draco-compressed geometry", "without compression"),
+        "EXT_meshopt_compression" | "KHR_meshopt_compression" => {
+            ("meshoptimizer-compressed buffers", "without compression")
+        }
+        "KHR_mesh_quantization" => ("quantized vertex attributes", "without quantization"),
+        "KHR_texture_basisu" => (
+            "KTX2 / Basis Universal textures",
+            "with PNG or JPEG textures",
+        ),
+        "EXT_texture_webp" => ("WebP textures", "with PNG or JPEG textures"),
+        "EXT_texture_avif" => ("AVIF textures", "with PNG or JPEG textures"),
+        _ => ("a required glTF extension", "without it"),
+    };
+    format!(
+        "uses {} ({what}), which meshmatch cannot read; re-export {fix}",
+        clip(ext)
+    )
+}
+
 /// Most nested nodes followed (guards against cyclic or absurdly deep node graphs).
 const MAX_NODE_DEPTH: usize = 64;
 
@@ -337,20 +359,18 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     check_content(bytes, super::MeshFormat::Glb, path)?;
     let gltf = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| Error::format(path, format!("invalid glTF: {e}")))?;
-    validate(gltf.document.as_json(), path)?;
+    // Before validation: a compressed file's accessors have no data of their own, and "missing
+    // data" would hide the reason.
     if let Some(ext) = gltf
         .document
-        .extensions_required()
-        .find(|e| !SUPPORTED_REQUIRED.contains(e))
+        .as_json()
+        .extensions_required
+        .iter()
+        .find(|e| !SUPPORTED_REQUIRED.contains(&e.as_str()))
     {
-        return Err(Error::format(
-            path,
-            format!(
-                "requires glTF extension {} which is not supported",
-                clip(ext)
-            ),
-        ));
+        return Err(Error::format(path, unsupported_extension(ext)));
     }
+    validate(gltf.document.as_json(), path)?;
     let doc = &gltf.document;
     let roots: Vec<gltf::Node> = match doc.default_scene().or_else(|| {
         (doc.scenes().len() == 1)
@@ -785,35 +805,52 @@ fn f32_bytes(v: impl Iterator<Item = f32>) -> Vec<u8> {
 }
 
 /// Build the glTF JSON and binary buffer for `mesh`. Vertices whose corners carry different UVs
-/// are split: output vertices 0..N are the mesh's vertices in order, seam copies follow.
-fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
+/// or normals (smooth normals split at sharp edges, when the mesh has none of its own) are split:
+/// output vertices 0..N are the mesh's vertices in order, the copies follow.
+fn build(
+    mesh: &TriMesh,
+    opts: &GlbOptions,
+    path: &Path,
+    image_uri: Option<&str>,
+) -> Result<GlbData> {
     use serde_json::json;
     let n = mesh.num_vertices();
     let uvs = mesh.uvs.as_ref().filter(|_| opts.texture);
-    // source vertex of every output vertex, output UV, and output faces.
+    let corner_n = super::export_corner_normals(mesh);
+    // source vertex of every output vertex, output UV and normal, and output faces.
     let mut src: Vec<u32> = (0..n as u32).collect();
     let mut out_faces = mesh.faces.clone();
-    let mut out_uv: Vec<[f32; 2]> = Vec::new();
-    if let Some(uvs) = uvs {
-        out_uv = vec![[0.0; 2]; n];
-        let mut assigned = vec![false; n];
-        let mut seam: HashMap<(u32, [u32; 2]), u32> = HashMap::new();
-        for (f, face) in mesh.faces.iter().enumerate() {
-            for k in 0..3 {
-                let v = face[k] as usize;
-                let uv = uvs[3 * f + k];
-                if !assigned[v] {
-                    assigned[v] = true;
+    let mut out_uv: Vec<[f32; 2]> = vec![[0.0; 2]; if uvs.is_some() { n } else { 0 }];
+    let mut out_n: Vec<[f32; 3]> = match &mesh.normals {
+        Some(nr) => nr.clone(),
+        None => vec![[0.0, 0.0, 1.0]; n],
+    };
+    let mut assigned = vec![false; n];
+    let mut copies: HashMap<(u32, [u32; 2], [u32; 3]), u32> = HashMap::new();
+    for (f, face) in mesh.faces.iter().enumerate() {
+        for k in 0..3 {
+            let v = face[k] as usize;
+            let uv = uvs.map_or([0.0; 2], |u| u[3 * f + k]);
+            let nrm = corner_n[3 * f + k];
+            if !assigned[v] {
+                assigned[v] = true;
+                if uvs.is_some() {
                     out_uv[v] = uv;
-                } else if out_uv[v].map(f32::to_bits) != uv.map(f32::to_bits) {
-                    let key = (v as u32, uv.map(f32::to_bits));
-                    let id = *seam.entry(key).or_insert_with(|| {
-                        src.push(v as u32);
-                        out_uv.push(uv);
-                        (src.len() - 1) as u32
-                    });
-                    out_faces[f][k] = id;
                 }
+                out_n[v] = nrm;
+            } else if (uvs.is_some() && out_uv[v].map(f32::to_bits) != uv.map(f32::to_bits))
+                || out_n[v].map(f32::to_bits) != nrm.map(f32::to_bits)
+            {
+                let key = (v as u32, uv.map(f32::to_bits), nrm.map(f32::to_bits));
+                let id = *copies.entry(key).or_insert_with(|| {
+                    src.push(v as u32);
+                    if uvs.is_some() {
+                        out_uv.push(uv);
+                    }
+                    out_n.push(nrm);
+                    (src.len() - 1) as u32
+                });
+                out_faces[f][k] = id;
             }
         }
     }
@@ -857,15 +894,13 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
         json!({"componentType": 5126, "count": m, "type": "VEC3", "min": lo, "max": hi}),
     );
     attributes.insert("POSITION".into(), json!(a));
-    if let Some(nr) = &mesh.normals {
-        let a = add(
-            &mut bin,
-            f32_bytes(src.iter().flat_map(|&s| nr[s as usize])),
-            Some(34962),
-            json!({"componentType": 5126, "count": m, "type": "VEC3"}),
-        );
-        attributes.insert("NORMAL".into(), json!(a));
-    }
+    let a = add(
+        &mut bin,
+        f32_bytes(out_n.iter().flatten().copied()),
+        Some(34962),
+        json!({"componentType": 5126, "count": m, "type": "VEC3"}),
+    );
+    attributes.insert("NORMAL".into(), json!(a));
     if let Some(c) = mesh.colors.as_ref().filter(|_| opts.vertex_colors) {
         let a = add(
             &mut bin,
@@ -903,10 +938,14 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
     });
     let mut images = Vec::new();
     if let (Some(tex), true) = (&mesh.texture, uvs.is_some()) {
-        let png = super::encode_png(tex, path)?;
-        let (off, len) = push_aligned(&mut bin, &png);
-        views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": len}));
-        images.push(json!({"bufferView": views.len() - 1, "mimeType": "image/png"}));
+        if let Some(uri) = image_uri {
+            images.push(json!({"uri": uri, "mimeType": "image/png"}));
+        } else {
+            let png = super::encode_png(tex, path)?;
+            let (off, len) = push_aligned(&mut bin, &png);
+            views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": len}));
+            images.push(json!({"bufferView": views.len() - 1, "mimeType": "image/png"}));
+        }
         material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
     }
     while !bin.len().is_multiple_of(4) {
@@ -932,12 +971,13 @@ fn build(mesh: &TriMesh, opts: &GlbOptions, path: &Path) -> Result<GlbData> {
     Ok(GlbData { json: root, bin })
 }
 
-/// Write a binary glTF (GLB): POSITION, NORMAL, COLOR_0 (linear), TEXCOORD_0 (V down) and an
-/// embedded PNG `baseColorTexture`, as enabled by `opts` and present on the mesh. Output vertices
-/// 0..N are the mesh's vertices in order; vertices with several corner UVs get copies after them.
+/// Write a binary glTF (GLB): POSITION, NORMAL (the mesh's own, else smooth normals split at sharp
+/// edges by angle), COLOR_0 (linear), TEXCOORD_0 (V down) and an embedded PNG `baseColorTexture`,
+/// as enabled by `opts` and present on the mesh. Output vertices 0..N are the mesh's vertices in
+/// order; vertices with several corner UVs or normals get copies after them.
 pub fn save_glb(mesh: &TriMesh, path: &Path, opts: &GlbOptions) -> Result<()> {
     check_exportable(mesh, path)?;
-    let d = build(mesh, opts, path)?;
+    let d = build(mesh, opts, path, None)?;
     let mut js = serde_json::to_vec(&d.json).map_err(|e| Error::format(path, e.to_string()))?;
     while !js.len().is_multiple_of(4) {
         js.push(b' ');
@@ -962,15 +1002,40 @@ pub fn save_glb(mesh: &TriMesh, path: &Path, opts: &GlbOptions) -> Result<()> {
     write_atomic(path, &out)
 }
 
-/// Write a self-contained glTF JSON file (the buffer embedded as a base64 data URI); same content
-/// and vertex order as `save_glb`.
+/// Write a glTF JSON file with its buffer as `<stem>.bin` and its texture (when written) as
+/// `<stem>_texture.png` beside it, referred to by relative URIs; the same content and vertex order
+/// as `save_glb`. The three files are written together ([`super::write_atomic_all`]), so a failed
+/// write leaves none of them.
 pub fn save_gltf(mesh: &TriMesh, path: &Path, opts: &GlbOptions) -> Result<()> {
     check_exportable(mesh, path)?;
-    let mut d = build(mesh, opts, path)?;
-    d.json["buffers"][0]["uri"] = serde_json::json!(format!(
-        "data:application/octet-stream;base64,{}",
-        base64::encode(&d.bin)
-    ));
+    let textured = opts.texture && mesh.uvs.is_some();
+    let image = if textured {
+        super::texture_beside(mesh, path)?
+    } else {
+        None
+    };
+    let image_uri = image.as_ref().map(|(name, _, _)| uri_escape(name));
+    let mut d = build(mesh, opts, path, image_uri.as_deref())?;
+    let (bin_name, bin_path) = super::name_beside(path, ".bin");
+    d.json["buffers"][0]["uri"] = serde_json::json!(uri_escape(&bin_name));
     let js = serde_json::to_vec_pretty(&d.json).map_err(|e| Error::format(path, e.to_string()))?;
-    write_atomic(path, &js)
+    let mut files: Vec<(&Path, &[u8])> = vec![(bin_path.as_path(), &d.bin)];
+    if let Some((_, tex_path, png)) = &image {
+        files.push((tex_path.as_path(), png));
+    }
+    files.push((path, &js));
+    super::write_atomic_all(&files)
+}
+
+/// A file name as a relative URI: every byte outside the unreserved set (and `/`) `%XX`-escaped.
+fn uri_escape(name: &str) -> String {
+    let mut out = String::with_capacity(name.len());
+    for b in name.bytes() {
+        if b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.' | b'~') {
+            out.push(b as char);
+        } else {
+            out.push_str(&format!("%{b:02X}"));
+        }
+    }
+    out
 }

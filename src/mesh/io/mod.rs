@@ -587,43 +587,42 @@ fn encode_png(tex: &Texture, path: &Path) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// The texture file name written beside an exported mesh: `<stem>_texture.png`.
-fn texture_name_for(path: &Path) -> String {
+/// The name of a file written beside an exported mesh, `<stem><suffix>` (`_texture.png`,
+/// `.bin`), never that of a file this command read (`convert spot.obj spot.ply` beside the
+/// source's `spot_texture.png`): then `<stem>_<ext><suffix>`, numbered if need be.
+fn name_beside(path: &Path, suffix: &str) -> (String, PathBuf) {
     let stem = path
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "mesh".into());
-    format!("{stem}_texture.png")
-}
-
-/// The texture of `mesh` to write beside `path`, if it has one: its file name, path and PNG
-/// bytes (written by the caller with the mesh, through [`write_atomic_all`]).
-fn texture_beside(mesh: &TriMesh, path: &Path) -> Result<Option<(String, PathBuf, Vec<u8>)>> {
-    let Some(tex) = &mesh.texture else {
-        return Ok(None);
-    };
-    // Never over a file this command read (`convert spot.obj spot.ply` beside the source's
-    // `spot_texture.png`): then `<stem>_<ext>_texture.png`, numbered if need be.
-    let mut name = texture_name_for(path);
-    let mut tex_path = path.with_file_name(&name);
+    let mut name = format!("{stem}{suffix}");
+    let mut side = path.with_file_name(&name);
     let mut k = 1;
-    while is_protected(&tex_path) {
-        let stem = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "mesh".into());
+    while is_protected(&side) {
         let ext = path
             .extension()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
+        let (base, dot) = suffix.rsplit_once('.').unwrap_or((suffix, ""));
         name = if k == 1 {
-            format!("{stem}_{ext}_texture.png")
+            format!("{stem}_{ext}{suffix}")
         } else {
-            format!("{stem}_{ext}_texture_{k}.png")
+            format!("{stem}_{ext}{base}_{k}.{dot}")
         };
-        tex_path = path.with_file_name(&name);
+        side = path.with_file_name(&name);
         k += 1;
     }
+    (name, side)
+}
+
+/// The texture of `mesh` to write beside `path`, if it has one (see [`name_beside`]): its file
+/// name, path and PNG bytes (written by the caller with the mesh, through
+/// [`write_atomic_all`]).
+fn texture_beside(mesh: &TriMesh, path: &Path) -> Result<Option<(String, PathBuf, Vec<u8>)>> {
+    let Some(tex) = &mesh.texture else {
+        return Ok(None);
+    };
+    let (name, tex_path) = name_beside(path, "_texture.png");
     let png = encode_png(tex, &tex_path)?;
     Ok(Some((name, tex_path, png)))
 }
@@ -661,6 +660,31 @@ fn check_exportable(mesh: &TriMesh, path: &Path) -> Result<()> {
         return bad("colors must have one entry per vertex");
     }
     Ok(())
+}
+
+/// The normal of every corner an export writes (`3 * f + k`): the mesh's own per-vertex normals
+/// when it has them, else smooth normals split at sharp edges by angle
+/// ([`crate::mesh::corner_normals`], as the app draws), so no exported mesh shades flat.
+pub fn export_corner_normals(mesh: &TriMesh) -> Vec<[f32; 3]> {
+    match &mesh.normals {
+        Some(nr) => mesh
+            .faces
+            .iter()
+            .flat_map(|f| f.map(|v| nr[v as usize]))
+            .collect(),
+        None => {
+            crate::mesh::corner_normals(&mesh.positions, &mesh.faces, crate::mesh::SHARP_ANGLE_DEG)
+        }
+    }
+}
+
+/// The normal of every vertex an export writes where a format has one normal per vertex (PLY):
+/// the mesh's own, else area-weighted vertex normals.
+pub fn export_vertex_normals(mesh: &TriMesh) -> Vec<[f32; 3]> {
+    match &mesh.normals {
+        Some(nr) => nr.clone(),
+        None => crate::mesh::vertex_normals(&mesh.positions, &mesh.faces),
+    }
 }
 
 /// Per-vertex UVs when every corner of each vertex carries the same UV (exact bit equality);

@@ -11,7 +11,8 @@ use std::path::{Path, PathBuf};
 /// Options for `save_obj`.
 #[derive(Clone, Debug)]
 pub struct ObjOptions {
-    /// Write `vn` lines (and `f a/t/n` references) when the mesh has normals.
+    /// Write `vn` lines and `f v/t/n` references: the mesh's own normals, else smooth normals
+    /// split at sharp edges by angle, one `vn` per distinct corner normal.
     pub normals: bool,
     /// Write `r g b` after `v x y z` when the mesh has vertex colours.
     pub vertex_colors: bool,
@@ -422,7 +423,8 @@ fn find_texture(
 }
 
 /// Write an OBJ (+ `<stem>.mtl` + `<stem>_texture.png` when the mesh has a texture) keeping the
-/// vertex order; texture coordinates are deduplicated per distinct corner UV.
+/// vertex order; texture coordinates and normals (see [`ObjOptions::normals`]) are deduplicated
+/// per distinct corner value.
 pub fn save_obj(mesh: &TriMesh, path: &Path, opts: &ObjOptions) -> Result<()> {
     check_exportable(mesh, path)?;
     let mut s = String::with_capacity(64 * (mesh.num_vertices() + mesh.num_faces()));
@@ -467,21 +469,31 @@ pub fn save_obj(mesh: &TriMesh, path: &Path, opts: &ObjOptions) -> Result<()> {
             corner_t.push(id + 1);
         }
     }
-    let normals = mesh.normals.as_ref().filter(|_| opts.normals);
-    if let Some(nr) = normals {
-        for n in nr {
-            let _ = writeln!(s, "vn {} {} {}", n[0], n[1], n[2]);
+    let mut corner_n: Vec<u32> = Vec::new();
+    if opts.normals {
+        let cn = super::export_corner_normals(mesh);
+        let mut ids: HashMap<[u32; 3], u32> = HashMap::new();
+        corner_n.reserve(cn.len());
+        for n in &cn {
+            let key = n.map(f32::to_bits);
+            let next = ids.len() as u32;
+            let id = *ids.entry(key).or_insert_with(|| {
+                let _ = writeln!(s, "vn {} {} {}", n[0], n[1], n[2]);
+                next
+            });
+            corner_n.push(id + 1);
         }
     }
     for (f, face) in mesh.faces.iter().enumerate() {
         s.push('f');
-        for k in 0..3 {
-            let v = face[k] + 1;
-            match (corner_t.is_empty(), normals.is_some()) {
-                (true, false) => write!(s, " {v}"),
-                (false, false) => write!(s, " {v}/{}", corner_t[3 * f + k]),
-                (true, true) => write!(s, " {v}//{v}"),
-                (false, true) => write!(s, " {v}/{}/{v}", corner_t[3 * f + k]),
+        for (k, &fv) in face.iter().enumerate() {
+            let v = fv + 1;
+            let c = 3 * f + k;
+            match (corner_t.is_empty(), corner_n.is_empty()) {
+                (true, true) => write!(s, " {v}"),
+                (false, true) => write!(s, " {v}/{}", corner_t[c]),
+                (true, false) => write!(s, " {v}//{}", corner_n[c]),
+                (false, false) => write!(s, " {v}/{}/{}", corner_t[c], corner_n[c]),
             }
             .ok();
         }

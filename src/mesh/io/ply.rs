@@ -9,7 +9,7 @@ use std::path::Path;
 /// Options for `save_ply`.
 #[derive(Clone, Debug)]
 pub struct PlyOptions {
-    /// Write `nx ny nz` when the mesh has normals.
+    /// Write `nx ny nz`: the mesh's own normals, else area-weighted vertex normals.
     pub normals: bool,
     /// Write `red green blue` (uchar) when the mesh has vertex colours.
     pub vertex_colors: bool,
@@ -683,13 +683,15 @@ fn strips_to_faces(
     Ok(())
 }
 
-/// Write a binary little-endian PLY: float x y z, optional float nx ny nz, uchar red green blue,
+/// Write a binary little-endian PLY: float x y z, float nx ny nz (the mesh's own normals, else
+/// area-weighted vertex normals; unless `opts.normals` is off), uchar red green blue,
 /// per-vertex float `s t` when every vertex has one UV (else a per-face `texcoord` list), faces
 /// as `list uchar int vertex_indices`; with a texture, `comment TextureFile <stem>_texture.png`
 /// and the PNG beside the file.
 pub fn save_ply(mesh: &TriMesh, path: &Path, opts: &PlyOptions) -> Result<()> {
     check_exportable(mesh, path)?;
-    let normals = mesh.normals.as_ref().filter(|_| opts.normals);
+    let normals = opts.normals.then(|| super::export_vertex_normals(mesh));
+    let normals = normals.as_ref();
     let colors = mesh.colors.as_ref().filter(|_| opts.vertex_colors);
     let vuv = super::per_vertex_uvs(mesh);
     let face_uv = if vuv.is_none() {
