@@ -1157,6 +1157,7 @@ fn minus_one_reaches_the_range_check_of_every_numeric_flag() {
         ("curves", &["in.ply", "--out", "o.obj"]),
         ("bench", &["--sizes", "1"]),
         ("render", &["in.ply", "--out", "o.png"]),
+        ("batch", &["jobs.toml"]),
     ];
     // Flags whose value is a number or a list of numbers though clap reads them as text or
     // through a parser of their own.

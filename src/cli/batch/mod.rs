@@ -26,10 +26,10 @@ pub struct BatchArgs {
     pub job_file: PathBuf,
     /// Jobs run at a time (default: the number of cores divided by --threads-per-job; 1 without
     /// it, since a job uses every core).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = PARALLEL)]
     pub jobs: Option<usize>,
     /// Threads each job may use (its RAYON_NUM_THREADS); default every core.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = THREADS)]
     pub threads_per_job: Option<usize>,
     /// Where the logs and the summary go (default: `<job file stem>-batch/` beside the job file).
     #[arg(long)]
@@ -38,7 +38,7 @@ pub struct BatchArgs {
     #[arg(long)]
     pub force: bool,
     /// Run only the jobs of these indices (comma-separated or repeated), as a farm task does.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true, value_parser = JOB_INDEX)]
     pub only: Vec<usize>,
     /// Write an OpenJD job template (template.json) and its parameter values (params.json) into
     /// this folder instead of running: one task per job.
@@ -48,6 +48,15 @@ pub struct BatchArgs {
 
 /// Largest `--jobs` and `--threads-per-job`.
 const MAX_PARALLEL: usize = 1024;
+/// `--jobs`.
+const PARALLEL: super::common::Whole<usize> =
+    super::common::whole(1, MAX_PARALLEL).unit("jobs at a time");
+/// `--threads-per-job`.
+const THREADS: super::common::Whole<usize> =
+    super::common::whole(1, MAX_PARALLEL).unit("threads per job");
+/// `--only`.
+const JOB_INDEX: super::common::Whole<usize> =
+    super::common::at_least(0).unit("(a job's index from 0)");
 
 impl BatchArgs {
     /// Run the subcommand; returns the exit code: 0 when every job succeeded or was up to date,
