@@ -24,6 +24,7 @@ mod features;
 pub mod nonparametric;
 pub mod parametric;
 pub mod pyramid;
+pub mod recipes;
 
 use std::sync::Arc;
 
