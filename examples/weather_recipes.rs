@@ -66,6 +66,14 @@ fn main() {
                     multiscale_matching: false,
                     ..Params::default()
                 },
+                "nomatch" => Params {
+                    match_strength: 0.0,
+                    ..Params::default()
+                },
+                "half" => Params {
+                    match_strength: 0.5,
+                    ..Params::default()
+                },
                 "nohb" => Params {
                     hb_iterations: 0,
                     ..Params::default()
@@ -84,6 +92,45 @@ fn main() {
             pr.source.num_vertices(),
             pr.target_refined.num_vertices()
         );
+        if args.iter().any(|a| a == "--coverage") {
+            use meshmatch::synthesis::mertens::recipes::rule_strength;
+            for (what, fs) in [
+                ("source", &pr.source_features),
+                ("target", &pr.target_features),
+            ] {
+                let mut line = format!("{what:<8} coverage");
+                for rule in Rule::ALL {
+                    let v: Vec<f32> = (0..fs.len())
+                        .map(|i| rule_strength(rule, fs, i, Up::Y))
+                        .collect();
+                    let mean = v.iter().sum::<f32>() / v.len() as f32;
+                    let over = v.iter().filter(|&&x| x > 0.5).count() as f32 / v.len() as f32;
+                    line += &format!("  {} {mean:.2}/{over:.2}", rule.name());
+                }
+                println!("{line}");
+                for (name, c) in [
+                    ("height", 0),
+                    ("normal-y", 2),
+                    ("curv0", 4),
+                    ("curv1", 5),
+                    ("ao", 8),
+                ] {
+                    let mut v: Vec<f32> =
+                        fs.values.iter().skip(c).step_by(fs.dim).copied().collect();
+                    v.sort_by(f32::total_cmp);
+                    let q = |f: f32| v[((v.len() - 1) as f32 * f) as usize];
+                    println!(
+                        "  {name:<9} 1% {:.3} 10% {:.3} 50% {:.3} 90% {:.3} 99% {:.3}",
+                        q(0.01),
+                        q(0.1),
+                        q(0.5),
+                        q(0.9),
+                        q(0.99)
+                    );
+                }
+            }
+            continue;
+        }
         for r in &list {
             for (vname, params) in &variants {
                 let e = evaluate(&pr, r, params, &cancel).expect("evaluate");

@@ -16,7 +16,9 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 0)]
     pub cancel_probes: usize,
     /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
-    /// Spot -> horse at each size), features (feature-aligned texturing of a cube of each size,
+    /// Spot -> horse at each size), weather-recipes (multi-rule recipes cow -> cat and
+    /// igea -> bunny at each size, scored against the recipe on the target, kNN floor beside),
+    /// features (feature-aligned texturing of a cube of each size,
     /// curves, field, synthesis and optimisation at that many vertices), quilt (chain mail on a plane and on the bunny), map (the
     /// global shape map man -> woman at each size, and a transfer with structure 0 and auto),
     /// texture (full-resolution delivery of a ground-truth task solved at the first size, at

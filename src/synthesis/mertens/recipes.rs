@@ -159,15 +159,16 @@ fn value_noise(p: Vec3, seed: u32) -> f32 {
 pub fn rule_strength(rule: Rule, fs: &FeatureSet, v: usize, up: Up) -> f32 {
     let row = fs.row(v);
     let nr = fs.radii.len();
-    // columns: height, normal (3), curvature (nr), ao, occlusion (3)
-    let open = row[4 + nr] / 1.772_454; // 1 = fully exposed (c_00 = 2 pi Y_00)
+    // columns: height, normal (3), curvature (nr; 0 on a plane, positive where convex), ao (the
+    // visible fraction, 1 = fully exposed), occlusion (3)
+    let open = row[4 + nr];
     let c0 = row[4];
     let c1 = row[4 + 1.min(nr.saturating_sub(1))];
     match rule {
-        Rule::Dirt => smoothstep(0.8, 0.45, open),
-        Rule::Wear => smoothstep(0.44, 0.3, c0),
-        Rule::Concavity => smoothstep(0.55, 0.68, c1),
-        Rule::Moss => smoothstep(0.45, 0.85, row[1 + up.axis()]) * smoothstep(0.7, 0.9, open),
+        Rule::Dirt => smoothstep(0.75, 0.35, open),
+        Rule::Wear => smoothstep(0.2, 0.45, c0),
+        Rule::Concavity => smoothstep(-0.05, -0.25, c1),
+        Rule::Moss => smoothstep(0.5, 0.9, row[1 + up.axis()]) * smoothstep(0.8, 0.95, open),
         Rule::HeightTint => row[0],
     }
 }
