@@ -452,6 +452,51 @@ pub fn weather_row(n: usize, method: crate::synthesis::mertens::Method) -> Resul
     })
 }
 
+/// Multi-rule weathering recipes (`synthesis::mertens::recipes`) transferred cow -> cat and
+/// igea -> bunny at `n` points with the default parameters: per recipe, the correlation of L*,
+/// a*, b* with the recipe applied to the target, the Lab W1 distance and the grain kept, and the
+/// k-nearest-neighbour floor beside (`meshmatch bench --system weather-recipes`).
+pub fn weather_recipe_rows(n: usize, json: bool) -> Result<()> {
+    use crate::synthesis::mertens::{self, recipes};
+    let cancel = CancelToken::new();
+    for (s, t) in [
+        ("cow/cow.ply", "cat/cat.obj"),
+        ("igea/igea.ply", "bunny/bunny.obj"),
+    ] {
+        let load = |p: &str| -> Result<crate::mesh::TriMesh> {
+            let mut m = crate::mesh::io::load(&crate::testdata::data_path(p))?;
+            m.repair()?;
+            Ok(m)
+        };
+        let pair = recipes::prepare(&load(s)?, &load(t)?, n, mertens::Up::Y, &cancel)?;
+        for r in recipes::recipes() {
+            let e = recipes::evaluate(&pair, &r, &mertens::Params::default(), &cancel)?;
+            if json {
+                println!(
+                    "{}",
+                    serde_json::json!({"pair": format!("{s} -> {t}"), "recipe": r.name,
+                        "points": n, "method": e.method, "knn": e.knn, "seconds": e.seconds})
+                );
+            } else {
+                let f = |x: &recipes::Scores| {
+                    format!(
+                        "L {:.2} a {:.2} b {:.2} W1 {:.2} grain {:.2}",
+                        x.corr[0], x.corr[1], x.corr[2], x.w1, x.grain
+                    )
+                };
+                println!(
+                    "weather {s} -> {t} {:<8} {n} pts: {} | kNN floor {} | {:.1} s",
+                    r.name,
+                    f(&e.method),
+                    f(&e.knn),
+                    e.seconds
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Mesh quilting of the chain-mail swatch over a plane (`planar`) or the bunny, with the swatch
 /// `1 / swatches` of the base's bounding-box diagonal wide.
 pub fn quilt_row(planar: bool, swatches: f32) -> Result<SystemRow> {
@@ -820,6 +865,12 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
             }
             rows
         }
+        "weather-recipes" => {
+            for &n in sizes {
+                weather_recipe_rows(n, json)?;
+            }
+            Vec::new()
+        }
         "features" => sizes
             .iter()
             .map(|&n| features_row(n))
@@ -853,7 +904,7 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
         }
         _ => {
             return Err(crate::error::Error::InvalidInput(format!(
-                "--system {system}: use meshmatch, weather, features, quilt, map, texture, synth \
+                "--system {system}: use meshmatch, weather, weather-recipes, features, quilt, map, texture, synth \
                  or synth-texture"
             )));
         }

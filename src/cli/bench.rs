@@ -20,7 +20,9 @@ pub struct BenchArgs {
           value_parser = super::common::whole(0, MAX_CANCEL_PROBES))]
     pub cancel_probes: usize,
     /// Which system: meshmatch (the transfer's table), weather (geometry-correlated transfer,
-    /// Spot -> horse at each size), features (feature-aligned texturing of a cube of each size,
+    /// Spot -> horse at each size), weather-recipes (multi-rule recipes cow -> cat and
+    /// igea -> bunny at each size, scored against the recipe on the target, kNN floor beside),
+    /// features (feature-aligned texturing of a cube of each size,
     /// curves, field, synthesis and optimisation at that many vertices), quilt (chain mail on a plane and on the bunny), map (the
     /// global shape map man -> woman at each size, and a transfer with structure 0 and auto),
     /// texture (full-resolution delivery of a ground-truth task solved at the first size, at

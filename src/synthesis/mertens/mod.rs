@@ -24,6 +24,7 @@ mod features;
 pub mod nonparametric;
 pub mod parametric;
 pub mod pyramid;
+pub mod recipes;
 
 use std::sync::Arc;
 
@@ -133,6 +134,10 @@ pub struct Params {
     /// Multi-scale feature matching (§4.2 of the guide): also match the Laplacian bands of the
     /// guidance fields, not only their values (3 levels, 3 passes).
     pub multiscale_matching: bool,
+    /// How far the target's guidance is moved onto the source's distribution (§4.1): 1 = the
+    /// paper's full PDF transfer, 0 = none (the guidance compared as it is), in between a blend
+    /// of the two.
+    pub match_strength: f32,
 }
 
 impl Default for Params {
@@ -152,6 +157,7 @@ impl Default for Params {
             neighbours: 4,
             noise: 1.0,
             multiscale_matching: true,
+            match_strength: 1.0,
         }
     }
 }
@@ -557,20 +563,29 @@ pub fn run(
         tolerance: 0.01,
         seed: params.seed ^ 0x0070_6466,
     };
-    if params.multiscale_matching {
-        let gs_all = model.project_x(&fs.values);
-        match_multiscale(
-            &mut gt,
-            &rt.mesh.adjacency(),
-            &gs_all,
-            &rs.mesh.adjacency(),
-            &train,
-            d,
-            &pdf,
-            cancel,
-        )?;
-    } else {
-        pdf_transfer(&mut gt, &gs_train, d, &pdf);
+    let strength = params.match_strength.clamp(0.0, 1.0);
+    if strength > 0.0 {
+        let raw = (strength < 1.0).then(|| gt.clone());
+        if params.multiscale_matching {
+            let gs_all = model.project_x(&fs.values);
+            match_multiscale(
+                &mut gt,
+                &rt.mesh.adjacency(),
+                &gs_all,
+                &rs.mesh.adjacency(),
+                &train,
+                d,
+                &pdf,
+                cancel,
+            )?;
+        } else {
+            pdf_transfer(&mut gt, &gs_train, d, &pdf);
+        }
+        if let Some(raw) = raw {
+            for (g, r) in gt.iter_mut().zip(raw) {
+                *g = r + strength * (*g - r);
+            }
+        }
     }
     timings.push(("match", sw.secs()));
     sink(Event::StageTime("match", sw.secs()));

@@ -1,0 +1,515 @@
+//! Multi-rule weathering recipes and their evaluation.
+//!
+//! A [`Recipe`] paints a mesh from its own geometry with a few rules at once, the way real
+//! weathered assets combine them: dark dirt where occluded, light wear on convex edges (small
+//! radius), a stain in concave dents, moss on exposed upward tops, a tint with height, plus fine
+//! grain. The rules read the project's own features ([`super::features`]) with absolute
+//! thresholds, so the same recipe means the same thing on any mesh.
+//!
+//! [`evaluate`] colours a source by a recipe, runs [`super::run`] onto a target and scores the
+//! result against the recipe applied to the target: Pearson correlation of L*, a*, b*, the Lab
+//! Wasserstein-1 distance (per channel, averaged), and the grain kept (the ratio of the
+//! high-frequency L* standard deviation, output over truth). A k-nearest-neighbour regression on
+//! the recipe's own features, source to target, is scored beside it as a floor.
+
+use glam::Vec3;
+
+use super::{FeatureSet, Params, Up, features};
+use crate::color::srgb_to_lab;
+use crate::error::{Error, Result};
+use crate::geometry::refine_to_density;
+use crate::mesh::{Csr, TriMesh};
+use crate::stats::KdTree;
+use crate::work::CancelToken;
+
+/// One weathering rule.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rule {
+    /// Dark dirt where the ambient occlusion is high.
+    Dirt,
+    /// Light wear on convex edges (solid-angle curvature at the smallest radius).
+    Wear,
+    /// A rust-brown stain in concave dents (curvature at the second radius).
+    Concavity,
+    /// Green moss on exposed, upward-facing tops.
+    Moss,
+    /// Stone tinted from warm dark at the bottom to pale at the top.
+    HeightTint,
+}
+
+impl Rule {
+    /// Every rule.
+    pub const ALL: [Rule; 5] = [
+        Rule::Dirt,
+        Rule::Wear,
+        Rule::Concavity,
+        Rule::Moss,
+        Rule::HeightTint,
+    ];
+    /// Short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Rule::Dirt => "dirt",
+            Rule::Wear => "wear",
+            Rule::Concavity => "concavity",
+            Rule::Moss => "moss",
+            Rule::HeightTint => "height",
+        }
+    }
+}
+
+/// A set of rules applied in a fixed order (height tint, moss, concavity, dirt, wear) over a
+/// stone base, then grain.
+#[derive(Clone, Debug)]
+pub struct Recipe {
+    /// Name for tables.
+    pub name: String,
+    /// The rules.
+    pub rules: Vec<Rule>,
+    /// Grain: relative amplitude of the multiplicative value noise (0 = none).
+    pub grain: f32,
+}
+
+impl Recipe {
+    /// A recipe of `rules` with grain 0.06.
+    pub fn new(name: &str, rules: &[Rule]) -> Self {
+        Recipe {
+            name: name.to_string(),
+            rules: rules.to_vec(),
+            grain: 0.06,
+        }
+    }
+    /// The recipe of one rule (plus grain).
+    pub fn single(rule: Rule) -> Self {
+        Recipe::new(rule.name(), &[rule])
+    }
+}
+
+/// The project's multi-rule recipes: `stone` (height, dirt, wear), `mossy` (moss, dirt),
+/// `stained` (concavity, wear, height), `ruin` (height, moss, dirt, wear: every rule of the
+/// issue's hidden recipe).
+pub fn recipes() -> Vec<Recipe> {
+    use Rule::*;
+    vec![
+        Recipe::new("stone", &[HeightTint, Dirt, Wear]),
+        Recipe::new("mossy", &[Moss, Dirt]),
+        Recipe::new("stained", &[Concavity, Wear, HeightTint]),
+        Recipe::new("ruin", &[HeightTint, Moss, Dirt, Wear]),
+    ]
+}
+
+/// Feature parameters the recipes read (the default radii and rays, the truth's own ray seed).
+pub fn recipe_params(up: Up) -> Params {
+    Params {
+        up,
+        seed: 0x7275_7468,
+        ..Params::default()
+    }
+}
+
+/// The recipe's features of a mesh (see [`recipe_params`]).
+pub fn recipe_features(m: &TriMesh, up: Up, cancel: &CancelToken) -> Result<FeatureSet> {
+    features(&m.positions, &m.faces, &recipe_params(up), cancel)
+}
+
+fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
+    let t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+fn lerp(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+    [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * t)
+}
+
+fn hash3(x: i32, y: i32, z: i32, seed: u32) -> f32 {
+    let mut h = (x as u32).wrapping_mul(0x8da6_b343)
+        ^ (y as u32).wrapping_mul(0xd816_3841)
+        ^ (z as u32).wrapping_mul(0xcb1a_b31f)
+        ^ seed.wrapping_mul(0x9e37_79b9);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x2c1b_3c6d);
+    h ^= h >> 12;
+    h = h.wrapping_mul(0x297a_2d39);
+    h ^= h >> 15;
+    (h as f32 / u32::MAX as f32) * 2.0 - 1.0
+}
+
+/// Trilinear value noise in [-1, 1] on a lattice of spacing 1.
+fn value_noise(p: Vec3, seed: u32) -> f32 {
+    let f = p.floor();
+    let t = p - f;
+    let (x, y, z) = (f.x as i32, f.y as i32, f.z as i32);
+    let s = |v: f32| v * v * (3.0 - 2.0 * v);
+    let (u, v, w) = (s(t.x), s(t.y), s(t.z));
+    let mut acc = 0.0;
+    for dz in 0..2 {
+        for dy in 0..2 {
+            for dx in 0..2 {
+                let wx = if dx == 0 { 1.0 - u } else { u };
+                let wy = if dy == 0 { 1.0 - v } else { v };
+                let wz = if dz == 0 { 1.0 - w } else { w };
+                acc += wx * wy * wz * hash3(x + dx, y + dy, z + dz, seed);
+            }
+        }
+    }
+    acc
+}
+
+/// The strength in [0, 1] of one rule at vertex `v` (features `fs`, up axis `up`).
+pub fn rule_strength(rule: Rule, fs: &FeatureSet, v: usize, up: Up) -> f32 {
+    let row = fs.row(v);
+    let nr = fs.radii.len();
+    // columns: height, normal (3), curvature (nr; 0 on a plane, positive where convex), ao (the
+    // visible fraction, 1 = fully exposed), occlusion (3)
+    let open = row[4 + nr];
+    let c0 = row[4];
+    let c1 = row[4 + 1.min(nr.saturating_sub(1))];
+    match rule {
+        Rule::Dirt => smoothstep(0.75, 0.35, open),
+        Rule::Wear => smoothstep(0.2, 0.45, c0),
+        Rule::Concavity => smoothstep(-0.05, -0.25, c1),
+        Rule::Moss => smoothstep(0.5, 0.9, row[1 + up.axis()]) * smoothstep(0.8, 0.95, open),
+        Rule::HeightTint => row[0],
+    }
+}
+
+/// Paint the vertices of a mesh (positions and its recipe features `fs`) by `recipe`; sRGB in
+/// [0, 1].
+pub fn paint(recipe: &Recipe, fs: &FeatureSet, positions: &[[f32; 3]], up: Up) -> Vec<[f32; 3]> {
+    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for p in positions {
+        lo = lo.min(Vec3::from(*p));
+        hi = hi.max(Vec3::from(*p));
+    }
+    let cell = ((hi - lo).length() * 0.004).max(1e-12);
+    let has = |r: Rule| recipe.rules.contains(&r);
+    (0..fs.len())
+        .map(|v| {
+            let s = |r: Rule| rule_strength(r, fs, v, up);
+            let mut c = [0.55, 0.52, 0.48];
+            if has(Rule::HeightTint) {
+                c = lerp([0.42, 0.36, 0.30], [0.70, 0.68, 0.64], s(Rule::HeightTint));
+            }
+            if has(Rule::Moss) {
+                c = lerp(c, [0.28, 0.46, 0.16], 0.85 * s(Rule::Moss));
+            }
+            if has(Rule::Concavity) {
+                c = lerp(c, [0.50, 0.26, 0.14], 0.75 * s(Rule::Concavity));
+            }
+            if has(Rule::Dirt) {
+                c = lerp(c, [0.12, 0.10, 0.08], 0.85 * s(Rule::Dirt));
+            }
+            if has(Rule::Wear) {
+                c = lerp(c, [0.90, 0.88, 0.84], 0.8 * s(Rule::Wear));
+            }
+            let g = if recipe.grain > 0.0 {
+                1.0 + recipe.grain * value_noise(Vec3::from(positions[v]) / cell, 17)
+            } else {
+                1.0
+            };
+            c.map(|x| (x * g).clamp(0.0, 1.0))
+        })
+        .collect()
+}
+
+/// Scores of one colouring against the truth, on the same vertices.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct Scores {
+    /// Pearson correlation of L*, a*, b* with the truth.
+    pub corr: [f64; 3],
+    /// Lab Wasserstein-1 distance of the value distributions, per channel, averaged.
+    pub w1: f64,
+    /// High-frequency L* standard deviation (value minus its 1-ring mean), output over truth.
+    pub grain: f64,
+}
+
+fn pearson(a: &[f32], b: &[f32]) -> f64 {
+    let n = a.len().max(1) as f64;
+    let ma = a.iter().map(|&x| x as f64).sum::<f64>() / n;
+    let mb = b.iter().map(|&x| x as f64).sum::<f64>() / n;
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (&x, &y) in a.iter().zip(b) {
+        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
+        sab += dx * dy;
+        saa += dx * dx;
+        sbb += dy * dy;
+    }
+    sab / (saa * sbb).sqrt().max(1e-300)
+}
+
+fn w1(a: &[f32], b: &[f32]) -> f64 {
+    let mut a = a.to_vec();
+    let mut b = b.to_vec();
+    a.sort_by(f32::total_cmp);
+    b.sort_by(f32::total_cmp);
+    let n = a.len().min(b.len()).max(1);
+    let q = |v: &[f32], i: usize| v[(i * v.len()) / n] as f64;
+    (0..n).map(|i| (q(&a, i) - q(&b, i)).abs()).sum::<f64>() / n as f64
+}
+
+fn high_freq_std(adj: &Csr, x: &[f32]) -> f64 {
+    let n = x.len();
+    let hf: Vec<f64> = (0..n)
+        .map(|v| {
+            let row = adj.row(v);
+            let m =
+                row.iter().map(|&u| x[u as usize] as f64).sum::<f64>() / row.len().max(1) as f64;
+            x[v] as f64 - m
+        })
+        .collect();
+    let mean = hf.iter().sum::<f64>() / n.max(1) as f64;
+    (hf.iter().map(|h| (h - mean).powi(2)).sum::<f64>() / n.max(1) as f64).sqrt()
+}
+
+/// Score `out` against `truth` (sRGB per vertex of a mesh with adjacency `adj`).
+pub fn score(out: &[[f32; 3]], truth: &[[f32; 3]], adj: &Csr) -> Scores {
+    let lab = |c: &[[f32; 3]]| -> [Vec<f32>; 3] {
+        let l: Vec<[f32; 3]> = c.iter().map(|&x| srgb_to_lab(x)).collect();
+        [0, 1, 2].map(|k| l.iter().map(|x| x[k]).collect())
+    };
+    let (o, t) = (lab(out), lab(truth));
+    let ht = high_freq_std(adj, &t[0]);
+    Scores {
+        corr: [0, 1, 2].map(|k| pearson(&o[k], &t[k])),
+        w1: (0..3).map(|k| w1(&o[k], &t[k])).sum::<f64>() / 3.0,
+        grain: high_freq_std(adj, &o[0]) / ht.max(1e-12),
+    }
+}
+
+/// Columns of `fs` standardised by the source's per-column mean and standard deviation (a
+/// constant column gets weight 0).
+fn standardise(fs: &FeatureSet, mean: &[f64], std: &[f64]) -> Vec<f32> {
+    let d = fs.dim;
+    fs.values
+        .iter()
+        .enumerate()
+        .map(|(i, &x)| {
+            let j = i % d;
+            if std[j] > 1e-9 {
+                ((x as f64 - mean[j]) / std[j]) as f32
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// k-nearest-neighbour regression of colour on features: every target vertex gets the mean
+/// colour of its `k` nearest source vertices in standardised feature space.
+pub fn knn_regression(
+    src: &FeatureSet,
+    src_colors: &[[f32; 3]],
+    tgt: &FeatureSet,
+    k: usize,
+) -> Vec<[f32; 3]> {
+    let d = src.dim;
+    let n = src.len().max(1) as f64;
+    let mean: Vec<f64> = (0..d)
+        .map(|j| {
+            src.values
+                .iter()
+                .skip(j)
+                .step_by(d)
+                .map(|&x| x as f64)
+                .sum::<f64>()
+                / n
+        })
+        .collect();
+    let std: Vec<f64> = (0..d)
+        .map(|j| {
+            (src.values
+                .iter()
+                .skip(j)
+                .step_by(d)
+                .map(|&x| (x as f64 - mean[j]).powi(2))
+                .sum::<f64>()
+                / n)
+                .sqrt()
+        })
+        .collect();
+    let xs = standardise(src, &mean, &std);
+    let xt = standardise(tgt, &mean, &std);
+    knn_on(&xs, src_colors, &xt, d, k)
+}
+
+/// k-nearest-neighbour regression on given coordinates (`d` per row): the mean colour of the
+/// `k` nearest source rows.
+pub fn knn_on(
+    xs: &[f32],
+    src_colors: &[[f32; 3]],
+    xt: &[f32],
+    d: usize,
+    k: usize,
+) -> Vec<[f32; 3]> {
+    use rayon::prelude::*;
+    let tree = KdTree::new(xs, d);
+    xt.par_chunks(d)
+        .map_init(Vec::new, |buf, q| {
+            tree.knn(q, k.max(1), buf);
+            let mut c = [0.0f32; 3];
+            for &(_, i) in buf.iter() {
+                for (ck, sk) in c.iter_mut().zip(src_colors[i as usize]) {
+                    *ck += sk;
+                }
+            }
+            c.map(|x| x / buf.len().max(1) as f32)
+        })
+        .collect()
+}
+
+/// A source/target pair prepared for [`evaluate`]: the source refined to the working density
+/// with its recipe features, the target as given, and the target refined as [`super::run`]
+/// refines it, with its recipe features.
+pub struct Prepared {
+    /// Refined source (no colours).
+    pub source: TriMesh,
+    /// Recipe features of `source`.
+    pub source_features: FeatureSet,
+    /// The target as given.
+    pub target: TriMesh,
+    /// The target at the working density.
+    pub target_refined: TriMesh,
+    /// Recipe features of `target_refined`.
+    pub target_features: FeatureSet,
+    /// Up axis.
+    pub up: Up,
+    /// Working vertices.
+    pub vertices: usize,
+}
+
+/// Refine both meshes to `vertices` and compute their recipe features.
+pub fn prepare(
+    source: &TriMesh,
+    target: &TriMesh,
+    vertices: usize,
+    up: Up,
+    cancel: &CancelToken,
+) -> Result<Prepared> {
+    let rs = refine_to_density(source, vertices).mesh;
+    let rt = refine_to_density(target, vertices).mesh;
+    let (fs, ft) = rayon::join(
+        || recipe_features(&rs, up, cancel),
+        || recipe_features(&rt, up, cancel),
+    );
+    Ok(Prepared {
+        source: rs,
+        source_features: fs?,
+        target: target.clone(),
+        target_refined: rt,
+        target_features: ft?,
+        up,
+        vertices,
+    })
+}
+
+/// The result of [`evaluate`].
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Evaluation {
+    /// The transfer's scores.
+    pub method: Scores,
+    /// The k-nearest-neighbour floor's scores.
+    pub knn: Scores,
+    /// Seconds of [`super::run`].
+    pub seconds: f64,
+    /// Canonical correlations of the run.
+    pub correlations: Vec<f64>,
+}
+
+/// Colour the prepared source by `recipe`, transfer to the target with `params` (its
+/// `working_vertices` and `up` are set from the pair) and score against the recipe on the
+/// target, with the kNN floor (k = 8) beside.
+pub fn evaluate(
+    pair: &Prepared,
+    recipe: &Recipe,
+    params: &Params,
+    cancel: &CancelToken,
+) -> Result<Evaluation> {
+    let src_colors = paint(
+        recipe,
+        &pair.source_features,
+        &pair.source.positions,
+        pair.up,
+    );
+    let truth = paint(
+        recipe,
+        &pair.target_features,
+        &pair.target_refined.positions,
+        pair.up,
+    );
+    let mut source = pair.source.clone();
+    source.colors = Some(src_colors.clone());
+    let params = Params {
+        working_vertices: pair.vertices,
+        up: pair.up,
+        ..params.clone()
+    };
+    let sw = crate::work::Stopwatch::start();
+    let out = super::run(
+        &super::Input {
+            source: &source,
+            target: &pair.target,
+            source_mask: None,
+        },
+        &params,
+        &|_| {},
+        cancel,
+    )?;
+    let seconds = sw.secs();
+    if out.target.mesh.num_vertices() != pair.target_refined.num_vertices() {
+        return Err(Error::InvalidInput(
+            "the transfer refined the target differently".into(),
+        ));
+    }
+    let adj = pair.target_refined.adjacency();
+    let knn = knn_regression(&pair.source_features, &src_colors, &pair.target_features, 8);
+    Ok(Evaluation {
+        method: score(&out.colors, &truth, &adj),
+        knn: score(&knn, &truth, &adj),
+        seconds,
+        correlations: out.report.correlations.clone(),
+    })
+}
+
+/// Where a recipe is lost, by k-nearest-neighbour regression (k = 8) on each stage's
+/// coordinates, scored against the truth on the target: `[all features, CCA guidance (d dims),
+/// CCA guidance after the PDF transfer of the target's onto the source's]`.
+pub fn diagnose(pair: &Prepared, recipe: &Recipe, d: usize) -> Result<[Scores; 3]> {
+    use crate::stats::{PdfTransferParams, cca, pdf_transfer};
+    let src_colors = paint(
+        recipe,
+        &pair.source_features,
+        &pair.source.positions,
+        pair.up,
+    );
+    let truth = paint(
+        recipe,
+        &pair.target_features,
+        &pair.target_refined.positions,
+        pair.up,
+    );
+    let adj = pair.target_refined.adjacency();
+    let fs = &pair.source_features;
+    let ft = &pair.target_features;
+    let all = knn_regression(fs, &src_colors, ft, 8);
+    let y: Vec<f32> = src_colors.iter().flatten().copied().collect();
+    let model = cca(&fs.values, fs.dim, &y, 3, d, 1e-6)?;
+    let gs = model.project_x(&fs.values);
+    let mut gt = model.project_x(&ft.values);
+    let raw = knn_on(&gs, &src_colors, &gt, model.d, 8);
+    pdf_transfer(
+        &mut gt,
+        &gs,
+        model.d,
+        &PdfTransferParams {
+            iterations: 20,
+            tolerance: 0.01,
+            seed: 7,
+        },
+    );
+    let matched = knn_on(&gs, &src_colors, &gt, model.d, 8);
+    Ok([
+        score(&all, &truth, &adj),
+        score(&raw, &truth, &adj),
+        score(&matched, &truth, &adj),
+    ])
+}
