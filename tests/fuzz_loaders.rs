@@ -542,10 +542,12 @@ fn seeds_load_unmutated() {
 /// A written `.gltf` with its buffer and image files inlined as base64 data URIs, so its bytes
 /// load on their own (the fuzz cases parse bytes, with no files beside them).
 fn self_contained(path: &Path) -> Vec<u8> {
-    let mut js: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
+    let mut js: serde_json::Value = serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap();
     let dir = path.parent().unwrap();
-    for (key, mime) in [("buffers", "application/octet-stream"), ("images", "image/png")] {
+    for (key, mime) in [
+        ("buffers", "application/octet-stream"),
+        ("images", "image/png"),
+    ] {
         if let Some(list) = js.get_mut(key).and_then(|v| v.as_array_mut()) {
             for item in list {
                 if let Some(uri) = item.get("uri").and_then(|u| u.as_str()) {
@@ -563,7 +565,9 @@ fn base64(bytes: &[u8]) -> String {
     const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::with_capacity(bytes.len().div_ceil(3) * 4);
     for c in bytes.chunks(3) {
-        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        let n = (c[0] as u32) << 16
+            | (*c.get(1).unwrap_or(&0) as u32) << 8
+            | *c.get(2).unwrap_or(&0) as u32;
         for k in 0..4 {
             if k <= c.len() {
                 out.push(T[(n >> (18 - 6 * k) & 63) as usize] as char);

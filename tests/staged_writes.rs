@@ -50,5 +50,22 @@ fn a_failed_command_replaces_nothing_and_a_committed_one_replaces_everything() {
     // outside a group, writes land at once
     write_atomic(&a, b"direct").unwrap();
     assert_eq!(std::fs::read_to_string(&a).unwrap(), "direct");
+    // a .gltf and the buffer and texture beside it: a failed command leaves none of the three
+    let mut spot =
+        meshmatch::mesh::io::load(&meshmatch::testdata::data_path("spot/spot.obj")).expect("spot");
+    spot.colors = None;
+    let gone = d.join("staged.gltf");
+    {
+        let _group = StagedWrites::begin();
+        meshmatch::mesh::io::save(&spot, &gone).unwrap();
+    }
+    for name in ["staged.gltf", "staged.bin", "staged_texture.png"] {
+        assert!(!d.join(name).exists(), "{name} left behind");
+    }
+    assert_eq!(
+        listing(),
+        ["a.ply", "b.csv", "c.txt"],
+        "temporaries left behind"
+    );
     let _ = std::fs::remove_dir_all(&d);
 }
