@@ -478,6 +478,67 @@ pub const MAX_TEXTURE_SIZE: u32 = 8192;
 /// texture says.
 pub const DEFAULT_TEXTURE_SIZE: u32 = 2048;
 
+/// The side of a baked result texture: `--texture-size` when given, else the side of `mesh`'s own
+/// texture, else [`DEFAULT_TEXTURE_SIZE`].
+pub fn texture_side(asked: Option<u32>, mesh: &crate::mesh::TriMesh) -> u32 {
+    asked.unwrap_or_else(|| {
+        mesh.texture
+            .as_ref()
+            .map(|t| {
+                t.image
+                    .width()
+                    .max(t.image.height())
+                    .clamp(1, MAX_TEXTURE_SIZE)
+            })
+            .unwrap_or(DEFAULT_TEXTURE_SIZE)
+    })
+}
+
+/// `mesh` with a full-resolution result as `--out` wants it (`update`, `complete`): by extension,
+/// a texture of `size` texels baked from `full` into its UVs or a generated atlas (`.glb`,
+/// `.gltf`, `.obj`), or `colors` on its file vertices (`.ply`, or no full-resolution result).
+pub fn with_result(
+    mesh: &crate::mesh::TriMesh,
+    colors: Vec<[f32; 3]>,
+    full: Option<&(
+        std::sync::Arc<crate::meshmatch::Resampler>,
+        std::sync::Arc<crate::meshmatch::BakeLayout>,
+    )>,
+    out: &Path,
+    size: u32,
+) -> Result<crate::mesh::TriMesh> {
+    let ext = out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    match full {
+        Some((full, layout)) if !ext.eq_ignore_ascii_case("ply") => {
+            let d = crate::meshmatch::deliver(
+                mesh,
+                layout,
+                &[],
+                &colors,
+                ext,
+                size,
+                Some(full),
+                &crate::work::CancelToken::new(),
+            )?;
+            if let Some(line) = d.atlas_line(size) {
+                eprintln!("{line}");
+            }
+            eprintln!(
+                "baked a {size}x{size} texture read from the example at full resolution ({:.0}% \
+                 of the surface read exactly where it is unchanged)",
+                100.0 * full.coincident_share()
+            );
+            Ok(d.mesh)
+        }
+        _ => {
+            let mut m = mesh.clone();
+            m.colors = Some(colors);
+            m.texture = None;
+            Ok(m)
+        }
+    }
+}
+
 /// Refuse a `--texture-size` outside 1..=[`MAX_TEXTURE_SIZE`].
 pub fn check_texture_size(size: u32) -> Result<()> {
     if !(1..=MAX_TEXTURE_SIZE).contains(&size) {

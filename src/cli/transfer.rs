@@ -121,18 +121,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     check_outputs(&inputs, &outputs)?;
     let source = load_signal_source(&a.source, a.source_texture.as_deref())?;
     let target = load_usable(&a.target)?;
-    let texture_size = a.texture_size.unwrap_or_else(|| {
-        target
-            .texture
-            .as_ref()
-            .map(|t| {
-                t.image
-                    .width()
-                    .max(t.image.height())
-                    .clamp(1, MAX_TEXTURE_SIZE)
-            })
-            .unwrap_or(DEFAULT_TEXTURE_SIZE)
-    });
+    let texture_size = texture_side(a.texture_size, &target);
     check_texture_size(texture_size)?;
     let corr = match &a.correspondences {
         Some(p) => CorrespondenceFile::load_for(p, Some(&source), Some(&target))?,

@@ -66,47 +66,13 @@ fn update(a: &UpdateArgs) -> Result<i32> {
         .iter()
         .map(|&f| r.colors[f as usize])
         .collect();
-    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
-    let out = match &r.full {
-        Some((full, layout)) if !ext.eq_ignore_ascii_case("ply") => {
-            let size = a.texture_size.unwrap_or_else(|| {
-                old.texture
-                    .as_ref()
-                    .map(|t| {
-                        t.image
-                            .width()
-                            .max(t.image.height())
-                            .clamp(1, MAX_TEXTURE_SIZE)
-                    })
-                    .unwrap_or(DEFAULT_TEXTURE_SIZE)
-            });
-            let d = crate::meshmatch::deliver(
-                &new,
-                layout,
-                &[],
-                &colors,
-                ext,
-                size,
-                Some(full),
-                &CancelToken::new(),
-            )?;
-            if let Some(line) = d.atlas_line(size) {
-                eprintln!("{line}");
-            }
-            eprintln!(
-                "baked a {size}x{size} texture, the old one read at full resolution ({:.0}% of the \
-                 surface unchanged, read exactly)",
-                100.0 * full.coincident_share()
-            );
-            d.mesh
-        }
-        _ => {
-            let mut out = new.clone();
-            out.colors = Some(colors);
-            out.texture = None;
-            out
-        }
-    };
+    let out = with_result(
+        &new,
+        colors,
+        r.full.as_ref(),
+        &a.out,
+        texture_side(a.texture_size, &old),
+    )?;
     io::save(&out, &a.out)?;
     eprintln!("wrote {}", a.out.display());
     Ok(0)
