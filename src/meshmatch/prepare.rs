@@ -376,24 +376,18 @@ pub fn prepare(
     drop(renumber);
     let mut working = TriMesh::new(positions, faces);
     working.colors = signal0.clone();
+    let layout = Arc::new(BakeLayout {
+        working_faces: working.faces.clone(),
+        working_vertices: working.positions.len(),
+        face_input,
+        face_bary: r.source_bary,
+        input_faces: mesh.faces.len(),
+    });
     // A textured input keeps its texture on the working mesh (UVs interpolated into every working
     // corner), so views draw it per pixel rather than through the vertex colours.
     if mesh.signal_kind() == SignalKind::Texture
-        && let Some(uvs) = mesh.uvs.as_ref()
+        && let Some(wuv) = layout.working_uvs(mesh)
     {
-        let wuv: Vec<[f32; 2]> = face_input
-            .iter()
-            .zip(&r.source_bary)
-            .flat_map(|(&f, cb)| {
-                let f = f as usize;
-                cb.map(|b| {
-                    (0..3).fold([0.0f32; 2], |a, k| {
-                        let u = uvs[3 * f + k];
-                        [a[0] + b[k] * u[0], a[1] + b[k] * u[1]]
-                    })
-                })
-            })
-            .collect();
         working.uvs = Some(wuv);
         working.texture = mesh.texture.clone();
     }
@@ -508,13 +502,6 @@ pub fn prepare(
     };
     cancel.check()?;
     sink(Event::Progress(progress("prepare", &watch, 1.0)));
-    let layout = Arc::new(BakeLayout {
-        working_faces: working.faces.clone(),
-        working_vertices: working.positions.len(),
-        face_input,
-        face_bary: r.source_bary,
-        input_faces: mesh.faces.len(),
-    });
     Ok(PreparedMesh {
         working,
         working_to_file,
