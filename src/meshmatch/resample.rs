@@ -512,27 +512,34 @@ fn corner_images(
         let g = map_point(src, &lt.positions, ft, m, v, x);
         (g.to_array(), src.locate(g, m.anchor))
     };
-    let per_vertex: Vec<Vec<([f32; 3], Spot)>> = (0..lt.len())
-        .into_par_iter()
-        .map(|v| {
-            if cancel.is_cancelled() {
-                return Vec::new();
-            }
+    // Flat rows: vertex v's own image at `offsets[v] + v`, its neighbours' after it in
+    // adjacency order (the adjacency's offsets shifted by one slot per vertex).
+    let row_start = |v: usize| adj.offsets[v] as usize + v;
+    let slots: Vec<(usize, u32)> = (0..lt.len())
+        .flat_map(|v| {
             std::iter::once(v as u32)
                 .chain(adj.row(v).iter().copied())
-                .map(|u| image(v, Vec3::from(lt.positions[u as usize])))
-                .collect()
+                .map(move |u| (v, u))
         })
         .collect();
+    let images: Vec<([f32; 3], Spot)> = slots
+        .par_iter()
+        .map(|&(v, u)| {
+            if cancel.is_cancelled() {
+                return ([0.0; 3], Spot::default());
+            }
+            image(v, Vec3::from(lt.positions[u as usize]))
+        })
+        .collect();
+    drop(slots);
     cancel.check()?;
     let find = |v: usize, u: u32| -> ([f32; 3], Spot) {
-        let row = &per_vertex[v];
         if u as usize == v {
-            return row[0];
+            return images[row_start(v)];
         }
         match adj.row(v).binary_search(&u) {
-            Ok(i) if i + 1 < row.len() => row[i + 1],
-            _ => image(v, Vec3::from(lt.positions[u as usize])),
+            Ok(i) => images[row_start(v) + 1 + i],
+            Err(_) => image(v, Vec3::from(lt.positions[u as usize])),
         }
     };
     let out: Vec<[CornerImage; 3]> = lt
