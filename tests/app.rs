@@ -1760,6 +1760,16 @@ fn weather_tool_learns_dark_crevices_from_the_source_and_one_undo_restores() {
         );
         std::thread::sleep(Duration::from_millis(10));
     }
+    // And let the transfer the two meshes started settle: its result sets the target's colours,
+    // which the weathering step's undo rightly does not take back.
+    while h.state().state.job.running || h.state().state.restart_pending() {
+        h.step();
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "transfer did not settle"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
     h.run_steps(2);
     let before = h.state().state.slot(Side::Target).unwrap().display_colors();
     let i = system_index::<WeatherDialog>(&mut h);

@@ -28,6 +28,12 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::PreparedMesh;
+use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, Frames};
+use crate::geometry::closest_on_triangle;
+use crate::hierarchy::Level;
+use crate::mesh::{Csr, vertex_faces};
+use crate::work::CancelToken;
+
 /// Linear light -> sRGB through a table of 4096 steps (within 1/255 of the exact curve; the
 /// bake quantises to 8 bits).
 #[inline]
@@ -44,11 +50,6 @@ fn linear_to_srgb(c: f32) -> f32 {
     t[i] + (t[i + 1] - t[i]) * f
 }
 const SRGB_STEPS: usize = 4096;
-use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, Frames};
-use crate::geometry::closest_on_triangle;
-use crate::hierarchy::Level;
-use crate::mesh::{Csr, vertex_faces};
-use crate::work::CancelToken;
 
 /// Two matches agree at a texel when their source points are closer than this many source mean
 /// edges: inside a coherent patch the corner maps differ by a small fraction of an edge, across a
