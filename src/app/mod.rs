@@ -9,6 +9,7 @@ pub mod feature_aligned;
 pub mod files;
 pub mod quilt;
 pub mod state;
+pub mod system_tool;
 pub mod systems;
 pub mod tools;
 pub mod view;

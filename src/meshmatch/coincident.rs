@@ -19,7 +19,7 @@
 use glam::{DMat3, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::resample::PatchMap;
+use super::patch_map::PatchMap;
 use crate::features::Frames;
 use crate::geometry::TriangleBvh;
 use crate::hierarchy::Level;
