@@ -124,12 +124,17 @@
 //! on a plane is reproduced exactly (rigid copies on one lattice).
 
 mod crossing;
+mod finite_patch;
 mod io;
+pub mod links;
 pub mod maxflow;
+pub mod measure;
 pub mod merging;
+pub mod periodicity;
 mod swatch;
 
 pub use crossing::crossing_pairs;
+pub use finite_patch::{PatchKind, finite_patch};
 pub use io::{save_quilt_obj, save_quilt_ply};
 pub use swatch::{Axis, Element, Swatch, SwatchKind, load_swatch, swatch};
 
@@ -205,6 +210,10 @@ pub struct Params {
     /// Only elements at least this elongated merge (ratio of their two largest principal
     /// standard deviations in the swatch: strands of a weave about 9, rings and studs 1-2).
     pub merge_min_aspect: f32,
+    /// Detect the swatch's periodicity ([`periodicity`]): a finite patch with a lattice of
+    /// translated copies repeats its lattice tile, one without repeats a tile cut by its own
+    /// spacing. Off: a swatch not built periodic tiles with its box plus its clearance.
+    pub detect_period: bool,
 }
 
 impl Default for Params {
@@ -225,6 +234,7 @@ impl Default for Params {
             lattice: true,
             lattice_scale: 1.25,
             merge_min_aspect: 3.0,
+            detect_period: true,
         }
     }
 }
@@ -285,6 +295,27 @@ pub struct QuiltStats {
     pub shell_stretch: f64,
     /// Shell tetrahedra left inverted (vertices whose normal disagrees with a face's).
     pub shell_inverted: usize,
+    /// How the repeated tile was found ([`periodicity::Periodicity::kind`]; `"box"` without
+    /// detection).
+    pub periodicity: String,
+    /// The swatch's symmetry vectors (swatch units), when it has a lattice.
+    pub lattice_vectors: Option<[[f32; 2]; 2]>,
+    /// Elements in the repeated tile.
+    pub tile_elements: usize,
+    /// Element density of the output over the swatch's ([`measure`]).
+    pub density_ratio: f32,
+    /// The same over convex regions of the base.
+    pub density_ratio_convex: Option<f32>,
+    /// The same over saddle-shaped regions of the base.
+    pub density_ratio_saddle: Option<f32>,
+    /// Output links per element over the swatch's (`None`: the swatch has no links).
+    pub link_share: Option<f32>,
+    /// Links per element in the swatch (with its copies around it on a lattice).
+    pub swatch_links_per_element: f32,
+    /// Links per element in the output.
+    pub links_per_element: f32,
+    /// Share of the base's area with no gap larger than the swatch's largest.
+    pub coverage: f32,
     /// Wall time in seconds.
     pub seconds: f64,
 }
@@ -313,6 +344,58 @@ impl QuiltOutput {
     pub fn num_elements(&self) -> usize {
         self.element_source.len()
     }
+}
+
+impl QuiltStats {
+    /// One line on how well the swatch's arrangement came through: element density over the
+    /// swatch's (and on convex and saddle regions), the share of the swatch's links reproduced
+    /// and the coverage (base area without gaps larger than the swatch's largest).
+    pub fn arrangement_summary(&self) -> String {
+        let region =
+            |name: &str, r: Option<f32>| r.map_or(String::new(), |r| format!(", {name} {r:.2}"));
+        let links = match self.link_share {
+            Some(x) => format!(
+                "{:.0}% of the swatch's links ({:.2} per element, swatch {:.2})",
+                100.0 * x,
+                self.links_per_element,
+                self.swatch_links_per_element
+            ),
+            None => "no links in the swatch".into(),
+        };
+        format!(
+            "density {:.2} of the swatch's{}{}; {}; coverage {:.1}%; swatch tiled by {} ({} elements per tile)",
+            self.density_ratio,
+            region("convex", self.density_ratio_convex),
+            region("saddle", self.density_ratio_saddle),
+            links,
+            100.0 * self.coverage,
+            self.periodicity,
+            self.tile_elements
+        )
+    }
+}
+
+/// A saddle `z = k (x^2 - y^2)` over the square `[-1, 1]^2`, split into `n x n` quads of two
+/// triangles (normal up): a base of negative Gaussian curvature everywhere.
+pub fn saddle(k: f32, n: usize) -> TriMesh {
+    let n = n.max(1);
+    let mut positions = Vec::with_capacity((n + 1) * (n + 1));
+    for j in 0..=n {
+        for i in 0..=n {
+            let x = -1.0 + 2.0 * i as f32 / n as f32;
+            let y = -1.0 + 2.0 * j as f32 / n as f32;
+            positions.push([x, y, k * (x * x - y * y)]);
+        }
+    }
+    let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+    let mut faces = Vec::with_capacity(2 * n * n);
+    for j in 0..n {
+        for i in 0..n {
+            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriMesh::new(positions, faces)
 }
 
 /// A flat `w x h` rectangle in the z = 0 plane (normal +z), corner at the origin, split into
@@ -946,11 +1029,19 @@ pub fn run(
 ) -> Result<QuiltOutput> {
     let clock = Stopwatch::start();
     let mesh = input.base;
-    let sw = input.swatch;
     validate_base(mesh)?;
-    if sw.elements.is_empty() {
+    if input.swatch.elements.is_empty() {
         return Err(Error::InvalidInput("swatch has no elements".into()));
     }
+    // the tile to repeat: the swatch's own periodicity, detected
+    let found = params
+        .detect_period
+        .then(|| periodicity::detect(input.swatch));
+    let sw: &Swatch = found.as_ref().map_or(input.swatch, |p| &p.tile);
+    let swatch_measures = measure::swatch_measures(
+        sw,
+        found.as_ref().is_none_or(|p| p.kind != "spacing") && sw.periodic,
+    );
     if let Some(f) = input.field
         && f.len() != mesh.num_vertices()
     {
@@ -979,7 +1070,8 @@ pub fn run(
             "swatch size must be positive (got {l})"
         )));
     }
-    let s = l / sw.extent[0];
+    // the size names the swatch as given (a finite patch's width), not its tile
+    let s = l / input.swatch.extent[0];
     let h = params.thickness.unwrap_or(sw.height * s);
     if !(h.is_finite() && h >= 0.0) {
         return Err(Error::InvalidInput(format!(
@@ -1974,15 +2066,37 @@ pub fn run(
         element_pieces.push(pe.pieces.len() as u32);
     }
     stats.elements = element_source.len();
-    stats.seconds = clock.secs();
-    sink(Event::StageTime("quilt", stats.seconds));
-    Ok(QuiltOutput {
+    let mut out = QuiltOutput {
         elements: TriMesh::new(positions, out_f),
         element_id,
         element_source,
         element_pieces,
         stats,
-    })
+    };
+    if let Some(p) = &found {
+        for src in &mut out.element_source {
+            *src = p.source[*src as usize];
+        }
+    }
+    cancel.check()?;
+    let m = measure::quilt_measures(&out, input.base, &swatch_measures, s, l);
+    let st = &mut out.stats;
+    st.periodicity = found
+        .as_ref()
+        .map_or(if sw.periodic { "periodic" } else { "box" }, |p| p.kind)
+        .to_string();
+    st.lattice_vectors = found.as_ref().and_then(|p| p.lattice);
+    st.tile_elements = sw.num_elements();
+    st.density_ratio = m.density_ratio;
+    st.density_ratio_convex = m.density_ratio_convex;
+    st.density_ratio_saddle = m.density_ratio_saddle;
+    st.link_share = m.link_share;
+    st.swatch_links_per_element = swatch_measures.links_per_element;
+    st.links_per_element = m.links_per_element;
+    st.coverage = m.coverage;
+    st.seconds = clock.secs();
+    sink(Event::StageTime("quilt", st.seconds));
+    Ok(out)
 }
 
 /// Eq. (1)-(3) at the element level: the swatch translation (swatch units) that best explains
