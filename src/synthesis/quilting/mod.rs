@@ -1199,9 +1199,20 @@ pub fn run(
     }
     .max(1e-7 * l);
     let (nc, spacing) = sw.class_spacing();
+    // a tile cut by spacing (no lattice: every element differs) keeps each element's own
+    // spacing: two copies conflict closer than 0.9 of the mean of their nearest-neighbour
+    // centre distances in the swatch (no pair of the swatch itself is closer than that), not
+    // only 0.7 of the closest pair of their class
+    let own_spacing: Vec<f32> = if found.as_ref().is_some_and(|p| p.kind == "spacing") {
+        periodicity::nearest_spacing(sw)
+    } else {
+        vec![0.0; sw.num_elements()]
+    };
     let conflict_dist = |a: u32, b: u32| -> f32 {
-        let c = spacing[a as usize * nc + b as usize];
-        if c.is_finite() { 0.7 * c * s } else { 0.0 }
+        let (ca, cb) = (sw.elements[a as usize].class, sw.elements[b as usize].class);
+        let c = spacing[ca as usize * nc + cb as usize];
+        let by_class = if c.is_finite() { 0.7 * c * s } else { 0.0 };
+        by_class.max(0.45 * (own_spacing[a as usize] + own_spacing[b as usize]) * s)
     };
     let min_spacing = spacing.iter().cloned().fold(f32::INFINITY, f32::min);
     let nudge_spacing = |a: u32, b: u32| -> f32 {
@@ -1681,9 +1692,8 @@ pub fn run(
             let mut near = hash.near(&c.positions, tau);
             for (k, (e, _)) in old.iter().enumerate() {
                 let pe = &placed[*e as usize];
-                let pcl = sw.elements[pe.source as usize].class;
                 let d = pe.centre_distance(c.centre);
-                if d < conflict_dist(pcl, cl)
+                if d < conflict_dist(pe.source, c.source)
                     || (d < 2.0 * (c.radius + max_radius)
                         && crossing::surfaces_cross(
                             &pe.positions,
@@ -1750,13 +1760,11 @@ pub fn run(
         let mut grown = vec![false; old.len()];
         for j in order {
             let c = &cands[j];
-            let cl = sw.elements[c.source as usize].class;
             let clash = accepted_hash.any_near(&c.positions, tau, |_| true)
                 || accepted.iter().any(|&a| {
                     let o = &cands[a];
                     let d = o.centre.distance(c.centre);
-                    d < conflict_dist(sw.elements[o.source as usize].class, cl)
-                        .min(0.9 * (o.radius + c.radius))
+                    d < conflict_dist(o.source, c.source).min(0.9 * (o.radius + c.radius))
                         || (d < 2.0 * (o.radius + c.radius)
                             && crossing::surfaces_cross(
                                 &o.positions,

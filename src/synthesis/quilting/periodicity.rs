@@ -115,6 +115,30 @@ pub fn swatch_density(sw: &Swatch) -> f32 {
     n / ((w + d) * (h + d))
 }
 
+/// Each element's nearest-neighbour centre distance (x-y; copies around a periodic swatch
+/// included).
+pub fn nearest_spacing(sw: &Swatch) -> Vec<f32> {
+    let images = sw.images();
+    sw.elements
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let mut best = f32::INFINITY;
+            for (j, b) in sw.elements.iter().enumerate() {
+                for im in &images {
+                    if i == j && im[0] == 0.0 && im[1] == 0.0 {
+                        continue;
+                    }
+                    let d = (a.centre[0] - b.centre[0] - im[0])
+                        .hypot(a.centre[1] - b.centre[1] - im[1]);
+                    best = best.min(d);
+                }
+            }
+            if best.is_finite() { best } else { 0.0 }
+        })
+        .collect()
+}
+
 /// Centre box width and height and mean nearest-neighbour centre distance (x-y).
 fn spacing_box(sw: &Swatch) -> (f32, f32, f32) {
     let c: Vec<Vec2> = sw
