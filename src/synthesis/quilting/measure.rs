@@ -65,7 +65,7 @@ pub fn swatch_measures(tile: &Swatch, with_copies: bool) -> SwatchMeasures {
     let density = if with_copies {
         ne as f32 / (tile.extent[0] * tile.extent[1])
     } else {
-        super::periodicity::swatch_density(&unperiodic(tile))
+        super::periodicity::spacing_density(&unperiodic(tile))
     };
     let mut curves = Vec::new();
     let mut owner = Vec::new();

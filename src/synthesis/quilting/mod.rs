@@ -995,6 +995,33 @@ impl VertexHash {
     }
 }
 
+/// True for a closed (or nearly closed: under 1% boundary edges) base whose faces enclose a
+/// negative volume, i.e. are wound with their normals pointing inwards.
+fn wound_inwards(base: &TriMesh) -> bool {
+    let mut edges: HashMap<(u32, u32), i32> = HashMap::with_capacity(3 * base.faces.len());
+    for f in &base.faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let boundary = edges.values().filter(|&&c| c == 1).count();
+    if boundary * 100 > edges.len() {
+        return false;
+    }
+    let c = base.positions.iter().map(|p| Vec3::from(*p)).sum::<Vec3>()
+        / base.num_vertices().max(1) as f32;
+    let volume: f64 = base
+        .faces
+        .iter()
+        .map(|f| {
+            let [a, b, d] = f.map(|v| Vec3::from(base.positions[v as usize]) - c);
+            a.dot(b.cross(d)) as f64
+        })
+        .sum();
+    volume < 0.0
+}
+
 fn validate_base(base: &TriMesh) -> Result<()> {
     if base.faces.is_empty() {
         return Err(Error::InvalidInput("base mesh has no faces".into()));
@@ -1028,8 +1055,24 @@ pub fn run(
     cancel: &CancelToken,
 ) -> Result<QuiltOutput> {
     let clock = Stopwatch::start();
-    let mesh = input.base;
-    validate_base(mesh)?;
+    validate_base(input.base)?;
+    // a closed base wound inwards (negative enclosed volume, as the shared horse) would grow
+    // its shell, and the elements, inside: quilt over the same surface wound outwards
+    let outward;
+    let mesh: &TriMesh = if wound_inwards(input.base) {
+        outward = TriMesh::new(
+            input.base.positions.clone(),
+            input
+                .base
+                .faces
+                .iter()
+                .map(|f| [f[0], f[2], f[1]])
+                .collect(),
+        );
+        &outward
+    } else {
+        input.base
+    };
     if input.swatch.elements.is_empty() {
         return Err(Error::InvalidInput("swatch has no elements".into()));
     }
@@ -2087,7 +2130,7 @@ pub fn run(
         }
     }
     cancel.check()?;
-    let m = measure::quilt_measures(&out, input.base, &swatch_measures, s, l);
+    let m = measure::quilt_measures(&out, mesh, &swatch_measures, s, l);
     let st = &mut out.stats;
     st.periodicity = found
         .as_ref()

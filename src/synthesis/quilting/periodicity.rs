@@ -13,8 +13,10 @@
 //!    tile is the smallest rectangle spanned by two orthogonal lattice vectors `A`, `B`
 //!    (combinations `i a + j b`, `|i|, |j| <= 4`) with `A` along the swatch's x axis when the
 //!    lattice has such a vector, else turned so that `A` is the tile's `+x`; each
-//!    side is then multiplied until no element reaches its own image (threads longer than the
-//!    lattice step keep their length: a finite weave tiles with its strands end to end).
+//!    side is then multiplied until every element either has a copy of its shape one side away
+//!    in the swatch itself or clears its copy's box (threads longer than the lattice step keep
+//!    their length: a finite weave tiles with its strands end to end; shingles overlapping
+//!    their neighbours' boxes keep the lattice step, as the swatch shows them so).
 //! 4. **Tile.** Elements are grouped by their centre modulo the tile; of each group the one
 //!    nearest the swatch's centre is kept, moved by whole tile periods into the tile.
 //!
@@ -104,13 +106,24 @@ fn same_shape(a: &Key, b: &Key) -> bool {
 }
 
 /// Elements per unit of swatch area: a periodic swatch's count over its period's area; a finite
-/// one's count over its centre box grown by its mean nearest-neighbour centre distance (for a
-/// finite lattice patch of `n x m` elements spaced `d x e` this is `1 / (d e)`).
+/// patch with a lattice, its tile's; a finite one without, its count over its centre box grown
+/// by its mean nearest-neighbour centre distance ([`spacing_density`]).
 pub fn swatch_density(sw: &Swatch) -> f32 {
     let n = sw.num_elements() as f32;
     if sw.periodic {
         return n / (sw.extent[0] * sw.extent[1]);
     }
+    let p = detect(sw);
+    if p.kind == "lattice" {
+        return p.tile.num_elements() as f32 / (p.tile.extent[0] * p.tile.extent[1]);
+    }
+    spacing_density(sw)
+}
+
+/// A finite swatch's count over its centre box grown by its mean nearest-neighbour centre
+/// distance (half of it on each side): `1 / d^2` for a square lattice patch of step `d`.
+pub fn spacing_density(sw: &Swatch) -> f32 {
+    let n = sw.num_elements() as f32;
     let (w, h, d) = spacing_box(sw);
     n / ((w + d) * (h + d))
 }
@@ -300,26 +313,32 @@ fn lattice_tile(sw: &Swatch, a: Vec2, b: Vec2) -> Option<Periodicity> {
     let rot = glam::Mat2::from_angle(turn);
     let k = keys(sw);
     // element extents in the tile frame
-    let clearance = sw.clearance().min(0.05 * pa.length().min(pb.length()));
+    // an element must keep half the swatch's own clearance from its copy one period away
+    let clearance = 0.5 * sw.clearance().min(0.05 * pa.length().min(pb.length()));
     let mut period = [pa.length(), pb.length()];
     for axis in 0..2 {
-        let reach = k
-            .iter()
-            .enumerate()
-            .map(|(e, _)| {
-                let ps = sw.element_positions(e);
-                let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-                for p in ps {
-                    let q = rot * Vec2::new(p[0], p[1]);
-                    lo = lo.min(q[axis]);
-                    hi = hi.max(q[axis]);
-                }
-                hi - lo
-            })
-            .fold(0.0f32, f32::max);
         let step = period[axis];
         let mut m = 1.0f32;
-        while m * step < reach + clearance && m < 64.0 {
+        // an element may sit one period from its own copy when the swatch shows a copy of its
+        // shape there; otherwise it must clear its copy's box
+        let clashes = |m: f32| {
+            let mut shift = Vec2::ZERO;
+            shift[axis] = m * step;
+            let shift = rot.inverse() * shift;
+            let off = Vec3::new(shift.x, shift.y, 0.0);
+            let tol = 0.02 * step;
+            k.iter().any(|key| {
+                let shown = k.iter().any(|a| {
+                    same_shape(a, key)
+                        && k.iter().any(|b| {
+                            same_shape(a, b) && (b.centre - a.centre - off).length() <= tol
+                        })
+                });
+                let gap = ((key.lo + off) - key.hi).max(key.lo - (key.hi + off));
+                !shown && gap.max_element() <= clearance
+            })
+        };
+        while clashes(m) && m < 64.0 {
             m += 1.0;
         }
         period[axis] = m * step;
