@@ -4,6 +4,14 @@
 //!
 //! What runs, in order, and where it departs from the paper:
 //!
+//! 0. **Periodicity, detected** ([`periodicity`], not in the paper, which pastes the swatch
+//!    itself patch by patch): a loaded swatch is matched against shifted copies of itself; a
+//!    finite patch with a lattice of translated copies repeats its lattice tile (one element
+//!    per orbit), one without repeats a tile cut by its own spacing, a built-in periodic swatch
+//!    its period. Everything below works on that tile; `L` still names the given swatch's width.
+//!    Links (rings threaded through rings, [`links`]) are told apart from crossing surfaces by
+//!    the linking number of centre curves, and the output is measured against the swatch
+//!    ([`measure`]: density, links reproduced, coverage; in [`QuiltStats`]).
 //! 1. **Scale.** `L` = swatch x extent in base units (default a tenth of the base's bounding-box
 //!    diagonal), `s = L / l_in`; shell thickness `H` (default `s h_in`).
 //! 2. **Patch growing (§3.1).** Seed = the uncovered base triangle with the most covered
