@@ -339,6 +339,8 @@ fn concave_guard_keeps_offsets_below_the_radius_of_curvature() {
     let mut params = Params {
         swatch_size: Some(1.0),
         thickness: Some(1.5),
+        // the inside, as wound: not turned outwards
+        outward: false,
         ..Default::default()
     };
     // signed height of every vertex along its element's base direction (vertex 0 of a stud is

@@ -222,6 +222,10 @@ pub struct Params {
     /// translated copies repeats its lattice tile, one without repeats a tile cut by its own
     /// spacing. Off: a swatch not built periodic tiles with its box plus its clearance.
     pub detect_period: bool,
+    /// Quilt a closed base whose faces are wound inwards (negative enclosed volume, as scans
+    /// often are) on its outside. Off: the shell always follows the faces' winding (the inside
+    /// of a closed surface can be quilted).
+    pub outward: bool,
 }
 
 impl Default for Params {
@@ -243,6 +247,7 @@ impl Default for Params {
             lattice_scale: 1.25,
             merge_min_aspect: 3.0,
             detect_period: true,
+            outward: true,
         }
     }
 }
@@ -1067,7 +1072,7 @@ pub fn run(
     // a closed base wound inwards (negative enclosed volume, as the shared horse) would grow
     // its shell, and the elements, inside: quilt over the same surface wound outwards
     let outward;
-    let mesh: &TriMesh = if wound_inwards(input.base) {
+    let mesh: &TriMesh = if params.outward && wound_inwards(input.base) {
         outward = TriMesh::new(
             input.base.positions.clone(),
             input
