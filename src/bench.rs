@@ -555,6 +555,51 @@ pub fn quilt_row_of(
     })
 }
 
+/// Mesh quilting of a finite swatch (`quilting::finite_patch`, loaded as a swatch file would
+/// be) over the bunny or the horse, the swatch a tenth of the diagonal wide.
+pub fn quilt_finite_row(
+    kind: crate::synthesis::quilting::PatchKind,
+    horse: bool,
+) -> Result<SystemRow> {
+    use crate::synthesis::quilting;
+    let name = if horse {
+        "horse/horse.ply"
+    } else {
+        "bunny/bunny.obj"
+    };
+    let mut base = crate::mesh::io::load(&crate::testdata::data_path(name))?;
+    base.repair()?;
+    let (lo, hi) = base
+        .bounds()
+        .ok_or_else(|| crate::error::Error::InvalidMesh("empty base".into()))?;
+    let diag = glam::Vec3::from(hi).distance(glam::Vec3::from(lo));
+    let swatch = quilting::load_swatch(quilting::finite_patch(kind, 1), quilting::Axis::Z)?;
+    let params = quilting::Params {
+        swatch_size: Some(diag / 10.0),
+        ..quilting::Params::default()
+    };
+    let t = Instant::now();
+    let input = quilting::Input {
+        base: &base,
+        swatch: &swatch,
+        field: None,
+    };
+    let out = quilting::run(&input, &params, &|_| {}, &CancelToken::new())?;
+    Ok(SystemRow {
+        case: format!(
+            "quilt finite {} on the {} (swatch = diagonal / 10; {})",
+            kind.as_str(),
+            if horse { "horse" } else { "bunny" },
+            out.stats.arrangement_summary()
+        ),
+        vertices: base.num_vertices(),
+        stages: vec![("quilt".into(), out.stats.seconds)],
+        total_s: t.elapsed().as_secs_f64(),
+        faces: out.elements.num_faces(),
+        peak_rss_mb: peak_rss_mb(),
+    })
+}
+
 /// The SMPL man (coloured by height bands) and the woman refined to `n` vertices and moved, with
 /// six landmarks (head top, hands, feet, a toe) on the same SMPL vertices.
 fn bodies(n: usize) -> Result<(TriMesh, TriMesh, Vec<crate::correspondence::Correspondence>)> {
@@ -891,6 +936,10 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
                 10.0,
                 true,
             )?,
+            quilt_finite_row(crate::synthesis::quilting::PatchKind::Rings, false)?,
+            quilt_finite_row(crate::synthesis::quilting::PatchKind::Rings, true)?,
+            quilt_finite_row(crate::synthesis::quilting::PatchKind::Weave, false)?,
+            quilt_finite_row(crate::synthesis::quilting::PatchKind::Pebbles, false)?,
         ],
         "texture" => texture_rows(sizes.first().copied().unwrap_or(64_000))?,
         "map" => {

@@ -339,6 +339,8 @@ fn concave_guard_keeps_offsets_below_the_radius_of_curvature() {
     let mut params = Params {
         swatch_size: Some(1.0),
         thickness: Some(1.5),
+        // the inside, as wound: not turned outwards
+        outward: false,
         ..Default::default()
     };
     // signed height of every vertex along its element's base direction (vertex 0 of a stud is
@@ -990,4 +992,122 @@ fn a_base_with_a_vertex_in_no_face_quilts_on_the_lattice() {
     );
     check_integrity(&out, &sw);
     assert!(out.stats.lattice_patches > 0);
+}
+
+/// Periodicity is detected from the swatch's own layout: finite patches with a lattice of
+/// translated copies get their symmetry vectors, the built-in periodic swatches written to a
+/// file and loaded again are found periodic, a scattered cluster is not.
+#[test]
+fn periodicity_is_detected_from_the_swatch_itself() {
+    use quilting::periodicity::{detect, swatch_density, symmetries};
+    let rings = load_swatch(
+        quilting::finite_patch(quilting::PatchKind::Rings, 1),
+        Axis::Z,
+    )
+    .unwrap();
+    assert_eq!(rings.num_elements(), 12);
+    let p = detect(&rings);
+    assert_eq!(p.kind, "lattice");
+    // shortest first: (0, 0.75) between rows, (0.8, 0) along a row (a lying ring to the next)
+    let [a, b] = p.lattice.unwrap();
+    assert!(a[0].abs() < 1e-3 && (a[1] - 0.75).abs() < 1e-3, "{a:?}");
+    assert!((b[0] - 0.8).abs() < 1e-3 && b[1].abs() < 1e-3, "{b:?}");
+    assert!((p.tile.extent[0] - 0.8).abs() < 1e-3 && (p.tile.extent[1] - 0.75).abs() < 1e-3);
+    assert_eq!(p.tile.num_elements(), 2);
+    // an n x m lattice patch has the density of its lattice
+    assert!((swatch_density(&rings) - 2.0 / (0.8 * 0.75)).abs() < 1e-3);
+    assert!((swatch_density(&p.tile) - swatch_density(&rings)).abs() < 1e-3);
+    // the finite weave: strands longer than the lattice step keep their length
+    let weave = load_swatch(
+        quilting::finite_patch(quilting::PatchKind::Weave, 1),
+        Axis::Z,
+    )
+    .unwrap();
+    let p = detect(&weave);
+    assert_eq!(p.kind, "lattice");
+    assert!((p.tile.extent[0] - 6.0).abs() < 1e-3 && (p.tile.extent[1] - 6.0).abs() < 1e-3);
+    assert_eq!(p.tile.num_elements(), 12);
+    // pebbles: no two are translated copies
+    let pebbles = load_swatch(
+        quilting::finite_patch(quilting::PatchKind::Pebbles, 1),
+        Axis::Z,
+    )
+    .unwrap();
+    assert!(pebbles.num_elements() >= 30);
+    assert!(symmetries(&pebbles).is_empty());
+    assert_eq!(detect(&pebbles).kind, "spacing");
+    // built-in swatches, written as a plain mesh and loaded: the tile is the lattice's cell
+    // (the weave's strands, 3.94 long on a lattice step of 2, need two steps)
+    for (kind, cell) in [
+        (SwatchKind::Chain, [1.0, 1.0]),
+        (SwatchKind::Studs, [1.0, 1.0]),
+        (SwatchKind::Scales, [1.0, 1.0]),
+        (SwatchKind::Weave, [4.0, 4.0]),
+    ] {
+        let built = swatch(kind, 1);
+        let loaded = load_swatch(built.mesh.clone(), Axis::Z).unwrap();
+        let p = detect(&loaded);
+        assert_eq!(p.kind, "lattice", "{kind:?}");
+        let t = p.tile.extent;
+        assert!(
+            (t[0] - cell[0]).abs() < 1e-3 && (t[1] - cell[1]).abs() < 1e-3,
+            "{kind:?} {t:?}"
+        );
+        // the tile repeats the built-in swatch's density
+        let d = built.num_elements() as f32 / (built.extent[0] * built.extent[1]);
+        assert!((swatch_density(&p.tile) - d).abs() < 1e-3 * d, "{kind:?}");
+        assert_eq!(detect(&built).kind, "periodic");
+    }
+}
+
+/// The interlinked ring patch over a coarse sphere (convex) and a saddle: density within 15%
+/// of the swatch's, at least 80% of its links per ring reproduced, no crossing surfaces, the
+/// base covered without gaps larger than the swatch's largest; and the pebble cluster, which
+/// has no lattice, keeps its density too.
+#[test]
+fn a_finite_ring_patch_keeps_its_links_and_density_on_convex_and_saddle_bases() {
+    let rings = load_swatch(
+        quilting::finite_patch(quilting::PatchKind::Rings, 1),
+        Axis::Z,
+    )
+    .unwrap();
+    let pebbles = load_swatch(
+        quilting::finite_patch(quilting::PatchKind::Pebbles, 1),
+        Axis::Z,
+    )
+    .unwrap();
+    let sphere = icosphere(1.0, 3);
+    let saddle = quilting::saddle(0.5, 24);
+    for (name, base, sw, size) in [
+        ("sphere", &sphere, &rings, 0.6f32),
+        ("saddle", &saddle, &rings, 0.6),
+        ("saddle", &saddle, &pebbles, 1.0),
+    ] {
+        let out = quilt(
+            base,
+            sw,
+            &Params {
+                swatch_size: Some(size),
+                ..Default::default()
+            },
+        );
+        check_integrity(&out, sw);
+        let s = &out.stats;
+        let label = format!("{name}: {}", s.arrangement_summary());
+        assert!((0.85..=1.15).contains(&s.density_ratio), "{label}");
+        let region = if name == "sphere" {
+            s.density_ratio_convex
+        } else {
+            s.density_ratio_saddle
+        };
+        assert!(
+            region.is_some_and(|r| (0.85..=1.15).contains(&r)),
+            "{label}"
+        );
+        if sw.num_elements() == 12 {
+            assert!(s.link_share.is_some_and(|x| x >= 0.8), "{label}");
+        }
+        assert!(s.coverage >= 0.95, "{label}");
+        assert_eq!(quilting::crossing_pairs(&out).len(), 0, "{label}");
+    }
 }

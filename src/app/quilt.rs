@@ -190,15 +190,15 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
                 Side::Target,
                 mesh,
                 format!(
-                    "quilted {} elements over the target in {:.1} s ({:.0}% covered{})",
+                    "quilted {} elements over the target in {:.1} s{}: {}",
                     out.stats.elements,
                     out.stats.seconds,
-                    100.0 * out.stats.covered_fraction,
                     if out.stats.merged > 0 {
-                        format!(", {} thread copies merged across seams", out.stats.merged)
+                        format!(" ({} thread copies merged across seams)", out.stats.merged)
                     } else {
                         String::new()
-                    }
+                    },
+                    out.stats.arrangement_summary()
                 ),
             ))
         }))

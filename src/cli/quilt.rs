@@ -140,6 +140,7 @@ impl QuiltArgs {
             s.shell_stretch_before,
             s.shell_stretch
         );
+        eprintln!("{}", s.arrangement_summary());
         if s.shell_inverted > 0 {
             eprintln!(
                 "note: {} of the shell's {} tetrahedra stay inverted (base vertices whose normal \
@@ -188,7 +189,8 @@ fn merged(elements: &TriMesh, base: Option<&TriMesh>) -> TriMesh {
 /// Arguments of `meshmatch swatch`.
 #[derive(clap::Args, Debug)]
 pub struct SwatchArgs {
-    /// chain, weave, nuts, studs or scales.
+    /// chain, weave, nuts, studs or scales (periodic), or a finite patch as an artist models
+    /// one: rings-patch (3 rows of 4 interlinked tilted rings), weave-patch, pebbles.
     #[arg(long)]
     pub kind: String,
     /// Output mesh (.obj, .ply, .glb, .gltf): elements over z = 0, z up.
@@ -203,6 +205,22 @@ impl SwatchArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
         check_outputs(&[], &[("--out", self.out.as_path(), OutKind::Mesh)])?;
+        if let Ok(kind) = quilting::PatchKind::parse(&self.kind) {
+            let mesh = quilting::finite_patch(kind, self.seed);
+            let s = quilting::load_swatch(mesh.clone(), Axis::Z)?;
+            io::save(&mesh, &self.out)?;
+            eprintln!(
+                "{} (finite patch): {} elements, {} faces, {:.3} x {:.3}, height {:.3}",
+                self.kind,
+                s.elements.len(),
+                s.mesh.num_faces(),
+                s.extent[0],
+                s.extent[1],
+                s.height
+            );
+            eprintln!("wrote {}", self.out.display());
+            return Ok(0);
+        }
         let s = quilting::swatch(SwatchKind::parse(&self.kind)?, self.seed);
         io::save(&s.mesh, &self.out)?;
         eprintln!(

@@ -4,6 +4,14 @@
 //!
 //! What runs, in order, and where it departs from the paper:
 //!
+//! 0. **Periodicity, detected** ([`periodicity`], not in the paper, which pastes the swatch
+//!    itself patch by patch): a loaded swatch is matched against shifted copies of itself; a
+//!    finite patch with a lattice of translated copies repeats its lattice tile (one element
+//!    per orbit), one without repeats a tile cut by its own spacing, a built-in periodic swatch
+//!    its period. Everything below works on that tile; `L` still names the given swatch's width.
+//!    Links (rings threaded through rings, [`links`]) are told apart from crossing surfaces by
+//!    the linking number of centre curves, and the output is measured against the swatch
+//!    ([`measure`]: density, links reproduced, coverage; in [`QuiltStats`]).
 //! 1. **Scale.** `L` = swatch x extent in base units (default a tenth of the base's bounding-box
 //!    diagonal), `s = L / l_in`; shell thickness `H` (default `s h_in`).
 //! 2. **Patch growing (§3.1).** Seed = the uncovered base triangle with the most covered
@@ -124,12 +132,17 @@
 //! on a plane is reproduced exactly (rigid copies on one lattice).
 
 mod crossing;
+mod finite_patch;
 mod io;
+pub mod links;
 pub mod maxflow;
+pub mod measure;
 pub mod merging;
+pub mod periodicity;
 mod swatch;
 
 pub use crossing::crossing_pairs;
+pub use finite_patch::{PatchKind, finite_patch};
 pub use io::{save_quilt_obj, save_quilt_ply};
 pub use swatch::{Axis, Element, Swatch, SwatchKind, load_swatch, swatch};
 
@@ -205,6 +218,14 @@ pub struct Params {
     /// Only elements at least this elongated merge (ratio of their two largest principal
     /// standard deviations in the swatch: strands of a weave about 9, rings and studs 1-2).
     pub merge_min_aspect: f32,
+    /// Detect the swatch's periodicity ([`periodicity`]): a finite patch with a lattice of
+    /// translated copies repeats its lattice tile, one without repeats a tile cut by its own
+    /// spacing. Off: a swatch not built periodic tiles with its box plus its clearance.
+    pub detect_period: bool,
+    /// Quilt a closed base whose faces are wound inwards (negative enclosed volume, as scans
+    /// often are) on its outside. Off: the shell always follows the faces' winding (the inside
+    /// of a closed surface can be quilted).
+    pub outward: bool,
 }
 
 impl Default for Params {
@@ -225,6 +246,8 @@ impl Default for Params {
             lattice: true,
             lattice_scale: 1.25,
             merge_min_aspect: 3.0,
+            detect_period: true,
+            outward: true,
         }
     }
 }
@@ -285,6 +308,27 @@ pub struct QuiltStats {
     pub shell_stretch: f64,
     /// Shell tetrahedra left inverted (vertices whose normal disagrees with a face's).
     pub shell_inverted: usize,
+    /// How the repeated tile was found ([`periodicity::Periodicity::kind`]; `"box"` without
+    /// detection).
+    pub periodicity: String,
+    /// The swatch's symmetry vectors (swatch units), when it has a lattice.
+    pub lattice_vectors: Option<[[f32; 2]; 2]>,
+    /// Elements in the repeated tile.
+    pub tile_elements: usize,
+    /// Element density of the output over the swatch's ([`measure`]).
+    pub density_ratio: f32,
+    /// The same over convex regions of the base.
+    pub density_ratio_convex: Option<f32>,
+    /// The same over saddle-shaped regions of the base.
+    pub density_ratio_saddle: Option<f32>,
+    /// Output links per element over the swatch's (`None`: the swatch has no links).
+    pub link_share: Option<f32>,
+    /// Links per element in the swatch (with its copies around it on a lattice).
+    pub swatch_links_per_element: f32,
+    /// Links per element in the output.
+    pub links_per_element: f32,
+    /// Share of the base's area with no gap larger than the swatch's largest.
+    pub coverage: f32,
     /// Wall time in seconds.
     pub seconds: f64,
 }
@@ -313,6 +357,58 @@ impl QuiltOutput {
     pub fn num_elements(&self) -> usize {
         self.element_source.len()
     }
+}
+
+impl QuiltStats {
+    /// One line on how well the swatch's arrangement came through: element density over the
+    /// swatch's (and on convex and saddle regions), the share of the swatch's links reproduced
+    /// and the coverage (base area without gaps larger than the swatch's largest).
+    pub fn arrangement_summary(&self) -> String {
+        let region =
+            |name: &str, r: Option<f32>| r.map_or(String::new(), |r| format!(", {name} {r:.2}"));
+        let links = match self.link_share {
+            Some(x) => format!(
+                "{:.0}% of the swatch's links ({:.2} per element, swatch {:.2})",
+                100.0 * x,
+                self.links_per_element,
+                self.swatch_links_per_element
+            ),
+            None => "no links in the swatch".into(),
+        };
+        format!(
+            "density {:.2} of the swatch's{}{}; {}; coverage {:.1}%; swatch tiled by {} ({} elements per tile)",
+            self.density_ratio,
+            region("convex", self.density_ratio_convex),
+            region("saddle", self.density_ratio_saddle),
+            links,
+            100.0 * self.coverage,
+            self.periodicity,
+            self.tile_elements
+        )
+    }
+}
+
+/// A saddle `z = k (x^2 - y^2)` over the square `[-1, 1]^2`, split into `n x n` quads of two
+/// triangles (normal up): a base of negative Gaussian curvature everywhere.
+pub fn saddle(k: f32, n: usize) -> TriMesh {
+    let n = n.max(1);
+    let mut positions = Vec::with_capacity((n + 1) * (n + 1));
+    for j in 0..=n {
+        for i in 0..=n {
+            let x = -1.0 + 2.0 * i as f32 / n as f32;
+            let y = -1.0 + 2.0 * j as f32 / n as f32;
+            positions.push([x, y, k * (x * x - y * y)]);
+        }
+    }
+    let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
+    let mut faces = Vec::with_capacity(2 * n * n);
+    for j in 0..n {
+        for i in 0..n {
+            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
+            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
+        }
+    }
+    TriMesh::new(positions, faces)
 }
 
 /// A flat `w x h` rectangle in the z = 0 plane (normal +z), corner at the origin, split into
@@ -912,6 +1008,33 @@ impl VertexHash {
     }
 }
 
+/// True for a closed (or nearly closed: under 1% boundary edges) base whose faces enclose a
+/// negative volume, i.e. are wound with their normals pointing inwards.
+fn wound_inwards(base: &TriMesh) -> bool {
+    let mut edges: HashMap<(u32, u32), i32> = HashMap::with_capacity(3 * base.faces.len());
+    for f in &base.faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let boundary = edges.values().filter(|&&c| c == 1).count();
+    if boundary * 100 > edges.len() {
+        return false;
+    }
+    let c = base.positions.iter().map(|p| Vec3::from(*p)).sum::<Vec3>()
+        / base.num_vertices().max(1) as f32;
+    let volume: f64 = base
+        .faces
+        .iter()
+        .map(|f| {
+            let [a, b, d] = f.map(|v| Vec3::from(base.positions[v as usize]) - c);
+            a.dot(b.cross(d)) as f64
+        })
+        .sum();
+    volume < 0.0
+}
+
 fn validate_base(base: &TriMesh) -> Result<()> {
     if base.faces.is_empty() {
         return Err(Error::InvalidInput("base mesh has no faces".into()));
@@ -945,12 +1068,36 @@ pub fn run(
     cancel: &CancelToken,
 ) -> Result<QuiltOutput> {
     let clock = Stopwatch::start();
-    let mesh = input.base;
-    let sw = input.swatch;
-    validate_base(mesh)?;
-    if sw.elements.is_empty() {
+    validate_base(input.base)?;
+    // a closed base wound inwards (negative enclosed volume, as the shared horse) would grow
+    // its shell, and the elements, inside: quilt over the same surface wound outwards
+    let outward;
+    let mesh: &TriMesh = if params.outward && wound_inwards(input.base) {
+        outward = TriMesh::new(
+            input.base.positions.clone(),
+            input
+                .base
+                .faces
+                .iter()
+                .map(|f| [f[0], f[2], f[1]])
+                .collect(),
+        );
+        &outward
+    } else {
+        input.base
+    };
+    if input.swatch.elements.is_empty() {
         return Err(Error::InvalidInput("swatch has no elements".into()));
     }
+    // the tile to repeat: the swatch's own periodicity, detected
+    let found = params
+        .detect_period
+        .then(|| periodicity::detect(input.swatch));
+    let sw: &Swatch = found.as_ref().map_or(input.swatch, |p| &p.tile);
+    let swatch_measures = measure::swatch_measures(
+        sw,
+        found.as_ref().is_none_or(|p| p.kind != "spacing") && sw.periodic,
+    );
     if let Some(f) = input.field
         && f.len() != mesh.num_vertices()
     {
@@ -979,7 +1126,8 @@ pub fn run(
             "swatch size must be positive (got {l})"
         )));
     }
-    let s = l / sw.extent[0];
+    // the size names the swatch as given (a finite patch's width), not its tile
+    let s = l / input.swatch.extent[0];
     let h = params.thickness.unwrap_or(sw.height * s);
     if !(h.is_finite() && h >= 0.0) {
         return Err(Error::InvalidInput(format!(
@@ -1107,9 +1255,20 @@ pub fn run(
     }
     .max(1e-7 * l);
     let (nc, spacing) = sw.class_spacing();
+    // a tile cut by spacing (no lattice: every element differs) keeps each element's own
+    // spacing: two copies conflict closer than 0.9 of the mean of their nearest-neighbour
+    // centre distances in the swatch (no pair of the swatch itself is closer than that), not
+    // only 0.7 of the closest pair of their class
+    let own_spacing: Vec<f32> = if found.as_ref().is_some_and(|p| p.kind == "spacing") {
+        periodicity::nearest_spacing(sw)
+    } else {
+        vec![0.0; sw.num_elements()]
+    };
     let conflict_dist = |a: u32, b: u32| -> f32 {
-        let c = spacing[a as usize * nc + b as usize];
-        if c.is_finite() { 0.7 * c * s } else { 0.0 }
+        let (ca, cb) = (sw.elements[a as usize].class, sw.elements[b as usize].class);
+        let c = spacing[ca as usize * nc + cb as usize];
+        let by_class = if c.is_finite() { 0.7 * c * s } else { 0.0 };
+        by_class.max(0.45 * (own_spacing[a as usize] + own_spacing[b as usize]) * s)
     };
     let min_spacing = spacing.iter().cloned().fold(f32::INFINITY, f32::min);
     let nudge_spacing = |a: u32, b: u32| -> f32 {
@@ -1589,9 +1748,8 @@ pub fn run(
             let mut near = hash.near(&c.positions, tau);
             for (k, (e, _)) in old.iter().enumerate() {
                 let pe = &placed[*e as usize];
-                let pcl = sw.elements[pe.source as usize].class;
                 let d = pe.centre_distance(c.centre);
-                if d < conflict_dist(pcl, cl)
+                if d < conflict_dist(pe.source, c.source)
                     || (d < 2.0 * (c.radius + max_radius)
                         && crossing::surfaces_cross(
                             &pe.positions,
@@ -1658,13 +1816,11 @@ pub fn run(
         let mut grown = vec![false; old.len()];
         for j in order {
             let c = &cands[j];
-            let cl = sw.elements[c.source as usize].class;
             let clash = accepted_hash.any_near(&c.positions, tau, |_| true)
                 || accepted.iter().any(|&a| {
                     let o = &cands[a];
                     let d = o.centre.distance(c.centre);
-                    d < conflict_dist(sw.elements[o.source as usize].class, cl)
-                        .min(0.9 * (o.radius + c.radius))
+                    d < conflict_dist(o.source, c.source).min(0.9 * (o.radius + c.radius))
                         || (d < 2.0 * (o.radius + c.radius)
                             && crossing::surfaces_cross(
                                 &o.positions,
@@ -1974,15 +2130,37 @@ pub fn run(
         element_pieces.push(pe.pieces.len() as u32);
     }
     stats.elements = element_source.len();
-    stats.seconds = clock.secs();
-    sink(Event::StageTime("quilt", stats.seconds));
-    Ok(QuiltOutput {
+    let mut out = QuiltOutput {
         elements: TriMesh::new(positions, out_f),
         element_id,
         element_source,
         element_pieces,
         stats,
-    })
+    };
+    if let Some(p) = &found {
+        for src in &mut out.element_source {
+            *src = p.source[*src as usize];
+        }
+    }
+    cancel.check()?;
+    let m = measure::quilt_measures(&out, mesh, &swatch_measures, s, l);
+    let st = &mut out.stats;
+    st.periodicity = found
+        .as_ref()
+        .map_or(if sw.periodic { "periodic" } else { "box" }, |p| p.kind)
+        .to_string();
+    st.lattice_vectors = found.as_ref().and_then(|p| p.lattice);
+    st.tile_elements = sw.num_elements();
+    st.density_ratio = m.density_ratio;
+    st.density_ratio_convex = m.density_ratio_convex;
+    st.density_ratio_saddle = m.density_ratio_saddle;
+    st.link_share = m.link_share;
+    st.swatch_links_per_element = swatch_measures.links_per_element;
+    st.links_per_element = m.links_per_element;
+    st.coverage = m.coverage;
+    st.seconds = clock.secs();
+    sink(Event::StageTime("quilt", st.seconds));
+    Ok(out)
 }
 
 /// Eq. (1)-(3) at the element level: the swatch translation (swatch units) that best explains

@@ -109,7 +109,7 @@ pub struct Swatch {
 impl Swatch {
     /// Build from a mesh whose elements are already positioned over `z >= 0`; the extent is the
     /// x-y box `[0, extent]`. Reorders vertices so each element is contiguous.
-    fn from_mesh(mesh: &TriMesh, extent: [f32; 2], periodic: bool) -> Result<Swatch> {
+    pub(super) fn from_mesh(mesh: &TriMesh, extent: [f32; 2], periodic: bool) -> Result<Swatch> {
         let n = mesh.num_vertices();
         let (label, count) = connected_components(n, &mesh.faces);
         if mesh.faces.is_empty() || count == 0 {
@@ -414,9 +414,9 @@ pub fn load_swatch(mesh: TriMesh, up: Axis) -> Result<Swatch> {
 
 /// Mesh builder: appends closed surfaces as separate components.
 #[derive(Default)]
-struct Builder {
-    positions: Vec<[f32; 3]>,
-    faces: Vec<[u32; 3]>,
+pub(super) struct Builder {
+    pub(super) positions: Vec<[f32; 3]>,
+    pub(super) faces: Vec<[u32; 3]>,
 }
 
 impl Builder {
@@ -424,7 +424,7 @@ impl Builder {
     /// A closed profile gives a torus-like surface; an open profile must start and end on the
     /// axis (`r = 0`) and gives a sphere-like surface with one pole vertex at each end. The
     /// profile runs so that the outward normal is on its right when going along it in (r, z).
-    fn revolve(
+    pub(super) fn revolve(
         &mut self,
         profile: &[(f32, f32)],
         closed: bool,
@@ -484,7 +484,14 @@ impl Builder {
 
     /// A tube of radius `(rw, rh)` (width, height) swept along `path` (points in the x-z plane
     /// mapped by `f` afterwards), capped at both ends.
-    fn strand(&mut self, path: &[Vec3], rw: f32, rh: f32, n: usize, f: impl Fn(Vec3) -> Vec3) {
+    pub(super) fn strand(
+        &mut self,
+        path: &[Vec3],
+        rw: f32,
+        rh: f32,
+        n: usize,
+        f: impl Fn(Vec3) -> Vec3,
+    ) {
         let base = self.positions.len() as u32;
         let m = path.len();
         self.positions.push(f(path[0]).to_array());
@@ -525,7 +532,7 @@ impl Builder {
     }
 }
 
-fn circle_profile(rc: f32, zc: f32, r: f32, m: usize) -> Vec<(f32, f32)> {
+pub(super) fn circle_profile(rc: f32, zc: f32, r: f32, m: usize) -> Vec<(f32, f32)> {
     (0..m)
         .map(|i| {
             let a = std::f32::consts::TAU * i as f32 / m as f32;

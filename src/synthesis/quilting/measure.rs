@@ -1,0 +1,340 @@
+//! How well a quilt keeps its swatch's arrangement: element density, links and gaps, measured
+//! on the swatch's tile and on the output the same way.
+//!
+//! - **Density**: elements per unit of area. The swatch's is its tile's count over the tile's
+//!   area ([`super::periodicity`]); the output's is its element count over the base's area,
+//!   in swatch units (divided by `s^2`). Also split by the sign of the base's Gaussian curvature
+//!   (angle defects summed over a ball half a swatch wide around each face): convex and saddle.
+//!   An element counts for the base face nearest its centre.
+//! - **Links per element**: twice the number of linked pairs ([`super::links`]) over the
+//!   element count. On a lattice tile the swatch's count includes its copies around it (links
+//!   across the tile's border are the swatch's own); on a tile from spacing only the swatch's
+//!   own links count. The *share of links reproduced* is the output's rate over the swatch's.
+//! - **Largest gap**: the largest distance from a point on the ground (`z = 0`) of the swatch to
+//!   the nearest element vertex (sampled on a 48 x 48 grid over the tile, copies around it
+//!   included; over the centre box for a tile from spacing). **Coverage** is the share of the
+//!   base's area (face centroids) within that distance, scaled, of an output vertex: where the
+//!   quilt leaves no gap larger than the swatch's largest.
+
+use std::collections::HashMap;
+
+use glam::{IVec3, Vec3};
+use rayon::prelude::*;
+
+use super::links::{centre_curve, linked_pairs};
+use super::swatch::Swatch;
+use crate::geometry::TriangleBvh;
+use crate::mesh::TriMesh;
+
+/// The swatch's own numbers, in swatch units.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct SwatchMeasures {
+    /// Elements per unit area.
+    pub density: f32,
+    /// Links per element (0 when no element threads through another).
+    pub links_per_element: f32,
+    /// Largest distance from the ground to the nearest element vertex.
+    pub largest_gap: f32,
+}
+
+/// The output's numbers against the swatch's.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct QuiltMeasures {
+    /// Output density over the swatch's (1 = the swatch's own).
+    pub density_ratio: f32,
+    /// The same over convex regions of the base (`None`: no such region).
+    pub density_ratio_convex: Option<f32>,
+    /// The same over saddle-shaped regions (`None`: no such region).
+    pub density_ratio_saddle: Option<f32>,
+    /// Output links per element over the swatch's (`None`: the swatch has no links).
+    pub link_share: Option<f32>,
+    /// Output links per element.
+    pub links_per_element: f32,
+    /// Share of base area with no gap larger than the swatch's largest.
+    pub coverage: f32,
+}
+
+/// Measure the tile; `with_copies`: count links and gaps with the tile's copies around it.
+pub fn swatch_measures(tile: &Swatch, with_copies: bool) -> SwatchMeasures {
+    let ne = tile.num_elements();
+    let images: Vec<[f32; 2]> = if with_copies {
+        tile.images()
+    } else {
+        vec![[0.0, 0.0]]
+    };
+    let density = if with_copies {
+        ne as f32 / (tile.extent[0] * tile.extent[1])
+    } else {
+        super::periodicity::spacing_density(&unperiodic(tile))
+    };
+    let mut curves = Vec::new();
+    let mut owner = Vec::new();
+    for im in &images {
+        for e in 0..ne {
+            let ps = tile.element_positions(e);
+            let c = centre_curve(ps, &tile.element_faces(e)).map(|c| {
+                c.iter()
+                    .map(|p| *p + Vec3::new(im[0], im[1], 0.0))
+                    .collect()
+            });
+            curves.push(c);
+            owner.push((e, *im == [0.0, 0.0]));
+        }
+    }
+    let ordered: usize = linked_pairs(&curves)
+        .iter()
+        .map(|&(i, j)| owner[i as usize].1 as usize + owner[j as usize].1 as usize)
+        .sum();
+    let links_per_element = ordered as f32 / ne.max(1) as f32;
+    // gap samples
+    let (lo, hi) = if with_copies {
+        ([0.0, 0.0], tile.extent)
+    } else {
+        let mut lo = [f32::INFINITY; 2];
+        let mut hi = [f32::NEG_INFINITY; 2];
+        for e in &tile.elements {
+            for k in 0..2 {
+                lo[k] = lo[k].min(e.centre[k]);
+                hi[k] = hi[k].max(e.centre[k]);
+            }
+        }
+        (lo, hi)
+    };
+    let verts: Vec<Vec3> = images
+        .iter()
+        .flat_map(|im| {
+            tile.mesh
+                .positions
+                .iter()
+                .map(move |p| Vec3::new(p[0] + im[0], p[1] + im[1], p[2]))
+        })
+        .collect();
+    const G: usize = 48;
+    let largest_gap = (0..G * G)
+        .into_par_iter()
+        .map(|k| {
+            let (i, j) = (k % G, k / G);
+            let p = Vec3::new(
+                lo[0] + (hi[0] - lo[0]) * (i as f32 + 0.5) / G as f32,
+                lo[1] + (hi[1] - lo[1]) * (j as f32 + 0.5) / G as f32,
+                0.0,
+            );
+            verts
+                .iter()
+                .map(|q| q.distance_squared(p))
+                .fold(f32::INFINITY, f32::min)
+                .sqrt()
+        })
+        .reduce(|| 0.0f32, f32::max);
+    SwatchMeasures {
+        density,
+        links_per_element,
+        largest_gap,
+    }
+}
+
+fn unperiodic(tile: &Swatch) -> Swatch {
+    let mut t = tile.clone();
+    t.periodic = false;
+    t
+}
+
+/// Angle defect per vertex (interior vertices; boundary vertices get 0).
+fn angle_defects(mesh: &TriMesh) -> Vec<f32> {
+    let n = mesh.num_vertices();
+    let mut sum = vec![0.0f32; n];
+    let mut edge_count: HashMap<(u32, u32), u32> = HashMap::new();
+    for f in &mesh.faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *edge_count.entry((a.min(b), a.max(b))).or_default() += 1;
+            let p = Vec3::from(mesh.positions[f[k] as usize]);
+            let u = Vec3::from(mesh.positions[f[(k + 1) % 3] as usize]) - p;
+            let v = Vec3::from(mesh.positions[f[(k + 2) % 3] as usize]) - p;
+            sum[f[k] as usize] += u.angle_between(v);
+        }
+    }
+    let mut boundary = vec![false; n];
+    for (&(a, b), &c) in &edge_count {
+        if c == 1 {
+            boundary[a as usize] = true;
+            boundary[b as usize] = true;
+        }
+    }
+    (0..n)
+        .map(|v| {
+            if boundary[v] || sum[v] == 0.0 {
+                0.0
+            } else {
+                std::f32::consts::TAU - sum[v]
+            }
+        })
+        .collect()
+}
+
+/// Measure an output against its swatch. `s`: swatch-to-base scale; `l`: swatch width in base
+/// units (the curvature ball is `l / 2`).
+pub fn quilt_measures(
+    out: &super::QuiltOutput,
+    base: &TriMesh,
+    sw: &SwatchMeasures,
+    s: f32,
+    l: f32,
+) -> QuiltMeasures {
+    let nf = base.num_faces();
+    let area = crate::geometry::face_areas(&base.positions, &base.faces);
+    let total: f64 = area.iter().sum();
+    let ne = out.num_elements();
+    let expected = sw.density as f64 / (s as f64 * s as f64);
+    let density_ratio = if total > 0.0 && expected > 0.0 {
+        (ne as f64 / total / expected) as f32
+    } else {
+        0.0
+    };
+    // element ranges
+    let mut ranges = vec![(u32::MAX, 0u32); ne];
+    for (v, &e) in out.element_id.iter().enumerate() {
+        let r = &mut ranges[e as usize];
+        r.0 = r.0.min(v as u32);
+        r.1 = r.1.max(v as u32 + 1);
+    }
+    let mut face_ranges = vec![(u32::MAX, 0u32); ne];
+    for (f, tri) in out.elements.faces.iter().enumerate() {
+        let e = out.element_id[tri[0] as usize] as usize;
+        let r = &mut face_ranges[e];
+        r.0 = r.0.min(f as u32);
+        r.1 = r.1.max(f as u32 + 1);
+    }
+    let curves: Vec<Option<Vec<Vec3>>> = (0..ne)
+        .into_par_iter()
+        .map(|e| {
+            let (v0, v1) = ranges[e];
+            let (f0, f1) = face_ranges[e];
+            if v0 >= v1 || f0 >= f1 {
+                return None;
+            }
+            let ps = &out.elements.positions[v0 as usize..v1 as usize];
+            let fs: Vec<[u32; 3]> = out.elements.faces[f0 as usize..f1 as usize]
+                .iter()
+                .map(|f| f.map(|v| v - v0))
+                .collect();
+            centre_curve(ps, &fs)
+        })
+        .collect();
+    let links = linked_pairs(&curves).len();
+    let links_per_element = 2.0 * links as f32 / ne.max(1) as f32;
+    let link_share = (sw.links_per_element > 0.0).then(|| links_per_element / sw.links_per_element);
+    // curvature classes: angle defects summed over a ball of l / 2 around each face centroid
+    let defect = angle_defects(base);
+    let radius = 0.5 * l;
+    let key = |p: Vec3| (p / radius).floor().as_ivec3();
+    let mut grid: HashMap<IVec3, Vec<u32>> = HashMap::new();
+    for (v, p) in base.positions.iter().enumerate() {
+        grid.entry(key(Vec3::from(*p))).or_default().push(v as u32);
+    }
+    let centroid = |f: usize| {
+        base.faces[f]
+            .iter()
+            .map(|&v| Vec3::from(base.positions[v as usize]))
+            .sum::<Vec3>()
+            / 3.0
+    };
+    let sign: Vec<i8> = (0..nf)
+        .into_par_iter()
+        .map(|f| {
+            let c = centroid(f);
+            let k = key(c);
+            let mut k_sum = 0.0f32;
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        if let Some(list) = grid.get(&(k + IVec3::new(dx, dy, dz))) {
+                            for &v in list {
+                                if Vec3::from(base.positions[v as usize]).distance(c) <= radius {
+                                    k_sum += defect[v as usize];
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            // below a twentieth of a flat disc's worth of turning: neither
+            if k_sum > 0.05 {
+                1
+            } else if k_sum < -0.05 {
+                -1
+            } else {
+                0
+            }
+        })
+        .collect();
+    let bvh = TriangleBvh::new(&base.positions, &base.faces);
+    let home: Vec<Option<u32>> = (0..ne)
+        .into_par_iter()
+        .map(|e| {
+            let (v0, v1) = ranges[e];
+            if v0 >= v1 {
+                return None;
+            }
+            let ps = &out.elements.positions[v0 as usize..v1 as usize];
+            let c = ps.iter().map(|p| Vec3::from(*p)).sum::<Vec3>() / ps.len() as f32;
+            bvh.closest_point(c.to_array()).map(|x| x.0)
+        })
+        .collect();
+    let by_sign = |want: i8| -> Option<f32> {
+        let a: f64 = (0..nf).filter(|&f| sign[f] == want).map(|f| area[f]).sum();
+        if a < 0.02 * total || expected <= 0.0 {
+            return None;
+        }
+        let n = home
+            .iter()
+            .flatten()
+            .filter(|&&f| sign[f as usize] == want)
+            .count();
+        Some((n as f64 / a / expected) as f32)
+    };
+    // coverage: face centroids within the swatch's largest gap of an output vertex
+    let reach = (sw.largest_gap * s).max(1e-9);
+    let vkey = |p: Vec3| (p / reach).floor().as_ivec3();
+    let mut vgrid: HashMap<IVec3, Vec<u32>> = HashMap::new();
+    for (v, p) in out.elements.positions.iter().enumerate() {
+        vgrid
+            .entry(vkey(Vec3::from(*p)))
+            .or_default()
+            .push(v as u32);
+    }
+    let covered: f64 = (0..nf)
+        .into_par_iter()
+        .filter(|&f| {
+            let c = centroid(f);
+            let k = vkey(c);
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        if let Some(list) = vgrid.get(&(k + IVec3::new(dx, dy, dz)))
+                            && list.iter().any(|&v| {
+                                Vec3::from(out.elements.positions[v as usize]).distance(c) <= reach
+                            })
+                        {
+                            return true;
+                        }
+                    }
+                }
+            }
+            false
+        })
+        .map(|f| area[f])
+        .sum();
+    QuiltMeasures {
+        density_ratio,
+        density_ratio_convex: by_sign(1),
+        density_ratio_saddle: by_sign(-1),
+        link_share,
+        links_per_element,
+        coverage: if total > 0.0 {
+            (covered / total) as f32
+        } else {
+            0.0
+        },
+    }
+}

@@ -1,0 +1,437 @@
+//! Periodicity of a swatch, detected rather than assumed: the swatch is matched against shifted
+//! copies of itself, and the tile that quilting repeats is cut from it.
+//!
+//! 1. **Shape key** of every element: vertex and face counts, the covariance of its vertices
+//!    about their mean and its box size. Two elements share a key only when one is a
+//!    translated copy of the other (a turned or resized copy does not).
+//! 2. **Self-matching.** Every difference `t` between the centres of two elements with equal keys
+//!    is a candidate translation. `t` is a symmetry when the swatch shifted by `t` matches itself
+//!    wherever the shifted copy stays inside the swatch: every element whose shifted box lies
+//!    within the swatch's box must land on an element with its key (centres within 2% of the
+//!    shortest centre spacing), and at least two elements must land.
+//! 3. **Lattice.** `a` = the shortest symmetry, `b` = the shortest one not parallel to `a`. The
+//!    tile is the smallest rectangle spanned by two orthogonal lattice vectors `A`, `B`
+//!    (combinations `i a + j b`, `|i|, |j| <= 4`) with `A` along the swatch's x axis when the
+//!    lattice has such a vector, else turned so that `A` is the tile's `+x`; each
+//!    side is then multiplied until every element either has a copy of its shape one side away
+//!    in the swatch itself or clears its copy's box (threads longer than the lattice step keep
+//!    their length: a finite weave tiles with its strands end to end; shingles overlapping
+//!    their neighbours' boxes keep the lattice step, as the swatch shows them so).
+//! 4. **Tile.** Elements are grouped by their centre modulo the tile; of each group the one
+//!    nearest the swatch's centre is kept, moved by whole tile periods into the tile.
+//!
+//! A swatch without two independent symmetries (a scattered cluster, a single row) gets a tile
+//! from its spacing instead: its centre box plus its mean nearest-neighbour centre distance
+//! (half of it on each side, so that copies meet with the swatch's own spacing), grown in steps
+//! of 5% until the copies keep the swatch's clearance. Either way the tile's density (elements
+//! per area) is the swatch's own ([`swatch_density`]) unless the spacing tile had to grow.
+
+use glam::{Vec2, Vec3};
+
+use super::swatch::Swatch;
+use crate::mesh::TriMesh;
+
+/// What [`detect`] found.
+#[derive(Clone, Debug)]
+pub struct Periodicity {
+    /// The two shortest independent symmetry vectors in swatch units (x-y), when found.
+    pub lattice: Option<[[f32; 2]; 2]>,
+    /// The swatch to repeat: periodic, its extent the tile's period.
+    pub tile: Swatch,
+    /// Turn (radians, about z) from the swatch's frame into the tile's.
+    pub turn: f32,
+    /// The swatch element each tile element copies.
+    pub source: Vec<u32>,
+    /// How the tile was found: `"periodic"` (a built-in periodic swatch), `"lattice"`
+    /// (symmetry vectors of a finite patch) or `"spacing"` (no lattice; tiled by its spacing).
+    pub kind: &'static str,
+}
+
+struct Key {
+    counts: (usize, usize),
+    cov: [f32; 6],
+    size: Vec3,
+    centre: Vec3,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+fn keys(sw: &Swatch) -> Vec<Key> {
+    (0..sw.num_elements())
+        .map(|e| {
+            let ps = sw.element_positions(e);
+            let n = ps.len().max(1) as f32;
+            let mean = ps.iter().map(|p| Vec3::from(*p)).sum::<Vec3>() / n;
+            let mut cov = [0.0f32; 6];
+            let mut lo = Vec3::splat(f32::INFINITY);
+            let mut hi = Vec3::splat(f32::NEG_INFINITY);
+            for p in ps {
+                let q = Vec3::from(*p);
+                lo = lo.min(q);
+                hi = hi.max(q);
+                let d = q - mean;
+                let v = [
+                    d.x * d.x,
+                    d.y * d.y,
+                    d.z * d.z,
+                    d.x * d.y,
+                    d.x * d.z,
+                    d.y * d.z,
+                ];
+                for k in 0..6 {
+                    cov[k] += v[k] / n;
+                }
+            }
+            Key {
+                counts: (ps.len(), sw.elements[e].faces.len()),
+                cov,
+                size: hi - lo,
+                centre: Vec3::from(sw.elements[e].centre),
+                lo,
+                hi,
+            }
+        })
+        .collect()
+}
+
+fn same_shape(a: &Key, b: &Key) -> bool {
+    if a.counts != b.counts {
+        return false;
+    }
+    let scale = a.size.max_element().max(b.size.max_element()).max(1e-12);
+    let tr = (a.cov[0] + a.cov[1] + a.cov[2]).max(1e-12);
+    (a.size - b.size).abs().max_element() <= 0.02 * scale
+        && (0..6).all(|k| (a.cov[k] - b.cov[k]).abs() <= 0.02 * tr)
+        && (a.centre.z - b.centre.z).abs() <= 0.02 * scale
+}
+
+/// Elements per unit of swatch area: a periodic swatch's count over its period's area; a finite
+/// patch with a lattice, its tile's; a finite one without, its count over its centre box grown
+/// by its mean nearest-neighbour centre distance ([`spacing_density`]).
+pub fn swatch_density(sw: &Swatch) -> f32 {
+    let n = sw.num_elements() as f32;
+    if sw.periodic {
+        return n / (sw.extent[0] * sw.extent[1]);
+    }
+    let p = detect(sw);
+    if p.kind == "lattice" {
+        return p.tile.num_elements() as f32 / (p.tile.extent[0] * p.tile.extent[1]);
+    }
+    spacing_density(sw)
+}
+
+/// A finite swatch's count over its centre box grown by its mean nearest-neighbour centre
+/// distance (half of it on each side): `1 / d^2` for a square lattice patch of step `d`.
+pub fn spacing_density(sw: &Swatch) -> f32 {
+    let n = sw.num_elements() as f32;
+    let (w, h, d) = spacing_box(sw);
+    n / ((w + d) * (h + d))
+}
+
+/// Each element's nearest-neighbour centre distance (x-y; copies around a periodic swatch
+/// included).
+pub fn nearest_spacing(sw: &Swatch) -> Vec<f32> {
+    let images = sw.images();
+    sw.elements
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let mut best = f32::INFINITY;
+            for (j, b) in sw.elements.iter().enumerate() {
+                for im in &images {
+                    if i == j && im[0] == 0.0 && im[1] == 0.0 {
+                        continue;
+                    }
+                    let d = (a.centre[0] - b.centre[0] - im[0])
+                        .hypot(a.centre[1] - b.centre[1] - im[1]);
+                    best = best.min(d);
+                }
+            }
+            if best.is_finite() { best } else { 0.0 }
+        })
+        .collect()
+}
+
+/// Centre box width and height and mean nearest-neighbour centre distance (x-y).
+fn spacing_box(sw: &Swatch) -> (f32, f32, f32) {
+    let c: Vec<Vec2> = sw
+        .elements
+        .iter()
+        .map(|e| Vec2::new(e.centre[0], e.centre[1]))
+        .collect();
+    let mut lo = Vec2::splat(f32::INFINITY);
+    let mut hi = Vec2::splat(f32::NEG_INFINITY);
+    for p in &c {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    let mut sum = 0.0f32;
+    for (i, p) in c.iter().enumerate() {
+        let nn = c
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| *j != i)
+            .map(|(_, q)| p.distance(*q))
+            .fold(f32::INFINITY, f32::min);
+        if nn.is_finite() {
+            sum += nn;
+        }
+    }
+    let d = sum / c.len().max(1) as f32;
+    (hi.x - lo.x, hi.y - lo.y, d)
+}
+
+/// The symmetry translations of a finite swatch (x-y, swatch units), shortest first.
+pub fn symmetries(sw: &Swatch) -> Vec<Vec2> {
+    let k = keys(sw);
+    let ne = k.len();
+    let spacing = {
+        let mut m = f32::INFINITY;
+        for i in 0..ne {
+            for j in i + 1..ne {
+                m = m.min(k[i].centre.truncate().distance(k[j].centre.truncate()));
+            }
+        }
+        m
+    };
+    if !spacing.is_finite() || spacing <= 0.0 {
+        return Vec::new();
+    }
+    let tol = 0.02 * spacing;
+    let (blo, bhi) = (Vec2::ZERO, Vec2::new(sw.extent[0], sw.extent[1]));
+    let mut cands: Vec<Vec2> = Vec::new();
+    for i in 0..ne {
+        for j in 0..ne {
+            if i == j || !same_shape(&k[i], &k[j]) {
+                continue;
+            }
+            let t = (k[j].centre - k[i].centre).truncate();
+            if t.x < -tol || (t.x.abs() <= tol && t.y <= 0.0) {
+                continue;
+            }
+            if !cands.iter().any(|c| c.distance(t) <= tol) {
+                cands.push(t);
+            }
+        }
+    }
+    let mut out: Vec<Vec2> = cands
+        .into_iter()
+        .filter(|&t| {
+            let (mut eligible, mut landed) = (0usize, 0usize);
+            for a in &k {
+                let (lo, hi) = (a.lo.truncate() + t, a.hi.truncate() + t);
+                let margin = 0.02 * spacing;
+                if lo.x < blo.x - margin
+                    || lo.y < blo.y - margin
+                    || hi.x > bhi.x + margin
+                    || hi.y > bhi.y + margin
+                {
+                    continue;
+                }
+                eligible += 1;
+                let target = a.centre.truncate() + t;
+                if k.iter()
+                    .any(|b| same_shape(a, b) && b.centre.truncate().distance(target) <= tol)
+                {
+                    landed += 1;
+                }
+            }
+            landed >= 2 && landed == eligible
+        })
+        .collect();
+    out.sort_by(|a, b| a.length().total_cmp(&b.length()));
+    out
+}
+
+/// Detect the swatch's periodicity and build the tile quilting repeats.
+pub fn detect(sw: &Swatch) -> Periodicity {
+    if sw.periodic {
+        return Periodicity {
+            lattice: Some([[sw.extent[0], 0.0], [0.0, sw.extent[1]]]),
+            tile: sw.clone(),
+            turn: 0.0,
+            source: (0..sw.num_elements() as u32).collect(),
+            kind: "periodic",
+        };
+    }
+    let sym = symmetries(sw);
+    let basis = sym.first().and_then(|&a| {
+        sym.iter()
+            .find(|b| a.perp_dot(**b).abs() > 0.1 * a.length() * b.length())
+            .map(|&b| [a, b])
+    });
+    if let Some([a, b]) = basis
+        && let Some(t) = lattice_tile(sw, a, b)
+    {
+        return t;
+    }
+    spacing_tile(sw)
+}
+
+fn lattice_tile(sw: &Swatch, a: Vec2, b: Vec2) -> Option<Periodicity> {
+    // smallest rectangle of two orthogonal lattice vectors, the first nearest the x axis
+    let mut vecs: Vec<Vec2> = Vec::new();
+    for i in -4i32..=4 {
+        for j in -4i32..=4 {
+            if (i, j) != (0, 0) {
+                vecs.push(a * i as f32 + b * j as f32);
+            }
+        }
+    }
+    // a rectangle along the swatch's own x axis when there is one (the swatch keeps its
+    // orientation to the field), else the smallest turned one
+    let along_x = vecs
+        .iter()
+        .any(|p| p.x > 0.0 && p.y.abs() <= 1e-3 * p.length());
+    let mut best: Option<(f32, f32, Vec2, Vec2)> = None;
+    for &p in &vecs {
+        if p.x < 0.0 || (p.x == 0.0 && p.y < 0.0) {
+            continue;
+        }
+        if along_x && p.y.abs() > 1e-3 * p.length() {
+            continue;
+        }
+        for &q in &vecs {
+            if p.dot(q).abs() > 1e-3 * p.length() * q.length() || p.perp_dot(q) <= 0.0 {
+                continue;
+            }
+            let area = p.length() * q.length();
+            let tilt = p.y.atan2(p.x).abs();
+            let better = match best {
+                None => true,
+                Some((ba, bt, _, _)) => {
+                    area < ba * (1.0 - 1e-3) || (area <= ba * (1.0 + 1e-3) && tilt < bt - 1e-4)
+                }
+            };
+            if better {
+                best = Some((area, tilt, p, q));
+            }
+        }
+    }
+    let (_, _, pa, pb) = best?;
+    let turn = -pa.y.atan2(pa.x);
+    let rot = glam::Mat2::from_angle(turn);
+    let k = keys(sw);
+    // element extents in the tile frame
+    // an element must keep half the swatch's own clearance from its copy one period away
+    let clearance = 0.5 * sw.clearance().min(0.05 * pa.length().min(pb.length()));
+    let mut period = [pa.length(), pb.length()];
+    for axis in 0..2 {
+        let step = period[axis];
+        let mut m = 1.0f32;
+        // an element may sit one period from its own copy when the swatch shows a copy of its
+        // shape there; otherwise it must clear its copy's box
+        let clashes = |m: f32| {
+            let mut shift = Vec2::ZERO;
+            shift[axis] = m * step;
+            let shift = rot.inverse() * shift;
+            let off = Vec3::new(shift.x, shift.y, 0.0);
+            let tol = 0.02 * step;
+            k.iter().any(|key| {
+                let shown = k.iter().any(|a| {
+                    same_shape(a, key)
+                        && k.iter().any(|b| {
+                            same_shape(a, b) && (b.centre - a.centre - off).length() <= tol
+                        })
+                });
+                let gap = ((key.lo + off) - key.hi).max(key.lo - (key.hi + off));
+                !shown && gap.max_element() <= clearance
+            })
+        };
+        while clashes(m) && m < 64.0 {
+            m += 1.0;
+        }
+        period[axis] = m * step;
+    }
+    let centre = Vec2::new(sw.extent[0], sw.extent[1]) * 0.5;
+    // group elements by centre modulo the tile, keep the most central of each
+    let mut groups: Vec<(Vec2, usize, f32)> = Vec::new();
+    let tol = 0.02 * pa.length().min(pb.length());
+    for (e, key) in k.iter().enumerate() {
+        let c = rot * key.centre.truncate();
+        let m = Vec2::new(c.x.rem_euclid(period[0]), c.y.rem_euclid(period[1]));
+        let d = key.centre.truncate().distance(centre);
+        let wrap = |x: f32, p: f32| {
+            let r = x.rem_euclid(p);
+            r.min(p - r)
+        };
+        match groups.iter_mut().find(|(g, ge, _)| {
+            wrap(g.x - m.x, period[0]) <= tol
+                && wrap(g.y - m.y, period[1]) <= tol
+                && same_shape(&k[*ge], key)
+        }) {
+            Some(g) => {
+                if d < g.2 {
+                    g.1 = e;
+                    g.2 = d;
+                }
+            }
+            None => groups.push((m, e, d)),
+        }
+    }
+    groups.sort_by_key(|g| g.1);
+    let mut positions = Vec::new();
+    let mut faces = Vec::new();
+    for &(_, e, _) in &groups {
+        let c = rot * k[e].centre.truncate();
+        let shift = Vec2::new(
+            c.x.rem_euclid(period[0]) - c.x,
+            c.y.rem_euclid(period[1]) - c.y,
+        );
+        let v0 = positions.len() as u32;
+        for p in sw.element_positions(e) {
+            let q = rot * Vec2::new(p[0], p[1]) + shift;
+            positions.push([q.x, q.y, p[2]]);
+        }
+        faces.extend(sw.element_faces(e).iter().map(|f| f.map(|v| v + v0)));
+    }
+    let tile = Swatch::from_mesh(&TriMesh::new(positions, faces), period, true).ok()?;
+    Some(Periodicity {
+        lattice: Some([a.to_array(), b.to_array()]),
+        source: groups.iter().map(|g| g.1 as u32).collect(),
+        tile,
+        turn,
+        kind: "lattice",
+    })
+}
+
+fn spacing_tile(sw: &Swatch) -> Periodicity {
+    let (w, h, d) = spacing_box(sw);
+    let lo = sw
+        .elements
+        .iter()
+        .map(|e| Vec2::new(e.centre[0], e.centre[1]))
+        .fold(Vec2::splat(f32::INFINITY), Vec2::min);
+    let own = sw.clearance();
+    let mut grow = 1.0f32;
+    let mut tile = None;
+    for _ in 0..20 {
+        let period = [(w + d) * grow, (h + d) * grow];
+        let shift = Vec2::splat(0.5 * d) - lo;
+        let positions: Vec<[f32; 3]> = sw
+            .mesh
+            .positions
+            .iter()
+            .map(|p| [p[0] + shift.x, p[1] + shift.y, p[2]])
+            .collect();
+        let t = Swatch::from_mesh(
+            &TriMesh::new(positions, sw.mesh.faces.clone()),
+            period,
+            true,
+        )
+        .expect("a valid swatch stays valid when moved");
+        let ok = !own.is_finite() || t.clearance() >= 0.999 * own;
+        tile = Some(t);
+        if ok {
+            break;
+        }
+        grow *= 1.05;
+    }
+    Periodicity {
+        lattice: None,
+        tile: tile.expect("at least one try"),
+        turn: 0.0,
+        source: (0..sw.num_elements() as u32).collect(),
+        kind: "spacing",
+    }
+}
