@@ -6,6 +6,7 @@
 
 mod correspondences;
 mod history;
+pub mod paint_layer;
 mod session;
 mod slot;
 
@@ -94,6 +95,8 @@ pub struct AppState<P: AppParams> {
     pub message: String,
     /// Brush settings.
     pub brush: Brush,
+    /// Colours strokes were painted with, newest first.
+    pub color_history: Vec<[f32; 3]>,
     /// Recently opened files, newest first.
     pub recent: Vec<RecentFile>,
     /// File the Recent list is saved to after every change (`None`: not persisted).
@@ -142,6 +145,7 @@ impl<P: AppParams> AppState<P> {
             errors: Vec::new(),
             message: String::new(),
             brush: Brush::default(),
+            color_history: Vec::new(),
             recent: Vec::new(),
             recent_store: None,
             scenes: Vec::new(),
