@@ -45,12 +45,12 @@ impl BrushView {
         }
     }
 
-    /// Viewport position (points) and 1/w (w: view depth) of a world point; `None` behind the
-    /// eye.
+    /// Viewport position (points) and 1/w (w: view depth) of a world point; `None` in front of
+    /// the near plane (where the views clip the mesh away) or behind the eye.
     #[inline]
     pub fn project(&self, p: Vec3) -> Option<(Vec2, f32)> {
         let c = self.view_proj * p.extend(1.0);
-        if c.w <= 1e-9 {
+        if c.w <= 1e-9 || c.z < 0.0 {
             return None;
         }
         let inv = 1.0 / c.w;
@@ -92,19 +92,23 @@ pub fn facing(n: Vec3, v: Vec3) -> f32 {
     c * c * (3.0 - 2.0 * c)
 }
 
-/// The nearest surface's 1/w over a square of the viewport, one sample per point at the point
-/// centres: per pixel the plane (value at the centre and its screen gradient) of the nearest
-/// face there.
+/// The nearest surface's 1/w over a square of the viewport, sampled at the centres of cells
+/// of at least a point (at most [`DEPTH_CELLS`] across): per cell the plane (value at the
+/// centre and its screen gradient) of the nearest face there.
 pub struct ScreenDepth {
-    x0: i32,
-    y0: i32,
+    origin: Vec2,
+    cell: f32,
     w: i32,
     h: i32,
-    /// Per pixel: 1/w at its centre (0 = no surface), d/dx, d/dy.
+    /// Per cell: 1/w at its centre (0 = no surface), d/dx, d/dy (per point).
     planes: Vec<[f32; 3]>,
-    /// Per pixel: the nearest face (`u32::MAX` = none).
+    /// Per cell: the nearest face (`u32::MAX` = none).
     faces: Vec<u32>,
 }
+
+/// Most depth cells across a dab's square: a larger disc is sampled more coarsely (the planes
+/// keep the depth exact within a cell; only occluders' edges are found to a cell).
+pub const DEPTH_CELLS: f32 = 160.0;
 
 /// Vertices of a mesh projected into a view: viewport position and 1/w (`q <= 0`: behind).
 pub struct Projected {
@@ -149,20 +153,22 @@ impl Projected {
 }
 
 impl ScreenDepth {
-    /// Rasterise the faces of `faces` that overlap the square `[lo, hi]` of the viewport.
-    pub fn new(proj: &Projected, faces: &[[u32; 3]], lo: Vec2, hi: Vec2) -> Self {
-        let x0 = lo.x.floor() as i32;
-        let y0 = lo.y.floor() as i32;
-        let w = (hi.x.ceil() as i32 - x0).max(1);
-        let h = (hi.y.ceil() as i32 - y0).max(1);
+    /// Rasterise the faces of `faces` that overlap the square `[lo, hi]` of the viewport;
+    /// with them, the indices of those faces.
+    pub fn new(proj: &Projected, faces: &[[u32; 3]], lo: Vec2, hi: Vec2) -> (Self, Vec<u32>) {
+        let ext = (hi - lo).max(Vec2::ONE);
+        let cell = (ext.max_element() / DEPTH_CELLS).max(1.0);
+        let w = (ext.x / cell).ceil().max(1.0) as i32;
+        let h = (ext.y / cell).ceil().max(1.0) as i32;
         let mut d = ScreenDepth {
-            x0,
-            y0,
+            origin: lo,
+            cell,
             w,
             h,
             planes: vec![[0.0; 3]; (w * h) as usize],
             faces: vec![u32::MAX; (w * h) as usize],
         };
+        let mut hit = Vec::new();
         for (k, f) in faces.iter().enumerate() {
             if proj.face_overlaps(*f, lo, hi) {
                 let [a, b, c] = f.map(|v| v as usize);
@@ -171,14 +177,22 @@ impl ScreenDepth {
                     [proj.q[a], proj.q[b], proj.q[c]],
                     k as u32,
                 );
+                hit.push(k as u32);
             }
         }
-        d
+        (d, hit)
+    }
+
+    /// Centre of cell `(x, y)`.
+    #[inline]
+    fn centre(&self, x: i32, y: i32) -> Vec2 {
+        self.origin + Vec2::new(x as f32 + 0.5, y as f32 + 0.5) * self.cell
     }
 
     /// The face seen at viewport position `s`, if any.
     pub fn face_at(&self, s: Vec2) -> Option<u32> {
-        let (x, y) = (s.x.floor() as i32 - self.x0, s.y.floor() as i32 - self.y0);
+        let c = (s - self.origin) / self.cell;
+        let (x, y) = (c.x.floor() as i32, c.y.floor() as i32);
         if x < 0 || y < 0 || x >= self.w || y >= self.h {
             return None;
         }
@@ -196,15 +210,15 @@ impl ScreenDepth {
         let (dq1, dq2) = (q[1] - q[0], q[2] - q[0]);
         let gx = (dq1 * e2.y - dq2 * e1.y) * inv;
         let gy = (dq2 * e1.x - dq1 * e2.x) * inv;
-        let lo = s[0].min(s[1]).min(s[2]);
-        let hi = s[0].max(s[1]).max(s[2]);
-        let ix0 = ((lo.x - 0.5).ceil() as i32).max(self.x0);
-        let iy0 = ((lo.y - 0.5).ceil() as i32).max(self.y0);
-        let ix1 = ((hi.x - 0.5).floor() as i32).min(self.x0 + self.w - 1);
-        let iy1 = ((hi.y - 0.5).floor() as i32).min(self.y0 + self.h - 1);
+        let lo = (s[0].min(s[1]).min(s[2]) - self.origin) / self.cell;
+        let hi = (s[0].max(s[1]).max(s[2]) - self.origin) / self.cell;
+        let ix0 = ((lo.x - 0.5).ceil() as i32).max(0);
+        let iy0 = ((lo.y - 0.5).ceil() as i32).max(0);
+        let ix1 = ((hi.x - 0.5).floor() as i32).min(self.w - 1);
+        let iy1 = ((hi.y - 0.5).floor() as i32).min(self.h - 1);
         for y in iy0..=iy1 {
             for x in ix0..=ix1 {
-                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let p = self.centre(x, y);
                 let b1 = (p - s[0]).perp_dot(e2) * inv;
                 let b2 = e1.perp_dot(p - s[0]) * inv;
                 let b0 = 1.0 - b1 - b2;
@@ -212,7 +226,7 @@ impl ScreenDepth {
                     continue;
                 }
                 let qp = q[0] + gx * (p.x - s[0].x) + gy * (p.y - s[0].y);
-                let i = ((y - self.y0) * self.w + (x - self.x0)) as usize;
+                let i = (y * self.w + x) as usize;
                 // Larger 1/w is nearer.
                 if qp > self.planes[i][0] {
                     self.planes[i] = [qp, gx, gy];
@@ -224,21 +238,22 @@ impl ScreenDepth {
 
     /// Whether a surface point at viewport position `s` and view depth `w` is seen: no surface
     /// of the buffer lies in front of it by more than `eps` (world units) at any of the four
-    /// pixels around `s` (each pixel's plane carried to `s`).
+    /// cells around `s` (each cell's plane carried to `s`).
     pub fn visible(&self, s: Vec2, w: f32, eps: f32) -> bool {
-        let bx = (s.x - 0.5).floor() as i32;
-        let by = (s.y - 0.5).floor() as i32;
+        let c = (s - self.origin) / self.cell;
+        let bx = (c.x - 0.5).floor() as i32;
+        let by = (c.y - 0.5).floor() as i32;
         for y in by..=by + 1 {
             for x in bx..=bx + 1 {
-                let (lx, ly) = (x - self.x0, y - self.y0);
-                if lx < 0 || ly < 0 || lx >= self.w || ly >= self.h {
+                if x < 0 || y < 0 || x >= self.w || y >= self.h {
                     continue;
                 }
-                let [q, gx, gy] = self.planes[(ly * self.w + lx) as usize];
+                let [q, gx, gy] = self.planes[(y * self.w + x) as usize];
                 if q <= 0.0 {
                     continue;
                 }
-                let mut qs = q + gx * (s.x - x as f32 - 0.5) + gy * (s.y - y as f32 - 0.5);
+                let o = s - self.centre(x, y);
+                let mut qs = q + gx * o.x + gy * o.y;
                 if qs <= 0.0 {
                     qs = q;
                 }
@@ -267,6 +282,8 @@ pub struct Dab {
     pub projected: Projected,
     /// Depth of the disc's square.
     pub depth: ScreenDepth,
+    /// The faces whose screen bounds overlap the disc's square.
+    pub faces: Vec<u32>,
     /// 1 when the surface under the pointer faces the eye (its outside is seen), -1 when its
     /// inside is (an open sheet seen from behind): the side the normal falloff treats as front.
     pub side: f32,
@@ -287,7 +304,7 @@ impl Dab {
         let projected = Projected::new(&view, positions);
         let r = radius_px.max(0.5) + 1.0;
         let (lo, hi) = (view.pointer - Vec2::splat(r), view.pointer + Vec2::splat(r));
-        let depth = ScreenDepth::new(&projected, faces, lo, hi);
+        let (depth, overlapping) = ScreenDepth::new(&projected, faces, lo, hi);
         let side = depth
             .face_at(view.pointer)
             .and_then(|f| {
@@ -305,6 +322,7 @@ impl Dab {
             eps: 2e-3 * scale,
             projected,
             depth,
+            faces: overlapping,
             side,
         }
     }
@@ -331,6 +349,20 @@ impl Dab {
             w *= facing(n * self.side, (self.view.eye - p).normalize_or_zero());
         }
         w
+    }
+
+    /// Whether a face with corners `t` can take paint from this dab: always, unless the normal
+    /// falloff is on and the face turns its back on the eye (relative to [`Self::side`]).
+    #[inline]
+    pub fn face_can_take(&self, t: [Vec3; 3]) -> bool {
+        !self.normal_falloff
+            || (t[1] - t[0]).cross(t[2] - t[0]).dot(self.view.eye - t[0]) * self.side > 0.0
+    }
+
+    /// Whether viewport position `s` lies in the disc.
+    #[inline]
+    pub fn in_disc(&self, s: Vec2) -> bool {
+        s.distance_squared(self.view.pointer) < self.radius_px * self.radius_px
     }
 
     /// Weight of a surface point `p` with normal `n`.

@@ -1,6 +1,7 @@
 //! `meshmatch bench --system paint`: the UI-thread cost of painting. A stroke of dabs across a
-//! UV sphere of `n` vertices seen whole in an 800x600 view, into a 2048² texel layer (and, for
-//! comparison, into vertex paint on the same mesh without its UVs), with the default brush.
+//! UV sphere of `n` vertices seen whole in an 800x600 view, into a 2048² texel layer, the same
+//! seen from close up (the brush's disc large on the screen), and into vertex paint on the same
+//! mesh without its UVs, with the default brush.
 
 use std::time::Instant;
 
@@ -53,22 +54,22 @@ pub fn uv_sphere(n: usize) -> TriMesh {
 
 /// Time a stroke of [`DABS`] dabs across `mesh`'s front: (first dab, median, 95th percentile),
 /// seconds.
-fn stroke_times(mesh: TriMesh) -> (f64, f64, f64) {
+fn stroke_times(mesh: TriMesh, zoom: f32) -> (f64, f64, f64) {
     let mut st = AppState::<crate::meshmatch::TransferParams>::new();
     let frame = Frame::of_points(&mesh.positions);
     st.set_mesh(Side::Target, mesh, false);
     let camera = Camera {
         azimuth_deg: 0.0,
         elevation_deg: 0.0,
-        zoom: 1.0,
+        zoom,
         pan: [0.0, 0.0],
     };
     let size = Vec2::new(800.0, 600.0);
     let mut times = Vec::with_capacity(DABS);
     for k in 0..DABS {
         let t = k as f32 / (DABS - 1) as f32;
-        let a = (t - 0.5) * 1.4;
-        let p = Vec3::new(a.sin(), 0.3 * (3.0 * t).sin(), 0.0);
+        let a = (t - 0.5) * 1.4 * zoom;
+        let p = Vec3::new(a.sin(), 0.3 * zoom * (3.0 * t).sin(), 0.0);
         let p = Vec3::new(p.x, p.y, (1.0 - p.x * p.x - p.y * p.y).max(0.0).sqrt());
         let Some(s) = camera.project(&frame, p, size) else {
             continue;
@@ -96,11 +97,16 @@ pub fn paint_rows(n: usize) -> Result<Vec<SystemRow>> {
     let mut bare = mesh.clone();
     bare.uvs = None;
     let mut rows = Vec::new();
-    for (case, m) in [
-        ("paint dab, texel layer 2048^2", mesh),
-        ("paint dab, vertex paint", bare),
+    for (case, m, zoom) in [
+        ("paint dab, texel layer 2048^2", mesh.clone(), 1.0),
+        (
+            "paint dab, texel layer 2048^2, close-up (zoom 0.3)",
+            mesh,
+            0.3,
+        ),
+        ("paint dab, vertex paint", bare, 1.0),
     ] {
-        let (first, median, p95) = stroke_times(m);
+        let (first, median, p95) = stroke_times(m, zoom);
         rows.push(SystemRow {
             case: case.into(),
             vertices,
