@@ -253,6 +253,14 @@ impl TexelLayer {
         self.stroke.is_some()
     }
 
+    /// Whether texel `(x, y)` has the full weight of the current stroke already.
+    #[inline]
+    pub fn saturated(&self, x: u32, y: u32) -> bool {
+        self.stroke
+            .as_ref()
+            .is_some_and(|s| s.mask[(y * self.width + x) as usize] == 255)
+    }
+
     /// Give texel `(x, y)` at least `weight` of the current stroke; true when it changed.
     pub fn stamp(&mut self, x: u32, y: u32, weight: f32) -> bool {
         let Some(s) = self.stroke.as_mut() else {
@@ -817,6 +825,9 @@ fn texel_dab(
                 .filter(|&f| keep(mesh.faces[f].map(|v| Vec3::from(mesh.positions[v as usize]))));
             let faces: Vec<usize> = faces.collect();
             for_texels(mesh, w, h, faces.into_iter(), &keep, &mut |x, y, f, b| {
+                if layer.saturated(x, y) {
+                    return;
+                }
                 let wt = falloff(point(f, b).distance(c) / r_world, brush.hardness);
                 if wt > 0.0 && layer.stamp(x, y, wt) {
                     count += 1;
@@ -834,8 +845,15 @@ fn texel_dab(
                 scale,
             );
             let (lo, hi) = dab.bounds();
-            let faces: Vec<usize> = (0..mesh.faces.len())
-                .filter(|&f| dab.projected.face_overlaps(mesh.faces[f], lo, hi))
+            let corners = |f: usize| mesh.faces[f].map(|v| Vec3::from(mesh.positions[v as usize]));
+            let faces: Vec<usize> = dab
+                .faces
+                .iter()
+                .map(|&f| f as usize)
+                .filter(|&f| {
+                    dab.projected.face_overlaps(mesh.faces[f], lo, hi)
+                        && dab.face_can_take(corners(f))
+                })
                 .collect();
             let keep = |p: [Vec3; 3]| {
                 let mut slo = Vec2::splat(f32::INFINITY);
@@ -852,7 +870,23 @@ fn texel_dab(
                 slo.x <= hi.x && slo.y <= hi.y && shi.x >= lo.x && shi.y >= lo.y
             };
             for_texels(mesh, w, h, faces.into_iter(), &keep, &mut |x, y, f, b| {
-                let wt = dab.weight(point(f, b), normal(f, b));
+                // Full already this stroke: nothing more to add.
+                if layer.saturated(x, y) {
+                    return;
+                }
+                let p = point(f, b);
+                let Some((s, q)) = view.project(p) else {
+                    return;
+                };
+                if !dab.in_disc(s) {
+                    return;
+                }
+                let n = if brush.normal_falloff {
+                    normal(f, b)
+                } else {
+                    Vec3::ZERO
+                };
+                let wt = dab.weight_projected(p, n, s, q);
                 if wt > 0.0 && layer.stamp(x, y, wt) {
                     count += 1;
                 }
