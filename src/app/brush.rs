@@ -84,11 +84,11 @@ pub fn falloff(d: f32, hardness: f32) -> f32 {
 }
 
 /// Attenuation by the angle between the surface normal `n` and the line of sight `v` (both
-/// unit): full strength within 60 degrees of facing the eye, fading to 0 at grazing, 0 facing
-/// away.
+/// unit): full strength up to 80 degrees from facing the eye (Blender's default normal falloff
+/// angle), fading to 0 at grazing, 0 facing away.
 #[inline]
 pub fn facing(n: Vec3, v: Vec3) -> f32 {
-    let c = (n.dot(v) / 0.5).clamp(0.0, 1.0);
+    let c = (n.dot(v) / 0.17).clamp(0.0, 1.0);
     c * c * (3.0 - 2.0 * c)
 }
 
@@ -236,33 +236,28 @@ impl ScreenDepth {
         }
     }
 
-    /// Whether a surface point at viewport position `s` and view depth `w` is seen: no surface
-    /// of the buffer lies in front of it by more than `eps` (world units) at any of the four
-    /// cells around `s` (each cell's plane carried to `s`).
+    /// Whether a surface point at viewport position `s` and view depth `w` is seen: the
+    /// surface of the cell under `s`, its plane carried to `s`, is not in front of it by more
+    /// than `eps` (world units) plus half a cell of that surface's depth slope (a surface seen
+    /// edge-on changes depth fast across a cell). Occluders' edges are found to half a cell.
     pub fn visible(&self, s: Vec2, w: f32, eps: f32) -> bool {
         let c = (s - self.origin) / self.cell;
-        let bx = (c.x - 0.5).floor() as i32;
-        let by = (c.y - 0.5).floor() as i32;
-        for y in by..=by + 1 {
-            for x in bx..=bx + 1 {
-                if x < 0 || y < 0 || x >= self.w || y >= self.h {
-                    continue;
-                }
-                let [q, gx, gy] = self.planes[(y * self.w + x) as usize];
-                if q <= 0.0 {
-                    continue;
-                }
-                let o = s - self.centre(x, y);
-                let mut qs = q + gx * o.x + gy * o.y;
-                if qs <= 0.0 {
-                    qs = q;
-                }
-                if w > 1.0 / qs + eps {
-                    return false;
-                }
-            }
+        let (x, y) = (c.x.floor() as i32, c.y.floor() as i32);
+        if x < 0 || y < 0 || x >= self.w || y >= self.h {
+            return true;
         }
-        true
+        let [q, gx, gy] = self.planes[(y * self.w + x) as usize];
+        if q <= 0.0 {
+            return true;
+        }
+        let o = s - self.centre(x, y);
+        let mut qs = q + gx * o.x + gy * o.y;
+        if qs <= 0.0 {
+            qs = q;
+        }
+        // |grad w| = |grad q| / q^2, per point.
+        let slope = 0.5 * self.cell * (gx * gx + gy * gy).sqrt() / (qs * qs);
+        w <= 1.0 / qs + eps + slope
     }
 }
 
