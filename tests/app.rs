@@ -1540,7 +1540,10 @@ fn brush_cursor_is_the_dab_disc_or_lies_on_the_surface_painting_through() {
             .expect("cursor on the mesh");
         let (r, c, radius) = ratio(&pts);
         assert!(r < 1.01, "disc outline ratio {r}");
-        assert!(c.distance(pos) < 0.5, "outline centre {c:?} pointer {pos:?}");
+        assert!(
+            c.distance(pos) < 0.5,
+            "outline centre {c:?} pointer {pos:?}"
+        );
         let view = app.views.brush_view(&app.state, side, rect, pos).unwrap();
         let frame = meshmatch::render::Frame::of_points(
             &app.state.slot(side).unwrap().displayed().positions,

@@ -152,12 +152,9 @@ fn a_dab_on_the_giraffes_neck_leaves_the_far_side_clean() {
     let cov = st.paint_coverage(Side::Target).unwrap();
     let facing_away =
         |v: usize| Vec3::from(normals[v]).dot(view.eye - Vec3::from(giraffe.positions[v])) < 0.0;
-    for v in 0..giraffe.positions.len() {
+    for (v, &c) in cov.iter().enumerate() {
         if facing_away(v) {
-            assert_eq!(
-                cov[v], 0.0,
-                "vertex {v} facing away from the view is painted"
-            );
+            assert_eq!(c, 0.0, "vertex {v} facing away from the view is painted");
         }
     }
     // A ball (paint through) as wide as the neck goes round it.

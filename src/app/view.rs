@@ -637,11 +637,9 @@ impl Views {
                     let to = self.smoothed;
                     if let Some((s, from)) = self.last_dab
                         && s == side
+                        && let Some(last) = self.dab_line(state, side, rect, from, to, false, false)
                     {
-                        if let Some(last) = self.dab_line(state, side, rect, from, to, false, false)
-                        {
-                            self.last_dab = Some((side, last));
-                        }
+                        self.last_dab = Some((side, last));
                     }
                 }
             } else if middle || (primary && mods.shift) {

@@ -597,8 +597,8 @@ impl MeshSlot {
             let p = layer.get(x, y);
             if p[3] > 0 {
                 let a = p[3] as f32 / 255.0;
-                for k in 0..3 {
-                    px.0[k] = (px.0[k] as f32 * (1.0 - a) + p[k] as f32 * a).round() as u8;
+                for (c, &v) in px.0.iter_mut().zip(&p[..3]) {
+                    *c = (*c as f32 * (1.0 - a) + v as f32 * a).round() as u8;
                 }
             }
         }
