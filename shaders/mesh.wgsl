@@ -17,6 +17,8 @@ struct Uniforms {
 @group(0) @binding(0) var<uniform> u: Uniforms;
 @group(1) @binding(0) var base_tex: texture_2d<f32>;
 @group(1) @binding(1) var base_samp: sampler;
+// Paint over the base (sRGB colour, coverage), a 1x1 transparent texture when there is none.
+@group(1) @binding(2) var paint_tex: texture_2d<f32>;
 
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
@@ -48,6 +50,29 @@ fn vs_main(
     return out;
 }
 
+// The paint layer at `uv` (repeating outside [0, 1], edges clamped): bilinear over its four
+// nearest texels with the colours weighted by coverage, so an unpainted texel beside a painted
+// one lowers the coverage but never darkens the colour. Linear colour, coverage in alpha.
+fn paint_at(uv: vec2<f32>) -> vec4<f32> {
+    let dim = vec2<i32>(textureDimensions(paint_tex));
+    let inside = (uv >= vec2<f32>(0.0)) & (uv <= vec2<f32>(1.0));
+    let p = select(fract(uv), uv, inside) * vec2<f32>(dim) - 0.5;
+    let i = vec2<i32>(floor(p));
+    let f = p - floor(p);
+    var acc = vec4<f32>(0.0);
+    for (var k = 0; k < 4; k = k + 1) {
+        let o = vec2<i32>(k & 1, k >> 1u);
+        let q = clamp(i + o, vec2<i32>(0), dim - 1);
+        let t = textureLoad(paint_tex, q, 0);
+        let w = select(1.0 - f.x, f.x, o.x == 1) * select(1.0 - f.y, f.y, o.y == 1) * t.a;
+        acc = acc + vec4<f32>(t.rgb * w, w);
+    }
+    if (acc.a <= 0.0) {
+        return vec4<f32>(0.0);
+    }
+    return vec4<f32>(acc.rgb / acc.a, acc.a);
+}
+
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     // Headlight: the light sits at the eye, so the Lambert term is |n . v| (two-sided).
@@ -60,7 +85,9 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         lambert = abs(dot(n, v));
     }
     let ambient = u.wire.a;
-    let base = in.color * textureSample(base_tex, base_samp, in.uv).rgb;
+    let under = in.color * textureSample(base_tex, base_samp, in.uv).rgb;
+    let paint = paint_at(in.uv);
+    let base = mix(under, paint.rgb, paint.a);
     return vec4<f32>(base * (ambient + (1.0 - ambient) * lambert), 1.0);
 }
 

@@ -1038,7 +1038,7 @@ pub fn texture_rows(n: usize) -> Result<Vec<SystemRow>> {
 }
 
 /// Print system rows, as JSON lines or one sentence each.
-fn print_rows(rows: Vec<SystemRow>, json: bool) {
+pub fn print_rows(rows: Vec<SystemRow>, json: bool) {
     for r in rows {
         if json {
             println!("{}", serde_json::to_string(&r).expect("serialisable"));

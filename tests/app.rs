@@ -1517,7 +1517,7 @@ fn cancel_during_preparation_stops_inside_the_hierarchy_build() {
 }
 
 #[test]
-fn brush_cursor_lies_on_the_surface_and_hides_off_the_mesh() {
+fn brush_cursor_is_the_dab_disc_or_lies_on_the_surface_painting_through() {
     let mut app = app_with_spheres();
     app.views.tool = meshmatch::app::Tool::Paint;
     app.state.brush.radius = 0.05;
@@ -1530,8 +1530,9 @@ fn brush_cursor_lies_on_the_surface_and_hides_off_the_mesh() {
         let d: Vec<f32> = pts.iter().map(|p| (p.to_vec2() - c).length()).collect();
         let max = d.iter().cloned().fold(0.0f32, f32::max);
         let min = d.iter().cloned().fold(f32::INFINITY, f32::min);
-        (max / min, c.to_pos2())
+        (max / min, c.to_pos2(), min)
     };
+    let front = vertex_pos(&h, side, front_vertex(&h, side, 0));
     let app = h.state();
     let rect = app.views.rects[1];
     // Off the mesh: no cursor.
@@ -1542,20 +1543,8 @@ fn brush_cursor_lies_on_the_surface_and_hides_off_the_mesh() {
             .brush_outline(&app.state, side, rect, corner)
             .is_none()
     );
-    // Facing the camera: a near-circle around the pointer.
-    let front = vertex_pos(&h, side, front_vertex(&h, side, 0));
-    let pts = app
-        .views
-        .brush_outline(&app.state, side, rect, front)
-        .expect("cursor on the mesh");
-    assert_eq!(pts.len(), 32);
-    let (r, c) = ratio(&pts);
-    assert!(r < 1.3, "front outline ratio {r}");
-    assert!(
-        c.distance(front) < 3.0,
-        "outline centre {c:?} pointer {front:?}"
-    );
-    // Near the silhouette the surface is seen edge-on: the outline is a flat ellipse.
+    // A dab from the view: the disc it paints, a circle around the pointer of the brush's
+    // radius on the screen at the picked point, facing the camera or not.
     let mut edge = front;
     while app
         .views
@@ -1565,11 +1554,47 @@ fn brush_cursor_lies_on_the_surface_and_hides_off_the_mesh() {
         edge += egui::Vec2::X;
     }
     let oblique = front + 0.9 * (edge - front);
+    for pos in [front, oblique] {
+        let pts = app
+            .views
+            .brush_outline(&app.state, side, rect, pos)
+            .expect("cursor on the mesh");
+        let (r, c, radius) = ratio(&pts);
+        assert!(r < 1.01, "disc outline ratio {r}");
+        assert!(
+            c.distance(pos) < 0.5,
+            "outline centre {c:?} pointer {pos:?}"
+        );
+        let view = app.views.brush_view(&app.state, side, rect, pos).unwrap();
+        let frame = meshmatch::render::Frame::of_points(
+            &app.state.slot(side).unwrap().displayed().positions,
+        );
+        let expect = view.screen_radius(0.05 * frame.radius);
+        assert!(
+            (radius - expect).abs() < 0.02 * expect + 0.5,
+            "outline radius {radius}, dab radius {expect}"
+        );
+    }
+    // Painting through: the ball's circle in the tangent plane, a near-circle facing the
+    // camera, a flat ellipse where the surface is seen edge-on.
+    h.state_mut().state.brush.through = true;
+    let app = h.state();
+    let pts = app
+        .views
+        .brush_outline(&app.state, side, rect, front)
+        .expect("cursor on the mesh");
+    assert_eq!(pts.len(), 32);
+    let (r, c, _) = ratio(&pts);
+    assert!(r < 1.3, "front outline ratio {r}");
+    assert!(
+        c.distance(front) < 3.0,
+        "outline centre {c:?} pointer {front:?}"
+    );
     let pts = app
         .views
         .brush_outline(&app.state, side, rect, oblique)
         .expect("cursor on the mesh");
-    let (r, _) = ratio(&pts);
+    let (r, _, _) = ratio(&pts);
     assert!(r > 1.5, "oblique outline ratio {r}");
 }
 

@@ -5,9 +5,11 @@
 //! with egui and forwards requests to the [`crate::jobs::worker::Worker`].
 
 pub mod autosave;
+pub mod brush;
 pub mod engine;
 pub mod feature_aligned;
 pub mod files;
+pub mod paint_bench;
 pub mod quilt;
 pub mod state;
 pub mod system_tool;
@@ -519,7 +521,7 @@ where
                 Ok(())
             }
             A::ExportDense => self.state.export_dense_result(&p),
-            A::ExportPainted(side) => match self.state.painted_mesh(side) {
+            A::ExportPainted(side) => match self.state.painted_export_mesh(side) {
                 Some(m) => crate::mesh::io::save(&m, &p),
                 None => Err(Error::InvalidInput("no mesh".into())),
             },
@@ -795,7 +797,10 @@ where
                 ui.selectable_value(&mut self.views.tool, Tool::Correspond, "Correspondences")
                     .on_hover_text("Click source then target to add a pair");
                 ui.selectable_value(&mut self.views.tool, Tool::Paint, "Paint")
-                    .on_hover_text("Click or drag to paint vertex colours; Alt+drag orbits");
+                    .on_hover_text(
+                        "Click or drag to paint what the view sees (at the texture's \
+                         resolution on a mesh with UVs, else on its vertices); Alt+drag orbits",
+                    );
             });
             if self.views.tool == Tool::Paint {
                 let b = &mut self.state.brush;
@@ -807,6 +812,50 @@ where
                     ui.color_edit_button_rgb(&mut b.color);
                     ui.checkbox(&mut b.eraser, "eraser");
                 });
+                ui.horizontal(|ui| {
+                    ui.checkbox(&mut b.through, "paint through").on_hover_text(
+                        "Paint a ball around the point under the pointer, surfaces hidden from \
+                         the view included (for masks). Off: only what the view sees under the \
+                         brush.",
+                    );
+                    ui.add_enabled(
+                        !b.through,
+                        egui::Checkbox::new(&mut b.normal_falloff, "normal falloff"),
+                    )
+                    .on_hover_text("Fade the dab where the surface turns away from the view");
+                });
+                ui.add(egui::Slider::new(&mut b.spacing, 0.05..=2.0).text("spacing"))
+                    .on_hover_text("Distance between a stroke's dabs, in brush radii");
+                ui.add(egui::Slider::new(&mut b.smoothing, 0.0..=0.95).text("smoothing"))
+                    .on_hover_text(
+                        "Stroke smoothing: the stroke lags behind the pointer and \
+                                    its path smooths out",
+                    );
+                if !self.state.color_history.is_empty() {
+                    ui.horizontal_wrapped(|ui| {
+                        for c in self.state.color_history.clone() {
+                            let [r, g, bl] = c.map(|x| (x * 255.0).round() as u8);
+                            let swatch = egui::Button::new("")
+                                .fill(Color32::from_rgb(r, g, bl))
+                                .min_size(egui::vec2(18.0, 18.0));
+                            if ui
+                                .add(swatch)
+                                .on_hover_text("A colour painted with: click to paint with it")
+                                .clicked()
+                            {
+                                self.state.brush.color = c;
+                                self.state.brush.eraser = false;
+                            }
+                        }
+                    });
+                }
+                ui.label(
+                    egui::RichText::new(
+                        "Ctrl+click picks a colour, Shift+click draws a straight line",
+                    )
+                    .small()
+                    .weak(),
+                );
             }
             ui.separator();
             ui.horizontal(|ui| {
@@ -962,7 +1011,9 @@ where
                      - Shift-click on the target: adds another target point to the selected pair.\n\
                      - Click a marker to select it; drag it to move it; Delete removes it.\n\n\
                      Painting (Tool: Paint)\n\
-                     - Click or left-drag paints with the brush, Alt + left-drag orbits.\n\n\
+                     - Click or left-drag paints what the view sees, Alt + left-drag orbits.\n\
+                     - Shift + click: a straight line from the last dab; Ctrl + click: pick \
+                     the colour under the pointer.\n\n\
                      Keys\n\
                      - F frame all - H help - Ctrl+Z undo - Ctrl+Shift+Z redo - Delete remove\n\
                      - Drop a file on a view: a mesh opens there, an image becomes its \
@@ -1125,11 +1176,15 @@ where
                 .last_frame_start
                 .map_or(0.0, |t| clock.duration_since(t).as_secs_f32() * 1000.0);
             eprintln!(
-                "frame-ms {frame_ms:.3} interval-ms {interval:.3} running {} partials {} outcome {}",
-                self.state.job.running as u8, self.state.job.partials, self.state.job.outcome
+                "frame-ms {frame_ms:.3} interval-ms {interval:.3} paint-ms {:.3} running {} partials {} outcome {}",
+                self.views.paint_ms.get(),
+                self.state.job.running as u8,
+                self.state.job.partials,
+                self.state.job.outcome
             );
         }
         self.last_frame_start = Some(clock);
+        self.views.paint_ms.set(0.0);
         if let Some(every) = self.frame_log_every
             && self.frame_log_at.elapsed() >= every
         {

@@ -5,6 +5,8 @@ use eframe::egui_wgpu;
 use eframe::wgpu;
 use glam::Vec2 as GVec2;
 
+use super::brush::BrushView;
+use super::state::paint_layer::{TILE, has_uvs};
 use super::state::{AppParams, AppState, Selection, marker_color, side_index};
 use crate::correspondence::Side;
 use crate::geometry::TriangleBvh;
@@ -84,6 +86,13 @@ pub struct Views {
     pub tool: Tool,
     dragging_marker: Option<Selection>,
     painting: bool,
+    /// Where the last dab of a stroke was (view and screen position): a stroke's next dabs
+    /// are spaced from it, Shift+click draws a straight line from it.
+    last_dab: Option<(Side, Pos2)>,
+    /// The smoothed pointer of the stroke in progress.
+    smoothed: Pos2,
+    /// Milliseconds spent painting dabs in the current frame (the frame log prints it).
+    pub paint_ms: std::cell::Cell<f32>,
     /// Milliseconds spent encoding+submitting the last redraw of each view.
     pub last_draw_ms: [f32; 2],
     /// Screen rectangles of the two views in the last frame (points).
@@ -105,6 +114,9 @@ impl Default for Views {
             tool: Tool::Correspond,
             dragging_marker: None,
             painting: false,
+            last_dab: None,
+            smoothed: Pos2::ZERO,
+            paint_ms: std::cell::Cell::new(0.0),
             last_draw_ms: [0.0; 2],
             rects: [Rect::NOTHING; 2],
             last_hovered: None,
@@ -183,6 +195,31 @@ impl Views {
                         }
                         slot.colors_dirty = false;
                         g.dirty = true;
+                    }
+                    // The texel paint layer, tile by tile as strokes change it.
+                    let uvs = has_uvs(slot.displayed());
+                    match (slot.texels.as_mut(), g.mesh.as_mut()) {
+                        (Some(layer), Some(m)) if uvs => {
+                            let clock = std::time::Instant::now();
+                            if m.set_paint_layer(&rs.device, renderer, layer.width, layer.height) {
+                                layer.mark_all_dirty();
+                            }
+                            let tiles = layer.take_dirty();
+                            for &t in &tiles {
+                                let (rect, bytes) = layer.tile_data(t);
+                                m.write_paint(&rs.queue, rect, bytes, (4 * TILE) as u32);
+                            }
+                            if !tiles.is_empty() {
+                                g.dirty = true;
+                            }
+                            self.paint_ms
+                                .set(self.paint_ms.get() + clock.elapsed().as_secs_f32() * 1000.0);
+                        }
+                        (_, Some(m)) if m.paint_layer_size().is_some() => {
+                            m.clear_paint_layer(&rs.device, renderer);
+                            g.dirty = true;
+                        }
+                        _ => {}
                     }
                 }
             }
@@ -565,10 +602,11 @@ impl Views {
         if resp.drag_started_by(egui::PointerButton::Primary)
             && let Some(pos) = resp.interact_pointer_pos()
         {
-            if self.tool == Tool::Paint && !mods.alt && !mods.shift {
-                if let Some(hit) = self.pick_at(state, side, rect, pos) {
-                    state.paint_at(side, hit.point.to_array(), true);
+            if self.tool == Tool::Paint && !mods.alt && !mods.shift && !mods.command {
+                if self.dab(state, side, rect, pos, true) {
                     self.painting = true;
+                    self.last_dab = Some((side, pos));
+                    self.smoothed = pos;
                 }
             } else if !mods.alt
                 && !mods.shift
@@ -592,10 +630,17 @@ impl Views {
                     state.move_marker(sel, hit.nearest_vertex, false);
                 }
             } else if self.painting {
-                if let Some(pos) = pos
-                    && let Some(hit) = self.pick_at(state, side, rect, pos)
-                {
-                    state.paint_at(side, hit.point.to_array(), false);
+                if let Some(pos) = pos {
+                    // Smoothing: the stroke follows the pointer part of the way each frame.
+                    let k = 1.0 - state.brush.smoothing.clamp(0.0, 0.95);
+                    self.smoothed += (pos - self.smoothed) * k;
+                    let to = self.smoothed;
+                    if let Some((s, from)) = self.last_dab
+                        && s == side
+                        && let Some(last) = self.dab_line(state, side, rect, from, to, false, false)
+                    {
+                        self.last_dab = Some((side, last));
+                    }
                 }
             } else if middle || (primary && mods.shift) {
                 self.cameras[i].pan_by(
@@ -621,16 +666,28 @@ impl Views {
                     .map(|k| state.overlay_clicked = Some(k))
                     .is_some()
             });
-        // Click in Paint mode: one dab (its own undo step).
+        // Click in Paint mode: one dab (its own undo step); Shift+click a straight line from the
+        // last dab; Ctrl+click takes the colour under the pointer (eyedropper).
         if resp.clicked()
             && !on_overlay
             && self.tool == Tool::Paint
             && !mods.alt
-            && !mods.shift
             && let Some(pos) = resp.interact_pointer_pos()
-            && let Some(hit) = self.pick_at(state, side, rect, pos)
         {
-            state.paint_at(side, hit.point.to_array(), true);
+            if mods.command {
+                if let Some(hit) = self.pick_at(state, side, rect, pos) {
+                    state.pick_color(side, hit.face, hit.point.to_array());
+                }
+            } else if mods.shift {
+                if let Some((s, from)) = self.last_dab
+                    && s == side
+                    && let Some(last) = self.dab_line(state, side, rect, from, pos, true, true)
+                {
+                    self.last_dab = Some((side, last));
+                }
+            } else if self.dab(state, side, rect, pos, true) {
+                self.last_dab = Some((side, pos));
+            }
         }
         // Click: select a marker, or pick a vertex.
         if resp.clicked()
@@ -877,9 +934,90 @@ impl Views {
         }
     }
 
-    /// Screen outline of the brush on the surface under `pos`: a world-space circle of the brush
-    /// radius in the tangent plane at the picked point, projected at 32 points; `None` when the
-    /// pointer is off the mesh.
+    /// How the view of `side` sees a dab at `pos`; `None` when the pointer is off the mesh.
+    pub fn brush_view(
+        &self,
+        state: &AppState<impl AppParams>,
+        side: Side,
+        rect: Rect,
+        pos: Pos2,
+    ) -> Option<BrushView> {
+        let hit = self.pick_at(state, side, rect, pos)?;
+        let frame = self.frame_of(state, side)?;
+        Some(BrushView::new(
+            &self.cameras[side_index(side)],
+            &frame,
+            GVec2::new(rect.width(), rect.height()),
+            GVec2::new(pos.x - rect.min.x, pos.y - rect.min.y),
+            hit.point,
+        ))
+    }
+
+    /// Paint one dab at `pos` (`record`: the start of a stroke); false when the pointer is off
+    /// the mesh.
+    fn dab<P: AppParams>(
+        &self,
+        state: &mut AppState<P>,
+        side: Side,
+        rect: Rect,
+        pos: Pos2,
+        record: bool,
+    ) -> bool {
+        let clock = std::time::Instant::now();
+        let Some(view) = self.brush_view(state, side, rect, pos) else {
+            return false;
+        };
+        state.paint_dab(side, &view, record);
+        self.paint_ms
+            .set(self.paint_ms.get() + clock.elapsed().as_secs_f32() * 1000.0);
+        true
+    }
+
+    /// Dabs from `from` (already painted) towards `to`, [`super::Brush::spacing`] apart on the
+    /// screen; with `to_end` the last one lands on `to`, else dabs stop short of it where the
+    /// spacing says. `record` makes the first dab start a stroke. Returns the last dab's
+    /// position, if any.
+    #[allow(clippy::too_many_arguments)]
+    fn dab_line<P: AppParams>(
+        &self,
+        state: &mut AppState<P>,
+        side: Side,
+        rect: Rect,
+        from: Pos2,
+        to: Pos2,
+        record: bool,
+        to_end: bool,
+    ) -> Option<Pos2> {
+        let frame = self.frame_of(state, side)?;
+        let view = self
+            .brush_view(state, side, rect, to)
+            .or_else(|| self.brush_view(state, side, rect, from))?;
+        let r = view.screen_radius((state.brush.radius * frame.radius).max(1e-9));
+        let step = (state.brush.spacing.clamp(0.05, 4.0) * r).max(1.0);
+        let d = from.distance(to);
+        let n = if to_end {
+            (d / step).ceil()
+        } else {
+            (d / step).floor()
+        }
+        .min(512.0) as usize;
+        if n == 0 {
+            return None;
+        }
+        let dir = (to - from) / d.max(1e-6);
+        let gap = if to_end { d / n as f32 } else { step };
+        let mut last = None;
+        for k in 1..=n {
+            let p = from + dir * gap * k as f32;
+            self.dab(state, side, rect, p, record && last.is_none());
+            last = Some(p);
+        }
+        last
+    }
+
+    /// Screen outline of the brush under `pos`: the disc a dab covers; painting through, the
+    /// world-space circle of the brush radius in the tangent plane at the picked point, projected
+    /// at 32 points. `None` when the pointer is off the mesh.
     pub fn brush_outline(
         &self,
         state: &AppState<impl AppParams>,
@@ -889,6 +1027,19 @@ impl Views {
     ) -> Option<Vec<Pos2>> {
         let hit = self.pick_at(state, side, rect, pos)?;
         let frame = self.frame_of(state, side)?;
+        if !state.brush.through {
+            // A dab from the view: a disc on the screen.
+            let view = self.brush_view(state, side, rect, pos)?;
+            let r = view.screen_radius((state.brush.radius * frame.radius).max(1e-9));
+            return Some(
+                (0..48)
+                    .map(|k| {
+                        let t = k as f32 * std::f32::consts::TAU / 48.0;
+                        pos + Vec2::new(t.cos(), t.sin()) * r
+                    })
+                    .collect(),
+            );
+        }
         let m = state.slot(side)?.displayed();
         let [a, b, c] = m.faces[hit.face].map(|v| glam::Vec3::from(m.positions[v as usize]));
         let n = (b - a).cross(c - a).try_normalize()?;

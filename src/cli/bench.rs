@@ -26,7 +26,9 @@ pub struct BenchArgs {
     /// curves, field, synthesis and optimisation at that many vertices), quilt (chain mail on a plane and on the bunny), map (the
     /// global shape map man -> woman at each size, and a transfer with structure 0 and auto),
     /// texture (full-resolution delivery of a ground-truth task solved at the first size, at
-    /// 1024, 2048 and 4096 texels per side, with its scores) or
+    /// 1024, 2048 and 4096 texels per side, with its scores), paint (the UI thread's time per
+    /// dab of a stroke on a UV sphere of each size, into a 2048² texel layer and into vertex
+    /// paint) or
     /// synth (`synth` with its defaults, every shared texture on every shared mesh, on the
     /// surface) or synth-texture (the same into each mesh's texture space, as `--out o.glb`).
     #[arg(long, default_value = "meshmatch")]
@@ -90,6 +92,14 @@ impl BenchArgs {
                 "--cancel-probes {}: use 0 to {MAX_CANCEL_PROBES}",
                 self.cancel_probes
             )));
+        }
+        #[cfg(feature = "gui")]
+        if self.system == "paint" {
+            let sizes = crate::bench::parse_sizes(&self.sizes)?;
+            for n in sizes {
+                crate::bench::print_rows(crate::app::paint_bench::paint_rows(n)?, self.json);
+            }
+            return Ok(0);
         }
         if self.system != "meshmatch" {
             crate::bench::run_system(

@@ -139,6 +139,17 @@ impl MeshRenderer {
                     ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
                     count: None,
                 },
+                // Paint over the base, through the same UVs (read texel by texel).
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
             ],
         });
         // Trilinear, repeating (UVs outside [0, 1] tile, as OBJ and glTF expect).
@@ -448,6 +459,12 @@ pub struct GpuMesh {
     white_group: wgpu::BindGroup,
     /// The mesh's own texture, if it has one with UVs.
     texture_group: Option<wgpu::BindGroup>,
+    /// Views the groups are made of: white, the mesh's texture, and the paint layer (a 1x1
+    /// transparent texture when there is none).
+    white_view: wgpu::TextureView,
+    base_view: Option<wgpu::TextureView>,
+    paint: Option<(wgpu::Texture, u32, u32)>,
+    no_paint_view: wgpu::TextureView,
     /// Whether the texture is drawn (else the vertex colours).
     textured: bool,
     /// Mesh vertex of every drawn vertex.
@@ -527,6 +544,51 @@ fn upload_texture(
     texture.create_view(&Default::default())
 }
 
+/// A texture of `width`×`height` RGBA8 sRGB texels (one level), written tile by tile.
+fn paint_texture(device: &wgpu::Device, width: u32, height: u32) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("mesh paint layer"),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8UnormSrgb,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    })
+}
+
+/// The group of the base texture `base` with the paint texture `paint`.
+fn texture_group(
+    device: &wgpu::Device,
+    renderer: &MeshRenderer,
+    base: &wgpu::TextureView,
+    paint: &wgpu::TextureView,
+) -> wgpu::BindGroup {
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("mesh texture group"),
+        layout: &renderer.texture_layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(base),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::Sampler(&renderer.sampler),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::TextureView(paint),
+            },
+        ],
+    })
+}
+
 impl GpuMesh {
     /// Upload `mesh` with per-vertex sRGB `colors` (see [`display_colors`]); with `textured` and
     /// a texture on the mesh, its texture is drawn per pixel instead of the colours.
@@ -539,7 +601,12 @@ impl GpuMesh {
         textured: bool,
     ) -> Self {
         let can_texture = has_texture(mesh);
-        let d = super::draw_mesh::draw_mesh(mesh, can_texture);
+        // UVs whenever the mesh has them: a paint layer is drawn through them too.
+        let with_uvs = mesh
+            .uvs
+            .as_ref()
+            .is_some_and(|u| u.len() == 3 * mesh.faces.len());
+        let d = super::draw_mesh::draw_mesh(mesh, with_uvs);
         let mut verts: Vec<Vertex> = (0..d.positions.len())
             .map(|i| Vertex {
                 position: d.positions[i],
@@ -615,28 +682,18 @@ impl GpuMesh {
                 resource: uniforms.as_entire_binding(),
             }],
         });
-        let texture_group = |view: &wgpu::TextureView| {
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("mesh texture group"),
-                layout: &renderer.texture_layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: wgpu::BindingResource::TextureView(view),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: wgpu::BindingResource::Sampler(&renderer.sampler),
-                    },
-                ],
-            })
-        };
         let white = image::RgbaImage::from_pixel(1, 1, image::Rgba([255; 4]));
-        let white_group = texture_group(&upload_texture(device, queue, &white));
-        let texture_group = mesh.texture.as_ref().filter(|_| can_texture).map(|t| {
+        let white_view = upload_texture(device, queue, &white);
+        let clear = image::RgbaImage::from_pixel(1, 1, image::Rgba([0; 4]));
+        let no_paint_view = upload_texture(device, queue, &clear);
+        let white_group = texture_group(device, renderer, &white_view, &no_paint_view);
+        let base_view = mesh.texture.as_ref().filter(|_| can_texture).map(|t| {
             let rgba = image::DynamicImage::ImageRgb8(t.image.clone()).to_rgba8();
-            texture_group(&upload_texture(device, queue, &rgba))
+            upload_texture(device, queue, &rgba)
         });
+        let texture_group = base_view
+            .as_ref()
+            .map(|v| texture_group(device, renderer, v, &no_paint_view));
         GpuMesh {
             vertices,
             colors,
@@ -646,6 +703,10 @@ impl GpuMesh {
             bind_group,
             white_group,
             texture_group,
+            white_view,
+            base_view,
+            paint: None,
+            no_paint_view,
             textured,
             draw_vertex: d.vertex,
             index_count: tris.len() as u32,
@@ -695,6 +756,88 @@ impl GpuMesh {
         if !cols.is_empty() {
             queue.write_buffer(&self.colors, 0, bytemuck::cast_slice(&cols));
         }
+    }
+
+    /// Draw a paint layer of `width`×`height` texels over the mesh through its UVs (a new,
+    /// transparent one when there was none of that size; write it with [`Self::write_paint`]).
+    /// True when a new texture was made.
+    pub fn set_paint_layer(
+        &mut self,
+        device: &wgpu::Device,
+        renderer: &MeshRenderer,
+        width: u32,
+        height: u32,
+    ) -> bool {
+        if self
+            .paint
+            .as_ref()
+            .is_some_and(|(_, w, h)| (*w, *h) == (width, height))
+        {
+            return false;
+        }
+        let tex = paint_texture(device, width, height);
+        let view = tex.create_view(&Default::default());
+        self.white_group = texture_group(device, renderer, &self.white_view, &view);
+        self.texture_group = self
+            .base_view
+            .as_ref()
+            .map(|b| texture_group(device, renderer, b, &view));
+        self.paint = Some((tex, width, height));
+        true
+    }
+
+    /// Stop drawing a paint layer.
+    pub fn clear_paint_layer(&mut self, device: &wgpu::Device, renderer: &MeshRenderer) {
+        if self.paint.take().is_some() {
+            self.white_group =
+                texture_group(device, renderer, &self.white_view, &self.no_paint_view);
+            self.texture_group = self
+                .base_view
+                .as_ref()
+                .map(|b| texture_group(device, renderer, b, &self.no_paint_view));
+        }
+    }
+
+    /// Size of the paint layer drawn, if any.
+    pub fn paint_layer_size(&self) -> Option<(u32, u32)> {
+        self.paint.as_ref().map(|(_, w, h)| (*w, *h))
+    }
+
+    /// Write the texels `rect` = (x, y, width, height) of the paint layer from RGBA8 rows of
+    /// `bytes_per_row` bytes.
+    pub fn write_paint(
+        &self,
+        queue: &wgpu::Queue,
+        rect: [u32; 4],
+        bytes: &[u8],
+        bytes_per_row: u32,
+    ) {
+        let Some((tex, _, _)) = &self.paint else {
+            return;
+        };
+        queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: tex,
+                mip_level: 0,
+                origin: wgpu::Origin3d {
+                    x: rect[0],
+                    y: rect[1],
+                    z: 0,
+                },
+                aspect: wgpu::TextureAspect::All,
+            },
+            bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(bytes_per_row),
+                rows_per_image: Some(rect[3]),
+            },
+            wgpu::Extent3d {
+                width: rect[2],
+                height: rect[3],
+                depth_or_array_layers: 1,
+            },
+        );
     }
 
     /// Whether the mesh's texture is drawn.

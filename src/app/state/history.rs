@@ -7,6 +7,8 @@ pub(super) struct Snapshot {
     pub(super) corr: Vec<Correspondence>,
     pub(super) pending_source: Option<u32>,
     pub(super) paint: [Option<Vec<[f32; 4]>>; 2],
+    /// Texel layers' tiles (shared with the layer until a stroke touches them).
+    pub(super) texels: [Option<paint_layer::TexelTiles>; 2],
     /// A whole mesh replaced by a tool (index in `meshes`, the slot before): undoing puts it back.
     pub(super) slot: Option<(usize, Box<MeshSlot>)>,
 }
@@ -22,6 +24,16 @@ pub struct Brush {
     pub hardness: f32,
     /// Remove paint instead of adding it.
     pub eraser: bool,
+    /// Paint a ball in space around the picked point, through to surfaces the view does not
+    /// see (for masks); otherwise a dab paints only what the view sees under the brush.
+    pub through: bool,
+    /// Attenuate a dab where the surface turns away from the view.
+    pub normal_falloff: bool,
+    /// Distance between the dabs of a stroke, as a fraction of the brush's screen radius.
+    pub spacing: f32,
+    /// Stroke smoothing: 0 follows the pointer, towards 1 the stroke lags behind it and its
+    /// path smooths out.
+    pub smoothing: f32,
 }
 
 impl Default for Brush {
@@ -31,6 +43,10 @@ impl Default for Brush {
             color: [0.9, 0.1, 0.1],
             hardness: 0.5,
             eraser: false,
+            through: false,
+            normal_falloff: true,
+            spacing: 0.25,
+            smoothing: 0.0,
         }
     }
 }
@@ -46,6 +62,11 @@ impl<P: AppParams> AppState<P> {
             paint: [0, 1].map(|i| match &self.preview_backup {
                 Some((side, _, p)) if side_index(*side) == i => p.clone(),
                 _ => self.meshes[i].as_ref().and_then(|s| s.paint.clone()),
+            }),
+            texels: [0, 1].map(|i| {
+                self.meshes[i]
+                    .as_ref()
+                    .and_then(|s| s.texels.as_ref().map(|l| l.tiles()))
             }),
             slot: None,
         }
@@ -84,6 +105,22 @@ impl<P: AppParams> AppState<P> {
             {
                 slot.paint = p;
                 slot.colors_dirty = true;
+            }
+        }
+        for (i, t) in s.texels.into_iter().enumerate() {
+            if let Some(slot) = self.meshes[i].as_mut() {
+                match (slot.texels.as_mut(), t) {
+                    (Some(l), Some(t)) => {
+                        if !l.restore(&t) {
+                            slot.texels = Some(paint_layer::TexelLayer::from_tiles(&t));
+                        }
+                    }
+                    (None, Some(t)) => {
+                        slot.texels = Some(paint_layer::TexelLayer::from_tiles(&t));
+                    }
+                    (Some(_), None) => slot.texels = None,
+                    (None, None) => {}
+                }
             }
         }
         if let Some(sel) = self.selected
@@ -145,61 +182,18 @@ impl<P: AppParams> AppState<P> {
 
     // ----- painting -----
 
-    /// Paint (or erase) around a point on one side's displayed mesh with the current brush.
-    /// `record` pushes an undo step (true at the start of a stroke). Returns painted vertex count.
+    /// Paint (or erase) a ball of the brush radius around a point of one side's displayed mesh
+    /// (paint through: every surface inside it, seen or not). `record` pushes an undo step
+    /// (true at the start of a stroke). Returns the painted vertex (or texel) count.
     pub fn paint_at(&mut self, side: Side, center: [f32; 3], record: bool) -> usize {
-        let brush = self.brush;
-        if record && self.slot(side).is_some() {
-            self.push_undo();
-        }
-        let Some(slot) = self.slot_mut(side) else {
-            return 0;
-        };
-        let mesh = slot.displayed();
-        let frame = crate::render::Frame::of_points(&mesh.positions);
-        let r = (brush.radius * frame.radius).max(1e-9);
-        let c = glam::Vec3::from(center);
-        let n = mesh.positions.len();
-        let positions = mesh.positions.clone();
-        let paint = slot.paint.get_or_insert_with(|| vec![[0.0; 4]; n]);
-        let mut count = 0;
-        for (p, dst) in positions.iter().zip(paint.iter_mut()) {
-            let d = glam::Vec3::from(*p).distance(c) / r;
-            if d >= 1.0 {
-                continue;
-            }
-            // Hardness h: full strength inside radius h, smooth falloff to 0 at the rim.
-            let h = brush.hardness.clamp(0.0, 0.999);
-            let t = ((d - h) / (1.0 - h)).clamp(0.0, 1.0);
-            let w = 1.0 - t * t * (3.0 - 2.0 * t);
-            if brush.eraser {
-                dst[3] *= 1.0 - w;
-            } else {
-                let a = dst[3] + w * (1.0 - dst[3]);
-                for k in 0..3 {
-                    dst[k] = if a > 0.0 {
-                        (dst[k] * dst[3] * (1.0 - w) + brush.color[k] * w) / a
-                    } else {
-                        brush.color[k]
-                    };
-                }
-                dst[3] = a;
-            }
-            count += 1;
-        }
-        slot.colors_dirty = true;
-        if count > 0 {
-            // a stroke's later dabs record no undo step but change the paint
-            self.mark_changed();
-        }
-        count
+        self.paint_dab_at(side, paint_layer::DabAt::Ball(center), record)
     }
 
     /// Paint coverage per displayed vertex of one side (0 where unpainted).
     pub fn paint_coverage(&self, side: Side) -> Option<Vec<f32>> {
         let slot = self.slot(side)?;
         let n = slot.displayed().num_vertices();
-        Some(match &slot.paint {
+        Some(match slot.paint_per_vertex() {
             Some(p) => p.iter().map(|x| x[3]).collect(),
             None => vec![0.0; n],
         })
@@ -320,7 +314,7 @@ impl<P: AppParams> AppState<P> {
     pub fn painted_mesh(&self, side: Side) -> Option<TriMesh> {
         let slot = self.slot(side)?;
         let mut m = slot.displayed().clone();
-        m.colors = Some(slot.display_colors());
+        m.colors = Some(slot.painted_colors());
         m.texture = None;
         m.uvs = None;
         Some(m)

@@ -8,6 +8,7 @@
 mod changes;
 mod correspondences;
 mod history;
+pub mod paint_layer;
 mod session;
 mod slot;
 
@@ -96,6 +97,8 @@ pub struct AppState<P: AppParams> {
     pub message: String,
     /// Brush settings.
     pub brush: Brush,
+    /// Colours strokes were painted with, newest first.
+    pub color_history: Vec<[f32; 3]>,
     /// Recently opened files, newest first.
     pub recent: Vec<RecentFile>,
     /// File the Recent list is saved to after every change (`None`: not persisted).
@@ -150,6 +153,7 @@ impl<P: AppParams> AppState<P> {
             errors: Vec::new(),
             message: String::new(),
             brush: Brush::default(),
+            color_history: Vec::new(),
             recent: Vec::new(),
             recent_store: None,
             scenes: Vec::new(),

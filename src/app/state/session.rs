@@ -34,6 +34,12 @@ pub struct Session<P> {
     /// Texture image opened for the source (File > Open texture), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub source_texture: Option<PathBuf>,
+    /// The source's texel paint layer (RGBA PNG sidecar, relative to the session file), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_paint_texels: Option<PathBuf>,
+    /// The target's texel paint layer (RGBA PNG sidecar), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_paint_texels: Option<PathBuf>,
 }
 
 /// What a recently opened file was opened as.
@@ -230,6 +236,22 @@ impl<P: AppParams> AppState<P> {
             let name = p.file_name().map_or_else(|| p.clone(), PathBuf::from);
             paint[side_index(side)] = (Some(name), Some(coverage));
         }
+        let mut texels: [Option<PathBuf>; 2] = [None, None];
+        for (side, suffix) in [
+            (Side::Source, "source_paint_texels"),
+            (Side::Target, "target_paint_texels"),
+        ] {
+            let Some(layer) = self.slot(side).and_then(|s| s.texels.as_ref()) else {
+                continue;
+            };
+            if layer.is_empty() {
+                continue;
+            }
+            let p = path.with_extension(format!("{suffix}.png"));
+            paint_layer::save_texel_layer(layer, &p)?;
+            texels[side_index(side)] = Some(p.file_name().map_or_else(|| p.clone(), PathBuf::from));
+        }
+        let [source_paint_texels, target_paint_texels] = texels;
         let [(src_paint, src_cov), (tgt_paint, tgt_cov)] = paint;
         let [(source, source_scene), (target, target_scene)] = names;
         let session = Session {
@@ -246,6 +268,8 @@ impl<P: AppParams> AppState<P> {
             source_texture: self
                 .slot(Side::Source)
                 .and_then(|s| s.texture_file.as_ref().map(|p| abs(p))),
+            source_paint_texels,
+            target_paint_texels,
         };
         let text = serde_json::to_string_pretty(&session)
             .map_err(|e| Error::InvalidInput(format!("cannot serialise session: {e}")))?;
@@ -341,6 +365,15 @@ impl<P: AppParams> AppState<P> {
                 rgba,
             });
         }
+        let mut texel_layers = [None, None];
+        for (i, sidecar) in [&s.source_paint_texels, &s.target_paint_texels]
+            .into_iter()
+            .enumerate()
+        {
+            if let Some(sidecar) = sidecar {
+                texel_layers[i] = Some(paint_layer::load_texel_layer(&resolve(sidecar))?);
+            }
+        }
         // Pairs whose meshes were renumbered since the session was saved (re-exported by another
         // tool) move to the nearest vertex of their stored position.
         let mesh_of = |i: usize| meshes[i].as_ref().map(|m| &m.1);
@@ -376,6 +409,11 @@ impl<P: AppParams> AppState<P> {
                 slot.paint = Some(applied.clone());
                 slot.restored_paint = Some((sample, applied));
                 slot.colors_dirty = true;
+            }
+        }
+        for (i, layer) in texel_layers.into_iter().enumerate() {
+            if let (Some(layer), Some(slot)) = (layer, self.meshes[i].as_mut()) {
+                slot.texels = Some(layer);
             }
         }
         self.params = s.params;

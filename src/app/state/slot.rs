@@ -27,6 +27,8 @@ pub struct MeshSlot {
     pub normals: Vec<[f32; 3]>,
     /// Paint layer on the displayed mesh: RGB + coverage per vertex.
     pub paint: Option<Vec<[f32; 4]>>,
+    /// Paint at the texture's resolution, through the displayed mesh's UVs (over `paint`).
+    pub texels: Option<super::paint_layer::TexelLayer>,
     /// Geometry changed since the renderer last uploaded it.
     pub geometry_dirty: bool,
     /// Colours changed since the renderer last uploaded them.
@@ -55,6 +57,7 @@ impl MeshSlot {
             base_colors,
             own_signal: true,
             paint: None,
+            texels: None,
             geometry_dirty: true,
             colors_dirty: true,
             scene: None,

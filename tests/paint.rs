@@ -1,0 +1,557 @@
+//! Painting as a texture painter expects: a dab paints only what the view sees (a thin slab's
+//! far side and the giraffe's far side of the neck stay clean, "paint through" reaches them);
+//! on a mesh with UVs the paint lives in a texel layer at the texture's resolution (a stroke
+//! across a UV seam paints both charts without a gap or a bleed into the gutter, its edge is the
+//! brush's, undo restores the layer exactly, a GLB export carries it at full resolution, and
+//! completion reads it as it reads vertex paint).
+
+#![cfg(feature = "gui")]
+
+mod scratch;
+
+use eframe::egui;
+use glam::{Vec2, Vec3};
+use meshmatch::TriMesh;
+use meshmatch::app::AppParams;
+use meshmatch::app::brush::BrushView;
+use meshmatch::app::state::AppState;
+use meshmatch::correspondence::Side;
+use meshmatch::render::{Camera, Frame};
+
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+struct NoParams;
+
+impl AppParams for NoParams {
+    fn ui(&mut self, _: &mut egui::Ui) -> bool {
+        false
+    }
+}
+
+/// A view of 800x600 points looking along `-dir` at the mesh, the pointer over `p`.
+fn view_of(mesh: &TriMesh, dir: Vec3, p: Vec3) -> BrushView {
+    let d = dir.normalize();
+    let camera = Camera {
+        azimuth_deg: d.x.atan2(d.z).to_degrees(),
+        elevation_deg: d.y.clamp(-1.0, 1.0).asin().to_degrees(),
+        zoom: 1.0,
+        pan: [0.0, 0.0],
+    };
+    let frame = Frame::of_points(&mesh.positions);
+    let size = Vec2::new(800.0, 600.0);
+    let s = camera
+        .project(&frame, p, size)
+        .expect("in front of the eye");
+    BrushView::new(&camera, &frame, size, s, p)
+}
+
+/// An `n`x`n` grid over `[0, 1]²` at height `z`, facing +Z (or -Z when `flip`).
+fn grid(n: u32, z: f32, flip: bool, m: &mut TriMesh) {
+    let base = m.positions.len() as u32;
+    for y in 0..=n {
+        for x in 0..=n {
+            m.positions
+                .push([x as f32 / n as f32, y as f32 / n as f32, z]);
+        }
+    }
+    for y in 0..n {
+        for x in 0..n {
+            let a = base + y * (n + 1) + x;
+            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+            if flip {
+                m.faces.push([a, c, b]);
+                m.faces.push([b, c, d]);
+            } else {
+                m.faces.push([a, b, c]);
+                m.faces.push([b, d, c]);
+            }
+        }
+    }
+}
+
+/// A closed thin slab: a 1x1 square, `t` thick, both large sides finely gridded.
+fn slab(t: f32) -> TriMesh {
+    let mut m = TriMesh::default();
+    grid(40, t * 0.5, false, &mut m);
+    grid(40, -t * 0.5, true, &mut m);
+    // Close the rim (the four thin sides).
+    let n = 41u32;
+    let back = n * n;
+    let rim: Vec<u32> = (0..40)
+        .chain((0..40).map(|y| 40 + y * n))
+        .chain((0..40).map(|x| 40 * n + 40 - x))
+        .chain((0..40).map(|y| (40 - y) * n))
+        .collect();
+    for k in 0..rim.len() {
+        let (a, b) = (rim[k], rim[(k + 1) % rim.len()]);
+        m.faces.push([a, back + a, b]);
+        m.faces.push([b, back + a, back + b]);
+    }
+    m.file_index = (0..m.positions.len() as u32).collect();
+    m.file_vertex_count = m.positions.len();
+    m
+}
+
+fn state_with(side: Side, mesh: TriMesh) -> AppState<NoParams> {
+    let mut s = AppState::<NoParams>::new();
+    s.set_mesh(side, mesh, false);
+    s
+}
+
+#[test]
+fn a_dab_from_the_view_leaves_the_far_side_of_a_thin_slab_unpainted() {
+    let t = 0.02;
+    let mesh = slab(t);
+    let mut st = state_with(Side::Source, mesh.clone());
+    st.brush.radius = 0.1;
+    st.brush.hardness = 0.8;
+    let centre = Vec3::new(0.5, 0.5, t * 0.5);
+    let view = view_of(&mesh, Vec3::Z, centre);
+    let n = st.paint_dab(Side::Source, &view, true);
+    assert!(n > 0);
+    let cov = st.paint_coverage(Side::Source).unwrap();
+    let front: Vec<usize> = (0..mesh.positions.len())
+        .filter(|&v| mesh.positions[v][2] > 0.0)
+        .collect();
+    let painted_front = front.iter().filter(|&&v| cov[v] > 0.5).count();
+    assert!(
+        painted_front >= 10,
+        "{painted_front} front vertices painted"
+    );
+    for (v, p) in mesh.positions.iter().enumerate() {
+        if p[2] < 0.0 {
+            assert_eq!(cov[v], 0.0, "far-side vertex {v} at {p:?} painted");
+        }
+    }
+    // Paint through (a ball thicker than the slab) reaches the far side.
+    st.brush.through = true;
+    st.paint_dab(Side::Source, &view, true);
+    let cov = st.paint_coverage(Side::Source).unwrap();
+    let far = (0..mesh.positions.len())
+        .filter(|&v| mesh.positions[v][2] < 0.0 && cov[v] > 0.5)
+        .count();
+    assert!(far >= 10, "paint through reached {far} far-side vertices");
+}
+
+#[test]
+fn a_dab_on_the_giraffes_neck_leaves_the_far_side_clean() {
+    let giraffe = meshmatch::demo::giraffe();
+    let neck = meshmatch::demo::landmarks_giraffe()
+        .into_iter()
+        .find(|(l, _)| *l == meshmatch::demo::Landmark::Neck)
+        .expect("a neck landmark")
+        .1;
+    let v = meshmatch::demo::nearest_vertex(&giraffe, neck).unwrap() as usize;
+    let mut st = state_with(Side::Target, giraffe.clone());
+    // The normals the app paints with.
+    let normals = st.slot(Side::Target).unwrap().normals.clone();
+    let p = Vec3::from(giraffe.positions[v]);
+    let view = view_of(&giraffe, Vec3::from(normals[v]), p);
+    // The default brush.
+    let n = st.paint_dab(Side::Target, &view, true);
+    assert!(n > 20, "{n} vertices painted");
+    let cov = st.paint_coverage(Side::Target).unwrap();
+    let facing_away =
+        |v: usize| Vec3::from(normals[v]).dot(view.eye - Vec3::from(giraffe.positions[v])) < 0.0;
+    for (v, &c) in cov.iter().enumerate() {
+        if facing_away(v) {
+            assert_eq!(c, 0.0, "vertex {v} facing away from the view is painted");
+        }
+    }
+    // A ball (paint through) as wide as the neck goes round it.
+    st.brush.through = true;
+    st.brush.radius = 0.2;
+    st.paint_dab(Side::Target, &view, true);
+    let cov = st.paint_coverage(Side::Target).unwrap();
+    let behind = (0..giraffe.positions.len())
+        .filter(|&v| facing_away(v) && cov[v] > 0.5)
+        .count();
+    assert!(
+        behind > 20,
+        "paint through reached {behind} vertices facing away"
+    );
+}
+
+/// A 1x1 plane (z = 0, facing +Z, `n`x`n` grid) whose left half (x < 0.5) is laid out at
+/// u in [0.05, 0.45] and right half at u in [0.55, 0.95] (a seam down the middle), v = 0.05 +
+/// 0.9 y.
+fn seamed_plane(n: u32) -> TriMesh {
+    let mut m = TriMesh::default();
+    grid(n, 0.0, false, &mut m);
+    let uv = |p: [f32; 3], right: bool| -> [f32; 2] {
+        let u = if right {
+            0.55 + 0.8 * (p[0] - 0.5)
+        } else {
+            0.05 + 0.8 * p[0]
+        };
+        [u, 0.05 + 0.9 * p[1]]
+    };
+    let uvs = m
+        .faces
+        .iter()
+        .flat_map(|f| {
+            let right = f.iter().map(|&v| m.positions[v as usize][0]).sum::<f32>() / 3.0 > 0.5;
+            f.map(|v| uv(m.positions[v as usize], right))
+        })
+        .collect();
+    m.uvs = Some(uvs);
+    m.file_index = (0..m.positions.len() as u32).collect();
+    m.file_vertex_count = m.positions.len();
+    m
+}
+
+/// A stroke of dabs from `a` to `b` (world, on the plane) seen from +Z.
+fn stroke(st: &mut AppState<NoParams>, mesh: &TriMesh, a: Vec3, b: Vec3, dabs: usize) {
+    for k in 0..=dabs {
+        let p = a.lerp(b, k as f32 / dabs as f32);
+        let view = view_of(mesh, Vec3::Z, p);
+        st.paint_dab(Side::Target, &view, k == 0);
+    }
+}
+
+#[test]
+fn a_stroke_across_a_uv_seam_paints_both_charts_at_texel_resolution() {
+    let mesh = seamed_plane(8);
+    let mut st = state_with(Side::Target, mesh.clone());
+    st.brush.radius = 0.05;
+    st.brush.hardness = 0.999;
+    st.brush.color = [0.0, 0.2, 1.0];
+    stroke(
+        &mut st,
+        &mesh,
+        Vec3::new(0.25, 0.5, 0.0),
+        Vec3::new(0.75, 0.5, 0.0),
+        50,
+    );
+    let slot = st.slot(Side::Target).unwrap();
+    assert!(
+        slot.paint.is_none(),
+        "a mesh with UVs takes no vertex paint"
+    );
+    let layer = slot.texels.as_ref().expect("a texel layer");
+    assert_eq!((layer.width, layer.height), (2048, 2048));
+    // Along the stroke's line on the surface, both sides of the seam: painted everywhere.
+    for k in 0..=400 {
+        let x = 0.3 + 0.4 * k as f32 / 400.0;
+        let right = x > 0.5;
+        let u = if right {
+            0.55 + 0.8 * (x - 0.5)
+        } else {
+            0.05 + 0.8 * x
+        };
+        let s = layer.sample([u, 0.05 + 0.9 * 0.5]);
+        assert!(s[3] > 0.97, "gap at x = {x}: coverage {}", s[3]);
+        assert!((s[2] - 1.0).abs() < 0.01 && s[0] < 0.01, "{s:?} at x = {x}");
+    }
+    // The gutter between the charts (u in (0.45, 0.55), beyond a texel and a half of either
+    // chart) stays empty.
+    let (lo, hi) = ((0.45 * 2048.0 + 1.5) as u32, (0.55 * 2048.0 - 1.5) as u32);
+    for y in 0..2048 {
+        for x in lo..=hi {
+            assert_eq!(
+                layer.get(x, y)[3],
+                0,
+                "paint in the gutter at texel {x},{y}"
+            );
+        }
+    }
+    // The stroke's edge is the brush's: across it (along y at x = 0.3), coverage goes from
+    // full to none within two texels, not over a triangle (256 texels here).
+    let column = ((0.05 + 0.8 * 0.3) * 2048.0) as u32;
+    let alpha: Vec<u8> = (0..2048).map(|y| layer.get(column, y)[3]).collect();
+    let full = alpha.iter().filter(|&&a| a == 255).count();
+    let partial = alpha.iter().filter(|&&a| a > 0 && a < 255).count();
+    assert!(full > 50, "{full} full texels across the stroke");
+    assert!(
+        partial <= 4,
+        "{partial} partial texels across the stroke's two edges"
+    );
+}
+
+#[test]
+fn undo_of_a_texel_stroke_restores_the_layer_exactly_and_redo_puts_it_back() {
+    let mesh = seamed_plane(8);
+    let mut st = state_with(Side::Target, mesh.clone());
+    st.brush.radius = 0.08;
+    st.brush.hardness = 0.3;
+    st.brush.color = [1.0, 0.5, 0.0];
+    stroke(
+        &mut st,
+        &mesh,
+        Vec3::new(0.2, 0.3, 0.0),
+        Vec3::new(0.6, 0.4, 0.0),
+        20,
+    );
+    let first = st
+        .slot(Side::Target)
+        .unwrap()
+        .texels
+        .as_ref()
+        .unwrap()
+        .to_image();
+    st.brush.color = [0.1, 0.9, 0.2];
+    stroke(
+        &mut st,
+        &mesh,
+        Vec3::new(0.3, 0.2, 0.0),
+        Vec3::new(0.4, 0.8, 0.0),
+        20,
+    );
+    let second = st
+        .slot(Side::Target)
+        .unwrap()
+        .texels
+        .as_ref()
+        .unwrap()
+        .to_image();
+    assert_ne!(first, second);
+    assert!(st.undo());
+    let layer = st.slot(Side::Target).unwrap().texels.as_ref().unwrap();
+    assert!(layer.to_image() == first, "undo did not restore the layer");
+    assert!(st.redo());
+    let layer = st.slot(Side::Target).unwrap().texels.as_ref().unwrap();
+    assert!(
+        layer.to_image() == second,
+        "redo did not restore the stroke"
+    );
+    assert!(st.undo());
+    assert!(st.undo());
+    assert!(
+        st.slot(Side::Target).unwrap().texels.is_none(),
+        "undoing the first stroke removes the layer"
+    );
+}
+
+#[test]
+fn a_glb_export_carries_the_texel_layer_at_full_resolution() {
+    let dir = scratch::Scratch::new("paint_glb");
+    let mesh = seamed_plane(8);
+    let mut st = state_with(Side::Target, mesh.clone());
+    st.brush.radius = 0.04;
+    st.brush.hardness = 0.999;
+    st.brush.color = [1.0, 0.0, 1.0];
+    let centre = Vec3::new(0.3, 0.6, 0.0);
+    st.paint_dab(Side::Target, &view_of(&mesh, Vec3::Z, centre), true);
+    let out = dir.join("painted.glb");
+    let m = st.painted_export_mesh(Side::Target).unwrap();
+    meshmatch::mesh::io::save(&m, &out).unwrap();
+    let back = meshmatch::mesh::io::load(&out).unwrap();
+    let tex = back.texture.as_ref().expect("a texture in the GLB");
+    assert_eq!(tex.image.dimensions(), (2048, 2048));
+    let layer = st.slot(Side::Target).unwrap().texels.as_ref().unwrap();
+    // Every texel of the layer, painted or not, is in the file (PNG: lossless).
+    let base = meshmatch::render::gpu::DEFAULT_VERTEX_COLOR.map(|c| (c * 255.0).round() as u8);
+    let mut painted = 0;
+    for y in 0..2048 {
+        for x in 0..2048 {
+            let p = layer.get(x, y);
+            if p[3] == 255 {
+                painted += 1;
+                assert_eq!(tex.image.get_pixel(x, y).0, [p[0], p[1], p[2]]);
+            }
+        }
+    }
+    assert!(painted > 1000, "{painted} painted texels");
+    // An unpainted texel inside a chart keeps the base colour.
+    let (x, y) = ((0.9 * 2048.0) as u32, (0.5 * 2048.0) as u32);
+    assert_eq!(layer.get(x, y)[3], 0);
+    assert_eq!(tex.image.get_pixel(x, y).0, base);
+}
+
+/// A UV sphere (latitude-longitude UVs, a seam at longitude 0).
+fn uv_sphere(rings: u32, segs: u32) -> TriMesh {
+    let mut m = TriMesh::default();
+    let mut uvs = Vec::new();
+    for r in 0..=rings {
+        let th = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..=segs {
+            let ph = std::f32::consts::TAU * s as f32 / segs as f32;
+            m.positions
+                .push([th.sin() * ph.cos(), th.cos(), -th.sin() * ph.sin()]);
+            uvs.push([s as f32 / segs as f32, 1.0 - r as f32 / rings as f32]);
+        }
+    }
+    let row = segs + 1;
+    let mut corner_uvs = Vec::new();
+    for r in 0..rings {
+        for s in 0..segs {
+            let a = r * row + s;
+            let (b, c, d) = (a + 1, a + row, a + row + 1);
+            for f in [[a, c, b], [b, c, d]] {
+                m.faces.push(f);
+                corner_uvs.extend(f.map(|v| uvs[v as usize]));
+            }
+        }
+    }
+    m.uvs = Some(corner_uvs);
+    m.file_index = (0..m.positions.len() as u32).collect();
+    m.file_vertex_count = m.positions.len();
+    m
+}
+
+#[test]
+fn completion_reads_a_texel_layer_as_it_reads_vertex_paint() {
+    let mesh = uv_sphere(24, 48);
+    let mut st = state_with(Side::Target, mesh.clone());
+    st.brush.radius = 0.25;
+    st.brush.hardness = 0.9;
+    st.brush.color = [0.1, 0.7, 0.2];
+    st.brush.through = true;
+    // Paint the upper cap from above (through: a ball), one stroke.
+    let mut first = true;
+    for p in &mesh.positions {
+        if p[1] > 0.4 {
+            st.paint_at(Side::Target, *p, first);
+            first = false;
+        }
+    }
+    let slot = st.slot(Side::Target).unwrap();
+    assert!(slot.texels.is_some() && slot.paint.is_none());
+    let cov = st.paint_coverage(Side::Target).unwrap();
+    for (v, p) in mesh.positions.iter().enumerate() {
+        if p[1] > 0.45 {
+            assert!(cov[v] > 0.5, "vertex {v} at {p:?}: coverage {}", cov[v]);
+        }
+        if p[1] < 0.0 {
+            assert_eq!(cov[v], 0.0);
+        }
+    }
+    let painted = st.painted_mesh(Side::Target).unwrap();
+    let cols = painted.colors.as_ref().unwrap();
+    for (v, c) in cols.iter().enumerate() {
+        if cov[v] > 0.99 {
+            assert!((c[1] - 0.7).abs() < 0.02, "{c:?}");
+        }
+    }
+    let job = meshmatch::app::tools::completion_job(Side::Target, painted, cov, || {}).unwrap();
+    let outcome = job.wait().unwrap();
+    st.apply_tool_outcome(outcome);
+    // The rest of the sphere is completed from the painted green.
+    let out = st.slot(Side::Target).unwrap().painted_colors();
+    for (v, p) in mesh.positions.iter().enumerate() {
+        if p[1] < -0.2 {
+            let c = out[v];
+            assert!(
+                (c[0] - 0.1).abs() < 0.1 && (c[1] - 0.7).abs() < 0.1 && (c[2] - 0.2).abs() < 0.1,
+                "vertex {v} at {p:?} completed as {c:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_face_in_front_hides_the_one_behind_in_the_dab_depth_buffer() {
+    use meshmatch::app::brush::Dab;
+    let view = BrushView::new(
+        &Camera {
+            azimuth_deg: 0.0,
+            elevation_deg: 0.0,
+            zoom: 1.0,
+            pan: [0.0, 0.0],
+        },
+        &Frame {
+            center: Vec3::ZERO,
+            radius: 1.0,
+        },
+        Vec2::new(200.0, 200.0),
+        Vec2::new(100.0, 100.0),
+        Vec3::new(0.0, 0.0, 0.1),
+    );
+    // Two parallel squares facing +Z (the camera), 0.2 apart.
+    let mut pos = Vec::new();
+    for z in [0.1f32, -0.1] {
+        for (x, y) in [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)] {
+            pos.push([x, y, z]);
+        }
+    }
+    let faces = vec![[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]];
+    let dab = Dab::new(view, 20.0, 0.5, true, &pos, &faces, 1.0);
+    let n = Vec3::Z;
+    assert!(dab.weight(Vec3::new(0.01, 0.0, 0.1), n) > 0.9);
+    assert_eq!(dab.weight(Vec3::new(0.01, 0.0, -0.1), n), 0.0);
+    // Outside the disc.
+    assert_eq!(dab.weight(Vec3::new(0.45, 0.0, 0.1), n), 0.0);
+}
+
+#[test]
+fn a_session_keeps_the_texel_layer_in_a_png_beside_it() {
+    let dir = scratch::Scratch::new("paint_session");
+    let plane = dir.join("plane.glb");
+    meshmatch::mesh::io::save(&seamed_plane(8), &plane).unwrap();
+    let mut st = AppState::<NoParams>::new();
+    st.open_mesh(Side::Source, &plane).unwrap();
+    st.open_mesh(Side::Target, &plane).unwrap();
+    let mesh = st.slot(Side::Target).unwrap().displayed().clone();
+    st.brush.color = [0.9, 0.8, 0.1];
+    stroke(
+        &mut st,
+        &mesh,
+        Vec3::new(0.2, 0.2, 0.0),
+        Vec3::new(0.8, 0.7, 0.0),
+        30,
+    );
+    let painted = st
+        .slot(Side::Target)
+        .unwrap()
+        .texels
+        .as_ref()
+        .unwrap()
+        .to_image();
+    let session = dir.join("s.json");
+    st.save_session(&session).unwrap();
+    assert!(dir.join("s.target_paint_texels.png").exists());
+    let mut back = AppState::<NoParams>::new();
+    back.open_session(&session).unwrap();
+    let layer = back.slot(Side::Target).unwrap().texels.as_ref().unwrap();
+    assert!(layer.to_image() == painted, "the reopened layer differs");
+    assert!(back.slot(Side::Source).unwrap().texels.is_none());
+}
+
+/// The face of a z = 0 plane that contains `p` (in x, y).
+fn face_under(mesh: &TriMesh, p: Vec3) -> usize {
+    (0..mesh.faces.len())
+        .find(|&f| {
+            let [a, b, c] = mesh.faces[f].map(|v| Vec2::from_slice(&mesh.positions[v as usize]));
+            let q = p.truncate();
+            let s = |u: Vec2, v: Vec2| (v - u).perp_dot(q - u);
+            let (d0, d1, d2) = (s(a, b), s(b, c), s(c, a));
+            (d0 >= 0.0 && d1 >= 0.0 && d2 >= 0.0) || (d0 <= 0.0 && d1 <= 0.0 && d2 <= 0.0)
+        })
+        .expect("a face under the point")
+}
+
+#[test]
+fn the_eyedropper_returns_the_colour_under_the_cursor_and_strokes_fill_the_history() {
+    let mesh = seamed_plane(8);
+    let mut st = state_with(Side::Target, mesh.clone());
+    st.brush.radius = 0.05;
+    st.brush.hardness = 0.999;
+    let painted = [0.2, 0.6, 0.9];
+    st.brush.color = painted;
+    let centre = Vec3::new(0.3, 0.6, 0.0);
+    st.paint_dab(Side::Target, &view_of(&mesh, Vec3::Z, centre), true);
+    st.brush.color = [1.0, 0.0, 0.0];
+    st.paint_dab(
+        Side::Target,
+        &view_of(&mesh, Vec3::Z, Vec3::new(0.7, 0.2, 0.0)),
+        true,
+    );
+    assert_eq!(st.color_history, vec![[1.0, 0.0, 0.0], painted]);
+    st.brush.color = [0.0; 3];
+    assert!(st.pick_color(Side::Target, face_under(&mesh, centre), centre.to_array()));
+    let c = st.brush.color;
+    for k in 0..3 {
+        assert!(
+            (c[k] - painted[k]).abs() < 0.01,
+            "picked {c:?}, painted {painted:?}"
+        );
+    }
+    // Off the paint: the mesh's own colour.
+    let off = Vec3::new(0.9, 0.9, 0.0);
+    let c = st
+        .color_at(Side::Target, face_under(&mesh, off), off.to_array())
+        .unwrap();
+    let grey = meshmatch::render::gpu::DEFAULT_VERTEX_COLOR;
+    for k in 0..3 {
+        assert!((c[k] - grey[k]).abs() < 0.01, "{c:?}");
+    }
+}
