@@ -655,6 +655,16 @@ fn paint_with_exemplar_streams_partials_resembles_the_exemplar_and_undo_restores
         );
         std::thread::sleep(Duration::from_millis(10));
     }
+    // ...and the transfer started on the new meshes finish (its result recolours the target: on
+    // a busy machine it could land after `before` below).
+    while {
+        let s = &h.state().state;
+        s.restart_pending() || s.job.running || s.job.job == 0
+    } {
+        h.step();
+        assert!(t0.elapsed() < Duration::from_secs(30), "transfer not done");
+        std::thread::sleep(Duration::from_millis(10));
+    }
     h.run_steps(2);
     let before = h.state().state.slot(Side::Target).unwrap().display_colors();
     let n = before.len();
