@@ -23,10 +23,14 @@ def build_wheel(out):
     out.mkdir(parents=True, exist_ok=True)
     for old in out.glob("meshmatch-*.whl"):
         old.unlink()
-    subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "-w", str(out)],
-        check=True,
-    )
+    cmd = [sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps", "-w", str(out)]
+    try:
+        import maturin  # noqa: F401  (the backend is here: build with it, offline)
+
+        cmd.append("--no-build-isolation")
+    except ImportError:
+        pass
+    subprocess.run(cmd, check=True)
     wheels = sorted(out.glob("meshmatch-*.whl"))
     if len(wheels) != 1:
         sys.exit(f"expected one meshmatch wheel in {out}, found {len(wheels)}")

@@ -308,6 +308,10 @@ class MESHMATCH_OT_synthesize(MeshMatchOperator):
         ('relax2', "Stripes", "A smooth 2-fold field"),
         ('relax4', "Grid", "A smooth 4-fold field"),
         ('features', "Features", "Along the mesh's salient curves")])
+    align_features: BoolProperty(
+        name="Align features", default=False,
+        description="Put the exemplar's principal line on the mesh's crest lines and creases "
+                    "(feature-aligned texturing, Xu et al. 2009; slower)")
     seed: IntProperty(name="Seed", default=0, min=0)
 
     def tasks(self, context):
@@ -328,7 +332,8 @@ class MESHMATCH_OT_synthesize(MeshMatchOperator):
         for t in targets:
             ex = convert.extract(t, dg, colors=False, texture=False)
             kwargs = dict(texture_size=self.texture_size, orientation=self.orientation,
-                          seed=self.seed, scale=self.scale if self.scale > 0 else None)
+                          align_features=self.align_features, seed=self.seed,
+                          scale=self.scale if self.scale > 0 else None)
             tasks.append(Task(f"synthesize on {t.name}", meshmatch.synthesize, (exemplar, ex.mesh),
                               kwargs, lambda ctx, r, ex=ex: convert.write_texture(
                                   ex, r, "MeshMatch Synth")))

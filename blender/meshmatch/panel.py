@@ -40,8 +40,12 @@ class VIEW3D_PT_meshmatch(bpy.types.Panel):
         op = box.operator("meshmatch.curves", icon='CURVE_DATA')
         box = self.layout.box()
         box.prop_search(s, "image", bpy.data, "images")
-        op = box.operator("meshmatch.synthesize", icon='IMAGE_DATA')
+        row = box.row(align=True)
+        op = row.operator("meshmatch.synthesize", icon='IMAGE_DATA')
         op.image, op.seed = s.image, s.seed
+        op = row.operator("meshmatch.synthesize", text="Along Features", icon='CURVE_DATA')
+        op.image, op.seed = s.image, s.seed
+        op.orientation, op.align_features = 'features', True
         box = self.layout.box()
         box.prop(s, "swatch")
         if s.swatch == 'OBJECT':

@@ -231,3 +231,18 @@ def test_update_and_detail_run_on_edited_meshes(spot, penguin):
     assert r.colors.shape == (spot.num_vertices, 3)
     d = meshmatch.detail(spot, penguin, **FAST)
     assert d.num_vertices >= penguin.num_vertices
+
+
+def test_the_stubs_name_every_function_and_keyword_as_the_module_does():
+    import ast
+    import inspect
+    from pathlib import Path
+
+    stub = ast.parse((Path(meshmatch.__file__).parent / "__init__.pyi").read_text())
+    funcs = {f.name: f for f in stub.body if isinstance(f, ast.FunctionDef)}
+    for name in ("load", "transfer", "complete", "update", "detail", "synthesize", "weather",
+                 "quilt", "curves", "features", "bake"):
+        a = funcs[name].args
+        in_stub = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs]
+        in_module = list(inspect.signature(getattr(meshmatch, name)).parameters)
+        assert in_stub == in_module, name
