@@ -9,6 +9,7 @@ Install from Disk (Blender 4.2 or later, Linux x86-64).
 """
 
 import argparse
+import os
 import subprocess
 import sys
 import tomllib
@@ -30,7 +31,10 @@ def build_wheel(out):
         cmd.append("--no-build-isolation")
     except ImportError:
         pass
-    subprocess.run(cmd, check=True)
+    # maturin's build backend runs the `maturin` program beside this interpreter.
+    env = dict(os.environ)
+    env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
+    subprocess.run(cmd, check=True, env=env)
     wheels = sorted(out.glob("meshmatch-*.whl"))
     if len(wheels) != 1:
         sys.exit(f"expected one meshmatch wheel in {out}, found {len(wheels)}")
