@@ -443,7 +443,7 @@ pub fn synthesize(
             crate::synthesis::wei_levoy::synthesize_with_alpha(
                 &exemplar,
                 alpha.as_ref(),
-                &target,
+                target,
                 Some(m),
                 Some(&field),
                 &params,
@@ -492,7 +492,7 @@ pub fn synthesize(
         if optimise {
             let rep = crate::synthesis::texture_optimization::optimize_result(
                 &mut r,
-                &target,
+                target,
                 &exemplar,
                 alpha.as_ref(),
                 None,
