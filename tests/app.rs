@@ -202,6 +202,8 @@ fn app_with_spheres() -> App {
     let mut app = App::new(TestEngine::default(), None);
     app.state.set_mesh(Side::Source, sphere(12, 16), false);
     app.state.set_mesh(Side::Target, sphere(16, 24), false);
+    // as if opened from files: nothing unsaved yet
+    app.state.mark_saved(None);
     app
 }
 
@@ -1046,10 +1048,16 @@ fn a_session_saved_from_a_built_in_scene_reopens_the_scene_with_its_texture() {
     );
     // The reopened session saves the same way again.
     b.state.save_session(&dir.join("again.json")).unwrap();
-    // A computed mesh (no file, no scene) is refused with a message rather than saved as null.
+    // A computed mesh (no file, no scene) is saved beside the session rather than as null.
     let mut c = App::new(TestEngine::default(), None);
     c.state.set_mesh(Side::Source, sphere(8, 8), false);
-    assert!(c.state.save_session(&dir.join("bad.json")).is_err());
+    c.state.save_session(&dir.join("computed.json")).unwrap();
+    let mut d = App::new(TestEngine::default(), None);
+    d.state.open_session(&dir.join("computed.json")).unwrap();
+    assert_eq!(
+        d.state.slot(Side::Source).unwrap().file.positions,
+        sphere(8, 8).positions
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -1167,6 +1175,14 @@ fn dropped_files_open_by_kind_even_without_a_pointer_position() {
     h.event(egui::Event::PointerGone);
     h.step();
     drop_file(&mut h, &mesh);
+    // The pair would go with the replaced source: the app asks first; Don't save goes on.
+    h.run_steps(2);
+    assert!(
+        h.query_by_label_contains("Save your work before opening big.ply")
+            .is_some()
+    );
+    h.get_by_label("Don't save").click();
+    h.run_steps(2);
     assert_eq!(
         h.state()
             .state
@@ -1177,7 +1193,12 @@ fn dropped_files_open_by_kind_even_without_a_pointer_position() {
             .len(),
         n
     );
-    // An image becomes that side's texture, not a mesh.
+    // An image becomes that side's texture, not a mesh (the pointer went to the prompt's button
+    // over the target: back over the source first).
+    h.hover_at(src_centre);
+    h.step();
+    h.event(egui::Event::PointerGone);
+    h.step();
     drop_file(&mut h, &tex);
     let src = h.state().state.slot(Side::Source).unwrap();
     assert!(src.file.texture.is_some());
@@ -1757,6 +1778,16 @@ fn weather_tool_learns_dark_crevices_from_the_source_and_one_undo_restores() {
         assert!(
             t0.elapsed() < Duration::from_secs(20),
             "target not prepared"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    // And let the transfer the two meshes started settle: its result sets the target's colours,
+    // which the weathering step's undo rightly does not take back.
+    while h.state().state.job.running || h.state().state.restart_pending() {
+        h.step();
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "transfer did not settle"
         );
         std::thread::sleep(Duration::from_millis(10));
     }
@@ -2356,4 +2387,501 @@ fn paint_with_exemplar_into_a_texture_textures_the_mesh_through_its_uvs_and_undo
             || back.texture.as_ref().unwrap().image == own.image
     );
     std::fs::remove_file(&ex).ok();
+}
+
+// ----- unsaved work: the dirty flag, the close prompt, autosave and recovery -----
+
+/// Source and target spheres saved as files in `dir`, opened in a test app.
+fn app_on_files(dir: &std::path::Path) -> App {
+    let (src, tgt) = (dir.join("src.ply"), dir.join("tgt.ply"));
+    meshmatch::mesh::io::save(&sphere(10, 12), &src).unwrap();
+    meshmatch::mesh::io::save(&sphere(14, 18), &tgt).unwrap();
+    let mut a = App::new(TestEngine::default(), None);
+    a.state.open_mesh(Side::Source, &src).unwrap();
+    a.state.open_mesh(Side::Target, &tgt).unwrap();
+    a
+}
+
+/// The commands the app sent its window in the last frame.
+fn window_commands(h: &Harness<'static, App>) -> Vec<egui::ViewportCommand> {
+    h.output()
+        .viewport_output
+        .get(&egui::ViewportId::ROOT)
+        .map(|v| v.commands.clone())
+        .unwrap_or_default()
+}
+
+/// The window's close button (or the window manager) asks the app to close.
+fn request_close(h: &mut Harness<'static, App>) {
+    h.input_mut()
+        .viewports
+        .entry(egui::ViewportId::ROOT)
+        .or_default()
+        .events
+        .push(egui::ViewportEvent::Close);
+    h.step();
+}
+
+#[test]
+fn every_edit_that_matters_marks_the_work_unsaved_and_saving_clears_it() {
+    use meshmatch::app::tools::ToolOutcome;
+    let dir = temp_dir("dirty");
+    let session = dir.join("work.json");
+    let mut a = app_on_files(&dir);
+    wait_prepared(&mut a);
+    let saved = |a: &mut App| {
+        a.state.save_session_to(&session).unwrap();
+        assert!(!a.state.is_dirty(), "clean after a save");
+        assert_eq!(a.state.session_path(), Some(&session));
+    };
+    saved(&mut a);
+    // correspondences: a click on each side adds a pair
+    a.state.click_vertex(Side::Source, 3, false);
+    assert!(a.state.is_dirty(), "a pending source click");
+    a.state.click_vertex(Side::Target, 5, false);
+    assert_eq!(a.state.corr.len(), 1);
+    saved(&mut a);
+    // moving a marker through a drag: the later moves of the drag count too
+    let sel = Selection {
+        pair: 0,
+        side: Side::Target,
+        k: 0,
+    };
+    a.state.move_marker(sel, 6, true);
+    saved(&mut a);
+    a.state.move_marker(sel, 7, false);
+    assert!(a.state.is_dirty(), "a drag's later move");
+    saved(&mut a);
+    // paint: the first dab of a stroke and the later ones
+    a.state.paint_at(Side::Target, [0.0, 1.0, 0.0], true);
+    assert!(a.state.is_dirty(), "a stroke");
+    saved(&mut a);
+    assert!(a.state.paint_at(Side::Target, [0.0, 0.9, 0.4], false) > 0);
+    assert!(a.state.is_dirty(), "a stroke's later dab");
+    saved(&mut a);
+    // parameters
+    let mut p = a.state.params.clone();
+    p.iterations += 1;
+    a.state.set_params(p.clone(), Instant::now());
+    assert!(a.state.is_dirty(), "a parameter");
+    saved(&mut a);
+    a.state.set_params(p, Instant::now());
+    assert!(
+        !a.state.is_dirty(),
+        "the same parameters again change nothing"
+    );
+    // undo and redo change the work
+    assert!(a.state.undo());
+    assert!(a.state.is_dirty(), "undo");
+    saved(&mut a);
+    assert!(a.state.redo());
+    assert!(a.state.is_dirty(), "redo");
+    saved(&mut a);
+    // tools' results: colours, pairs, a new mesh
+    let n = a
+        .state
+        .slot(Side::Source)
+        .unwrap()
+        .displayed()
+        .num_vertices();
+    a.state.apply_tool_outcome(ToolOutcome::Colors(
+        Side::Source,
+        vec![[0.2, 0.4, 0.6]; n],
+        "completed".into(),
+    ));
+    assert!(a.state.is_dirty(), "a tool's colours");
+    saved(&mut a);
+    a.state.apply_tool_outcome(ToolOutcome::Correspondences(
+        vec![Correspondence {
+            source_vertex: 1,
+            target_vertices: vec![2],
+        }],
+        "suggested".into(),
+    ));
+    assert!(a.state.is_dirty(), "suggested pairs");
+    saved(&mut a);
+    // Not edits: selecting, the brush, a finished transfer, a deleted nothing.
+    a.state.select(Some(sel));
+    a.state.brush.radius = 0.2;
+    a.state.schedule_restart(Instant::now());
+    let job = a.state.job.job;
+    let t0 = Instant::now();
+    while !(a.state.job.job > job && !a.state.job.running && a.state.result.is_some()) {
+        assert!(t0.elapsed() < Duration::from_secs(10), "no transfer");
+        a.wait_events(Duration::from_millis(20));
+        a.pump(Instant::now() + Duration::from_secs(1));
+    }
+    assert!(
+        !a.state.is_dirty(),
+        "a selection, the brush or a transfer result is no unsaved work"
+    );
+    // A computed mesh (a tool's new geometry) is saved beside the session and comes back.
+    let mut bumpy = sphere(9, 11);
+    for p in &mut bumpy.positions {
+        p[1] *= 1.5;
+    }
+    bumpy.path = Some(dir.join("src.ply"));
+    a.state.apply_tool_outcome(ToolOutcome::Mesh(
+        Side::Source,
+        bumpy.clone(),
+        "detail".into(),
+    ));
+    assert!(a.state.is_dirty(), "a tool's new mesh");
+    assert!(
+        a.state
+            .work_summary()
+            .contains(&"a computed source mesh".to_string()),
+        "{:?}",
+        a.state.work_summary()
+    );
+    saved(&mut a);
+    assert!(dir.join("work.source_mesh.ply").is_file());
+    let mut b = App::new(TestEngine::default(), None);
+    b.state.open_session(&session).unwrap();
+    assert!(!b.state.is_dirty(), "an opened session is saved work");
+    assert_eq!(
+        b.state.slot(Side::Source).unwrap().file.positions,
+        bumpy.positions,
+        "the computed mesh, not the file it started from"
+    );
+}
+
+#[test]
+fn closing_with_unsaved_work_asks_save_dont_save_or_cancel() {
+    let dir = temp_dir("close_prompt");
+    let session = dir.join("work.json");
+    let mut a = app_on_files(&dir);
+    a.state.mark_saved(None);
+    let mut h = harness(a);
+    h.step();
+    // Nothing unsaved: the window closes without a question.
+    request_close(&mut h);
+    assert!(h.state().close_allowed());
+    assert!(!window_commands(&h).contains(&egui::ViewportCommand::CancelClose));
+
+    // A pair added: closing is held back and the prompt asks.
+    let mut a = app_on_files(&dir);
+    a.state.mark_saved(None);
+    let mut h = harness(a);
+    h.step();
+    let (s, t) = (
+        front_vertex(&h, Side::Source, 0),
+        front_vertex(&h, Side::Target, 0),
+    );
+    click_vertex(&mut h, Side::Source, s, egui::Modifiers::NONE);
+    click_vertex(&mut h, Side::Target, t, egui::Modifiers::NONE);
+    assert_eq!(h.state().state.corr.len(), 1);
+    request_close(&mut h);
+    assert!(window_commands(&h).contains(&egui::ViewportCommand::CancelClose));
+    assert!(!h.state().close_allowed());
+    h.step();
+    assert!(
+        h.query_by_label_contains("Save your work before closing")
+            .is_some()
+    );
+    assert!(
+        h.query_by_label_contains("1 correspondence pairs")
+            .is_some()
+    );
+    // Escape cancels: the window stays, the work too.
+    h.key_press(egui::Key::Escape);
+    h.step();
+    assert!(
+        h.query_by_label_contains("Save your work before closing")
+            .is_none()
+    );
+    assert!(!h.state().close_allowed());
+    assert_eq!(h.state().state.corr.len(), 1);
+    // Save with no session file yet asks where (the built-in browser here), then closes.
+    h.state_mut().files.native = false;
+    request_close(&mut h);
+    h.step();
+    h.get_by_label("Save").click();
+    h.run_steps(3);
+    assert!(h.state().files.browsing(), "the Save dialog opens");
+    assert!(!h.state().close_allowed());
+    // Type the file's path into the browser's File field and press its Save.
+    h.get_all_by_role(egui::accesskit::Role::TextInput)
+        .nth(1)
+        .unwrap()
+        .focus();
+    h.step();
+    h.get_all_by_role(egui::accesskit::Role::TextInput)
+        .nth(1)
+        .unwrap()
+        .type_text(&format!("{}", session.display()));
+    h.step();
+    h.get_by_label("Save").click();
+    h.step();
+    assert!(
+        session.is_file(),
+        "saved where chosen ({:?}, browsing {})",
+        h.state().state.errors,
+        h.state().files.browsing()
+    );
+    assert!(h.state().close_allowed(), "and then closing");
+    assert!(window_commands(&h).contains(&egui::ViewportCommand::Close));
+    assert!(!h.state().state.is_dirty());
+
+    // "Don't save" closes and leaves the file as it was.
+    let mut a = App::new(TestEngine::default(), None);
+    a.state.open_session(&session).unwrap();
+    let before = std::fs::read(&session).unwrap();
+    let mut h = harness(a);
+    h.step();
+    h.state_mut().state.delete_pair(0);
+    request_close(&mut h);
+    h.step();
+    h.get_by_label("Don't save").click();
+    h.step();
+    assert!(h.state().close_allowed());
+    h.step();
+    assert_eq!(std::fs::read(&session).unwrap(), before);
+
+    // With a session file, Save writes it and closes.
+    let mut a = App::new(TestEngine::default(), None);
+    a.state.open_session(&session).unwrap();
+    let mut h = harness(a);
+    h.step();
+    h.state_mut().state.delete_pair(0);
+    request_close(&mut h);
+    h.step();
+    h.key_press(egui::Key::Enter);
+    h.step();
+    h.step();
+    assert!(h.state().close_allowed());
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&session).unwrap()).unwrap();
+    assert_eq!(
+        s["correspondences"]["correspondences"]
+            .as_array()
+            .unwrap()
+            .len(),
+        0
+    );
+}
+
+#[test]
+fn opening_a_scene_or_a_new_session_over_unsaved_work_asks_first() {
+    let mut h = harness(app_with_scene(TestEngine::default()));
+    h.state_mut().load_demo(0).unwrap();
+    h.step();
+    assert!(
+        !h.state().state.is_dirty(),
+        "a scene as it comes is no work"
+    );
+    h.state_mut().state.delete_pair(0);
+    assert_eq!(h.state().state.corr.len(), 1);
+    h.state_mut()
+        .guard(meshmatch::app::unsaved::Guarded::Scene(0));
+    h.run_steps(2);
+    assert!(
+        h.query_by_label_contains("before opening the scene")
+            .is_some()
+    );
+    h.key_press(egui::Key::Escape);
+    h.step();
+    assert_eq!(h.state().state.corr.len(), 1, "cancel keeps the work");
+    h.state_mut()
+        .guard(meshmatch::app::unsaved::Guarded::Scene(0));
+    h.run_steps(2);
+    h.get_by_label("Don't save").click();
+    h.step();
+    assert_eq!(h.state().state.corr.len(), 2, "the scene again");
+    // New on saved work: no question, empty views.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::N);
+    h.step();
+    assert!(h.query_by_label_contains("Unsaved work").is_none());
+    assert!(h.state().state.meshes.iter().all(Option::is_none));
+    assert!(h.state().state.corr.is_empty());
+}
+
+/// The autosave folders under `root`, each with its session files.
+fn autosaves(root: &std::path::Path) -> Vec<(std::path::PathBuf, Vec<String>)> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(root.join("autosave"))
+        .into_iter()
+        .flatten()
+        .flatten()
+    {
+        let mut names: Vec<String> = std::fs::read_dir(e.path())
+            .unwrap()
+            .flatten()
+            .map(|f| f.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".json"))
+            .collect();
+        names.sort();
+        out.push((e.path(), names));
+    }
+    out
+}
+
+#[test]
+fn autosave_writes_only_changes_and_a_killed_app_is_recovered() {
+    use meshmatch::app::tools::ToolOutcome;
+    let dir = temp_dir("autosave");
+    let root = dir.join("data");
+    let mut a = app_on_files(&dir);
+    wait_prepared(&mut a);
+    a.state.mark_saved(None);
+    let mut h = harness(a.with_autosave(&root, Duration::ZERO));
+    h.step();
+    let folders = autosaves(&root);
+    assert_eq!(folders.len(), 1);
+    assert!(folders[0].1.is_empty(), "nothing unsaved, nothing written");
+    // Work: a computed source mesh, pairs, paint on both sides, a parameter.
+    let mut bumpy = sphere(9, 11);
+    for p in &mut bumpy.positions {
+        p[0] *= 1.3;
+    }
+    let st = &mut h.state_mut().state;
+    st.apply_tool_outcome(ToolOutcome::Mesh(
+        Side::Source,
+        bumpy.clone(),
+        "detail".into(),
+    ));
+    st.click_vertex(Side::Source, 3, false);
+    st.click_vertex(Side::Target, 5, false);
+    st.click_vertex(Side::Source, 40, false);
+    st.click_vertex(Side::Target, 90, false);
+    let mut p = st.params.clone();
+    p.iterations = 7;
+    st.set_params(p.clone(), Instant::now());
+    h.step();
+    let t0 = Instant::now();
+    while h
+        .state()
+        .state
+        .meshes
+        .iter()
+        .any(|m| m.as_ref().is_none_or(|s| s.working.is_none()))
+    {
+        assert!(t0.elapsed() < Duration::from_secs(10));
+        h.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let st = &mut h.state_mut().state;
+    st.brush.radius = 0.3;
+    st.brush.color = [0.0, 1.0, 0.0];
+    st.paint_at(Side::Target, [0.0, 1.0, 0.0], true);
+    st.brush.color = [1.0, 1.0, 0.0];
+    st.paint_at(Side::Source, [0.0, -1.0, 0.0], true);
+    h.step();
+    let folders = autosaves(&root);
+    let gen1 = folders[0].1.clone();
+    assert_eq!(gen1.len(), 1, "one session autosaved: {gen1:?}");
+    h.step();
+    h.step();
+    assert_eq!(autosaves(&root)[0].1, gen1, "no change, no new autosave");
+    // (the transfer result arriving is no change either)
+    h.state_mut()
+        .state
+        .paint_at(Side::Target, [0.0, 0.95, 0.3], false);
+    h.step();
+    let gen2 = autosaves(&root)[0].1.clone();
+    assert_eq!(gen2.len(), 1, "the older generation is removed: {gen2:?}");
+    assert_ne!(gen2, gen1, "a change, a new autosave");
+    let want_corr = h.state().state.corr.clone();
+    let want_paint = [Side::Source, Side::Target]
+        .map(|s| h.state().state.slot(s).unwrap().paint.clone().unwrap());
+    // While the app runs its autosave is nobody's to recover.
+    assert!(meshmatch::app::autosave::orphans(&root).is_empty());
+
+    // Killed: no clean exit (the lock goes with the process, the folder stays).
+    drop(h);
+    let orphan = autosaves(&root);
+    assert_eq!(orphan.len(), 1);
+
+    // The next start offers it; Recover brings the work back as unsaved work.
+    let mut b =
+        App::new(TestEngine::default(), None).with_autosave(&root, Duration::from_secs(3600));
+    assert_eq!(b.safety.recoveries.len(), 1);
+    b.state.mark_saved(None);
+    let mut h = harness(b);
+    h.step();
+    assert!(h.query_by_label_contains("Recover unsaved work?").is_some());
+    assert!(
+        h.query_by_label_contains("2 correspondence pairs")
+            .is_some()
+    );
+    assert!(
+        h.query_by_label_contains("source: a computed mesh, painted")
+            .is_some()
+    );
+    h.get_by_label("Recover").click();
+    h.step();
+    h.step();
+    let st = &h.state().state;
+    assert_eq!(st.corr, want_corr, "the pairs");
+    assert_eq!(st.params, p, "the parameters");
+    assert!(
+        st.is_dirty() && st.session_path().is_none(),
+        "unsaved until saved"
+    );
+    assert_eq!(
+        st.slot(Side::Source).unwrap().file.positions,
+        bumpy.positions,
+        "the computed mesh"
+    );
+    assert!(
+        st.slot(Side::Source).unwrap().file.path.is_none(),
+        "still computed"
+    );
+    for (i, side) in [Side::Source, Side::Target].into_iter().enumerate() {
+        let got = st
+            .slot(side)
+            .unwrap()
+            .paint
+            .clone()
+            .expect("paint recovered");
+        assert_eq!(got.len(), want_paint[i].len());
+        let worst = got
+            .iter()
+            .zip(&want_paint[i])
+            .flat_map(|(g, w)| (0..4).map(move |k| (g[k] - w[k]).abs()))
+            .fold(0.0f32, f32::max);
+        assert!(worst <= 1.0 / 255.0 + 1e-6, "{side:?} paint off by {worst}");
+    }
+    // The dead app's folder is gone; this app's autosave holds the work at once.
+    let now = autosaves(&root);
+    assert_eq!(now.len(), 1);
+    assert_ne!(now[0].0, orphan[0].0);
+    assert_eq!(now[0].1.len(), 1, "recovered work autosaved at once");
+    // A clean exit leaves nothing to recover.
+    h.state_mut().finish_autosave();
+    assert!(autosaves(&root).is_empty());
+    let c = App::new(TestEngine::default(), None).with_autosave(&root, Duration::ZERO);
+    assert!(c.safety.recoveries.is_empty());
+    drop(c);
+
+    // Discard deletes the autosave and keeps the state.
+    let mut a = app_on_files(&dir);
+    a.state.mark_saved(None);
+    let mut h = harness(a.with_autosave(&root, Duration::ZERO));
+    h.step();
+    h.state_mut().state.click_vertex(Side::Source, 3, false);
+    h.state_mut().state.click_vertex(Side::Target, 5, false);
+    h.step();
+    drop(h);
+    let mut b = app_on_files(&dir).with_autosave(&root, Duration::ZERO);
+    b.state.mark_saved(None);
+    let mut h = harness(b);
+    h.step();
+    h.get_by_label("Discard").click();
+    h.step();
+    assert!(h.state().state.corr.is_empty());
+    assert_eq!(autosaves(&root).len(), 1, "only this app's folder");
+    // Saving the work drops the autosave: the user's file holds it.
+    h.state_mut().state.click_vertex(Side::Source, 3, false);
+    h.step();
+    assert_eq!(autosaves(&root)[0].1.len(), 1);
+    h.state_mut()
+        .state
+        .save_session_to(&dir.join("saved.json"))
+        .unwrap();
+    h.step();
+    assert!(
+        autosaves(&root)[0].1.is_empty(),
+        "saved work is not autosaved"
+    );
 }

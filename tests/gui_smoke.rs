@@ -9,6 +9,9 @@
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
+/// One app on the screen at a time: the tests read the screen and send it input.
+static SCREEN: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 struct KillOnDrop(Child);
 impl Drop for KillOnDrop {
     fn drop(&mut self) {
@@ -116,8 +119,15 @@ fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
         eprintln!("gui smoke test: no DISPLAY, not run (`.ci/run` provides Xvfb)");
         return;
     }
+    let _screen = SCREEN.lock().unwrap_or_else(|e| e.into_inner());
+    // its autosave folder in a folder of its own, removed with it
+    let data = tempfile::Builder::new()
+        .prefix("meshmatch-smoke-")
+        .tempdir()
+        .unwrap();
     let mut app = KillOnDrop(
         Command::new(env!("CARGO_BIN_EXE_meshmatch"))
+            .env("MESHMATCH_DATA_DIR", data.path())
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -184,4 +194,216 @@ fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
         "the target should update more than once (progressive preview), saw {changes} changes ({})",
         seen.join(", ")
     );
+}
+
+/// Whether `xdotool` (pointer and keyboard input for a test under X) is installed.
+fn have_xdotool() -> bool {
+    Command::new("xdotool")
+        .arg("version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+fn xdotool(args: &[&str]) {
+    let st = Command::new("xdotool")
+        .args(args)
+        .status()
+        .expect("xdotool");
+    assert!(st.success(), "xdotool {args:?} failed");
+}
+
+/// A screen point on the mesh in a region of the window (the mesh pixel nearest the middle of
+/// the region's mesh pixels).
+fn mesh_point(
+    img: &image::RgbImage,
+    b: (u32, u32, u32, u32),
+    fx: (f32, f32),
+    fy: (f32, f32),
+) -> Option<(u32, u32)> {
+    let (w, h) = ((b.2 - b.0) as f32, (b.3 - b.1) as f32);
+    let xs = (b.0 + (fx.0 * w) as u32)..(b.0 + (fx.1 * w) as u32);
+    let ys = (b.1 + (fy.0 * h) as u32)..(b.1 + (fy.1 * h) as u32);
+    let pts: Vec<(u32, u32)> = ys.flat_map(|y| xs.clone().map(move |x| (x, y))).collect();
+    let px: Vec<[u8; 3]> = pts.iter().map(|&(x, y)| img.get_pixel(x, y).0).collect();
+    let mesh: std::collections::HashSet<[u8; 3]> = mesh_pixels(&px).into_iter().collect();
+    let on: Vec<(u32, u32)> = pts
+        .iter()
+        .zip(&px)
+        .filter(|(_, p)| mesh.contains(*p))
+        .map(|(q, _)| *q)
+        .collect();
+    if on.is_empty() {
+        return None;
+    }
+    let n = on.len() as f64;
+    let cx = on.iter().map(|p| p.0 as f64).sum::<f64>() / n;
+    let cy = on.iter().map(|p| p.1 as f64).sum::<f64>() / n;
+    on.into_iter().min_by(|a, b| {
+        let da = (a.0 as f64 - cx).powi(2) + (a.1 as f64 - cy).powi(2);
+        let db = (b.0 as f64 - cx).powi(2) + (b.1 as f64 - cy).powi(2);
+        da.total_cmp(&db)
+    })
+}
+
+/// The newest autosaved session under `data`: its folder and JSON.
+fn autosaved(data: &std::path::Path) -> Option<(std::path::PathBuf, serde_json::Value)> {
+    let mut best: Option<(u64, std::path::PathBuf, std::path::PathBuf)> = None;
+    for d in std::fs::read_dir(data.join("autosave")).ok()?.flatten() {
+        for f in std::fs::read_dir(d.path()).into_iter().flatten().flatten() {
+            let name = f.file_name().to_string_lossy().into_owned();
+            let Some(_gen) = name
+                .strip_prefix('s')
+                .and_then(|r| r.strip_suffix(".json"))
+                .and_then(|n| n.parse::<u64>().ok())
+            else {
+                continue;
+            };
+            let t = f.metadata().and_then(|m| m.modified()).map_or(0, |t| {
+                t.duration_since(std::time::UNIX_EPOCH)
+                    .map_or(0, |d| d.as_nanos() as u64)
+            });
+            if best.as_ref().is_none_or(|b| t >= b.0) {
+                best = Some((t, d.path(), f.path()));
+            }
+        }
+    }
+    let (_, dir, json) = best?;
+    let v = serde_json::from_str(&std::fs::read_to_string(json).ok()?).ok()?;
+    Some((dir, v))
+}
+
+fn start_app(data: &std::path::Path, config: &std::path::Path) -> KillOnDrop {
+    KillOnDrop(
+        Command::new(env!("CARGO_BIN_EXE_meshmatch"))
+            .env("MESHMATCH_DATA_DIR", data)
+            .env("MESHMATCH_AUTOSAVE_SECS", "1")
+            .env("XDG_CONFIG_HOME", config)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap(),
+    )
+}
+
+/// Wait until both views show a mesh; the window's box.
+fn wait_drawn(app: &mut KillOnDrop) -> (image::RgbImage, (u32, u32, u32, u32)) {
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(240) {
+        std::thread::sleep(Duration::from_millis(500));
+        assert!(app.0.try_wait().unwrap().is_none(), "the app exited early");
+        let img = screenshot();
+        let Some(b) = window_box(&img) else {
+            continue;
+        };
+        let (l, r) = (
+            region(&img, b, (0.05, 0.34), (0.1, 0.85)),
+            region(&img, b, (0.44, 0.73), (0.1, 0.85)),
+        );
+        if mesh_coverage(&l) > 0.05 && mesh_coverage(&r) > 0.05 {
+            return (img, b);
+        }
+    }
+    panic!("the app did not draw both meshes in 4 minutes");
+}
+
+#[test]
+fn a_killed_app_offers_its_autosave_and_recovers_the_pairs() {
+    if std::env::var_os("DISPLAY").is_none() || !have_xdotool() {
+        eprintln!("recovery test: needs DISPLAY and xdotool, not run (`.ci/run` provides both)");
+        return;
+    }
+    let _screen = SCREEN.lock().unwrap_or_else(|e| e.into_inner());
+    let scratch = tempfile::Builder::new()
+        .prefix("meshmatch-recovery-")
+        .tempdir()
+        .unwrap();
+    let (data, config) = (scratch.path().join("data"), scratch.path().join("config"));
+    let scene_pairs = (meshmatch::app::engine::demo_scenes()[0].1)()
+        .unwrap()
+        .correspondences
+        .len();
+
+    // First run: the demo scene, then one more pair clicked in (source view, then target view).
+    let mut app = start_app(&data, &config);
+    let (img, b) = wait_drawn(&mut app);
+    assert!(
+        autosaved(&data).is_none(),
+        "nothing unsaved, nothing autosaved"
+    );
+    let s = mesh_point(&img, b, (0.05, 0.34), (0.2, 0.8)).expect("source on screen");
+    let t = mesh_point(&img, b, (0.44, 0.73), (0.2, 0.8)).expect("target on screen");
+    for (x, y) in [s, t] {
+        xdotool(&["mousemove", &x.to_string(), &y.to_string()]);
+        std::thread::sleep(Duration::from_millis(400));
+        xdotool(&["click", "1"]);
+        std::thread::sleep(Duration::from_millis(600));
+    }
+    // The autosave (every second here) holds the new pair.
+    let start = Instant::now();
+    let (dir, before) = loop {
+        if let Some((d, v)) = autosaved(&data)
+            && v["correspondences"]["correspondences"]
+                .as_array()
+                .is_some_and(|a| a.len() == scene_pairs + 1)
+        {
+            break (d, v);
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no autosave with {} pairs: {:?}",
+            scene_pairs + 1,
+            autosaved(&data).map(|(_, v)| v["correspondences"].clone())
+        );
+        std::thread::sleep(Duration::from_millis(250));
+    };
+    // Killed (SIGKILL): no clean exit, the autosave stays.
+    app.0.kill().unwrap();
+    app.0.wait().unwrap();
+    assert!(dir.is_dir(), "the killed app's autosave is kept");
+
+    // Second run: the recovery prompt; Enter recovers.
+    let mut app = start_app(&data, &config);
+    let (_, b) = wait_drawn(&mut app);
+    std::thread::sleep(Duration::from_secs(1));
+    let (cx, cy) = ((b.0 + b.2) / 2, (b.1 + b.3) / 2);
+    xdotool(&["mousemove", &cx.to_string(), &cy.to_string()]);
+    // keys go to the focused window (no window manager gives it focus under a bare Xvfb)
+    let pid = app.0.id().to_string();
+    let out = Command::new("xdotool")
+        .args(["search", "--pid", &pid])
+        .output()
+        .expect("xdotool");
+    let window = String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .next()
+        .expect("the app's window")
+        .to_string();
+    xdotool(&["windowfocus", &window]);
+    std::thread::sleep(Duration::from_millis(300));
+    xdotool(&["key", "Return"]);
+    // The recovered work is autosaved at once by the new app; the old folder goes.
+    let start = Instant::now();
+    let after = loop {
+        if let Some((d, v)) = autosaved(&data)
+            && d != dir
+        {
+            break v;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(60),
+            "the recovered session was not autosaved by the new app"
+        );
+        std::thread::sleep(Duration::from_millis(250));
+    };
+    assert!(!dir.exists(), "the recovered autosave is removed");
+    assert_eq!(
+        after["correspondences"], before["correspondences"],
+        "the recovered pairs are those autosaved before the kill"
+    );
+    assert_eq!(after["params"], before["params"]);
+    assert_eq!(after["source_scene"], before["source_scene"]);
+    assert_eq!(after["target_scene"], before["target_scene"]);
+    assert!(app.0.try_wait().unwrap().is_none(), "the app runs on");
 }

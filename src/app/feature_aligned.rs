@@ -9,7 +9,7 @@ use std::sync::Arc;
 use eframe::egui;
 
 use super::state::{AppParams, AppState, CurveOverlay};
-use super::systems::{FilePrompt, SystemTool, ToolAction, Wake};
+use super::system_tool::{FilePrompt, SystemTool, ToolAction, Wake};
 use super::tools::{ToolJob, ToolOutcome, image_chooser, load_exemplar};
 use crate::correspondence::Side;
 use crate::error::{Error, Result};

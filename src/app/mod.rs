@@ -4,13 +4,16 @@
 //! All state lives in [`state::AppState`] (testable without a window); [`MeshMatchApp`] draws it
 //! with egui and forwards requests to the [`crate::jobs::worker::Worker`].
 
+pub mod autosave;
 pub mod engine;
 pub mod feature_aligned;
 pub mod files;
 pub mod quilt;
 pub mod state;
+pub mod system_tool;
 pub mod systems;
 pub mod tools;
+pub mod unsaved;
 pub mod view;
 pub mod weather;
 
@@ -96,6 +99,8 @@ where
     /// What the transfer moves (colour or detail) and the detail strength.
     pub signal: tools::SignalSettings,
     repaint: Option<egui::Context>,
+    /// The unsaved-work prompt, the autosave and the recovery offer.
+    pub safety: unsaved::Safety,
 }
 
 /// Whether the views draw on a CPU rasteriser (set once the render state is known); read by the
@@ -187,6 +192,7 @@ where
             fitted_to_monitor: false,
             signal: tools::SignalSettings::default(),
             repaint: wake_ctx,
+            safety: unsaved::Safety::default(),
         }
     }
 
@@ -429,8 +435,14 @@ where
         Ok(())
     }
 
-    /// Apply startup options: open files, or the first demo scene.
+    /// Apply startup options: open files, or the first demo scene. What opens is the saved
+    /// state (no unsaved work yet).
     pub fn startup(&mut self, s: &Startup) {
+        self.open_startup(s);
+        self.state.mark_saved(None);
+    }
+
+    fn open_startup(&mut self, s: &Startup) {
         match (&s.source, &s.target) {
             (None, None) => {
                 if !self.demo_scenes.is_empty()
@@ -497,11 +509,7 @@ where
     fn apply_file(&mut self, action: files::FileAction, p: PathBuf) {
         use files::FileAction as A;
         let result = match action {
-            A::OpenMesh(side) => {
-                let r = self.state.open_mesh(side, &p);
-                self.views.frame_all();
-                r
-            }
+            A::OpenMesh(side) => return self.guard(unsaved::Guarded::OpenMesh(side, p)),
             A::OpenTexture => self.state.open_texture(&p),
             A::OpenCorrespondences => crate::correspondence::CorrespondenceFile::load(&p)
                 .and_then(|f| self.state.set_correspondence_file(f, &p)),
@@ -515,12 +523,12 @@ where
                 Some(m) => crate::mesh::io::save(&m, &p),
                 None => Err(Error::InvalidInput("no mesh".into())),
             },
-            A::OpenSession => {
-                let r = self.state.open_session(&p);
-                self.views.frame_all();
+            A::OpenSession => return self.guard(unsaved::Guarded::OpenSession(p)),
+            A::SaveSession => {
+                let r = self.state.save_session_to(&p);
+                self.session_saved(r.is_ok());
                 r
             }
-            A::SaveSession => self.state.save_session(&p),
             A::SystemFile(i, _) => {
                 if let Some(t) = self.systems.get_mut(i) {
                     t.set_file(p.clone());
@@ -587,7 +595,25 @@ where
                 }
                 ui.separator();
                 ask(ui, "Open session...", A::OpenSession, None);
-                ask(ui, "Save session...", A::SaveSession, None);
+                ask(
+                    ui,
+                    "Save session as...",
+                    A::SaveSession,
+                    Some("Meshes by file, computed meshes and paint in files beside the session"),
+                );
+                let mut guarded = None;
+                if ui.button("Save session  (Ctrl+S)").clicked() {
+                    self.save_or_ask(None);
+                    ui.close();
+                }
+                if ui
+                    .button("New session  (Ctrl+N)")
+                    .on_hover_text("Empty views; asks to save unsaved work first")
+                    .clicked()
+                {
+                    guarded = Some(unsaved::Guarded::New);
+                    ui.close();
+                }
                 ui.separator();
                 ui.menu_button("Recent", |ui| {
                     if self.state.recent.is_empty() {
@@ -599,7 +625,7 @@ where
                         match r.kind {
                             state::RecentKind::Session => {
                                 if ui.button(format!("Session {name}")).clicked() {
-                                    result = self.state.open_session(p);
+                                    guarded = Some(unsaved::Guarded::OpenSession(p.clone()));
                                     opened = true;
                                 }
                             }
@@ -612,11 +638,17 @@ where
                                 ui.horizontal(|ui| {
                                     ui.label(&name);
                                     if ui.small_button("as source").clicked() {
-                                        result = self.state.open_mesh(Side::Source, p);
+                                        guarded = Some(unsaved::Guarded::OpenMesh(
+                                            Side::Source,
+                                            p.clone(),
+                                        ));
                                         opened = true;
                                     }
                                     if ui.small_button("as target").clicked() {
-                                        result = self.state.open_mesh(Side::Target, p);
+                                        guarded = Some(unsaved::Guarded::OpenMesh(
+                                            Side::Target,
+                                            p.clone(),
+                                        ));
                                         opened = true;
                                     }
                                 });
@@ -630,6 +662,9 @@ where
                 });
                 if let Err(e) = result {
                     self.state.report(e);
+                }
+                if let Some(g) = guarded {
+                    self.guard(g);
                 }
             });
             ui.menu_button("Edit", |ui| {
@@ -713,10 +748,8 @@ where
                 if self.demo_scenes.is_empty() {
                     ui.label("(no demo scenes)");
                 }
-                if let Some(i) = pick
-                    && let Err(e) = self.load_demo(i)
-                {
-                    self.state.report(e);
+                if let Some(i) = pick {
+                    self.guard(unsaved::Guarded::Scene(i));
                 }
             });
             ui.menu_button("View", |ui| {
@@ -990,6 +1023,19 @@ where
         if typing {
             return;
         }
+        let (save, new) = ctx.input(|i| {
+            let cmd = i.modifiers.command && !i.modifiers.shift;
+            (
+                cmd && i.key_pressed(egui::Key::S),
+                cmd && i.key_pressed(egui::Key::N),
+            )
+        });
+        if save {
+            self.save_or_ask(None);
+        }
+        if new {
+            self.guard(unsaved::Guarded::New);
+        }
         let (undo, redo, del, frame, help) = ctx.input(|i| {
             let cmd = i.modifiers.command;
             (
@@ -1047,10 +1093,7 @@ where
             t.overlay_clicked(line);
         }
         if let Some((side, path)) = dropped {
-            if let Err(e) = self.state.open_any(side, &path) {
-                self.state.report(e);
-            }
-            self.views.frame_all();
+            self.guard(unsaved::Guarded::Dropped(side, path));
         }
         self.help_window(&ctx);
         self.system_windows(&ctx);
@@ -1058,7 +1101,9 @@ where
         if let Some((action, path)) = self.files.take() {
             self.apply_file(action, path);
         }
+        self.safety_after_files();
         self.errors_window(&ctx);
+        self.safety_frame(&ctx);
         // Edits made this frame: send them now rather than next frame.
         self.pump(Instant::now());
         if self.state.restart_pending() {
@@ -1110,6 +1155,11 @@ where
         let rs = frame.wgpu_render_state().cloned();
         self.fit_to_monitor(ui.ctx());
         self.frame_ui(ui, rs.as_ref());
+    }
+
+    fn on_exit(&mut self) {
+        // a clean exit: nothing to recover at the next start
+        self.finish_autosave();
     }
 }
 
@@ -1168,6 +1218,9 @@ where
                 app.state.load_recent(store);
             }
             app.startup(&startup);
+            if let Some(root) = autosave::data_dir() {
+                app = app.with_autosave(&root, autosave::period_from_env());
+            }
             Ok(Box::new(app))
         }),
     )

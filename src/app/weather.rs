@@ -9,7 +9,7 @@ use std::sync::{Arc, Mutex};
 use eframe::egui;
 
 use super::state::{AppParams, AppState};
-use super::systems::{FilePrompt, SystemTool, ToolAction, Wake};
+use super::system_tool::{FilePrompt, SystemTool, ToolAction, Wake};
 use super::tools::{ToolJob, ToolOutcome};
 use crate::correspondence::Side;
 use crate::error::{Error, Result};

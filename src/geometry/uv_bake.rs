@@ -27,9 +27,14 @@ impl BakedImage {
     /// The image as 8-bit sRGB.
     pub fn to_rgb8(&self) -> image::RgbImage {
         let mut img = image::RgbImage::new(self.width as u32, self.height as u32);
-        for (p, c) in img.pixels_mut().zip(&self.pixels) {
-            p.0 = crate::color::to_u8(*c);
-        }
+        let row = 3 * self.width.max(1);
+        img.par_chunks_mut(row)
+            .zip(self.pixels.par_chunks(self.width.max(1)))
+            .for_each(|(out, src)| {
+                for (o, c) in out.chunks_exact_mut(3).zip(src) {
+                    o.copy_from_slice(&crate::color::to_u8(*c));
+                }
+            });
         img
     }
 }
@@ -155,8 +160,11 @@ where
         .for_each(|(band, (px, cov))| {
             let y0 = band * BAND_ROWS;
             let rows = px.len() / w;
-            // Distance of the sample that set each texel (0 inside a triangle).
+            // The nearest face of each texel (0 inside a triangle), its barycentrics there, and
+            // its distance: found first, so the sampler runs once per texel, not once per face
+            // that touches it.
             let mut best = vec![f32::INFINITY; rows * w];
+            let mut hit = vec![(u32::MAX, [0.0f32; 3]); rows * w];
             for &f in &list[off[band]..off[band + 1]] {
                 let f = f as usize;
                 let t = [corner(f, 0), corner(f, 1), corner(f, 2)];
@@ -180,10 +188,15 @@ where
                         let i = (y - y0) * w + x;
                         if d < best[i] && d <= TOUCH {
                             best[i] = d;
-                            px[i] = sample(f, bary);
-                            cov[i] = true;
+                            hit[i] = (f as u32, bary);
                         }
                     }
+                }
+            }
+            for ((p, c), &(f, bary)) in px.iter_mut().zip(cov.iter_mut()).zip(&hit) {
+                if f != u32::MAX {
+                    *p = sample(f as usize, bary);
+                    *c = true;
                 }
             }
         });
@@ -326,29 +339,32 @@ fn pull_push(px: &mut [[f32; 3]], wt: &[f32], w: usize, h: usize) {
         return;
     }
     let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
+    // Pull: each coarse texel the weighted mean of its (up to) four fine ones, rows in parallel.
     let mut cpx = vec![[0.0f32; 3]; cw * ch];
     let mut cwt = vec![0.0f32; cw * ch];
-    for y in 0..ch {
-        for x in 0..cw {
-            let mut acc = [0.0f32; 3];
-            let mut s = 0.0f32;
-            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                let (xx, yy) = (2 * x + dx, 2 * y + dy);
-                if xx < w && yy < h {
-                    let i = yy * w + xx;
-                    for c in 0..3 {
-                        acc[c] += wt[i] * px[i][c];
+    cpx.par_chunks_mut(cw)
+        .zip(cwt.par_chunks_mut(cw))
+        .enumerate()
+        .for_each(|(y, (prow, wrow))| {
+            for (x, (cp, cw_)) in prow.iter_mut().zip(wrow.iter_mut()).enumerate() {
+                let mut acc = [0.0f32; 3];
+                let mut s = 0.0f32;
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let (xx, yy) = (2 * x + dx, 2 * y + dy);
+                    if xx < w && yy < h {
+                        let i = yy * w + xx;
+                        for c in 0..3 {
+                            acc[c] += wt[i] * px[i][c];
+                        }
+                        s += wt[i];
                     }
-                    s += wt[i];
                 }
+                if s > 0.0 {
+                    *cp = acc.map(|a| a / s);
+                }
+                *cw_ = s.min(1.0);
             }
-            let j = y * cw + x;
-            if s > 0.0 {
-                cpx[j] = acc.map(|a| a / s);
-            }
-            cwt[j] = s.min(1.0);
-        }
-    }
+        });
     if cwt.iter().all(|&s| s == 0.0) {
         return;
     }

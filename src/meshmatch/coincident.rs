@@ -13,12 +13,13 @@
 //! 3. A target vertex is snapped where its moved position lies on the source surface (within a
 //!    quarter of a source edge), facing the same way, near its own match; its patch map becomes
 //!    the similarity itself. Where fewer than half the vertices qualify the shapes do not
-//!    coincide and nothing is snapped.
+//!    coincide and nothing is snapped; the ICP's spread sample settles that first where its
+//!    share is well below half, so a bent or different target costs only the ICP rounds.
 
 use glam::{DMat3, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 
-use super::resample::PatchMap;
+use super::patch_map::PatchMap;
 use crate::features::Frames;
 use crate::geometry::TriangleBvh;
 use crate::hierarchy::Level;
@@ -30,6 +31,10 @@ const ON_SURFACE_EDGES: f32 = 0.25;
 const NEAR_MATCH_EDGES: f32 = 3.0;
 /// Fewest snapped vertices, as a share of all, for the shapes to count as coinciding.
 const MIN_SHARE: f64 = 0.5;
+/// The ICP sample's share of agreeing vertices below this fraction of [`MIN_SHARE`] settles that
+/// the shapes do not coincide (the sample is spread over the surface: its share is within a few
+/// percent of the whole's).
+const SAMPLE_MARGIN: f64 = 0.8;
 /// ICP rounds after the fit to the matches.
 const ICP_ROUNDS: usize = 4;
 /// Vertices the ICP rounds fit to.
@@ -164,7 +169,20 @@ pub(crate) fn snap_coincident(
             None => break,
         }
     }
-    // 3. Snap.
+    // 3. Where the sample already shows that the shapes do not coincide (a bent or another
+    //    shape), stop before the closest points of every vertex.
+    let agreeing = sample
+        .par_iter()
+        .filter(|&&v| {
+            let c = closest_of(&sim, v);
+            lies_on(source, target, &sim, v, &c)
+                && (Vec3::from(c.0) - Vec3::from(matched[v])).length() <= NEAR_MATCH_EDGES * edge
+        })
+        .count();
+    if (agreeing as f64) < SAMPLE_MARGIN * MIN_SHARE * sample.len() as f64 {
+        return None;
+    }
+    // 4. Snap.
     snap(
         &bvh,
         source,
@@ -223,16 +241,7 @@ fn snap(
     // the ones the NNF placed badly included.
     let on: Vec<bool> = (0..n)
         .into_par_iter()
-        .map(|v| {
-            let (_, d, f, b) = c[v];
-            if f == u32::MAX || d > ON_SURFACE_EDGES * edge {
-                return false;
-            }
-            let face = source.faces[f as usize];
-            let a = face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize;
-            let nt = (sim.rot * Vec3::from(target.normals[v]).as_dvec3()).as_vec3();
-            Vec3::from(source.normals[a]).dot(nt) >= 0.5
-        })
+        .map(|v| lies_on(source, target, sim, v, &c[v]))
         .collect();
     if let Some(matched) = matched {
         let agreeing = (0..n)
@@ -273,6 +282,25 @@ fn snap(
         })
         .collect();
     Some(snapped)
+}
+
+/// Whether target vertex `v`, moved by `sim`, lies on the source surface (`c`, its closest
+/// point there, within a quarter of a source edge) facing the same way.
+fn lies_on(
+    source: &Level,
+    target: &Level,
+    sim: &Similarity,
+    v: usize,
+    c: &([f32; 3], f32, u32, [f32; 3]),
+) -> bool {
+    let (_, d, f, b) = *c;
+    if f == u32::MAX || d > ON_SURFACE_EDGES * source.mean_edge.max(1e-12) {
+        return false;
+    }
+    let face = source.faces[f as usize];
+    let a = face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize;
+    let nt = (sim.rot * Vec3::from(target.normals[v]).as_dvec3()).as_vec3();
+    Vec3::from(source.normals[a]).dot(nt) >= 0.5
 }
 
 /// The closest point of the source surface to `z`: (point, distance, face, barycentric); face

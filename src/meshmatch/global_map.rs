@@ -15,7 +15,6 @@
 //!   the coarsest level, decaying geometrically to the finest, so coarse levels follow the map and
 //!   fine levels the colour (at structure 1 the map leads every level).
 
-use super::prepare::PreparedMesh;
 use crate::error::{Error, Result};
 use std::sync::{Arc, Mutex};
 
@@ -58,6 +57,14 @@ impl MapCache {
     }
 }
 
+/// What the map reads of a prepared mesh: its hierarchy and the cache of its spectra and maps
+/// (built beside the mesh's other tables when it is prepared).
+#[derive(Clone, Copy)]
+pub(super) struct MapSide<'a> {
+    pub hierarchy: &'a Hierarchy,
+    pub map_cache: &'a Arc<MapCache>,
+}
+
 /// A level's positions and faces, copied for a detached eigen-solve, with the cache it fills
 /// and the level's index.
 type SpectrumJob = (Vec<[f32; 3]>, Vec<[u32; 3]>, Arc<MapCache>, usize);
@@ -67,8 +74,8 @@ type SpectrumJob = (Vec<[f32; 3]>, Vec<[u32; 3]>, Arc<MapCache>, usize);
 /// ([`crate::work::run_cancellable`]): the eigen-solves are long single calls, and cancel must not
 /// wait for them.
 fn spectra(
-    source: &PreparedMesh,
-    target: &PreparedMesh,
+    source: MapSide<'_>,
+    target: MapSide<'_>,
     (ls, lt): (usize, usize),
     k: usize,
     cancel: &CancelToken,
@@ -83,7 +90,7 @@ fn spectra(
     // Each missing spectrum is stored in its mesh's cache as soon as it is computed, inside the
     // detached work: a cancelled solve's eigen-solves still fill the cache for the next one,
     // and one mesh's failure does not lose the other's spectrum.
-    let job = |m: &PreparedMesh, l: usize, cached: &Option<Arc<Spectrum>>| {
+    let job = |m: MapSide<'_>, l: usize, cached: &Option<Arc<Spectrum>>| {
         cached.is_none().then(|| {
             let lev = &m.hierarchy.levels[l];
             (
@@ -106,7 +113,7 @@ fn spectra(
     })?;
     rs?;
     rt?;
-    let get = |m: &PreparedMesh, l: usize| {
+    let get = |m: MapSide<'_>, l: usize| {
         m.map_cache.cached_spectrum(l, k).ok_or_else(|| {
             Error::InvalidInput("shape map: a spectrum was neither cached nor computed".into())
         })
@@ -286,12 +293,12 @@ fn landmarks(
 /// The target's latest map, if it was computed from this source with `nl` levels, and whether
 /// it was computed with these `landmarks`.
 fn cached_map(
-    source: &PreparedMesh,
-    target: &PreparedMesh,
+    source: MapSide<'_>,
+    target: MapSide<'_>,
     landmarks: &[(u32, u32)],
     nl: usize,
 ) -> Option<(Arc<GlobalMap>, bool)> {
-    let key = Arc::as_ptr(&source.map_cache) as usize;
+    let key = Arc::as_ptr(source.map_cache) as usize;
     let g = target.map_cache.map.lock().ok()?;
     let (k, l, m) = g.as_ref()?;
     (*k == key && m.target_pos.len() == nl).then(|| (m.clone(), l.as_slice() == landmarks))
@@ -301,8 +308,8 @@ fn cached_map(
 /// changed since (so [`global_map`] will compute a new one): the preview after a
 /// correspondence edit starts from it while the new map is computed.
 pub(super) fn previous_map(
-    source: &PreparedMesh,
-    target: &PreparedMesh,
+    source: MapSide<'_>,
+    target: MapSide<'_>,
     pairs: &[(u32, Vec<u32>)],
     nl: usize,
 ) -> Option<Arc<GlobalMap>> {
@@ -315,8 +322,8 @@ pub(super) fn previous_map(
 /// Compute the map between the two prepared meshes (see the module docs). `pairs` are the
 /// correspondences in working vertices.
 pub(super) fn global_map(
-    source: &PreparedMesh,
-    target: &PreparedMesh,
+    source: MapSide<'_>,
+    target: MapSide<'_>,
     pairs: &[(u32, Vec<u32>)],
     nl: usize,
     cancel: &CancelToken,
@@ -338,7 +345,7 @@ pub(super) fn global_map(
     {
         return Ok(m);
     }
-    let key = Arc::as_ptr(&source.map_cache) as usize;
+    let key = Arc::as_ptr(source.map_cache) as usize;
     let k = spectrum_size(&params);
     let (ss, st) = spectra(source, target, (ls, lt), k, cancel)?;
     let eigen_s = sw.secs();

@@ -20,6 +20,7 @@ mod coincident;
 mod deliver;
 mod em;
 mod global_map;
+mod patch_map;
 mod prepare;
 mod resample;
 mod solve;

@@ -47,6 +47,14 @@ pub struct PreparedMesh {
 }
 
 impl PreparedMesh {
+    /// What the global map reads of this mesh.
+    pub(super) fn map_side(&self) -> global_map::MapSide<'_> {
+        global_map::MapSide {
+            hierarchy: &self.hierarchy,
+            map_cache: &self.map_cache,
+        }
+    }
+
     /// The working mesh (welded, refined and numbered in Morton order; per-vertex colours when
     /// it has a signal).
     pub fn working_mesh(&self) -> &TriMesh {

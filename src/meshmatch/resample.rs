@@ -28,6 +28,13 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::PreparedMesh;
+use super::patch_map::PatchMap;
+use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, Frames};
+use crate::geometry::closest_on_triangle;
+use crate::hierarchy::Level;
+use crate::mesh::{Csr, vertex_faces};
+use crate::work::CancelToken;
+
 /// Linear light -> sRGB through a table of 4096 steps (within 1/255 of the exact curve; the
 /// bake quantises to 8 bits).
 #[inline]
@@ -44,11 +51,6 @@ fn linear_to_srgb(c: f32) -> f32 {
     t[i] + (t[i + 1] - t[i]) * f
 }
 const SRGB_STEPS: usize = 4096;
-use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, Frames};
-use crate::geometry::closest_on_triangle;
-use crate::hierarchy::Level;
-use crate::mesh::{Csr, vertex_faces};
-use crate::work::CancelToken;
 
 /// Two matches agree at a texel when their source points are closer than this many source mean
 /// edges: inside a coherent patch the corner maps differ by a small fraction of an edge, across a
@@ -61,34 +63,6 @@ const COHERENT_EDGES: f32 = 1.5;
 const MIN_FIT: usize = 4;
 /// Most vertices of a two-ring read by the fit (valence 6 gives 19).
 const RING2: usize = 48;
-
-/// The local map of one target vertex's patch: a tangent offset `p` (in the target vertex's
-/// frame) goes to `origin + L p` in the frame of the source vertex `anchor`, with
-/// `L = [[l0, l1], [l2, l3]]` (a rotation and scale where fitted to the NNF).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct PatchMap {
-    pub(super) anchor: u32,
-    pub(super) origin: [f32; 2],
-    pub(super) lin: [f32; 4],
-}
-
-impl PatchMap {
-    /// The similarity `origin + [[a, -b], [b, a]] p`.
-    fn similarity(anchor: u32, origin: [f32; 2], a: f32, b: f32) -> PatchMap {
-        PatchMap {
-            anchor,
-            origin,
-            lin: [a, -b, b, a],
-        }
-    }
-
-    #[inline]
-    fn apply(&self, p: Vec2) -> Vec2 {
-        let l = self.lin;
-        Vec2::new(self.origin[0], self.origin[1])
-            + Vec2::new(l[0] * p.x + l[1] * p.y, l[2] * p.x + l[3] * p.y)
-    }
-}
 
 /// The source's surface and what it carries: its working mesh, whose faces lie in the input's
 /// faces with UVs (or vertex colours) interpolated exactly from the input's, so a point located

@@ -93,7 +93,7 @@ pub fn solve_constrained(
     // the previous solve left and the new correspondences, and shown. The solve below is the
     // same as without it (its own random numbers, nothing carried over).
     let previous = (params.structure != Some(0.0) && nl > 1)
-        .then(|| global_map::previous_map(source, target, &pairs, nl))
+        .then(|| global_map::previous_map(source.map_side(), target.map_side(), &pairs, nl))
         .flatten();
     if let Some(prev) = previous {
         let top = nl - 1;
@@ -131,7 +131,7 @@ pub fn solve_constrained(
     let mut structure = params.structure.unwrap_or(0.0);
     let mut map_score = None;
     if params.structure != Some(0.0) {
-        match global_map::global_map(source, target, &pairs, nl, cancel) {
+        match global_map::global_map(source.map_side(), target.map_side(), &pairs, nl, cancel) {
             Ok(g) => {
                 map_secs = Some(g.seconds);
                 map_stages = g.stages.clone();

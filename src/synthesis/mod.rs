@@ -18,6 +18,7 @@
 //!   texturing run after the Wei-Levoy synthesis.
 //! - [`wei_levoy`]: image-exemplar texture synthesis over arbitrary surfaces (Wei & Levoy 2001).
 
+pub mod curve_field;
 pub mod feature_aligned;
 pub mod mertens;
 pub mod quilting;

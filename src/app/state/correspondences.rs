@@ -134,6 +134,8 @@ impl<P: AppParams> AppState<P> {
             Side::Source => self.corr[sel.pair].source_vertex = f,
             Side::Target => self.corr[sel.pair].target_vertices[sel.k] = f,
         }
+        // a drag's later moves record no undo step but move the marker
+        self.mark_changed();
         self.schedule_restart_now();
     }
 

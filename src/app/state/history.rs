@@ -53,6 +53,8 @@ impl<P: AppParams> AppState<P> {
 
     /// Record the current state for undo (call before an edit).
     pub fn push_undo(&mut self) {
+        // every recorded step is a change worth saving
+        self.mark_changed();
         self.undo.push(self.snapshot());
         if self.undo.len() > UNDO_LIMIT {
             self.undo.remove(0);
@@ -106,6 +108,7 @@ impl<P: AppParams> AppState<P> {
         }
         self.redo.push(cur);
         self.restore(s);
+        self.mark_changed();
         self.message = format!(
             "undone ({} more undo, {} redo)",
             self.undo.len(),
@@ -126,6 +129,7 @@ impl<P: AppParams> AppState<P> {
         }
         self.undo.push(cur);
         self.restore(s);
+        self.mark_changed();
         self.message = format!(
             "redone ({} undo, {} more redo)",
             self.undo.len(),
@@ -184,6 +188,10 @@ impl<P: AppParams> AppState<P> {
             count += 1;
         }
         slot.colors_dirty = true;
+        if count > 0 {
+            // a stroke's later dabs record no undo step but change the paint
+            self.mark_changed();
+        }
         count
     }
 
@@ -225,6 +233,10 @@ impl<P: AppParams> AppState<P> {
                 let i = side_index(side);
                 let mut before = self.snapshot();
                 before.slot = self.meshes[i].clone().map(|m| (i, Box::new(m)));
+                // Computed: whatever file it started from no longer holds it (a session saves
+                // it beside itself).
+                let mut mesh = mesh;
+                mesh.path = None;
                 self.set_mesh(side, mesh, false);
                 if before.slot.is_some() {
                     self.undo.push(before);

@@ -2,8 +2,10 @@
 //! layers, parameters and job status. The UI calls these methods; tests call them directly.
 //!
 //! By seam: `slot.rs` (loaded meshes), `correspondences.rs` (editing pairs), `history.rs` (paint
-//! layers and undo), `session.rs` (sessions, Recent, exports); the job and meshes here.
+//! layers and undo), `session.rs` (sessions, Recent, exports), `changes.rs` (unsaved work); the
+//! job and meshes here.
 
+mod changes;
 mod correspondences;
 mod history;
 mod session;
@@ -112,6 +114,12 @@ pub struct AppState<P: AppParams> {
     restart_at: Option<Instant>,
     requests: Vec<Request<P>>,
     next_id: u64,
+    /// Changes counted so far ([`AppState::mark_changed`]).
+    edits: u64,
+    /// `edits` when the work was last saved (`None`: never, as after a recovery).
+    saved_edits: Option<u64>,
+    /// The session file last saved or opened.
+    session_path: Option<PathBuf>,
 }
 
 /// Index of a side in `meshes`.
@@ -153,6 +161,9 @@ impl<P: AppParams> AppState<P> {
             restart_at: None,
             requests: Vec::new(),
             next_id: 1,
+            edits: 0,
+            saved_edits: Some(0),
+            session_path: None,
         }
     }
 
@@ -176,6 +187,7 @@ impl<P: AppParams> AppState<P> {
         self.next_id += 1;
         let mesh = Arc::new(mesh);
         self.meshes[side_index(side)] = Some(MeshSlot::new(mesh.clone(), id));
+        self.mark_changed();
         if !keep_corr {
             self.corr.clear();
             self.pending_source = None;
@@ -264,7 +276,11 @@ impl<P: AppParams> AppState<P> {
                 slot.scene = Some(name.to_string());
             }
         }
-        self.set_correspondences(scene.correspondences)
+        self.set_correspondences(scene.correspondences)?;
+        // A built-in scene as it comes is no unsaved work.
+        self.session_path = None;
+        self.mark_saved(None);
+        Ok(())
     }
 
     /// Take the requests for the worker accumulated since the last call.
@@ -323,6 +339,7 @@ impl<P: AppParams> AppState<P> {
     pub fn set_params(&mut self, params: P, now: Instant) {
         if params != self.params {
             self.params = params;
+            self.mark_changed();
             self.schedule_restart(now);
         }
     }

@@ -184,19 +184,24 @@ impl<P: AppParams> AppState<P> {
     }
 
     /// Save the session as JSON at `path`. Meshes are named by file, or by built-in scene when
-    /// they have none; each paint layer goes to a PLY sidecar beside it (the displayed mesh with
-    /// the paint's colours) with its coverage in the JSON.
+    /// they have none; a computed mesh (a tool's result, in no file) goes to a sidecar beside it
+    /// (PLY, or GLB when it has UVs); each paint layer goes to a PLY sidecar beside it (the displayed mesh with the paint's
+    /// colours) with its coverage in the JSON. The JSON is written last, so it never names a
+    /// sidecar that is not complete.
     pub fn save_session(&self, path: &Path) -> Result<()> {
         let mut names: [(Option<PathBuf>, Option<String>); 2] = [(None, None), (None, None)];
-        for side in [Side::Source, Side::Target] {
+        for (side, suffix) in [(Side::Source, "source_mesh"), (Side::Target, "target_mesh")] {
             if let Some(slot) = self.slot(side) {
                 let file = slot.file.path.as_ref().map(|p| abs(p));
-                let name = (file, slot.scene.clone());
+                let mut name = (file, slot.scene.clone());
                 if name.0.is_none() && name.1.is_none() {
-                    return Err(Error::InvalidInput(format!(
-                        "the {side:?} mesh has no file (it was computed): export it and open \
-                         the file before saving the session"
-                    )));
+                    // PLY keeps the vertices as they are (pairs and paint name them); GLB keeps
+                    // a mesh's UVs and texture
+                    let textured = slot.file.uvs.is_some() || slot.file.texture.is_some();
+                    let ext = if textured { "glb" } else { "ply" };
+                    let p = path.with_extension(format!("{suffix}.{ext}"));
+                    crate::mesh::io::save(&slot.file, &p)?;
+                    name.0 = Some(p.file_name().map_or_else(|| p.clone(), PathBuf::from));
                 }
                 names[side_index(side)] = name;
             }
@@ -249,7 +254,17 @@ impl<P: AppParams> AppState<P> {
 
     /// Open a session JSON: both meshes (files or built-in scenes), the source texture,
     /// correspondences, parameters and paint. Nothing changes when any part fails to load.
+    /// The session is the saved state of the work, and goes on the Recent list.
     pub fn open_session(&mut self, path: &Path) -> Result<()> {
+        self.load_session(path)?;
+        self.mark_saved(Some(path));
+        self.push_recent(path, RecentKind::Session);
+        Ok(())
+    }
+
+    /// [`Self::open_session`] without marking the work saved or touching the Recent list (an
+    /// autosave's recovery).
+    pub fn load_session(&mut self, path: &Path) -> Result<()> {
         // the loaders' rule: a regular file of bounded size (no directory, device or pipe)
         let text = crate::mesh::io::read_text_file(path, "the session file")?;
         let mut s: Session<P> = serde_json::from_str(&text)
@@ -258,7 +273,8 @@ impl<P: AppParams> AppState<P> {
         let dir = path.parent().unwrap_or(Path::new("."));
         let resolve = |p: &PathBuf| dir.join(p);
         let mut built: Vec<(String, crate::app::DemoScene)> = Vec::new();
-        let mut meshes = Vec::new();
+        // A side the session names no mesh for stays empty (a session saved with one mesh).
+        let mut meshes: [Option<(Side, TriMesh, Option<String>)>; 2] = [None, None];
         for (side, file, scene) in [
             (Side::Source, &s.source, &s.source_scene),
             (Side::Target, &s.target, &s.target_scene),
@@ -280,23 +296,18 @@ impl<P: AppParams> AppState<P> {
                         Side::Target => sc.target.clone(),
                     }
                 }
-                (None, None) => {
-                    return Err(Error::format(
-                        path,
-                        format!("session names no {side:?} mesh (neither a file nor a scene)"),
-                    ));
-                }
+                (None, None) => continue,
             };
             mesh_usable(&mesh)?;
-            meshes.push((
+            meshes[side_index(side)] = Some((
                 side,
                 mesh,
                 if file.is_none() { scene.clone() } else { None },
             ));
         }
         let texture = s.source_texture.as_ref().map(resolve);
-        if let Some(t) = &texture {
-            meshes[0].1 = with_texture(&meshes[0].1, t)?;
+        if let (Some(t), Some(m)) = (&texture, meshes[0].as_mut()) {
+            m.1 = with_texture(&m.1, t)?;
         }
         let mut samples = [None, None];
         for (i, (sidecar, coverage)) in [
@@ -332,10 +343,9 @@ impl<P: AppParams> AppState<P> {
         }
         // Pairs whose meshes were renumbered since the session was saved (re-exported by another
         // tool) move to the nearest vertex of their stored position.
-        let note = s
-            .correspondences
-            .resolve(Some(&meshes[0].1), Some(&meshes[1].1), path);
-        let counts = [meshes[0].1.positions.len(), meshes[1].1.positions.len()];
+        let mesh_of = |i: usize| meshes[i].as_ref().map(|m| &m.1);
+        let note = s.correspondences.resolve(mesh_of(0), mesh_of(1), path);
+        let counts = [0, 1].map(|i| mesh_of(i).map_or(0, |m| m.positions.len()));
         for c in &s.correspondences.correspondences {
             let bad_t = c.target_vertices.iter().any(|&t| t as usize >= counts[1]);
             if c.source_vertex as usize >= counts[0] || bad_t {
@@ -346,7 +356,11 @@ impl<P: AppParams> AppState<P> {
             }
         }
         // Everything loaded: replace the state.
-        for (side, mesh, scene) in meshes {
+        for (i, m) in meshes.into_iter().enumerate() {
+            let Some((side, mesh, scene)) = m else {
+                self.meshes[i] = None;
+                continue;
+            };
             self.set_mesh(side, mesh, false);
             if let Some(slot) = self.slot_mut(side) {
                 slot.scene = scene;
@@ -370,7 +384,30 @@ impl<P: AppParams> AppState<P> {
             self.report(format!("warning: {note}"));
         }
         self.undo.clear();
-        self.push_recent(path, RecentKind::Session);
+        self.redo.clear();
         Ok(())
+    }
+
+    /// Meshes read from files under `dir` count as computed again (no file): the next save
+    /// writes them beside itself. For meshes recovered from an autosave that is then removed.
+    pub fn forget_files_under(&mut self, dir: &Path) {
+        let dir = abs(dir);
+        for slot in self.meshes.iter_mut().flatten() {
+            if slot
+                .file
+                .path
+                .as_ref()
+                .is_some_and(|p| abs(p).starts_with(&dir))
+            {
+                Arc::make_mut(&mut slot.file).path = None;
+            }
+            if slot
+                .texture_file
+                .as_ref()
+                .is_some_and(|p| abs(p).starts_with(&dir))
+            {
+                slot.texture_file = None;
+            }
+        }
     }
 }

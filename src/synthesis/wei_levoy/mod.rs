@@ -421,10 +421,20 @@ pub fn synthesize(
 
 /// The curve-guided orientation field of `target` with default thresholds (Xu et al. 2009):
 /// salient curves, greedy orientation, harmonic diffusion; unit tangents per target vertex.
-/// The same field as feature-aligned texturing ([`super::feature_aligned::curves_and_field`]).
+/// The same field as feature-aligned texturing's with its defaults
+/// ([`super::curve_field::curves_and_field`]).
 pub fn feature_field(target: &TriMesh, cancel: &CancelToken) -> Result<Vec<[f32; 3]>> {
-    let params = super::feature_aligned::Params::default();
-    let (_, field, _) = super::feature_aligned::curves_and_field(target, None, &params, cancel)?;
+    let (curves, field) = (
+        crate::geometry::CurveParams::default(),
+        crate::geometry::FieldParams::default(),
+    );
+    let stage = super::curve_field::FieldStage {
+        curves: &curves,
+        field: &field,
+        coarse_greedy_above: None,
+        greedy_vertices: 0,
+    };
+    let (_, field, _) = super::curve_field::curves_and_field(target, None, &stage, cancel)?;
     Ok(field.field)
 }
 
