@@ -51,20 +51,13 @@ impl BakeArgs {
             &[("--out", &self.out, OutKind::Mesh)],
         )?;
         let src = load_usable(&self.from)?;
-        let colors = src.vertex_signal().ok_or_else(|| {
-            Error::InvalidInput(format!(
-                "{}: has no colours or texture to bake",
-                self.from.display()
-            ))
-        })?;
         let target = load_usable(&self.to)?;
         let t = std::time::Instant::now();
         let bar = progress_bar();
         bar.set_message("UV atlas");
-        let (target, atlas) = bake_onto(
+        let (target, atlas) = bake_mesh(
             &target,
             &src,
-            &colors,
             self.texture_size,
             self.new_atlas,
             &|f| bar.set_position((f * 1000.0) as u64),
@@ -91,4 +84,29 @@ impl BakeArgs {
         eprintln!("wrote {}", self.out.display());
         Ok(0)
     }
+}
+
+/// `meshmatch bake` on meshes in memory: `from`'s colours (or texture) baked into a texture of
+/// `texture_size` on `to`, through its UVs or a generated atlas (always one with `new_atlas`);
+/// returns `to` with its texture and the atlas made, if any. The CLI and the Python package call
+/// it.
+pub fn bake_mesh(
+    to: &crate::mesh::TriMesh,
+    from: &crate::mesh::TriMesh,
+    texture_size: u32,
+    new_atlas: bool,
+    progress: &(dyn Fn(f32) + Sync),
+    cancel: &CancelToken,
+) -> Result<(crate::mesh::TriMesh, Option<crate::geometry::UvAtlas>)> {
+    check_texture_size(texture_size)?;
+    let colors = from.vertex_signal().ok_or_else(|| {
+        Error::InvalidInput(format!(
+            "{}: has no colours or texture to bake",
+            from.path
+                .as_ref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_else(|| "the mesh to bake from".into())
+        ))
+    })?;
+    bake_onto(to, from, &colors, texture_size, new_atlas, progress, cancel)
 }

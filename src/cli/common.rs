@@ -9,19 +9,30 @@ use crate::work::Event;
 /// Load a mesh the engine can work on: `check_usable` and [`check_geometry`]. Loader warnings
 /// are printed only when every check passes, so a refused file is one line.
 pub fn load_usable(path: &Path) -> Result<TriMesh> {
-    let (mut m, mut warnings) = io::load_with_warnings(path)?;
+    let (m, mut warnings) = io::load_with_warnings(path)?;
+    let (m, more) = make_usable(m, path)?;
+    warnings.extend(more);
+    io::print_warnings(&warnings);
+    Ok(m)
+}
+
+/// A mesh made ready for the engine the way [`load_usable`] makes a file's (`check_usable`,
+/// [`check_geometry`], duplicate faces dropped, the valence checked), `name` naming it in the
+/// messages; returns the warnings for the caller to show. Meshes made in memory (the Python
+/// package) go through it too, so they are refused in the same words.
+pub fn make_usable(mut m: TriMesh, name: &Path) -> Result<(TriMesh, Vec<String>)> {
+    let mut warnings = Vec::new();
     m.check_usable()?;
-    check_geometry(&m, path)?;
+    check_geometry(&m, name)?;
     let dups = drop_duplicate_faces(&mut m);
     if dups > 0 {
         warnings.push(format!(
             "{}: {dups} duplicate faces (same three vertices as an earlier face) ignored",
-            path.display()
+            name.display()
         ));
     }
-    check_valence(&m, path)?;
-    io::print_warnings(&warnings);
-    Ok(m)
+    check_valence(&m, name)?;
+    Ok((m, warnings))
 }
 
 /// Most triangles one vertex may be a corner of (a fan-triangulated polygon of a million corners
@@ -390,6 +401,19 @@ impl<T> Whole<T> {
     pub const fn unit(mut self, unit: &'static str) -> Self {
         self.unit = unit;
         self
+    }
+
+    /// Refuse `value` for `flag` outside the range, in the words the parser uses (for values
+    /// that come from elsewhere than the command line: the Python package's keyword arguments).
+    pub fn check(&self, flag: &str, value: T) -> Result<()>
+    where
+        T: PartialOrd + std::fmt::Display,
+    {
+        if value >= self.lo && self.hi.as_ref().is_none_or(|hi| value <= *hi) {
+            Ok(())
+        } else {
+            Err(Error::InvalidInput(self.message(flag, &value.to_string())))
+        }
     }
 
     /// The refusal of `value` for `flag`.

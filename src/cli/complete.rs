@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use super::common::*;
 use crate::error::{Error, Result};
-use crate::mesh::io;
+use crate::mesh::{TriMesh, io};
 use crate::work::{CancelToken, Event};
 
 /// Arguments of `meshmatch complete`.
@@ -50,21 +50,104 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
     }
     let inputs = input_paths(&[Some(&a.mesh), a.painted.as_ref(), a.mask.as_ref()]);
     check_outputs(&inputs, &[("--out", &a.out, OutKind::Mesh)])?;
-    let mut mesh = load_usable(&a.mesh)?;
-    let synth = match (&a.painted, &a.mask) {
-        (Some(p), _) => {
-            let painted = load_usable(p)?;
+    let mesh = load_usable(&a.mesh)?;
+    let clay = a.clay.as_deref().map(parse_rgb).transpose()?;
+    let painted = a.painted.as_deref().map(load_usable).transpose()?;
+    let example = match (&painted, &a.mask) {
+        (Some(p), _) => Example::Painted(p, clay),
+        (None, Some(m)) => Example::Mask(read_mask(m, mesh.file_vertex_count)?),
+        (None, None) => {
+            return Err(Error::InvalidInput(
+                "complete needs --painted or --mask".into(),
+            ));
+        }
+    };
+    let bar = progress_bar();
+    let sink = |e: Event| bar_sink(&bar, e);
+    let t = std::time::Instant::now();
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let c = complete_mesh(
+        mesh,
+        example,
+        &params,
+        ext,
+        a.texture_size,
+        &sink,
+        &CancelToken::new(),
+    )?;
+    bar.finish_and_clear();
+    eprintln!(
+        "completed {} of {} vertices in {:.2} s (energy {:.4})",
+        c.synthesized,
+        c.vertices,
+        t.elapsed().as_secs_f64(),
+        c.energy
+    );
+    io::save(&c.mesh, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
+    Ok(0)
+}
+
+/// Where `complete` takes its example from.
+pub enum Example<'a> {
+    /// A copy of the mesh (same file vertices) whose colours are the example; its vertices of
+    /// the clay colour (default: the most frequent colour) are synthesised (`--painted`).
+    Painted(&'a TriMesh, Option<[f32; 3]>),
+    /// Per file vertex, whether to synthesise it; the mesh's own colours or texture are the
+    /// example (`--mask`).
+    Mask(Vec<bool>),
+}
+
+/// A completion computed in memory ([`complete_mesh`]).
+pub struct Completed {
+    /// The mesh with the result, as `--out` writes it for a path ending in the given extension.
+    pub mesh: TriMesh,
+    /// Vertices synthesised, and vertices in all.
+    pub synthesized: usize,
+    /// See `synthesized`.
+    pub vertices: usize,
+    /// The solve's final energy.
+    pub energy: f64,
+}
+
+/// `meshmatch complete` on a mesh in memory (checked as [`load_usable`] checks files): the
+/// result on the mesh's vertices (`ext` `ply`), or also baked into a texture of
+/// `texture_size` (default: the mesh's texture's size, else 2048) for `glb`/`gltf`/`obj`. The
+/// CLI and the Python package call it.
+pub fn complete_mesh(
+    mut mesh: TriMesh,
+    example: Example,
+    params: &crate::meshmatch::TransferParams,
+    ext: &str,
+    texture_size: Option<u32>,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<Completed> {
+    params.validate()?;
+    if let Some(size) = texture_size {
+        check_texture_size(size)?;
+    }
+    let name = |m: &TriMesh| {
+        m.path
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| "the painted mesh".into())
+    };
+    let synth = match example {
+        Example::Painted(painted, clay) => {
             if painted.file_vertex_count != mesh.file_vertex_count {
                 return Err(Error::InvalidInput(format!(
                     "{}: has {} vertices but {} has {}",
-                    p.display(),
+                    name(painted),
                     painted.file_vertex_count,
-                    a.mesh.display(),
+                    mesh.path
+                        .as_ref()
+                        .map(|p| p.display().to_string())
+                        .unwrap_or_else(|| "the mesh".into()),
                     mesh.file_vertex_count
                 )));
             }
-            let clay = a.clay.as_deref().map(parse_rgb).transpose()?;
-            let synth = crate::applications::unpainted_mask(&painted, clay)?;
+            let synth = crate::applications::unpainted_mask(painted, clay)?;
             // The painted copy's colours are the example, on the mesh's own vertices.
             let cols =
                 painted.to_file_order(&painted.vertex_signal().unwrap_or_default(), [0.0; 3]);
@@ -77,25 +160,19 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
             mesh.texture = None;
             synth
         }
-        (None, Some(m)) => read_mask(m, mesh.file_vertex_count)?,
-        (None, None) => {
-            return Err(Error::InvalidInput(
-                "complete needs --painted or --mask".into(),
-            ));
+        Example::Mask(m) => {
+            if m.len() != mesh.file_vertex_count {
+                return Err(Error::InvalidInput(format!(
+                    "the mask has {} entries but the mesh has {} vertices",
+                    m.len(),
+                    mesh.file_vertex_count
+                )));
+            }
+            m
         }
     };
-    let bar = progress_bar();
-    let sink = |e: Event| bar_sink(&bar, e);
-    let t = std::time::Instant::now();
-    let r = crate::applications::complete(&mesh, &synth, &params, &sink, &CancelToken::new())?;
-    bar.finish_and_clear();
-    eprintln!(
-        "completed {} of {} vertices in {:.2} s (energy {:.4})",
-        synth.iter().filter(|&&s| s).count(),
-        synth.len(),
-        t.elapsed().as_secs_f64(),
-        r.energy
-    );
+    let size = texture_side(texture_size, &mesh);
+    let r = crate::applications::complete(&mesh, &synth, params, sink, cancel)?;
     let colors: Vec<[f32; 3]> = mesh
         .file_index
         .iter()
@@ -105,10 +182,13 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
         &mesh,
         colors,
         r.full.as_ref(),
-        &a.out,
-        texture_side(a.texture_size, &mesh),
+        std::path::Path::new(&format!("out.{ext}")),
+        size,
     )?;
-    io::save(&out, &a.out)?;
-    eprintln!("wrote {}", a.out.display());
-    Ok(0)
+    Ok(Completed {
+        mesh: out,
+        synthesized: synth.iter().filter(|&&s| s).count(),
+        vertices: synth.len(),
+        energy: r.energy,
+    })
 }

@@ -36,25 +36,7 @@ pub struct CurvesArgs {
 impl CurvesArgs {
     /// Run the subcommand; returns the exit code.
     pub fn run(&self) -> Result<i32> {
-        if !(self.threshold.is_finite() && self.threshold >= 0.0) {
-            return Err(Error::InvalidInput(format!(
-                "--threshold {}: use a finite number, 0 or more",
-                self.threshold
-            )));
-        }
-        if let Some(l) = self.min_length
-            && !(l.is_finite() && l > 0.0)
-        {
-            return Err(Error::InvalidInput(format!(
-                "--min-length {l}: use a positive length in mesh units"
-            )));
-        }
-        if !(0.0..=180.0).contains(&self.crease_angle) {
-            return Err(Error::InvalidInput(format!(
-                "--crease-angle {}: use 0 to 180 degrees",
-                self.crease_angle
-            )));
-        }
+        check_curves(self.threshold, self.min_length, self.crease_angle)?;
         check_outputs(
             &[self.mesh.as_path()],
             &[("--out", self.out.as_path(), OutKind::File)],
@@ -122,4 +104,26 @@ impl CurvesArgs {
         );
         Ok(0)
     }
+}
+
+/// Refuse `curves` settings outside their ranges, in the CLI's words.
+pub fn check_curves(threshold: f32, min_length: Option<f32>, crease_angle: f32) -> Result<()> {
+    if !(threshold.is_finite() && threshold >= 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "--threshold {threshold}: use a finite number, 0 or more"
+        )));
+    }
+    if let Some(l) = min_length
+        && !(l.is_finite() && l > 0.0)
+    {
+        return Err(Error::InvalidInput(format!(
+            "--min-length {l}: use a positive length in mesh units"
+        )));
+    }
+    if !(0.0..=180.0).contains(&crease_angle) {
+        return Err(Error::InvalidInput(format!(
+            "--crease-angle {crease_angle}: use 0 to 180 degrees"
+        )));
+    }
+    Ok(())
 }

@@ -35,19 +35,14 @@ impl DetailArgs {
 
 fn detail(a: &DetailArgs) -> Result<i32> {
     let params = a.solve.params(crate::applications::DETAIL_SHAPE_WEIGHT)?;
-    if !a.strength.is_finite() {
-        return Err(crate::error::Error::InvalidInput(format!(
-            "--strength {}: must be a finite number",
-            a.strength
-        )));
-    }
+    check_strength(a.strength)?;
     check_outputs(&[&a.source, &a.target], &[("--out", &a.out, OutKind::Mesh)])?;
     let source = load_usable(&a.source)?;
     let target = load_usable(&a.target)?;
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);
     let t = std::time::Instant::now();
-    let r = crate::applications::transfer_detail(
+    let r = detail_mesh(
         &source,
         &target,
         a.strength,
@@ -77,4 +72,30 @@ fn detail(a: &DetailArgs) -> Result<i32> {
         r.mesh.num_vertices()
     );
     Ok(0)
+}
+
+/// Refuse a `--strength` that is not a finite number.
+fn check_strength(strength: f32) -> Result<()> {
+    if !strength.is_finite() {
+        return Err(crate::error::Error::InvalidInput(format!(
+            "--strength {strength}: must be a finite number"
+        )));
+    }
+    Ok(())
+}
+
+/// `meshmatch detail` on meshes in memory (checked as [`load_usable`] checks files): the target
+/// displaced at the working resolution, and the displacement statistics. The CLI and the
+/// Python package call it.
+pub fn detail_mesh(
+    source: &crate::mesh::TriMesh,
+    target: &crate::mesh::TriMesh,
+    strength: f32,
+    params: &crate::meshmatch::TransferParams,
+    sink: &dyn Fn(crate::work::Event),
+    cancel: &CancelToken,
+) -> Result<crate::applications::DetailResult> {
+    check_strength(strength)?;
+    params.validate()?;
+    crate::applications::transfer_detail(source, target, strength, params, sink, cancel)
 }

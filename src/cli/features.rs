@@ -49,8 +49,7 @@ impl FeaturesArgs {
         };
         mertens::check_feature_name(&self.feature, params.curvature_radii.len())?;
         let t = std::time::Instant::now();
-        let fs = mertens::features(&mesh.positions, &mesh.faces, &params, &CancelToken::new())?;
-        let field = mertens::feature_field(&fs, &self.feature)?;
+        let field = feature_values(&mesh, &self.feature, &params, &CancelToken::new())?;
         let (lo, hi) = field
             .iter()
             .filter(|x| x.is_finite())
@@ -91,4 +90,19 @@ impl FeaturesArgs {
         eprintln!("wrote {}", self.out.display());
         Ok(0)
     }
+}
+
+/// One feature of `meshmatch features` (`ao`, `height`, `curvature[:i]`, `normal-x|y|z`,
+/// `occlusion-x|y|z`) per vertex of a mesh in memory, as the system computes it (not stretched
+/// to grey). The CLI and the Python package call it.
+pub fn feature_values(
+    mesh: &crate::mesh::TriMesh,
+    feature: &str,
+    params: &Params,
+    cancel: &CancelToken,
+) -> Result<Vec<f32>> {
+    check_rays(params.rays)?;
+    mertens::check_feature_name(feature, params.curvature_radii.len())?;
+    let fs = mertens::features(&mesh.positions, &mesh.faces, params, cancel)?;
+    mertens::feature_field(&fs, feature)
 }

@@ -3,25 +3,25 @@
 //! One file per subcommand, each with an `Args` struct (clap) and `run(&self) -> Result<i32>`.
 //! A new subcommand is its file plus one line in the `commands!` list below.
 
-mod bake;
+pub mod bake;
 mod batch;
 mod bench;
-mod common;
-mod complete;
+pub mod common;
+pub mod complete;
 mod convert;
-mod curves;
+pub mod curves;
 mod demo;
-mod detail;
-mod features;
+pub mod detail;
+pub mod features;
 mod info;
 mod map;
-mod quilt;
+pub mod quilt;
 #[cfg(feature = "gui")]
 mod render;
-mod synth;
-mod transfer;
-mod update;
-mod weather;
+pub mod synth;
+pub mod transfer;
+pub mod update;
+pub mod weather;
 
 use std::io::Write;
 

@@ -56,7 +56,8 @@ pub struct QuiltArgs {
     pub no_lattice: bool,
 }
 
-fn positive(name: &str, v: Option<f32>) -> Result<()> {
+/// Refuse a length flag (`--swatch-size`, `--thickness`) that is given but not positive and finite.
+pub fn positive(name: &str, v: Option<f32>) -> Result<()> {
     match v {
         Some(x) if !(x.is_finite() && x > 0.0) => Err(Error::InvalidInput(format!(
             "--{name} {x}: use a positive length in base units"
@@ -65,8 +66,9 @@ fn positive(name: &str, v: Option<f32>) -> Result<()> {
     }
 }
 
-/// A built-in swatch by name, or a swatch mesh file with `up` as its up axis.
-fn load_any_swatch(spec: &str, up: &str, seed: u64) -> Result<Swatch> {
+/// A built-in swatch by name, or a swatch mesh file with `up` as its up axis (the Python package
+/// takes swatches the same way).
+pub fn load_any_swatch(spec: &str, up: &str, seed: u64) -> Result<Swatch> {
     let up = match up.to_ascii_lowercase().as_str() {
         "x" => Axis::X,
         "y" => Axis::Y,

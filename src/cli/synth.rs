@@ -110,8 +110,26 @@ const MAX_PYRAMID_LEVELS: usize = 12;
 /// The narrowest `--exemplar-width`.
 const MIN_EXEMPLAR_WIDTH: u32 = 8;
 
-fn synth(a: &SynthArgs) -> Result<i32> {
-    use crate::synthesis::{Orientation, Search, SynthParams};
+/// What [`check`] decided from the flags.
+#[derive(Clone, Copy, Debug)]
+pub struct Plan {
+    /// The orientation field (`features` when aligning features).
+    pub orientation: crate::synthesis::Orientation,
+    /// The neighbourhood search.
+    pub search: crate::synthesis::Search,
+    /// The method (`optimize` when aligning features).
+    pub method: crate::synthesis::Method,
+    /// Synthesise on the texels of the target's UV layout.
+    pub texture_space: bool,
+    /// The output carries a texture (`--out` ends in .glb, .gltf or .obj).
+    pub textured_out: bool,
+}
+
+/// Check `synth`'s flags against each other and their ranges before any file is read (the
+/// Python package checks its keyword arguments through the same function), and decide what
+/// runs.
+pub fn check(a: &SynthArgs) -> Result<Plan> {
+    use crate::synthesis::{Orientation, Search};
     let orientation: Orientation = a.orientation.parse().map_err(|_| {
         Error::InvalidInput(format!(
             "--orientation {}: use auto, random, up, relax2, relax4 or features",
@@ -179,17 +197,6 @@ fn synth(a: &SynthArgs) -> Result<i32> {
             a.vertex_budget
         )));
     }
-    let inputs = input_paths(&[
-        Some(&a.exemplar),
-        Some(&a.target),
-        a.mask.as_ref(),
-        a.feature_mask.as_ref(),
-    ]);
-    let mut outputs = vec![("--out", a.out.as_path(), OutKind::Mesh)];
-    if let Some(d) = &a.out_dense {
-        outputs.push(("--out-dense", d.as_path(), OutKind::Mesh));
-    }
-    check_outputs(&inputs, &outputs)?;
     let textured_out = matches!(
         a.out
             .extension()
@@ -239,14 +246,86 @@ fn synth(a: &SynthArgs) -> Result<i32> {
             a.texel_budget
         )));
     }
+    Ok(Plan {
+        orientation,
+        search,
+        method,
+        texture_space,
+        textured_out,
+    })
+}
+
+fn synth(a: &SynthArgs) -> Result<i32> {
+    let plan = check(a)?;
+    let inputs = input_paths(&[
+        Some(&a.exemplar),
+        Some(&a.target),
+        a.mask.as_ref(),
+        a.feature_mask.as_ref(),
+    ]);
+    let mut outputs = vec![("--out", a.out.as_path(), OutKind::Mesh)];
+    if let Some(d) = &a.out_dense {
+        outputs.push(("--out-dense", d.as_path(), OutKind::Mesh));
+    }
+    check_outputs(&inputs, &outputs)?;
     let (tex, alpha) = io::load_texture_with_alpha(&a.exemplar)?;
-    let mut exemplar = tex.image;
+    let (exemplar, alpha) = prepare_exemplar(a, tex.image, alpha, &a.exemplar)?;
+    let target = load_usable(&a.target)?;
+    // The mask file numbers vertices as the file does.
+    let mask = match &a.mask {
+        Some(p) => Some(read_mask(p, target.file_vertex_count)?),
+        None => None,
+    };
+    let feature_mask = match &a.feature_mask {
+        Some(p) => Some(image::DynamicImage::ImageRgb8(io::load_texture(p)?.image).to_luma8()),
+        None => None,
+    };
+    let bar = progress_bar();
+    let sink = |e: crate::work::Event| bar_sink(&bar, e);
+    let s = synthesize(
+        a,
+        &plan,
+        &exemplar,
+        alpha.as_ref(),
+        &target,
+        mask.as_deref(),
+        feature_mask.as_ref(),
+        &sink,
+        &CancelToken::new(),
+    )?;
+    bar.finish_and_clear();
+    io::save(&s.mesh, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
+    if let (Some(d), Some(dense)) = (&a.out_dense, &s.dense) {
+        io::save(dense, d)?;
+        eprintln!("wrote {}", d.display());
+    }
+    Ok(0)
+}
+
+/// A synthesis computed in memory ([`synthesize`]).
+pub struct Synthesized {
+    /// What `--out` writes: the target with a baked texture (textured outputs), or the
+    /// uniform-density synthesized mesh with vertex colours (or displaced).
+    pub mesh: crate::mesh::TriMesh,
+    /// The uniform-density synthesized mesh (surface synthesis; `None` in texture space).
+    pub dense: Option<crate::mesh::TriMesh>,
+}
+
+/// The exemplar as `synth` uses it: refused when transparent everywhere (`name` names it), shrunk
+/// to `--exemplar-width`.
+pub fn prepare_exemplar(
+    a: &SynthArgs,
+    mut exemplar: image::RgbImage,
+    alpha: Option<image::GrayImage>,
+    name: &std::path::Path,
+) -> Result<(image::RgbImage, Option<image::GrayImage>)> {
     if let Some(al) = &alpha {
         let clear = al.pixels().filter(|p| p.0[0] < 128).count();
         if clear as u64 == al.width() as u64 * al.height() as u64 {
             return Err(Error::InvalidInput(format!(
                 "{}: the exemplar is transparent everywhere: nothing to synthesize from",
-                a.exemplar.display()
+                name.display()
             )));
         }
         eprintln!(
@@ -262,15 +341,61 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         }
         exemplar = crate::synthesis::wei_levoy::shrink_exemplar(exemplar, w);
     }
-    let target = load_usable(&a.target)?;
-    if texture_space {
-        return synth_texture(a, &exemplar, alpha.as_ref(), &target, orientation, search);
+    Ok((exemplar, alpha))
+}
+
+/// `meshmatch synth` on an exemplar and a mesh in memory, as [`check`] planned it from `a` (whose
+/// paths are not read): `file_mask` flags the target's file vertices to synthesise (`--mask`),
+/// `feature_mask` is `--feature-mask`'s image. The CLI and the Python package call it.
+#[allow(clippy::too_many_arguments)]
+pub fn synthesize(
+    a: &SynthArgs,
+    plan: &Plan,
+    exemplar: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+    target: &crate::mesh::TriMesh,
+    file_mask: Option<&[bool]>,
+    feature_mask: Option<&image::GrayImage>,
+    sink: &dyn Fn(crate::work::Event),
+    cancel: &CancelToken,
+) -> Result<Synthesized> {
+    use crate::synthesis::{Orientation, SynthParams};
+    let Plan {
+        orientation,
+        search,
+        method,
+        texture_space,
+        textured_out,
+    } = *plan;
+    let optimise = method == crate::synthesis::Method::Optimize;
+    if let Some(m) = file_mask
+        && m.len() != target.file_vertex_count
+    {
+        return Err(Error::InvalidInput(format!(
+            "the mask has {} entries but the target has {} vertices",
+            m.len(),
+            target.file_vertex_count
+        )));
     }
+    if texture_space {
+        let mesh = synth_texture(
+            a,
+            exemplar,
+            alpha,
+            target,
+            orientation,
+            search,
+            sink,
+            cancel,
+        )?;
+        return Ok(Synthesized { mesh, dense: None });
+    }
+    let mut exemplar = exemplar.clone();
     if a.exemplar_width.is_none() {
         let min = (4u32 << (a.levels.clamp(1, 8) - 1)).max(8);
         let (fitted, note) = crate::synthesis::wei_levoy::fit_exemplar_to_budget(
             exemplar,
-            &target,
+            target,
             a.scale,
             a.vertex_budget,
             min,
@@ -281,23 +406,12 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         }
     }
     let alpha = alpha.map(|al| {
-        crate::synthesis::wei_levoy::resize_alpha(al, exemplar.width(), exemplar.height())
+        crate::synthesis::wei_levoy::resize_alpha(al.clone(), exemplar.width(), exemplar.height())
     });
     // The mask file numbers vertices as the file does; the synthesis takes one flag per vertex
     // of the loaded mesh (repair may have dropped unreferenced file vertices).
-    let mask = match &a.mask {
-        Some(p) => {
-            let file_mask = read_mask(p, target.file_vertex_count)?;
-            Some(
-                target
-                    .file_index
-                    .iter()
-                    .map(|&f| file_mask[f as usize])
-                    .collect::<Vec<bool>>(),
-            )
-        }
-        None => None,
-    };
+    let mask: Option<Vec<bool>> =
+        file_mask.map(|m| target.file_index.iter().map(|&f| m[f as usize]).collect());
     let params = SynthParams {
         scale: a.scale,
         orientation,
@@ -307,12 +421,7 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         displace: a.displace,
         ..SynthParams::default()
     };
-    let feature_mask = match &a.feature_mask {
-        Some(p) => Some(image::DynamicImage::ImageRgb8(io::load_texture(p)?.image).to_luma8()),
-        None => None,
-    };
     let t = std::time::Instant::now();
-    let cancel = CancelToken::new();
     let r = if orientation == Orientation::Features {
         // Through feature-aligned texturing: the curves are needed to align features.
         let fa = crate::synthesis::feature_aligned::Params {
@@ -322,32 +431,27 @@ fn synth(a: &SynthArgs) -> Result<i32> {
             ..Default::default()
         };
         let input = crate::synthesis::feature_aligned::Input {
-            target: &target,
+            target,
             exemplar: &exemplar,
             curves: None,
             alpha: alpha.as_ref(),
-            feature_mask: feature_mask.as_ref(),
+            feature_mask,
         };
         if let Some(m) = mask.as_deref() {
             // a mask keeps colours: the plain field-driven synthesis honours it
-            let field = crate::synthesis::wei_levoy::feature_field(&target, &cancel)?;
+            let field = crate::synthesis::wei_levoy::feature_field(target, cancel)?;
             crate::synthesis::wei_levoy::synthesize_with_alpha(
                 &exemplar,
                 alpha.as_ref(),
-                &target,
+                target,
                 Some(m),
                 Some(&field),
                 &params,
-                &crate::work::no_events,
-                &cancel,
+                sink,
+                cancel,
             )?
         } else {
-            let out = crate::synthesis::feature_aligned::run(
-                &input,
-                &fa,
-                &crate::work::no_events,
-                &cancel,
-            )?;
+            let out = crate::synthesis::feature_aligned::run(&input, &fa, sink, cancel)?;
             eprintln!(
                 "{} salient curves (curves {:.2} s, field {:.2} s)",
                 out.curves.len(),
@@ -380,16 +484,15 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     } else {
         let input = crate::synthesis::wei_levoy::Input {
             exemplar: &exemplar,
-            target: &target,
+            target,
             mask: mask.as_deref(),
             alpha: alpha.as_ref(),
         };
-        let mut r =
-            crate::synthesis::wei_levoy::run(&input, &params, &crate::work::no_events, &cancel)?;
+        let mut r = crate::synthesis::wei_levoy::run(&input, &params, sink, cancel)?;
         if optimise {
             let rep = crate::synthesis::texture_optimization::optimize_result(
                 &mut r,
-                &target,
+                target,
                 &exemplar,
                 alpha.as_ref(),
                 None,
@@ -397,8 +500,8 @@ fn synth(a: &SynthArgs) -> Result<i32> {
                     seed: a.seed,
                     ..Default::default()
                 },
-                &crate::work::no_events,
-                &cancel,
+                sink,
+                cancel,
             )?;
             print_optimization(&rep);
         }
@@ -416,27 +519,21 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         method.as_str(),
         r.level_energy.first().copied().unwrap_or(0.0)
     );
-    let ext = a
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .unwrap_or("")
-        .to_ascii_lowercase();
     // A texture on the target, unless the geometry is the result (displacement).
-    if !a.displace && matches!(ext.as_str(), "glb" | "gltf" | "obj") {
+    let mesh = if !a.displace && textured_out {
         let colors = r
             .mesh
             .colors
             .as_ref()
             .ok_or_else(|| Error::InvalidInput("synthesis gave no colours".into()))?;
         let (baked, atlas) = crate::geometry::bake_onto(
-            &target,
+            target,
             &r.mesh,
             colors,
             a.texture_size,
             false,
             &|_| {},
-            &CancelToken::new(),
+            cancel,
         )?;
         if let Some(at) = atlas {
             eprintln!(
@@ -450,19 +547,18 @@ fn synth(a: &SynthArgs) -> Result<i32> {
             a.texture_size,
             baked.num_vertices()
         );
-        io::save(&baked, &a.out)?;
+        baked
     } else {
-        io::save(&r.mesh, &a.out)?;
-    }
-    eprintln!("wrote {}", a.out.display());
-    if let Some(d) = &a.out_dense {
-        io::save(&r.mesh, d)?;
-        eprintln!("wrote {}", d.display());
-    }
-    Ok(0)
+        r.mesh.clone()
+    };
+    Ok(Synthesized {
+        mesh,
+        dense: Some(r.mesh),
+    })
 }
 
 /// `synth --space texture`: the synthesis on the texels of the target's UV layout.
+#[allow(clippy::too_many_arguments)]
 fn synth_texture(
     a: &SynthArgs,
     exemplar: &image::RgbImage,
@@ -470,7 +566,9 @@ fn synth_texture(
     target: &crate::mesh::TriMesh,
     orientation: crate::synthesis::Orientation,
     search: crate::synthesis::Search,
-) -> Result<i32> {
+    sink: &dyn Fn(crate::work::Event),
+    cancel: &CancelToken,
+) -> Result<crate::mesh::TriMesh> {
     use crate::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
     let params = TextureParams {
         synth: crate::synthesis::SynthParams {
@@ -492,10 +590,7 @@ fn synth_texture(
         field: None,
     };
     let t = std::time::Instant::now();
-    let bar = progress_bar();
-    let sink = |e: crate::work::Event| bar_sink(&bar, e);
-    let r = synthesize_texture(&input, &params, &sink, &CancelToken::new())?;
-    bar.finish_and_clear();
+    let r = synthesize_texture(&input, &params, sink, cancel)?;
     print_anisotropy(r.anisotropy, r.orientation_used);
     if let (Some(at), Some(why)) = (&r.atlas, &r.atlas_reason) {
         eprintln!(
@@ -534,9 +629,7 @@ fn synth_texture(
         a.texture_size,
         a.texture_size
     );
-    io::save(&r.mesh, &a.out)?;
-    eprintln!("wrote {}", a.out.display());
-    Ok(0)
+    Ok(r.mesh)
 }
 
 /// What `auto` measured and chose, on stderr.

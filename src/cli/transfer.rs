@@ -87,7 +87,7 @@ impl TransferArgs {
 }
 
 fn transfer(a: &TransferArgs) -> Result<i32> {
-    use crate::meshmatch::{self as mm, TransferParams};
+    use crate::meshmatch::TransferParams;
     let params = TransferParams {
         vertices: a.vertices,
         levels: a.levels,
@@ -129,23 +129,26 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     };
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);
-    let cancel = CancelToken::new();
-    let t = std::time::Instant::now();
-    let (prepared_source, prepared_target) =
-        mm::prepare_pair(&source, &params, &target, &params, &sink, &cancel)?;
-    let result = mm::solve(
-        &prepared_source,
-        &prepared_target,
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let t = transfer_meshes(
+        &source,
+        &target,
         &corr,
         &params,
+        &Delivery {
+            ext,
+            texture_size,
+            full_resolution: !a.working_resolution,
+            dense: a.out_dense.is_some(),
+        },
         &sink,
-        &cancel,
+        &CancelToken::new(),
     )?;
     bar.finish_and_clear();
+    let result = &t.result;
     eprintln!(
         "transfer finished in {:.2} s (energy {:.4})",
-        t.elapsed().as_secs_f64(),
-        result.energy
+        t.solve_seconds, result.energy
     );
     for (name, s) in &result.timings {
         eprintln!("  {name:<12} {s:8.3} s");
@@ -155,51 +158,29 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     for n in &result.notices {
         eprintln!("note: {n}");
     }
-    eprintln!("{}", structure_line(params.structure, &result));
-
-    // Deliver on the target's own vertices (file order), or baked into its UV layout.
-    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
-    let t = std::time::Instant::now();
-    let full = if a.working_resolution {
-        None
-    } else {
-        mm::Resampler::new(&prepared_source, &prepared_target, &result.nnf, &cancel)?
-    };
-    let out_mesh = mm::deliver(
-        &target,
-        &mm::BakeLayout::of(&prepared_target),
-        &result.working_signal,
-        &result.file_signal,
-        ext,
-        texture_size,
-        full.as_ref(),
-        &cancel,
-    )?;
+    eprintln!("{}", structure_line(params.structure, result));
     if !ext.eq_ignore_ascii_case("ply") {
         eprintln!(
             "  {:<12} {:8.3} s ({} texels per side{})",
             "texture",
-            t.elapsed().as_secs_f64(),
+            t.deliver_seconds,
             texture_size,
-            if full.is_some() {
-                ", source read at full resolution"
-            } else {
+            if a.working_resolution {
                 ", working vertices interpolated"
+            } else {
+                ", source read at full resolution"
             }
         );
     }
-    if let Some(line) = out_mesh.atlas_line(texture_size) {
+    if let Some(line) = t.delivered.atlas_line(texture_size) {
         eprintln!("{line}");
     }
+    let out_mesh = &t.delivered;
     io::save(&out_mesh.mesh, &a.out)?;
     eprintln!("wrote {}", a.out.display());
-    if let Some(dense) = &a.out_dense {
-        let d = match &full {
-            Some(r) => mm::deliver_dense(prepared_target.working_mesh(), &r.vertex_signal()),
-            None => mm::deliver_dense(prepared_target.working_mesh(), &result.working_signal),
-        };
-        io::save(&d, dense)?;
-        eprintln!("wrote {}", dense.display());
+    if let (Some(path), Some(d)) = (&a.out_dense, &t.dense) {
+        io::save(d, path)?;
+        eprintln!("wrote {}", path.display());
     }
     if let Some(nnf) = &a.nnf_out {
         let mut csv = String::from("target_vertex,source_vertex,rotation_deg\n");
@@ -210,6 +191,93 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         eprintln!("wrote {}", nnf.display());
     }
     Ok(0)
+}
+
+/// How a transfer's result is delivered ([`transfer_meshes`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Delivery<'a> {
+    /// The output's extension: `ply` gives colours on the target's vertices; `glb`/`gltf`/`obj`
+    /// also bake a texture into its UVs (or a generated atlas), as `mm::deliver` does.
+    pub ext: &'a str,
+    /// Texels per side of a baked texture.
+    pub texture_size: u32,
+    /// Read the source at full resolution through the solution (`false`: interpolate the
+    /// working vertices' colours, `--working-resolution`).
+    pub full_resolution: bool,
+    /// Also make the dense working-resolution target (`--out-dense`).
+    pub dense: bool,
+}
+
+/// A transfer computed in memory ([`transfer_meshes`]).
+pub struct Transferred {
+    /// The solve's result (energy, timings, nearest-neighbour field).
+    pub result: crate::meshmatch::TransferResult,
+    /// The target with the result, as `--out` writes it.
+    pub delivered: crate::meshmatch::Delivered,
+    /// The dense working-resolution target with its colours, when asked for.
+    pub dense: Option<crate::mesh::TriMesh>,
+    /// Seconds of preparation and solve.
+    pub solve_seconds: f64,
+    /// Seconds of delivery (the texture bake).
+    pub deliver_seconds: f64,
+}
+
+/// `meshmatch transfer` on meshes in memory (checked as [`load_usable`] checks files): prepare,
+/// solve and deliver as `delivery` says. The CLI and the Python package call it.
+#[allow(clippy::too_many_arguments)]
+pub fn transfer_meshes(
+    source: &crate::mesh::TriMesh,
+    target: &crate::mesh::TriMesh,
+    corr: &[crate::correspondence::Correspondence],
+    params: &crate::meshmatch::TransferParams,
+    delivery: &Delivery,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<Transferred> {
+    use crate::meshmatch as mm;
+    params.validate()?;
+    check_texture_size(delivery.texture_size)?;
+    let t = std::time::Instant::now();
+    let (prepared_source, prepared_target) =
+        mm::prepare_pair(source, params, target, params, sink, cancel)?;
+    let result = mm::solve(
+        &prepared_source,
+        &prepared_target,
+        corr,
+        params,
+        sink,
+        cancel,
+    )?;
+    let solve_seconds = t.elapsed().as_secs_f64();
+    // Deliver on the target's own vertices (file order), or baked into its UV layout.
+    let t = std::time::Instant::now();
+    let full = if delivery.full_resolution {
+        mm::Resampler::new(&prepared_source, &prepared_target, &result.nnf, cancel)?
+    } else {
+        None
+    };
+    let delivered = mm::deliver(
+        target,
+        &mm::BakeLayout::of(&prepared_target),
+        &result.working_signal,
+        &result.file_signal,
+        delivery.ext,
+        delivery.texture_size,
+        full.as_ref(),
+        cancel,
+    )?;
+    let deliver_seconds = t.elapsed().as_secs_f64();
+    let dense = delivery.dense.then(|| match &full {
+        Some(r) => mm::deliver_dense(prepared_target.working_mesh(), &r.vertex_signal()),
+        None => mm::deliver_dense(prepared_target.working_mesh(), &result.working_signal),
+    });
+    Ok(Transferred {
+        result,
+        delivered,
+        dense,
+        solve_seconds,
+        deliver_seconds,
+    })
 }
 
 /// The stderr line saying which structure value the transfer used and why.
@@ -235,7 +303,7 @@ pub(crate) fn structure_line(asked: Option<f32>, r: &crate::meshmatch::TransferR
 pub struct StructureArg(pub Option<f32>);
 
 /// `--structure`: `auto` or a number from 0 to 1.
-pub(crate) fn parse_structure(s: &str) -> std::result::Result<StructureArg, String> {
+pub fn parse_structure(s: &str) -> std::result::Result<StructureArg, String> {
     if s.eq_ignore_ascii_case("auto") {
         return Ok(StructureArg(None));
     }

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use super::common::*;
 use crate::error::{Error, Result};
-use crate::mesh::io;
+use crate::mesh::{TriMesh, io};
 use crate::work::{CancelToken, Event};
 
 /// Arguments of `meshmatch update`.
@@ -42,17 +42,20 @@ fn update(a: &UpdateArgs) -> Result<i32> {
     }
     check_outputs(&[&a.old, &a.new], &[("--out", &a.out, OutKind::Mesh)])?;
     let old = load_usable(&a.old)?;
-    if old.vertex_signal().is_none() {
-        return Err(Error::InvalidInput(format!(
-            "{}: the old mesh carries no texture or vertex colours",
-            a.old.display()
-        )));
-    }
     let new = load_usable(&a.new)?;
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);
     let t = std::time::Instant::now();
-    let r = crate::applications::update_texture(&old, &new, &params, &sink, &CancelToken::new())?;
+    let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let (out, r) = update_mesh(
+        &old,
+        &new,
+        &params,
+        ext,
+        a.texture_size,
+        &sink,
+        &CancelToken::new(),
+    )?;
     bar.finish_and_clear();
     eprintln!(
         "updated: {} of {} vertices changed, {:.2} s (energy {:.4})",
@@ -61,19 +64,49 @@ fn update(a: &UpdateArgs) -> Result<i32> {
         t.elapsed().as_secs_f64(),
         r.energy
     );
+    io::save(&out, &a.out)?;
+    eprintln!("wrote {}", a.out.display());
+    Ok(0)
+}
+
+/// `meshmatch update` on meshes in memory (checked as [`load_usable`] checks files): the new
+/// mesh with the result on its vertices (`ext` `ply`), or also baked into a texture of
+/// `texture_size` (default: the old mesh's texture's size, else 2048) for `glb`/`gltf`/`obj`;
+/// and the update's report. The CLI and the Python package call it.
+pub fn update_mesh(
+    old: &TriMesh,
+    new: &TriMesh,
+    params: &crate::meshmatch::TransferParams,
+    ext: &str,
+    texture_size: Option<u32>,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<(TriMesh, crate::applications::UpdateResult)> {
+    params.validate()?;
+    if let Some(size) = texture_size {
+        check_texture_size(size)?;
+    }
+    if old.vertex_signal().is_none() {
+        return Err(Error::InvalidInput(format!(
+            "{}: the old mesh carries no texture or vertex colours",
+            old.path
+                .as_ref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_else(|| "old".into())
+        )));
+    }
+    let r = crate::applications::update_texture(old, new, params, sink, cancel)?;
     let colors: Vec<[f32; 3]> = new
         .file_index
         .iter()
         .map(|&f| r.colors[f as usize])
         .collect();
     let out = with_result(
-        &new,
+        new,
         colors,
         r.full.as_ref(),
-        &a.out,
-        texture_side(a.texture_size, &old),
+        std::path::Path::new(&format!("out.{ext}")),
+        texture_side(texture_size, old),
     )?;
-    io::save(&out, &a.out)?;
-    eprintln!("wrote {}", a.out.display());
-    Ok(0)
+    Ok((out, r))
 }

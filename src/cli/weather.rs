@@ -65,21 +65,7 @@ impl WeatherArgs {
         let a = self;
         let method: Method = a.method.parse()?;
         let up: Up = a.up.parse()?;
-        check_texture_size(a.texture_size)?;
-        check_rays(a.rays)?;
-        if !(1..=MAX_CLUSTERS).contains(&a.clusters) {
-            return Err(Error::InvalidInput(format!(
-                "--clusters {}: use 1 to {MAX_CLUSTERS}",
-                a.clusters
-            )));
-        }
-        let max_v = crate::mesh::MAX_WORKING_VERTICES;
-        if a.vertices > max_v {
-            return Err(Error::InvalidInput(format!(
-                "--vertices {}: the working resolution is at most {max_v} vertices",
-                a.vertices
-            )));
-        }
+        check_weather(a.vertices, a.rays, a.clusters, a.texture_size)?;
         let inputs = input_paths(&[
             Some(&a.source),
             Some(&a.target),
@@ -109,13 +95,19 @@ impl WeatherArgs {
         let bar = progress_bar();
         let sink = |e| bar_sink(&bar, e);
         let t = std::time::Instant::now();
-        let input = mertens::Input {
-            source: &source,
-            target: &target,
-            source_mask: mask.as_deref(),
-        };
-        let out = mertens::run(&input, &params, &sink, &CancelToken::new())?;
+        let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
+        let w = weather_meshes(
+            &source,
+            &target,
+            mask.as_deref(),
+            &params,
+            ext,
+            a.texture_size,
+            &sink,
+            &CancelToken::new(),
+        )?;
         bar.finish_and_clear();
+        let out = &w.output;
         eprintln!(
             "weather finished in {:.2} s ({} source and {} target vertices, {} training)",
             t.elapsed().as_secs_f64(),
@@ -128,18 +120,7 @@ impl WeatherArgs {
         for (name, s) in &out.timings {
             eprintln!("  {name:<12} {s:8.3} s");
         }
-        let ext = a.out.extension().and_then(|e| e.to_str()).unwrap_or("");
-        let layout = crate::meshmatch::BakeLayout::of_refined(&target, &out.target);
-        let out_mesh = crate::meshmatch::deliver(
-            &target,
-            &layout,
-            &out.colors,
-            &out.file_colors,
-            ext,
-            a.texture_size,
-            None,
-            &crate::work::CancelToken::new(),
-        )?;
+        let out_mesh = &w.delivered;
         if let Some(line) = out_mesh.atlas_line(a.texture_size) {
             eprintln!("{line}");
         }
@@ -152,4 +133,89 @@ impl WeatherArgs {
         }
         Ok(0)
     }
+}
+
+/// Refuse `weather` settings outside their ranges, in the CLI's words.
+pub fn check_weather(
+    vertices: usize,
+    rays: usize,
+    clusters: usize,
+    texture_size: u32,
+) -> Result<()> {
+    check_texture_size(texture_size)?;
+    check_rays(rays)?;
+    if !(1..=MAX_CLUSTERS).contains(&clusters) {
+        return Err(Error::InvalidInput(format!(
+            "--clusters {clusters}: use 1 to {MAX_CLUSTERS}"
+        )));
+    }
+    let max_v = crate::mesh::MAX_WORKING_VERTICES;
+    if vertices > max_v {
+        return Err(Error::InvalidInput(format!(
+            "--vertices {vertices}: the working resolution is at most {max_v} vertices"
+        )));
+    }
+    Ok(())
+}
+
+/// A weathering computed in memory ([`weather_meshes`]).
+pub struct Weathered {
+    /// The system's output (dense target, colours, report, timings).
+    pub output: mertens::Output,
+    /// The target with the result, as `--out` writes it.
+    pub delivered: crate::meshmatch::Delivered,
+}
+
+/// `meshmatch weather` on meshes in memory (checked as [`load_usable`] checks files): the
+/// target with the result on its vertices (`ext` `ply`), or also baked into a texture of
+/// `texture_size` for `glb`/`gltf`/`obj`. The CLI and the Python package call it.
+#[allow(clippy::too_many_arguments)]
+pub fn weather_meshes(
+    source: &crate::mesh::TriMesh,
+    target: &crate::mesh::TriMesh,
+    source_mask: Option<&[bool]>,
+    params: &Params,
+    ext: &str,
+    texture_size: u32,
+    sink: &dyn Fn(crate::work::Event),
+    cancel: &CancelToken,
+) -> Result<Weathered> {
+    check_weather(
+        params.working_vertices,
+        params.rays,
+        params.clusters,
+        texture_size,
+    )?;
+    if source.vertex_signal().is_none() {
+        return Err(Error::InvalidInput(
+            "the source carries no texture or vertex colours to learn from".into(),
+        ));
+    }
+    if let Some(m) = source_mask
+        && m.len() != source.file_vertex_count
+    {
+        return Err(Error::InvalidInput(format!(
+            "the mask has {} entries but the source has {} vertices",
+            m.len(),
+            source.file_vertex_count
+        )));
+    }
+    let input = mertens::Input {
+        source,
+        target,
+        source_mask,
+    };
+    let output = mertens::run(&input, params, sink, cancel)?;
+    let layout = crate::meshmatch::BakeLayout::of_refined(target, &output.target);
+    let delivered = crate::meshmatch::deliver(
+        target,
+        &layout,
+        &output.colors,
+        &output.file_colors,
+        ext,
+        texture_size,
+        None,
+        cancel,
+    )?;
+    Ok(Weathered { output, delivered })
 }

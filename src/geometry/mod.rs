@@ -59,8 +59,11 @@ mod uv_atlas;
 mod uv_bake;
 
 pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, vertex_normals, weld};
+/// The renderer's picking shares the closest-point query's barycentric tolerance.
+#[cfg(feature = "gui")]
+pub(crate) use bvh::BARY_EPS;
 pub use bvh::TriangleBvh;
-pub(crate) use bvh::{BARY_EPS, closest_on_triangle};
+pub(crate) use bvh::closest_on_triangle;
 pub use crest_lines::{Curve, CurveKind, CurveParams, salient_curves};
 pub use curvature::{PrincipalCurvatures, principal_curvatures};
 pub use curve_distance::{Polyline, distance_to_polylines};

@@ -1,0 +1,799 @@
+//! One Python function per system, each calling the CLI subcommand's in-memory entry point with
+//! the CLI's parameters and defaults (keyword arguments named as the flags, `-` as `_`).
+
+use std::path::PathBuf;
+
+use meshmatch::cli;
+use meshmatch::correspondence::{Correspondence, CorrespondenceFile};
+use meshmatch::mesh::TriMesh;
+use meshmatch::meshmatch::TransferParams;
+use meshmatch::synthesis::{mertens, quilting};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::job::{self, CancelToken};
+use crate::mesh::{Mesh, usable};
+use crate::{OrPy, refuse};
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(transfer, m)?)?;
+    m.add_function(wrap_pyfunction!(complete, m)?)?;
+    m.add_function(wrap_pyfunction!(update, m)?)?;
+    m.add_function(wrap_pyfunction!(detail, m)?)?;
+    m.add_function(wrap_pyfunction!(synthesize, m)?)?;
+    m.add_function(wrap_pyfunction!(weather, m)?)?;
+    m.add_function(wrap_pyfunction!(quilt, m)?)?;
+    m.add_function(wrap_pyfunction!(curves, m)?)?;
+    m.add_function(wrap_pyfunction!(features, m)?)?;
+    m.add_function(wrap_pyfunction!(bake, m)?)?;
+    Ok(())
+}
+
+/// A result mesh for Python: no file of its own.
+fn result(mut m: TriMesh) -> Mesh {
+    m.path = None;
+    Mesh::wrap(m)
+}
+
+/// The extension whose delivery a textured or untextured result is (`deliver`'s `ext`):
+/// `textured` None = when the mesh has UVs.
+fn ext_for(textured: Option<bool>, mesh: &TriMesh) -> &'static str {
+    if textured.unwrap_or(mesh.uvs.is_some()) {
+        "obj"
+    } else {
+        "ply"
+    }
+}
+
+/// Solver settings shared by `transfer`, `complete`, `update` and `detail`, checked as the CLI
+/// checks its flags.
+#[allow(clippy::too_many_arguments)]
+fn solve_params(
+    vertices: usize,
+    levels: Option<usize>,
+    iterations: usize,
+    tolerance: f32,
+    seed: u64,
+    shape_weight: f32,
+    sharpen: bool,
+) -> PyResult<TransferParams> {
+    cli::common::VERTICES
+        .check("--vertices", vertices)
+        .or_py()?;
+    if let Some(l) = levels {
+        cli::common::LEVELS.check("--levels", l).or_py()?;
+    }
+    cli::common::ITERATIONS
+        .check("--iterations", iterations)
+        .or_py()?;
+    let p = TransferParams {
+        vertices,
+        levels,
+        iterations,
+        tolerance,
+        seed,
+        shape_weight,
+        sharpen,
+        ..TransferParams::default()
+    };
+    p.validate().or_py()?;
+    Ok(p)
+}
+
+/// Per-vertex flags from a mask argument: booleans, one per vertex, or vertex indices.
+fn mask(a: &Bound<'_, PyAny>, n: usize, what: &str) -> PyResult<Vec<bool>> {
+    if let Ok(flags) = a.extract::<Vec<bool>>() {
+        if flags.len() != n {
+            return refuse(format!(
+                "{what}: {} flags for {n} vertices (give one boolean per vertex, or vertex \
+                 indices)",
+                flags.len()
+            ));
+        }
+        return Ok(flags);
+    }
+    let np = a.py().import("numpy")?;
+    let arr = np.call_method1("asarray", (a,))?;
+    let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
+    if kind == "b" {
+        let flags: Vec<bool> = arr.call_method0("tolist")?.extract()?;
+        if flags.len() != n {
+            return refuse(format!("{what}: {} flags for {n} vertices", flags.len()));
+        }
+        return Ok(flags);
+    }
+    let idx: Vec<i64> = arr
+        .call_method1("reshape", (-1,))?
+        .call_method0("tolist")?
+        .extract()
+        .map_err(|_| {
+            crate::MeshMatchError::new_err(format!(
+                "{what}: expected one boolean per vertex or a list of vertex indices"
+            ))
+        })?;
+    let mut m = vec![false; n];
+    for v in idx {
+        if v < 0 || v as usize >= n {
+            return refuse(format!(
+                "{what}: vertex {v} out of range (the mesh has {n})"
+            ));
+        }
+        m[v as usize] = true;
+    }
+    Ok(m)
+}
+
+/// Correspondences from a JSON file path, or pairs `(source_vertex, target_vertex)` /
+/// `(source_vertex, [target_vertices])`, or an (n, 2) integer array.
+fn correspondences(
+    a: &Bound<'_, PyAny>,
+    source: &TriMesh,
+    target: &TriMesh,
+) -> PyResult<Vec<Correspondence>> {
+    if let Ok(p) = a.extract::<PathBuf>() {
+        return a
+            .py()
+            .detach(|| CorrespondenceFile::load_for(&p, Some(source), Some(target)))
+            .or_py();
+    }
+    let items: Vec<Bound<'_, PyAny>> = if a.hasattr("ndim")? {
+        a.call_method0("tolist")?.extract()?
+    } else {
+        a.try_iter()?.collect::<PyResult<_>>()?
+    };
+    let mut out = Vec::with_capacity(items.len());
+    for (i, it) in items.iter().enumerate() {
+        let bad = || {
+            crate::MeshMatchError::new_err(format!(
+                "correspondences: pair {i} is not (source_vertex, target_vertex) or \
+                 (source_vertex, [target_vertices])"
+            ))
+        };
+        let (s, ts): (i64, Vec<i64>) = if let Ok((s, t)) = it.extract::<(i64, i64)>() {
+            (s, vec![t])
+        } else if let Ok((s, t)) = it.extract::<(i64, Vec<i64>)>() {
+            (s, t)
+        } else if let Ok(v) = it.extract::<Vec<i64>>() {
+            if v.len() != 2 {
+                return Err(bad());
+            }
+            (v[0], vec![v[1]])
+        } else {
+            return Err(bad());
+        };
+        if s < 0 || s as usize >= source.file_vertex_count {
+            return refuse(format!(
+                "correspondences: pair {i}: source vertex {s} out of range (the source has {} \
+                 vertices)",
+                source.file_vertex_count
+            ));
+        }
+        if ts.is_empty() {
+            return refuse(format!("correspondences: pair {i} has no target vertex"));
+        }
+        for &t in &ts {
+            if t < 0 || t as usize >= target.file_vertex_count {
+                return refuse(format!(
+                    "correspondences: pair {i}: target vertex {t} out of range (the target has \
+                     {} vertices)",
+                    target.file_vertex_count
+                ));
+            }
+        }
+        out.push(Correspondence {
+            source_vertex: s as u32,
+            target_vertices: ts.into_iter().map(|t| t as u32).collect(),
+        });
+    }
+    meshmatch::correspondence::check_limits(&out).or_py()?;
+    Ok(out)
+}
+
+/// `--structure`: "auto" or a number from 0 to 1.
+fn structure(a: &Bound<'_, PyAny>) -> PyResult<Option<f32>> {
+    let text = if let Ok(x) = a.extract::<f64>() {
+        x.to_string()
+    } else {
+        a.extract::<String>()?
+    };
+    cli::transfer::parse_structure(&text)
+        .map(|s| s.0)
+        .map_err(|e| crate::MeshMatchError::new_err(format!("--structure {text}: {e}")))
+}
+
+/// MeshMatch texture transfer (`meshmatch transfer`): the target with the source's look, as
+/// per-vertex colours and, when the target has UVs (or `textured=True`), a texture baked into its
+/// UVs (or a generated atlas) with the source read at full resolution.
+#[pyfunction]
+#[pyo3(signature = (source, target, correspondences=None, *,
+    vertices=TransferParams::default().vertices, levels=None,
+    iterations=TransferParams::default().iterations,
+    tolerance=TransferParams::default().tolerance, seed=0,
+    shape_weight=TransferParams::default().shape_weight,
+    fine_shape_scale=TransferParams::default().fine_shape_scale, sharpen=true,
+    structure=None, texture_size=None, textured=None, working_resolution=false,
+    progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn transfer(
+    py: Python<'_>,
+    source: &Mesh,
+    target: &Mesh,
+    correspondences: Option<&Bound<'_, PyAny>>,
+    vertices: usize,
+    levels: Option<usize>,
+    iterations: usize,
+    tolerance: f32,
+    seed: u64,
+    shape_weight: f32,
+    fine_shape_scale: f32,
+    sharpen: bool,
+    structure: Option<&Bound<'_, PyAny>>,
+    texture_size: Option<u32>,
+    textured: Option<bool>,
+    working_resolution: bool,
+    progress: Option<&Bound<'_, PyAny>>,
+    cancel: Option<&Bound<'_, CancelToken>>,
+) -> PyResult<Mesh> {
+    let mut params = solve_params(
+        vertices,
+        levels,
+        iterations,
+        tolerance,
+        seed,
+        shape_weight,
+        sharpen,
+    )?;
+    params.fine_shape_scale = fine_shape_scale;
+    params.structure = match structure {
+        Some(s) => self::structure(s)?,
+        None => None,
+    };
+    params.validate().or_py()?;
+    let src = usable(py, source, "source")?;
+    if src.vertex_signal().is_none() {
+        return refuse("source: carries no texture or vertex colours to transfer");
+    }
+    let tgt = usable(py, target, "target")?;
+    let corr = match correspondences {
+        Some(c) => self::correspondences(c, &src, &tgt)?,
+        None => Vec::new(),
+    };
+    let size = cli::common::texture_side(texture_size, &tgt);
+    let ext = ext_for(textured, &tgt);
+    let t = job::run(py, progress, cancel, |ctx| {
+        cli::transfer::transfer_meshes(
+            &src,
+            &tgt,
+            &corr,
+            &params,
+            &cli::transfer::Delivery {
+                ext,
+                texture_size: size,
+                full_resolution: !working_resolution,
+                dense: false,
+            },
+            &|e| ctx.event(e),
+            &ctx.cancel,
+        )
+    })?;
+    Ok(result(t.delivered.mesh))
+}
+
+/// Completion by example (`meshmatch complete`): the vertices flagged by `mask` (booleans per
+/// vertex, or vertex indices) are synthesised from the rest of the mesh's colours or texture;
+/// or, with `painted` (a copy of the mesh whose colours were painted), its vertices of the
+/// `clay` colour (R, G, B 0-255; default the most frequent colour) are synthesised from its
+/// painted ones. Painted vertices keep their colours exactly.
+#[pyfunction]
+#[pyo3(signature = (mesh, mask=None, *, painted=None, clay=None,
+    vertices=TransferParams::default().vertices, levels=None,
+    iterations=TransferParams::default().iterations,
+    tolerance=TransferParams::default().tolerance, seed=0,
+    shape_weight=TransferParams::default().shape_weight, sharpen=true,
+    texture_size=None, textured=None, progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn complete(
+    py: Python<'_>,
+    mesh: &Mesh,
+    mask: Option<&Bound<'_, PyAny>>,
+    painted: Option<&Mesh>,
+    clay: Option<(u8, u8, u8)>,
+    vertices: usize,
+    levels: Option<usize>,
+    iterations: usize,
+    tolerance: f32,
+    seed: u64,
+    shape_weight: f32,
+    sharpen: bool,
+    texture_size: Option<u32>,
+    textured: Option<bool>,
+    progress: Option<&Bound<'_, PyAny>>,
+    cancel: Option<&Bound<'_, CancelToken>>,
+) -> PyResult<Mesh> {
+    let params = solve_params(
+        vertices,
+        levels,
+        iterations,
+        tolerance,
+        seed,
+        shape_weight,
+        sharpen,
+    )?;
+    let m = usable(py, mesh, "mesh")?;
+    let painted = painted.map(|p| usable(py, p, "painted")).transpose()?;
+    let clay = clay.map(|(r, g, b)| [r as f32 / 255.0, g as f32 / 255.0, b as f32 / 255.0]);
+    let example = match (&painted, mask) {
+        (Some(_), Some(_)) => return refuse("complete: give mask or painted, not both"),
+        (Some(p), None) => cli::complete::Example::Painted(p, clay),
+        (None, Some(k)) => {
+            cli::complete::Example::Mask(self::mask(k, m.file_vertex_count, "mask")?)
+        }
+        (None, None) => return refuse("complete needs mask= or painted="),
+    };
+    let ext = ext_for(textured, &m);
+    let c = job::run(py, progress, cancel, |ctx| {
+        cli::complete::complete_mesh(
+            m,
+            example,
+            &params,
+            ext,
+            texture_size,
+            &|e| ctx.event(e),
+            &ctx.cancel,
+        )
+    })?;
+    Ok(result(c.mesh))
+}
+
+/// Texture update after a geometry edit (`meshmatch update`): `new` with `old`'s colours or
+/// texture, copied where the surfaces coincide and synthesised where they changed.
+#[pyfunction]
+#[pyo3(signature = (old, new, *, vertices=TransferParams::default().vertices, levels=None,
+    iterations=TransferParams::default().iterations,
+    tolerance=TransferParams::default().tolerance, seed=0,
+    shape_weight=TransferParams::default().shape_weight, sharpen=true,
+    texture_size=None, textured=None, progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn update(
+    py: Python<'_>,
+    old: &Mesh,
+    new: &Mesh,
+    vertices: usize,
+    levels: Option<usize>,
+    iterations: usize,
+    tolerance: f32,
+    seed: u64,
+    shape_weight: f32,
+    sharpen: bool,
+    texture_size: Option<u32>,
+    textured: Option<bool>,
+    progress: Option<&Bound<'_, PyAny>>,
+    cancel: Option<&Bound<'_, CancelToken>>,
+) -> PyResult<Mesh> {
+    let params = solve_params(
+        vertices,
+        levels,
+        iterations,
+        tolerance,
+        seed,
+        shape_weight,
+        sharpen,
+    )?;
+    let o = usable(py, old, "old")?;
+    let n = usable(py, new, "new")?;
+    let ext = ext_for(textured, &n);
+    let (out, _) = job::run(py, progress, cancel, |ctx| {
+        cli::update::update_mesh(
+            &o,
+            &n,
+            &params,
+            ext,
+            texture_size,
+            &|e| ctx.event(e),
+            &ctx.cancel,
+        )
+    })?;
+    Ok(result(out))
+}
+
+/// Detail transfer (`meshmatch detail`): the target at the working resolution, displaced along
+/// its normals by the source's geometric detail (`strength` scales it).
+#[pyfunction]
+#[pyo3(signature = (source, target, *, strength=1.0,
+    vertices=TransferParams::default().vertices, levels=None,
+    iterations=TransferParams::default().iterations,
+    tolerance=TransferParams::default().tolerance, seed=0,
+    shape_weight=meshmatch::applications::DETAIL_SHAPE_WEIGHT, sharpen=true,
+    progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn detail(
+    py: Python<'_>,
+    source: &Mesh,
+    target: &Mesh,
+    strength: f32,
+    vertices: usize,
+    levels: Option<usize>,
+    iterations: usize,
+    tolerance: f32,
+    seed: u64,
+    shape_weight: f32,
+    sharpen: bool,
+    progress: Option<&Bound<'_, PyAny>>,
+    cancel: Option<&Bound<'_, CancelToken>>,
+) -> PyResult<Mesh> {
+    let params = solve_params(
+        vertices,
+        levels,
+        iterations,
+        tolerance,
+        seed,
+        shape_weight,
+        sharpen,
+    )?;
+    let s = usable(py, source, "source")?;
+    let t = usable(py, target, "target")?;
+    let r = job::run(py, progress, cancel, |ctx| {
+        cli::detail::detail_mesh(&s, &t, strength, &params, &|e| ctx.event(e), &ctx.cancel)
+    })?;
+    Ok(result(r.mesh))
+}
+
+/// Texture synthesis over a mesh from an exemplar image (`meshmatch synth`, Wei and Levoy
+/// 2001): `exemplar` is an (H, W, 3 or 4) array (alpha: transparent pixels are never used) or an
+/// image path. `output="texture"`: the target with the result baked into a texture of
+/// `texture_size` (through its UVs or a generated atlas); `output="dense"`: the uniform-density
+/// synthesized mesh with vertex colours (or displaced, with `displace=True`).
+#[pyfunction]
+#[pyo3(signature = (exemplar, target, *, texture_size=2048, scale=None, exemplar_width=None,
+    vertex_budget=meshmatch::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET,
+    orientation="auto".to_string(), levels=4, mask=None,
+    search=meshmatch::synthesis::Search::default().as_str().to_string(), seed=0,
+    displace=false,
+    method=meshmatch::synthesis::Method::default().as_str().to_string(),
+    align_features=false, feature_mask=None, space="auto".to_string(),
+    texel_budget=meshmatch::synthesis::wei_levoy::DEFAULT_TEXEL_BUDGET,
+    output="texture".to_string(), progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn synthesize(
+    py: Python<'_>,
+    exemplar: &Bound<'_, PyAny>,
+    target: &Mesh,
+    texture_size: u32,
+    scale: Option<f32>,
+    exemplar_width: Option<u32>,
+    vertex_budget: usize,
+    orientation: String,
+    levels: usize,
+    mask: Option<&Bound<'_, PyAny>>,
+    search: String,
+    seed: u64,
+    displace: bool,
+    method: String,
+    align_features: bool,
+    feature_mask: Option<&Bound<'_, PyAny>>,
+    space: String,
+    texel_budget: usize,
+    output: String,
+    progress: Option<&Bound<'_, PyAny>>,
+    cancel: Option<&Bound<'_, CancelToken>>,
+) -> PyResult<Mesh> {
+    let out = match output.as_str() {
+        "texture" => "result.glb",
+        "dense" => "result.ply",
+        o => return refuse(format!("output {o}: use texture or dense")),
+    };
+    let given = PathBuf::from("(array)");
+    let args = cli::synth::SynthArgs {
+        exemplar: PathBuf::from("exemplar"),
+        target: PathBuf::from("target"),
+        out: PathBuf::from(out),
+        out_dense: None,
+        texture_size,
+        scale,
+        exemplar_width,
+        vertex_budget,
+        orientation,
+        levels,
+        mask: mask.map(|_| given.clone()),
+        search,
+        seed,
+        displace,
+        method,
+        align_features,
+        feature_mask: feature_mask.map(|_| given.clone()),
+        space,
+        texel_budget,
+    };
+    let plan = cli::synth::check(&args).or_py()?;
+    let (rgb, alpha, name) = match exemplar.extract::<PathBuf>() {
+        Ok(p) if !exemplar.hasattr("shape")? => {
+            let (tex, alpha) = py
+                .detach(|| meshmatch::mesh::io::load_texture_with_alpha(&p))
+                .or_py()?;
+            (tex.image, alpha, p)
+        }
+        _ => {
+            let (rgb, alpha) = crate::mesh::image(exemplar, "exemplar")?;
+            (rgb, alpha, PathBuf::from("exemplar"))
+        }
+    };
+    let (rgb, alpha) = cli::synth::prepare_exemplar(&args, rgb, alpha, &name).or_py()?;
+    let t = usable(py, target, "target")?;
+    let file_mask = mask
+        .map(|m| self::mask(m, t.file_vertex_count, "mask"))
+        .transpose()?;
+    let feature_mask = match feature_mask {
+        Some(f) => {
+            let (rgb, _) = crate::mesh::image(f, "feature_mask")?;
+            Some(image::DynamicImage::ImageRgb8(rgb).to_luma8())
+        }
+        None => None,
+    };
+    let s = job::run(py, progress, cancel, |ctx| {
+        cli::synth::synthesize(
+            &args,
+            &plan,
+            &rgb,
+            alpha.as_ref(),
+            &t,
+            file_mask.as_deref(),
+            feature_mask.as_ref(),
+            &|e| ctx.event(e),
+            &ctx.cancel,
+        )
+    })?;
+    Ok(result(s.mesh))
+}
+
+/// Geometry-correlated transfer (`meshmatch weather`, Mertens et al. 2006): weathering, dirt or
+/// moss learned from the source's look and geometry, applied to the target by its geometry;
+/// colours per target vertex and, when the target has UVs (or `textured=True`), a texture.
+/// `mask` leaves source vertices out of training.
+#[pyfunction]
+#[pyo3(signature = (source, target, *, mask=None, method="parametric".to_string(),
+    up="y".to_string(), vertices=mertens::Params::default().working_vertices,
+    rays=mertens::Params::default().rays, clusters=mertens::Params::default().clusters,
+    seed=0, texture_size=1024, textured=None, progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn weather(
+    py: Python<'_>,
+    source: &Mesh,
+    target: &Mesh,
+    mask: Option<&Bound<'_, PyAny>>,
+    method: String,
+    up: String,
+    vertices: usize,
+    rays: usize,
+    clusters: usize,
+    seed: u64,
+    texture_size: u32,
+    textured: Option<bool>,
+    progress: Option<&Bound<'_, PyAny>>,
+    cancel: Option<&Bound<'_, CancelToken>>,
+) -> PyResult<Mesh> {
+    let method: mertens::Method = method.parse().or_py()?;
+    let up: mertens::Up = up.parse().or_py()?;
+    cli::weather::check_weather(vertices, rays, clusters, texture_size).or_py()?;
+    let s = usable(py, source, "source")?;
+    let t = usable(py, target, "target")?;
+    let mask = mask
+        .map(|m| self::mask(m, s.file_vertex_count, "mask"))
+        .transpose()?;
+    let params = mertens::Params {
+        working_vertices: vertices,
+        up,
+        rays,
+        clusters,
+        method,
+        seed,
+        ..mertens::Params::default()
+    };
+    let ext = ext_for(textured, &t);
+    let w = job::run(py, progress, cancel, |ctx| {
+        cli::weather::weather_meshes(
+            &s,
+            &t,
+            mask.as_deref(),
+            &params,
+            ext,
+            texture_size,
+            &|e| ctx.event(e),
+            &ctx.cancel,
+        )
+    })?;
+    Ok(result(w.delivered.mesh))
+}
+
+/// `quilt`'s swatch: a `Mesh`, or a built-in name or a file path.
+#[derive(FromPyObject)]
+enum SwatchArg {
+    Mesh(Mesh),
+    Spec(PathBuf),
+}
+
+/// Mesh quilting (`meshmatch quilt`, Zhou et al. 2006): the base covered with 3D elements of a
+/// swatch, a built-in one by name (chain, weave, nuts, studs, scales), a swatch mesh file, or a
+/// `Mesh` whose elements (connected components) lie over the plane normal to `swatch_up`.
+/// Returns `(elements, element_ids)`: the elements as one mesh and, per vertex, its element.
+#[pyfunction]
+#[pyo3(signature = (base, swatch=SwatchArg::Spec(PathBuf::from("chain")), *, swatch_size=None, thickness=None,
+    swatch_up="z".to_string(), seed=quilting::Params::default().seed, merge=false, nudge=true,
+    lattice=true, progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn quilt<'py>(
+    py: Python<'py>,
+    base: &Mesh,
+    swatch: SwatchArg,
+    swatch_size: Option<f32>,
+    thickness: Option<f32>,
+    swatch_up: String,
+    seed: u64,
+    merge: bool,
+    nudge: bool,
+    lattice: bool,
+    progress: Option<&Bound<'py, PyAny>>,
+    cancel: Option<&Bound<'py, CancelToken>>,
+) -> PyResult<(Mesh, Bound<'py, PyAny>)> {
+    cli::quilt::positive("swatch-size", swatch_size).or_py()?;
+    cli::quilt::positive("thickness", thickness).or_py()?;
+    let sw = match swatch {
+        SwatchArg::Mesh(m) => {
+            let axis = match swatch_up.to_ascii_lowercase().as_str() {
+                "x" => quilting::Axis::X,
+                "y" => quilting::Axis::Y,
+                "z" => quilting::Axis::Z,
+                _ => return refuse(format!("--swatch-up {swatch_up}: use x, y or z")),
+            };
+            quilting::load_swatch((*m.inner).clone(), axis).or_py()?
+        }
+        SwatchArg::Spec(p) => {
+            let spec = p.to_string_lossy().into_owned();
+            py.detach(|| cli::quilt::load_any_swatch(&spec, &swatch_up, seed))
+                .or_py()?
+        }
+    };
+    let b = usable(py, base, "base")?;
+    let params = quilting::Params {
+        swatch_size,
+        thickness,
+        seed,
+        merge_elements: merge,
+        nudge,
+        lattice,
+        ..quilting::Params::default()
+    };
+    let out = job::run(py, progress, cancel, |ctx| {
+        let input = quilting::Input {
+            base: &b,
+            swatch: &sw,
+            field: None,
+        };
+        quilting::run(&input, &params, &|e| ctx.event(e), &ctx.cancel)
+    })?;
+    let ids: Vec<i64> = out.element_id.iter().map(|&e| e as i64).collect();
+    Ok((result(out.elements), PyArray1::from_vec(py, ids).into_any()))
+}
+
+/// Salient curves (`meshmatch curves`: crest lines and sharp creases, Xu et al. 2009 §4.1) as a
+/// list of dicts: `points` (K, 3) float32 on the surface, `vertices` the snapped vertex path,
+/// `kind` ("ridge", "ravine" or "crease"), `strength`, `length` and `closed`.
+#[pyfunction]
+#[pyo3(signature = (mesh, *,
+    threshold=meshmatch::geometry::CurveParams::default().threshold, min_length=None,
+    crease_angle=meshmatch::geometry::CurveParams::default().crease_angle_deg,
+    creases_only=false, progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn curves<'py>(
+    py: Python<'py>,
+    mesh: &Mesh,
+    threshold: f32,
+    min_length: Option<f32>,
+    crease_angle: f32,
+    creases_only: bool,
+    progress: Option<&Bound<'py, PyAny>>,
+    cancel: Option<&Bound<'py, CancelToken>>,
+) -> PyResult<Bound<'py, PyList>> {
+    use meshmatch::geometry::{CurveKind, CurveParams, salient_curves};
+    cli::curves::check_curves(threshold, min_length, crease_angle).or_py()?;
+    let m = usable(py, mesh, "mesh")?;
+    let params = CurveParams {
+        threshold,
+        min_length,
+        crease_angle_deg: crease_angle,
+        crest_lines: !creases_only,
+        ..CurveParams::default()
+    };
+    let cs = job::run(py, progress, cancel, |_| {
+        salient_curves(&m.positions, &m.faces, &params)
+    })?;
+    let list = PyList::empty(py);
+    for c in &cs {
+        let d = PyDict::new(py);
+        let flat: Vec<f32> = c.points.iter().flatten().copied().collect();
+        d.set_item(
+            "points",
+            PyArray1::from_vec(py, flat).reshape([c.points.len(), 3])?,
+        )?;
+        let vs: Vec<i64> = c
+            .vertices
+            .iter()
+            .map(|&v| m.file_index.get(v as usize).copied().unwrap_or(v) as i64)
+            .collect();
+        d.set_item("vertices", PyArray1::from_vec(py, vs))?;
+        d.set_item(
+            "kind",
+            match c.kind {
+                CurveKind::Ridge => "ridge",
+                CurveKind::Ravine => "ravine",
+                CurveKind::Crease => "crease",
+            },
+        )?;
+        d.set_item("strength", c.strength)?;
+        d.set_item("length", c.length())?;
+        d.set_item("closed", c.closed)?;
+        list.append(d)?;
+    }
+    Ok(list)
+}
+
+/// One geometric feature per vertex (`meshmatch features`): `ao`, `height`, `curvature[:i]`,
+/// `normal-x|y|z`, `occlusion-x|y|z`, as the system computes it (not stretched to grey), (N,)
+/// float32.
+#[pyfunction]
+#[pyo3(signature = (mesh, feature="ao".to_string(), *, up="y".to_string(),
+    rays=mertens::Params::default().rays, seed=0, progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn features<'py>(
+    py: Python<'py>,
+    mesh: &Mesh,
+    feature: String,
+    up: String,
+    rays: usize,
+    seed: u64,
+    progress: Option<&Bound<'py, PyAny>>,
+    cancel: Option<&Bound<'py, CancelToken>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let up: mertens::Up = up.parse().or_py()?;
+    let m = usable(py, mesh, "mesh")?;
+    let params = mertens::Params {
+        up,
+        rays,
+        seed,
+        ..mertens::Params::default()
+    };
+    let v = job::run(py, progress, cancel, |ctx| {
+        cli::features::feature_values(&m, &feature, &params, &ctx.cancel)
+    })?;
+    Ok(PyArray1::from_vec(py, v).into_any())
+}
+
+/// Bake (`meshmatch bake`): `source`'s colours or texture baked into a texture of `texture_size`
+/// on `target` (same shape), through its UVs or a generated atlas (always with `new_atlas`).
+#[pyfunction]
+#[pyo3(signature = (source, target, *, texture_size=2048, new_atlas=false, progress=None,
+    cancel=None))]
+fn bake(
+    py: Python<'_>,
+    source: &Mesh,
+    target: &Mesh,
+    texture_size: u32,
+    new_atlas: bool,
+    progress: Option<&Bound<'_, PyAny>>,
+    cancel: Option<&Bound<'_, CancelToken>>,
+) -> PyResult<Mesh> {
+    cli::common::check_texture_size(texture_size).or_py()?;
+    let s = usable(py, source, "source")?;
+    let t = usable(py, target, "target")?;
+    let (out, _) = job::run(py, progress, cancel, |ctx| {
+        cli::bake::bake_mesh(
+            &t,
+            &s,
+            texture_size,
+            new_atlas,
+            &|f| ctx.fraction(f, "bake"),
+            &ctx.cancel,
+        )
+    })?;
+    Ok(result(out))
+}
