@@ -94,7 +94,9 @@ fn segment_triangle(a: Vec3, b: Vec3, t: [Vec3; 3]) -> i32 {
     }
     let v = (d11 * d20 - d01 * d21) / den;
     let w = (d00 * d21 - d01 * d20) / den;
-    if v >= 0.0 && w >= 0.0 && v + w <= 1.0 {
+    // half-open on the spokes (v > 0, w >= 0): a point on the spoke two fan triangles share
+    // counts once
+    if v > 0.0 && w >= 0.0 && v + w <= 1.0 {
         if da < 0.0 { 1 } else { -1 }
     } else {
         0
@@ -188,17 +190,20 @@ mod tests {
     #[test]
     fn chain_links_are_linked_and_side_by_side_rings_are_not() {
         let a = circle(Vec3::ZERO, Vec3::X, Vec3::Y, 1.0);
-        // through a's hole: in the x-z plane, centred on a's rim
-        let b = circle(Vec3::new(1.0, 0.0, 0.0), Vec3::X, Vec3::Z, 0.8);
+        // through a's hole: upright, centred near a's rim (general position: no curve passes
+        // exactly through the other's mean point)
+        let up = Vec3::new(0.0, 0.1, 1.0).normalize();
+        let b = circle(Vec3::new(0.9, 0.05, 0.02), Vec3::X, up, 0.8);
         assert_eq!(linking_number(&a, &b).abs(), 1);
         assert_eq!(linking_number(&b, &a).abs(), 1);
         // the same ring moved out of a's hole
-        let c = circle(Vec3::new(2.5, 0.0, 0.0), Vec3::X, Vec3::Z, 0.8);
+        let c = circle(Vec3::new(2.5, 0.05, 0.02), Vec3::X, up, 0.8);
         assert_eq!(linking_number(&a, &c), 0);
         // parallel and stacked: never linked
         let d = circle(Vec3::new(0.5, 0.0, 0.3), Vec3::X, Vec3::Y, 1.0);
         assert_eq!(linking_number(&a, &d), 0);
         let pairs = linked_pairs(&[Some(a), Some(b), Some(c), Some(d), None]);
-        assert_eq!(pairs, vec![(0, 1)]);
+        // d, lying over a, is threaded by the upright b as a is
+        assert_eq!(pairs, vec![(0, 1), (1, 3)]);
     }
 }
