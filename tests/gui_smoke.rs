@@ -129,10 +129,18 @@ fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
         Command::new(env!("CARGO_BIN_EXE_meshmatch"))
             .env("MESHMATCH_DATA_DIR", data.path())
             .stdout(Stdio::null())
-            .stderr(Stdio::null())
+            .stderr(std::fs::File::create(data.path().join("stderr.log")).unwrap())
             .spawn()
             .unwrap(),
     );
+    let stderr_tail = || {
+        let text = std::fs::read_to_string(data.path().join("stderr.log")).unwrap_or_default();
+        let lines: Vec<&str> = text
+            .lines()
+            .filter(|l| !l.contains("XDG_RUNTIME_DIR"))
+            .collect();
+        lines[lines.len().saturating_sub(20)..].join("\n")
+    };
     let start = Instant::now();
     let (left, right) = ((0.05, 0.34), (0.44, 0.73));
     let rows = (0.1, 0.85);
@@ -151,7 +159,12 @@ fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
     let mut seen = Vec::new();
     while start.elapsed() < Duration::from_secs(240) {
         std::thread::sleep(Duration::from_millis(250));
-        assert!(app.0.try_wait().unwrap().is_none(), "the app exited early");
+        if let Some(status) = app.0.try_wait().unwrap() {
+            panic!(
+                "the app exited early ({status}); its stderr:\n{}",
+                stderr_tail()
+            );
+        }
         let img = screenshot();
         let Some(b) = window_box(&img) else {
             continue;
