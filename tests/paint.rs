@@ -359,33 +359,7 @@ fn a_glb_export_carries_the_texel_layer_at_full_resolution() {
 
 /// A UV sphere (latitude-longitude UVs, a seam at longitude 0).
 fn uv_sphere(rings: u32, segs: u32) -> TriMesh {
-    let mut m = TriMesh::default();
-    let mut uvs = Vec::new();
-    for r in 0..=rings {
-        let th = std::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..=segs {
-            let ph = std::f32::consts::TAU * s as f32 / segs as f32;
-            m.positions
-                .push([th.sin() * ph.cos(), th.cos(), -th.sin() * ph.sin()]);
-            uvs.push([s as f32 / segs as f32, 1.0 - r as f32 / rings as f32]);
-        }
-    }
-    let row = segs + 1;
-    let mut corner_uvs = Vec::new();
-    for r in 0..rings {
-        for s in 0..segs {
-            let a = r * row + s;
-            let (b, c, d) = (a + 1, a + row, a + row + 1);
-            for f in [[a, c, b], [b, c, d]] {
-                m.faces.push(f);
-                corner_uvs.extend(f.map(|v| uvs[v as usize]));
-            }
-        }
-    }
-    m.uvs = Some(corner_uvs);
-    m.file_index = (0..m.positions.len() as u32).collect();
-    m.file_vertex_count = m.positions.len();
-    m
+    meshmatch::app::paint_bench::lat_long_sphere(rings, segs)
 }
 
 #[test]

@@ -22,7 +22,12 @@ const DABS: usize = 120;
 /// A latitude-longitude sphere of about `n` vertices with UVs (a seam at longitude 0).
 pub fn uv_sphere(n: usize) -> TriMesh {
     let rings = ((n as f32 / 2.0).sqrt().round() as u32).max(4);
-    let segs = 2 * rings;
+    lat_long_sphere(rings, 2 * rings)
+}
+
+/// A unit latitude-longitude sphere of `rings` x `segs` quads with latitude-longitude UVs (a
+/// seam at longitude 0).
+pub fn lat_long_sphere(rings: u32, segs: u32) -> TriMesh {
     let mut m = TriMesh::default();
     let mut uv = Vec::new();
     for r in 0..=rings {
