@@ -78,6 +78,28 @@ pub fn weld(mesh: &TriMesh) -> (TriMesh, Vec<u32>) {
 }
 
 /// Unit face normals `n_f = (b - a) x (c - a) / |(b - a) x (c - a)|` (zero for degenerate faces).
+/// The power of two nearest the size (bounding-box diagonal) of the finite `positions`, as its
+/// exponent: a computation on the positions times `2^-e` runs on a mesh of about unit size, the
+/// same steps whatever the units (scaling by a power of two is exact in floating point). 0 for
+/// no or one distinct point.
+pub fn unit_exponent(positions: &[[f32; 3]]) -> i32 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in positions.iter().filter(|p| p.iter().all(|x| x.is_finite())) {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a] as f64);
+            hi[a] = hi[a].max(p[a] as f64);
+        }
+    }
+    let diag = (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt();
+    if diag.is_finite() && diag > 0.0 {
+        // within f32's exponent range, so that 2^-e is a normal number
+        (diag.log2().round() as i32).clamp(-120, 120)
+    } else {
+        0
+    }
+}
+
 pub fn face_normals(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<[f32; 3]> {
     faces
         .par_iter()

@@ -76,7 +76,10 @@ pub fn principal_curvatures(
             m += outer(r1, r1) + outer(r2, r2);
             r += r1 * du + r2 * dv;
         }
-        if m.determinant().abs() < 1e-30 {
+        // degenerate relative to the face's size (the same test in any units)
+        let size = (m.x_axis.x + m.y_axis.y + m.z_axis.z) / 3.0;
+        let det = m.determinant().abs();
+        if det.is_nan() || det <= 1e-12 * size * size * size {
             continue;
         }
         let x = m.inverse() * r;

@@ -52,6 +52,10 @@ fn par() -> Par {
 /// `(L + σM)⁻¹ M` in the M-inner product, with a sparse Cholesky factorisation of `L + σM`
 /// (σ = 10⁻⁶ tr L / tr M) and a Rayleigh–Ritz step; tiny systems use a dense solve of
 /// `M^{-1/2} L M^{-1/2}`.
+///
+/// The solve runs on the mesh scaled by the power of two nearest its size (exact in floating
+/// point), so the same mesh in any units takes the same steps: eigenvalues scale by `1/s²` and
+/// the eigenvectors by `1/s` with the mesh's scale `s`, and nothing else changes.
 pub fn laplacian_eigen(
     positions: &[[f32; 3]],
     faces: &[[u32; 3]],
@@ -62,6 +66,27 @@ pub fn laplacian_eigen(
     if k == 0 {
         return Ok((Vec::new(), Vec::new()));
     }
+    let e = super::unit_exponent(positions);
+    if e != 0 {
+        let down = 2f32.powi(-e);
+        let unit: Vec<[f32; 3]> = positions.iter().map(|p| p.map(|x| x * down)).collect();
+        let (mut vals, mut vecs) = laplacian_eigen_unit(&unit, faces, k)?;
+        // exact: powers of two
+        let (lam, phi) = (2f64.powi(-2 * e), 2f64.powi(-e));
+        vals.iter_mut().for_each(|l| *l *= lam);
+        vecs.iter_mut().for_each(|x| *x *= phi);
+        return Ok((vals, vecs));
+    }
+    laplacian_eigen_unit(positions, faces, k)
+}
+
+/// [`laplacian_eigen`] on a mesh of about unit size.
+fn laplacian_eigen_unit(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    k: usize,
+) -> Result<(Vec<f64>, Vec<f64>)> {
+    let n = positions.len();
     let mass_full = mass_matrix_voronoi(positions, faces);
     // active vertices: those with positive mass (in a non-degenerate face)
     let mut slot = vec![usize::MAX; n];
@@ -572,6 +597,33 @@ mod tests {
     use super::*;
 
     use crate::testdata::uv_sphere as sphere;
+
+    /// The same mesh in other units has the same spectrum, scaled: exactly for a power of two,
+    /// to the solver's tolerance in micrometres or kilometres (where an absolute threshold once
+    /// lost the Krylov relation and ran the space to its limit, 300 times slower).
+    #[test]
+    fn the_spectrum_follows_the_units() {
+        let (p, f) = sphere(40, 60);
+        let k = 60;
+        let (vals, _) = laplacian_eigen(&p, &f, k).unwrap();
+        for s in [1e-6f64, 1e-3, 1e3, 1e6, 2f64.powi(20), 2f64.powi(-20)] {
+            let q: Vec<[f32; 3]> = p.iter().map(|x| x.map(|c| (c as f64 * s) as f32)).collect();
+            let (sv, _) = laplacian_eigen(&q, &f, k).unwrap();
+            let exact = s.log2().fract() == 0.0;
+            for i in 1..k {
+                let want = vals[i] / (s * s);
+                if exact {
+                    assert_eq!(sv[i], want, "x{s}: pair {i}");
+                } else {
+                    assert!(
+                        (sv[i] - want).abs() <= 1e-5 * want,
+                        "x{s}: pair {i}: {} against {want}",
+                        sv[i]
+                    );
+                }
+            }
+        }
+    }
 
     /// The HKS's case: many pairs on a small mesh (120 on about 1500 vertices), where the
     /// Krylov space grows to a third of the dimension. The Krylov pairs are the dense solve's.

@@ -58,7 +58,9 @@ mod stripe_patterns;
 mod uv_atlas;
 mod uv_bake;
 
-pub use basic::{face_areas, face_normals, mean_edge_length, taubin_smooth, vertex_normals, weld};
+pub use basic::{
+    face_areas, face_normals, mean_edge_length, taubin_smooth, unit_exponent, vertex_normals, weld,
+};
 /// The renderer's picking shares the closest-point query's barycentric tolerance.
 #[cfg(feature = "gui")]
 pub(crate) use bvh::BARY_EPS;

@@ -279,6 +279,29 @@ impl Hierarchy {
 /// the order of their ends' `keys` (lower, then higher), and the end with the lower key
 /// survives. Returns the coarse level, the parent of every fine vertex and the coarse vertices'
 /// keys (their survivors').
+/// Collapse-order bins per octave of edge length: lengths within about 4% of each other (the
+/// same bin) count as ties, broken by the vertices' keys.
+const BINS_PER_OCTAVE: f64 = 16.0;
+
+/// The collapse order's key of a squared edge length: its bin on a log scale relative to
+/// `mean`, the mean squared edge length, the same for the mesh in any units. Bins this wide
+/// (rather than the lengths' last bits) decide the order, so that a mesh 1000 times larger,
+/// rounded differently, collapses the same way: a length lands in another bin only when it lies
+/// within rounding of a bin's edge.
+fn length_bins(mean: f64) -> impl Fn(f32) -> u32 {
+    let ok = mean > 0.0 && mean.is_finite();
+    move |l2: f32| {
+        if !ok || l2 <= 0.0 || !l2.is_finite() {
+            return if l2 > 0.0 { u32::MAX } else { 0 };
+        }
+        // half the log2 of the squared ratio: octaves of length, from 2^-64 of the mean up
+        let octaves = 0.5 * (l2 as f64 / mean).log2() + 64.0;
+        (octaves * BINS_PER_OCTAVE)
+            .floor()
+            .clamp(1.0, u32::MAX as f64) as u32
+    }
+}
+
 fn collapse_level(fine: &Level, target: usize, keys: &[u32]) -> (Level, Vec<u32>, Vec<u32>) {
     let n = fine.len();
     let pos = &fine.positions;
@@ -303,12 +326,25 @@ fn collapse_level(fine: &Level, target: usize, keys: &[u32]) -> (Level, Vec<u32>
     }
     // Candidate edges sorted by length (lengths of untouched vertices never change in a level).
     let adj = &fine.adjacency;
-    // (length², lower key, higher key, end with the lower key, the other end)
-    let mut edges: Vec<(f32, u32, u32, u32, u32)> = Vec::with_capacity(adj.indices.len() / 2);
+    // (length bin, lower key, higher key, end with the lower key, the other end)
+    let mut edges: Vec<(u32, u32, u32, u32, u32)> = Vec::with_capacity(adj.indices.len() / 2);
+    let squared = |a: usize, b: usize| (Vec3::from(pos[a]) - Vec3::from(pos[b])).length_squared();
+    // Shortest first, lengths compared in bins (not to their last bits): the same order for
+    // the mesh in any units.
+    let bin = {
+        let (mut sum, mut count) = (0.0f64, 0usize);
+        for a in 0..n {
+            for &b in adj.row(a).iter().filter(|&&b| b as usize > a) {
+                sum += squared(a, b as usize) as f64;
+                count += 1;
+            }
+        }
+        length_bins(sum / count.max(1) as f64)
+    };
     for a in 0..n {
         for &b in adj.row(a) {
             if (b as usize) > a {
-                let l = (Vec3::from(pos[a]) - Vec3::from(pos[b as usize])).length_squared();
+                let l = bin(squared(a, b as usize));
                 let (ka, kb) = (keys[a], keys[b as usize]);
                 edges.push(if ka <= kb {
                     (l, ka, kb, a as u32, b)
@@ -320,7 +356,7 @@ fn collapse_level(fine: &Level, target: usize, keys: &[u32]) -> (Level, Vec<u32>
     }
     // a total order (ties by the ends' keys), so the parallel sort gives the one result
     edges.par_sort_unstable_by(|x, y| {
-        x.0.total_cmp(&y.0)
+        x.0.cmp(&y.0)
             .then(x.1.cmp(&y.1))
             .then(x.2.cmp(&y.2))
             .then(x.3.cmp(&y.3))
@@ -418,7 +454,7 @@ fn collapse_level(fine: &Level, target: usize, keys: &[u32]) -> (Level, Vec<u32>
             let n1 = (moved[1] - moved[0]).cross(moved[2] - moved[0]);
             let l0 = n0.length();
             let l1 = n1.length();
-            if l1 <= 1e-12 * (1.0 + l0) || n0.dot(n1) < 0.5 * l0 * l1 {
+            if l1 <= 1e-12 * l0 || n0.dot(n1) < 0.5 * l0 * l1 {
                 ok = false;
                 break;
             }

@@ -13,6 +13,8 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
+use crate::stats::quantized;
+
 /// Colour channels of the synthesised signal.
 pub(crate) const C: usize = 3;
 /// Floats per colour fan.
@@ -191,17 +193,24 @@ impl Ctx<'_> {
     /// Patch distance D(vS, vT) for rotation k (squared L2 of the weighted feature vectors, colour
     /// fan rotated by a cyclic shift of k angle steps), stopping early once it reaches `best`.
     #[inline(always)]
+    ///
+    /// A distance under `best` comes back [`quantized`] (so that the search's choices are the
+    /// same in any units); one that stopped early is at least `best`, which callers compare
+    /// with quantized distances only.
     pub fn dist(&self, p: &mut Patch, s: usize, k: usize, best: f32) -> f32 {
         let d = self.shape_dist(p.t, s);
-        if d >= best || self.wc == 0.0 {
+        if d >= best {
             return d;
+        }
+        if self.wc == 0.0 {
+            return quantized(d);
         }
         self.colour(p);
         let lb = d + self.ring_bound(p, s);
         if lb >= best {
             return lb;
         }
-        self.fan_dist(p, s, k, d, best)
+        quantized(self.fan_dist(p, s, k, d, best))
     }
 
     /// A lower bound of the weighted colour fan distance at every rotation
@@ -266,7 +275,7 @@ impl Ctx<'_> {
             return (bd, bk);
         }
         for k in 0..FAN_ANGLES {
-            let d = self.fan_dist(p, s, k, sd, bd);
+            let d = quantized(self.fan_dist(p, s, k, sd, bd));
             if d < bd {
                 bd = d;
                 bk = k as u8;
@@ -777,8 +786,9 @@ pub(crate) fn upsample(
                         + ang.sin() * Vec3::from(fs[l + 1].t2[sc]));
             let mut best = usize::MAX;
             let mut bd = f32::INFINITY;
+            // nearest the goal, distances compared [`quantized`] (the same choice in any units)
             for &c in hs.children(l + 1, sc as u32) {
-                let d = (Vec3::from(lsf.positions[c as usize]) - goal).length_squared();
+                let d = quantized((Vec3::from(lsf.positions[c as usize]) - goal).length_squared());
                 if d < bd {
                     bd = d;
                     best = c as usize;
@@ -787,7 +797,8 @@ pub(crate) fn upsample(
             for _ in 0..4 {
                 let cur = best;
                 for &u in lsf.adjacency.row(cur) {
-                    let d = (Vec3::from(lsf.positions[u as usize]) - goal).length_squared();
+                    let d =
+                        quantized((Vec3::from(lsf.positions[u as usize]) - goal).length_squared());
                     if d < bd {
                         bd = d;
                         best = u as usize;

@@ -34,12 +34,14 @@ fn d2(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
-/// Nearest centre of `x` and its squared distance.
+/// Nearest centre of `x` and its squared distance, [`quantized`](super::quantized): centres
+/// closer than its step tie and go to the first, so that the same data in other units (off in
+/// their last bits) are labelled the same.
 #[inline]
 pub fn nearest(centers: &[f32], dim: usize, x: &[f32]) -> (u32, f32) {
     let mut best = (0u32, f32::INFINITY);
     for (c, ctr) in centers.chunks_exact(dim).enumerate() {
-        let d = d2(ctr, x);
+        let d = super::quantized(d2(ctr, x));
         if d < best.1 {
             best = (c as u32, d);
         }

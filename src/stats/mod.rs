@@ -5,12 +5,14 @@
 //! - [`kmeans`] / [`KMeans`]: k-means++ seeding and Lloyd iterations
 //! - [`histogram`]: quantile functions, Heeger-Bergen histogram matching, KS distance
 //! - [`KdTree`]: exact k-nearest neighbours in a few dimensions
+//! - [`quantized`]: distances compared at a fixed relative precision (ties)
 
 pub mod cca;
 pub mod histogram;
 pub mod kdtree;
 pub mod kmeans;
 pub mod pdf_transfer;
+pub mod ties;
 
 pub use cca::{Cca, cca};
 pub use histogram::{
@@ -20,3 +22,4 @@ pub use histogram::{
 pub use kdtree::KdTree;
 pub use kmeans::{KMeans, kmeans};
 pub use pdf_transfer::{PdfTransferParams, pdf_transfer, random_rotation};
+pub use ties::quantized;

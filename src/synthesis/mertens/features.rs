@@ -188,7 +188,39 @@ pub type Surface<'a> = (&'a [[f32; 3]], &'a [[u32; 3]]);
 /// `surface = (positions, faces)` (the input a working mesh was refined from): the occlusion
 /// rays are cast against the surface's triangles, far fewer than the working mesh's, with the
 /// same results. `None` uses the mesh itself.
+///
+/// The features are computed on the mesh scaled by the power of two nearest its size (exact in
+/// floating point), so the same mesh in any units gets the same values (radii in its units).
 pub fn features_on_surface(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    surface: Option<Surface<'_>>,
+    params: &Params,
+    cancel: &CancelToken,
+) -> Result<FeatureSet> {
+    let e = crate::geometry::unit_exponent(positions);
+    if e == 0 {
+        return features_unit(positions, faces, surface, params, cancel);
+    }
+    let down = 2f32.powi(-e);
+    let scale =
+        |ps: &[[f32; 3]]| -> Vec<[f32; 3]> { ps.iter().map(|p| p.map(|x| x * down)).collect() };
+    let unit = scale(positions);
+    let unit_surface = surface.map(|(p, f)| (scale(p), f));
+    let mut fs = features_unit(
+        &unit,
+        faces,
+        unit_surface.as_ref().map(|(p, f)| (p.as_slice(), *f)),
+        params,
+        cancel,
+    )?;
+    let up = 2f32.powi(e);
+    fs.radii.iter_mut().for_each(|r| *r *= up);
+    Ok(fs)
+}
+
+/// [`features_on_surface`] on a mesh of about unit size.
+fn features_unit(
     positions: &[[f32; 3]],
     faces: &[[u32; 3]],
     surface: Option<Surface<'_>>,

@@ -1061,14 +1061,53 @@ fn validate_base(base: &TriMesh) -> Result<()> {
 /// Reports `Event::Progress` (stage `"quilt"`, fraction = covered base area) after every patch
 /// and checks `cancel` as often. Errors: empty or invalid base, bad parameters, a field of the
 /// wrong length, an output estimated above `params.max_faces` faces.
+///
+/// The quilt is built on the base scaled by the power of two nearest its size (exact in
+/// floating point) and scaled back, so the same base in any units gets the same elements, in
+/// its units.
 pub fn run(
     input: &Input,
     params: &Params,
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<QuiltOutput> {
-    let clock = Stopwatch::start();
     validate_base(input.base)?;
+    let e = crate::geometry::unit_exponent(&input.base.positions);
+    if e == 0 {
+        return run_unit(input, params, sink, cancel);
+    }
+    let (down, up) = (2f32.powi(-e), 2f32.powi(e));
+    let mut base = input.base.clone();
+    base.positions
+        .iter_mut()
+        .for_each(|p| *p = p.map(|x| x * down));
+    let unit_params = Params {
+        swatch_size: params.swatch_size.map(|l| l * down),
+        thickness: params.thickness.map(|h| h * down),
+        ..params.clone()
+    };
+    let unit_input = Input {
+        base: &base,
+        ..*input
+    };
+    let mut out = run_unit(&unit_input, &unit_params, sink, cancel)?;
+    out.elements
+        .positions
+        .iter_mut()
+        .for_each(|p| *p = p.map(|x| x * up));
+    out.stats.swatch_size *= up;
+    out.stats.thickness *= up;
+    Ok(out)
+}
+
+/// [`run`] on a base of about unit size.
+fn run_unit(
+    input: &Input,
+    params: &Params,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<QuiltOutput> {
+    let clock = Stopwatch::start();
     // a closed base wound inwards (negative enclosed volume, as the shared horse) would grow
     // its shell, and the elements, inside: quilt over the same surface wound outwards
     let outward;

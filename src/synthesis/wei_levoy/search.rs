@@ -6,8 +6,11 @@
 use rayon::prelude::*;
 
 use super::neigh::ExemplarLevel;
+use crate::stats::quantized;
 
-/// Squared L2 distance between a query and candidate `c`, giving up once it exceeds `bound`.
+/// Squared L2 distance between a query and candidate `c`, giving up once it exceeds `bound`;
+/// a complete distance comes back [`quantized`], so that the choice between two candidates is
+/// the same for the mesh in any units.
 #[inline]
 pub(crate) fn dist(
     ex: &ExemplarLevel,
@@ -39,7 +42,7 @@ pub(crate) fn dist(
             }
         }
     }
-    d
+    quantized(d)
 }
 
 #[inline]
