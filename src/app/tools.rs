@@ -722,7 +722,7 @@ impl ExemplarDialog {
             }
         });
         let painted = state
-            .paint_coverage(s.side)
+            .region_coverage(s.side)
             .map_or(0, |c| c.iter().filter(|&&c| c >= 0.5).count());
         ui.horizontal(|ui| {
             ui.label("Apply to:");
@@ -734,8 +734,9 @@ impl ExemplarDialog {
                 format!("Painted region ({painted} vertices)"),
             )
             .on_hover_text(
-                "Only the vertices painted with the Paint tool; the rest keep their colours \
-                 and guide the border",
+                "Only the vertices painted with the Paint tool (the mask layer's when it has \
+                 any paint, else the paint layer's); the rest keep their colours and guide the \
+                 border",
             );
             ui.selectable_value(&mut s.region, Region::Texture, "Into a texture")
                 .on_hover_text(format!(

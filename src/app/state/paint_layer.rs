@@ -12,6 +12,7 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 
+use super::layers::Layers;
 use super::*;
 use crate::app::brush::{BrushView, Dab, ball_vertex_weights, falloff};
 
@@ -403,6 +404,16 @@ pub fn load_texel_layer(path: &std::path::Path) -> Result<TexelLayer> {
     Ok(TexelLayer::from_image(&img.to_rgba8()))
 }
 
+/// An empty texel layer for `mesh`: its texture's size, else [`TEXEL_LAYER_SIZE`]².
+pub fn new_layer_for(mesh: &TriMesh) -> TexelLayer {
+    let (w, h) = mesh
+        .texture
+        .as_ref()
+        .map(|t| t.image.dimensions())
+        .unwrap_or((TEXEL_LAYER_SIZE, TEXEL_LAYER_SIZE));
+    TexelLayer::new(w, h)
+}
+
 /// Whether `mesh` has per-corner UVs a texel layer can be painted through.
 pub fn has_uvs(mesh: &TriMesh) -> bool {
     mesh.uvs
@@ -511,6 +522,32 @@ fn raster_uv(t: [Vec2; 3], width: u32, height: u32, visit: &mut dyn FnMut(u32, u
     }
 }
 
+/// A vertex layer with a texel layer sampled at the vertices over it (straight colour and
+/// coverage per vertex); `None` when there is neither.
+pub fn stack_per_vertex(
+    vertex: Option<&Vec<[f32; 4]>>,
+    texel: Option<Vec<[f32; 4]>>,
+) -> Option<Vec<[f32; 4]>> {
+    match (vertex, texel) {
+        (None, None) => None,
+        (Some(p), None) => Some(p.clone()),
+        (None, Some(t)) => Some(t),
+        (Some(p), Some(t)) => Some(
+            p.iter()
+                .zip(&t)
+                .map(|(v, t)| {
+                    let a = t[3] + v[3] * (1.0 - t[3]);
+                    if a <= 0.0 {
+                        return [0.0; 4];
+                    }
+                    let c = [0, 1, 2].map(|k| (t[k] * t[3] + v[k] * v[3] * (1.0 - t[3])) / a);
+                    [c[0], c[1], c[2], a]
+                })
+                .collect(),
+        ),
+    }
+}
+
 /// Where a dab is: seen from a view, or a ball in space (paint through).
 #[derive(Clone, Copy, Debug)]
 pub enum DabAt {
@@ -528,24 +565,7 @@ impl MeshSlot {
             .texels
             .as_ref()
             .and_then(|l| l.per_vertex(self.displayed()));
-        match (&self.paint, texel) {
-            (None, None) => None,
-            (Some(p), None) => Some(p.clone()),
-            (None, Some(t)) => Some(t),
-            (Some(p), Some(t)) => Some(
-                p.iter()
-                    .zip(&t)
-                    .map(|(v, t)| {
-                        let a = t[3] + v[3] * (1.0 - t[3]);
-                        if a <= 0.0 {
-                            return [0.0; 4];
-                        }
-                        let c = [0, 1, 2].map(|k| (t[k] * t[3] + v[k] * v[3] * (1.0 - t[3])) / a);
-                        [c[0], c[1], c[2], a]
-                    })
-                    .collect(),
-            ),
-        }
+        stack_per_vertex(self.paint.as_ref(), texel)
     }
 
     /// Colours with all paint composited per vertex (the texel layer sampled at the vertices).
@@ -561,16 +581,17 @@ impl MeshSlot {
         }
     }
 
-    /// The displayed mesh with its texture at the texel layer's resolution, the layer over its
-    /// base (the mesh's own texture, else its colours and vertex paint baked through the UVs),
-    /// for export; `None` without a texel layer or UVs.
-    pub fn painted_texture_mesh(&self) -> Option<TriMesh> {
-        let layer = self.texels.as_ref()?;
+    /// The displayed mesh with its texture at the texel layers' resolution, the layers shown
+    /// as `layers` says (see [`super::layers`]): the result (the mesh's own texture, else its
+    /// colours with the vertex layer baked through the UVs) over the hidden-result grey, the
+    /// paint over it, the mask over that; for export. `None` without a texel layer or UVs.
+    pub fn painted_texture_mesh(&self, layers: &Layers) -> Option<TriMesh> {
+        let size = self.texels.as_ref().or(self.mask_texels.as_ref())?;
         let m = self.displayed();
         if !has_uvs(m) {
             return None;
         }
-        let (w, h) = (layer.width, layer.height);
+        let (w, h) = (size.width, size.height);
         let mut img = image::RgbImage::new(w, h);
         match (&m.texture, self.shows_texture()) {
             (Some(t), true) => {
@@ -593,14 +614,28 @@ impl MeshSlot {
                 });
             }
         }
+        let [wr, wp, wm] = layers.weights();
+        let stack: Vec<(&TexelLayer, f32)> = [(&self.texels, wp), (&self.mask_texels, wm)]
+            .into_iter()
+            .filter_map(|(l, wt)| {
+                l.as_ref()
+                    .filter(|l| wt > 0.0 && (l.width, l.height) == (w, h))
+                    .map(|l| (l, wt))
+            })
+            .collect();
         for (x, y, px) in img.enumerate_pixels_mut() {
-            let p = layer.get(x, y);
-            if p[3] > 0 {
-                let a = p[3] as f32 / 255.0;
-                for (c, &v) in px.0.iter_mut().zip(&p[..3]) {
-                    *c = (*c as f32 * (1.0 - a) + v as f32 * a).round() as u8;
+            let mut c = px.0.map(|v| v as f32 / 255.0);
+            if wr < 1.0 {
+                c = super::layers::result_shown(c, wr);
+            }
+            for (l, wt) in &stack {
+                let p = l.get(x, y);
+                if p[3] > 0 {
+                    let p = [0, 1, 2, 3].map(|k| p[k] as f32 / 255.0);
+                    c = super::layers::over(c, p, *wt);
                 }
             }
+            px.0 = c.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8);
         }
         let mut out = m.clone();
         out.colors = None;
@@ -614,12 +649,16 @@ impl MeshSlot {
 
 impl<P: AppParams> AppState<P> {
     /// The displayed mesh of one side with its paint, for "Export painted mesh": with a texel
-    /// layer, its UVs and a texture at the layer's resolution carrying the paint; otherwise
-    /// the paint in vertex colours ([`AppState::painted_mesh`]).
+    /// layer, its UVs and a texture at the layer's resolution; otherwise vertex colours. Either
+    /// way it carries what the view shows: the visible layers at their opacities.
     pub fn painted_export_mesh(&self, side: Side) -> Option<TriMesh> {
         self.slot(side)
-            .and_then(MeshSlot::painted_texture_mesh)
-            .or_else(|| self.painted_mesh(side))
+            .and_then(|s| s.painted_texture_mesh(&self.layers))
+            .or_else(|| {
+                let mut m = self.painted_mesh(side)?;
+                m.colors = self.slot(side).map(|s| s.shown_colors(&self.layers));
+                Some(m)
+            })
     }
 
     /// The colour the view shows at `point` of face `face` of one side's displayed mesh
@@ -639,20 +678,28 @@ impl<P: AppParams> AppState<P> {
                 [acc[0] + bary[k] * t[0], acc[1] + bary[k] * t[1]]
             })
         });
+        let [wr, wp, wm] = self.layers.weights();
+        let textured = uv.is_some();
+        let cols = if textured {
+            slot.display_colors()
+        } else {
+            slot.shown_colors(&self.layers)
+        };
         let mut col = match (&m.texture, uv, slot.shows_texture()) {
             (Some(t), Some(uv), true) => crate::mesh::sample_texture(t, uv),
-            _ => {
-                let cols = slot.display_colors();
-                [0, 1, 2].map(|k| {
-                    (0..3)
-                        .map(|j| bary[j] * cols.get(f[j] as usize).map_or(0.0, |c| c[k]))
-                        .sum::<f32>()
-                })
-            }
+            _ => [0, 1, 2].map(|k| {
+                (0..3)
+                    .map(|j| bary[j] * cols.get(f[j] as usize).map_or(0.0, |c| c[k]))
+                    .sum::<f32>()
+            }),
         };
-        if let (Some(layer), Some(uv)) = (slot.texels.as_ref(), uv) {
-            let p = layer.sample(uv);
-            col = [0, 1, 2].map(|k| col[k] * (1.0 - p[3]) + p[k] * p[3]);
+        if let Some(uv) = uv {
+            col = super::layers::result_shown(col, wr);
+            for (l, wt) in [(slot.texels.as_ref(), wp), (slot.mask_texels.as_ref(), wm)] {
+                if let Some(l) = l {
+                    col = super::layers::over(col, l.sample(uv), wt);
+                }
+            }
         }
         Some(col.map(|x| x.clamp(0.0, 1.0)))
     }
@@ -704,14 +751,10 @@ impl<P: AppParams> AppState<P> {
         let r_world = (brush.radius * frame.radius).max(1e-9);
         let normals = std::mem::take(&mut slot.normals);
         let count = if has_uvs(&mesh) {
-            let layer = slot.texels.get_or_insert_with(|| {
-                let (w, h) = mesh
-                    .texture
-                    .as_ref()
-                    .map(|t| t.image.dimensions())
-                    .unwrap_or((TEXEL_LAYER_SIZE, TEXEL_LAYER_SIZE));
-                TexelLayer::new(w, h)
-            });
+            let layer = slot
+                .target_layers(brush.target)
+                .1
+                .get_or_insert_with(|| new_layer_for(&mesh));
             if record || !layer.in_stroke() {
                 layer.begin_stroke(brush.color, brush.eraser);
             }
@@ -735,7 +778,10 @@ impl<P: AppParams> AppState<P> {
                 }
             };
             let n = mesh.positions.len();
-            let paint = slot.paint.get_or_insert_with(|| vec![[0.0; 4]; n]);
+            let paint = slot
+                .target_layers(brush.target)
+                .0
+                .get_or_insert_with(|| vec![[0.0; 4]; n]);
             for &(v, w) in &weights {
                 let dst = &mut paint[v as usize];
                 if brush.eraser {
@@ -765,7 +811,7 @@ impl<P: AppParams> AppState<P> {
 }
 
 /// Barycentric coordinates of `p` (projected onto the triangle's plane) in the triangle `t`.
-fn barycentric(p: Vec3, t: [Vec3; 3]) -> [f32; 3] {
+pub(super) fn barycentric(p: Vec3, t: [Vec3; 3]) -> [f32; 3] {
     let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], p - t[0]);
     let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
     let (d1, d2) = (d.dot(e1), d.dot(e2));
@@ -782,7 +828,7 @@ fn barycentric(p: Vec3, t: [Vec3; 3]) -> [f32; 3] {
 pub const COLOR_HISTORY: usize = 10;
 
 /// Put `c` first in the colour history (once).
-fn remember_color(history: &mut Vec<[f32; 3]>, c: [f32; 3]) {
+pub(super) fn remember_color(history: &mut Vec<[f32; 3]>, c: [f32; 3]) {
     history.retain(|h| h != &c);
     history.insert(0, c);
     history.truncate(COLOR_HISTORY);
