@@ -241,6 +241,22 @@ where
                     "suggesting correspondences needs a source and a target mesh".into(),
                 )),
             },
+            "atlas-source" | "atlas-target" => {
+                let side = if which == "atlas-target" {
+                    Side::Target
+                } else {
+                    Side::Source
+                };
+                match self.state.slot(side) {
+                    Some(s) => Ok(tools::atlas_job(
+                        side,
+                        s.id,
+                        s.working.clone().unwrap_or_else(|| s.file.clone()),
+                        wake,
+                    )),
+                    None => Err(Error::InvalidInput(format!("no {side:?} mesh to lay out"))),
+                }
+            }
             "detail" => match (self.state.slot(Side::Source), self.state.slot(Side::Target)) {
                 (Some(s), Some(t)) => Ok(tools::detail_job(
                     (*s.file).clone(),
@@ -790,6 +806,38 @@ where
         });
     }
 
+    /// For a side whose displayed mesh has no UVs (it paints its vertices): a button that lays
+    /// out a UV atlas on it, so that strokes paint a texel layer.
+    fn atlas_buttons(&mut self, ui: &mut egui::Ui) {
+        for side in [Side::Source, Side::Target] {
+            let Some(slot) = self.state.slot(side) else {
+                continue;
+            };
+            if state::paint_layer::has_uvs(slot.displayed()) {
+                continue;
+            }
+            let free = self.tool.is_none();
+            if ui
+                .add_enabled(
+                    free,
+                    egui::Button::new(format!("UV atlas for the {side:?}")),
+                )
+                .on_hover_text(format!(
+                    "The {side:?} mesh has no UVs, so strokes paint its vertices. Lay out a UV \
+                     atlas on it (in the background) to paint a {0}x{0} texel layer instead; \
+                     paint already on its vertices stays with the result",
+                    state::paint_layer::TEXEL_LAYER_SIZE
+                ))
+                .clicked()
+            {
+                self.start_tool(match side {
+                    Side::Source => "atlas-source",
+                    Side::Target => "atlas-target",
+                });
+            }
+        }
+    }
+
     /// Visibility and opacity of the result, the paint and the mask, and the layer painted into.
     fn layers_panel(&mut self, ui: &mut egui::Ui) {
         use state::PaintTarget;
@@ -817,14 +865,18 @@ where
                     "A mask: painting with exemplar acts where it is painted",
                 ),
             ];
+            ui.label(egui::RichText::new("shown").small().weak());
+            ui.label(egui::RichText::new("opacity").small().weak());
+            ui.label(egui::RichText::new("paint into").small().weak());
+            ui.end_row();
             for (name, l, t, tip) in rows {
                 ui.checkbox(&mut l.visible, name)
                     .on_hover_text(format!("{tip}. Shown and exported when ticked"));
-                ui.add(egui::Slider::new(&mut l.opacity, 0.0..=1.0).text("opacity"))
+                ui.add(egui::Slider::new(&mut l.opacity, 0.0..=1.0))
                     .on_hover_text("How strongly the views and the export show the layer");
                 match t {
                     Some(t) => {
-                        ui.radio_value(target, t, "paint into")
+                        ui.radio_value(target, t, "")
                             .on_hover_text("Strokes and fills go into this layer");
                     }
                     None => {
@@ -932,6 +984,7 @@ where
                     .weak(),
                 );
                 self.layers_panel(ui);
+                self.atlas_buttons(ui);
             }
             ui.separator();
             ui.horizontal(|ui| {

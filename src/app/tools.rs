@@ -33,6 +33,9 @@ pub enum ToolOutcome {
     Correspondences(Vec<crate::correspondence::Correspondence>, String),
     /// Nothing to apply (a file was written): the status message to show.
     Done(String),
+    /// Per-corner UVs (a generated atlas) for the displayed mesh of one side, identified by its
+    /// slot's id, with the status message to show.
+    Uvs(Side, u64, Vec<[f32; 2]>, String),
 }
 
 /// A partial result: colours per vertex of the tool's working mesh.
@@ -160,6 +163,34 @@ pub fn completion_job(
             format!("{side:?} completed from its paint (Ctrl+Z undoes)"),
         ))
     }))
+}
+
+/// A UV atlas for a [`super::state::paint_layer::TEXEL_LAYER_SIZE`]² texel layer on `mesh` (one
+/// side's displayed mesh, its slot `id`), so that a mesh without UVs can be painted at texel
+/// resolution.
+pub fn atlas_job(
+    side: Side,
+    id: u64,
+    mesh: Arc<TriMesh>,
+    wake: impl Fn() + Send + Sync + 'static,
+) -> ToolJob {
+    ToolJob::spawn("UV atlas", wake, move |_sink, cancel| {
+        let params = crate::geometry::AtlasParams {
+            texture_size: super::state::paint_layer::TEXEL_LAYER_SIZE,
+            ..Default::default()
+        };
+        let a = crate::geometry::uv_atlas(&mesh.positions, &mesh.faces, &params, &|_| {}, cancel)?;
+        Ok(ToolOutcome::Uvs(
+            side,
+            id,
+            a.uvs,
+            format!(
+                "{side:?}: UV atlas of {} charts ({:.0}% of the texture); strokes now paint texels",
+                a.charts,
+                100.0 * a.utilization
+            ),
+        ))
+    })
 }
 
 /// Texture update: `old` (textured) re-applied to `new` geometry; the outcome replaces the target.

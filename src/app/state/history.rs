@@ -255,6 +255,27 @@ impl<P: AppParams> AppState<P> {
         use crate::app::tools::ToolOutcome;
         match outcome {
             ToolOutcome::Done(message) => self.message = message,
+            ToolOutcome::Uvs(side, id, uvs, message) => {
+                let Some(slot) = self.meshes[side_index(side)].as_mut() else {
+                    return;
+                };
+                let m = slot.displayed();
+                if slot.id != id || uvs.len() != 3 * m.faces.len() {
+                    self.report("the mesh changed while its atlas was laid out; lay it out again");
+                    return;
+                }
+                let mut shown = m.clone();
+                shown.uvs = Some(uvs);
+                let shown = Arc::new(shown);
+                match slot.working {
+                    Some(_) => slot.working = Some(shown),
+                    None => slot.file = shown,
+                }
+                slot.geometry_dirty = true;
+                slot.colors_dirty = true;
+                self.mark_changed();
+                self.message = message;
+            }
             ToolOutcome::Colors(side, colors, message) => {
                 self.end_tool_preview();
                 let Some(n) = self.slot(side).map(|s| s.displayed().num_vertices()) else {

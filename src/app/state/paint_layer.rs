@@ -834,6 +834,123 @@ pub(super) fn remember_color(history: &mut Vec<[f32; 3]>, c: [f32; 3]) {
     history.truncate(COLOR_HISTORY);
 }
 
+/// Threads that compute a dab's texels for the UI thread: a pool of their own at the window's
+/// priority, so that a transfer filling rayon's global pool (at a lower priority) does not
+/// delay a dab.
+fn paint_pool() -> Option<&'static rayon::ThreadPool> {
+    static POOL: std::sync::OnceLock<Option<rayon::ThreadPool>> = std::sync::OnceLock::new();
+    POOL.get_or_init(|| {
+        let n = std::thread::available_parallelism().map_or(1, |n| n.get());
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .thread_name(|i| format!("meshmatch-paint-{i}"))
+            .build()
+            .ok()
+    })
+    .as_ref()
+}
+
+/// Faces per parallel task of a dab.
+const DAB_FACE_CHUNK: usize = 16;
+
+/// A face's corners as a dab reads them at every texel: positions, vertex normals (zero where
+/// missing) and, seen from a view, clip coordinates.
+#[derive(Clone, Copy, Default)]
+struct FaceCorners {
+    p: [Vec3; 3],
+    n: [Vec3; 3],
+    clip: [glam::Vec4; 3],
+}
+
+impl FaceCorners {
+    fn new(mesh: &TriMesh, normals: &[[f32; 3]], view_proj: Option<glam::Mat4>, f: usize) -> Self {
+        let face = mesh.faces[f];
+        let p = face.map(|v| Vec3::from(mesh.positions[v as usize]));
+        let n = face.map(|v| {
+            normals
+                .get(v as usize)
+                .map_or(Vec3::ZERO, |n| Vec3::from(*n))
+        });
+        let clip = match view_proj {
+            Some(m) => p.map(|q| m * q.extend(1.0)),
+            None => [glam::Vec4::ZERO; 3],
+        };
+        FaceCorners { p, n, clip }
+    }
+
+    #[inline]
+    fn point(&self, b: [f32; 3]) -> Vec3 {
+        self.p[0] * b[0] + self.p[1] * b[1] + self.p[2] * b[2]
+    }
+
+    #[inline]
+    fn normal(&self, b: [f32; 3]) -> Vec3 {
+        (self.n[0] * b[0] + self.n[1] * b[1] + self.n[2] * b[2]).normalize_or_zero()
+    }
+
+    #[inline]
+    fn clip(&self, b: [f32; 3]) -> glam::Vec4 {
+        self.clip[0] * b[0] + self.clip[1] * b[1] + self.clip[2] * b[2]
+    }
+}
+
+/// Stamp the weights `weight` gives the texels of `faces` (culled by `keep`, see
+/// [`for_texels`]) into the stroke: the weights of texels the stroke has not yet given their
+/// full weight are computed in parallel over chunks of faces (each face's corners read once,
+/// see [`FaceCorners`]), then stamped in order. Returns the number of texels that changed.
+#[allow(clippy::too_many_arguments)]
+fn stamp_faces(
+    layer: &mut TexelLayer,
+    mesh: &TriMesh,
+    normals: &[[f32; 3]],
+    view_proj: Option<glam::Mat4>,
+    faces: &[usize],
+    keep: &(dyn Fn([Vec3; 3]) -> bool + Sync),
+    weight: &(dyn Fn(&FaceCorners, [f32; 3]) -> f32 + Sync),
+) -> usize {
+    use rayon::prelude::*;
+    let (w, h) = (layer.width, layer.height);
+    let l: &TexelLayer = layer;
+    let chunk = |faces: &[usize]| {
+        let mut out: Vec<(u32, f32)> = Vec::new();
+        let mut at = usize::MAX;
+        let mut corners = FaceCorners::default();
+        for_texels(
+            mesh,
+            w,
+            h,
+            faces.iter().copied(),
+            keep,
+            &mut |x, y, f, b| {
+                // Full already this stroke: nothing more to add.
+                if l.saturated(x, y) {
+                    return;
+                }
+                if f != at {
+                    corners = FaceCorners::new(mesh, normals, view_proj, f);
+                    at = f;
+                }
+                let wt = weight(&corners, b);
+                if wt > 0.0 {
+                    out.push((y * w + x, wt));
+                }
+            },
+        );
+        out
+    };
+    let found: Vec<Vec<(u32, f32)>> = match paint_pool() {
+        Some(pool) => pool.install(|| faces.par_chunks(DAB_FACE_CHUNK).map(chunk).collect()),
+        None => vec![chunk(faces)],
+    };
+    let mut count = 0;
+    for (t, wt) in found.into_iter().flatten() {
+        if layer.stamp(t % w, t / w, wt) {
+            count += 1;
+        }
+    }
+    count
+}
+
 /// One dab into a texel layer: the texels of the faces the dab can reach, weighted.
 fn texel_dab(
     layer: &mut TexelLayer,
@@ -844,25 +961,6 @@ fn texel_dab(
     r_world: f32,
     scale: f32,
 ) -> usize {
-    let (w, h) = (layer.width, layer.height);
-    let normal = |f: usize, b: [f32; 3]| -> Vec3 {
-        let face = mesh.faces[f];
-        (0..3)
-            .map(|k| {
-                normals
-                    .get(face[k] as usize)
-                    .map_or(Vec3::ZERO, |n| Vec3::from(*n) * b[k])
-            })
-            .sum::<Vec3>()
-            .normalize_or_zero()
-    };
-    let point = |f: usize, b: [f32; 3]| -> Vec3 {
-        let face = mesh.faces[f];
-        (0..3)
-            .map(|k| Vec3::from(mesh.positions[face[k] as usize]) * b[k])
-            .sum()
-    };
-    let mut count = 0;
     match at {
         DabAt::Ball(c) => {
             let c = Vec3::from(c);
@@ -871,18 +969,13 @@ fn texel_dab(
                 let hi = p[0].max(p[1]).max(p[2]);
                 c.clamp(lo, hi).distance_squared(c) <= r_world * r_world
             };
-            let faces = (0..mesh.faces.len())
-                .filter(|&f| keep(mesh.faces[f].map(|v| Vec3::from(mesh.positions[v as usize]))));
-            let faces: Vec<usize> = faces.collect();
-            for_texels(mesh, w, h, faces.into_iter(), &keep, &mut |x, y, f, b| {
-                if layer.saturated(x, y) {
-                    return;
-                }
-                let wt = falloff(point(f, b).distance(c) / r_world, brush.hardness);
-                if wt > 0.0 && layer.stamp(x, y, wt) {
-                    count += 1;
-                }
-            });
+            let faces: Vec<usize> = (0..mesh.faces.len())
+                .filter(|&f| keep(mesh.faces[f].map(|v| Vec3::from(mesh.positions[v as usize]))))
+                .collect();
+            let weight = |fc: &FaceCorners, b: [f32; 3]| {
+                falloff(fc.point(b).distance(c) / r_world, brush.hardness)
+            };
+            stamp_faces(layer, mesh, normals, None, &faces, &keep, &weight)
         }
         DabAt::View(view) => {
             let dab = Dab::new(
@@ -919,29 +1012,29 @@ fn texel_dab(
                 }
                 slo.x <= hi.x && slo.y <= hi.y && shi.x >= lo.x && shi.y >= lo.y
             };
-            for_texels(mesh, w, h, faces.into_iter(), &keep, &mut |x, y, f, b| {
-                // Full already this stroke: nothing more to add.
-                if layer.saturated(x, y) {
-                    return;
-                }
-                let p = point(f, b);
-                let Some((s, q)) = view.project(p) else {
-                    return;
+            let weight = |fc: &FaceCorners, b: [f32; 3]| {
+                let Some((s, q)) = view.project_clip(fc.clip(b)) else {
+                    return 0.0;
                 };
                 if !dab.in_disc(s) {
-                    return;
+                    return 0.0;
                 }
                 let n = if brush.normal_falloff {
-                    normal(f, b)
+                    fc.normal(b)
                 } else {
                     Vec3::ZERO
                 };
-                let wt = dab.weight_projected(p, n, s, q);
-                if wt > 0.0 && layer.stamp(x, y, wt) {
-                    count += 1;
-                }
-            });
+                dab.weight_projected(fc.point(b), n, s, q)
+            };
+            stamp_faces(
+                layer,
+                mesh,
+                normals,
+                Some(view.view_proj),
+                &faces,
+                &keep,
+                &weight,
+            )
         }
     }
-    count
 }
