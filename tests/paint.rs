@@ -3,7 +3,10 @@
 //! on a mesh with UVs the paint lives in a texel layer at the texture's resolution (a stroke
 //! across a UV seam paints both charts without a gap or a bleed into the gutter, its edge is the
 //! brush's, undo restores the layer exactly, a GLB export carries it at full resolution, and
-//! completion reads it as it reads vertex paint).
+//! completion reads it as it reads vertex paint). A region fill stays inside its region (it stops
+//! at a strong colour edge, crosses UV seams, never reaches the gutter), an island fill paints
+//! exactly its chart's texels, undo of a fill restores the layer exactly; hidden layers stay out
+//! of the composite and the export, opacity 0.5 blends half, and sessions keep the mask.
 
 #![cfg(feature = "gui")]
 
@@ -470,14 +473,38 @@ fn a_session_keeps_the_texel_layer_in_a_png_beside_it() {
         .as_ref()
         .unwrap()
         .to_image();
+    // A mask stroke too, into the mask layer.
+    st.brush.target = meshmatch::app::state::PaintTarget::Mask;
+    st.brush.color = [0.1, 0.2, 0.9];
+    stroke(
+        &mut st,
+        &mesh,
+        Vec3::new(0.2, 0.8, 0.0),
+        Vec3::new(0.8, 0.3, 0.0),
+        30,
+    );
+    let mask = st
+        .slot(Side::Target)
+        .unwrap()
+        .mask_texels
+        .as_ref()
+        .unwrap()
+        .to_image();
     let session = dir.join("s.json");
     st.save_session(&session).unwrap();
     assert!(dir.join("s.target_paint_texels.png").exists());
+    assert!(dir.join("s.target_mask_texels.png").exists());
     let mut back = AppState::<NoParams>::new();
     back.open_session(&session).unwrap();
-    let layer = back.slot(Side::Target).unwrap().texels.as_ref().unwrap();
+    let slot = back.slot(Side::Target).unwrap();
+    let layer = slot.texels.as_ref().unwrap();
     assert!(layer.to_image() == painted, "the reopened layer differs");
+    assert!(
+        slot.mask_texels.as_ref().unwrap().to_image() == mask,
+        "the reopened mask differs"
+    );
     assert!(back.slot(Side::Source).unwrap().texels.is_none());
+    assert!(back.slot(Side::Source).unwrap().mask_texels.is_none());
 }
 
 /// The face of a z = 0 plane that contains `p` (in x, y).

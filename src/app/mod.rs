@@ -252,6 +252,7 @@ where
                         side,
                         s.id,
                         s.working.clone().unwrap_or_else(|| s.file.clone()),
+                        state::paint_layer::TEXEL_LAYER_SIZE,
                         wake,
                     )),
                     None => Err(Error::InvalidInput(format!("no {side:?} mesh to lay out"))),

@@ -165,18 +165,18 @@ pub fn completion_job(
     }))
 }
 
-/// A UV atlas for a [`super::state::paint_layer::TEXEL_LAYER_SIZE`]² texel layer on `mesh` (one
-/// side's displayed mesh, its slot `id`), so that a mesh without UVs can be painted at texel
-/// resolution.
+/// A UV atlas for a `texture_size`² texel layer on `mesh` (one side's displayed mesh, its slot
+/// `id`), so that a mesh without UVs can be painted at texel resolution.
 pub fn atlas_job(
     side: Side,
     id: u64,
     mesh: Arc<TriMesh>,
+    texture_size: u32,
     wake: impl Fn() + Send + Sync + 'static,
 ) -> ToolJob {
     ToolJob::spawn("UV atlas", wake, move |_sink, cancel| {
         let params = crate::geometry::AtlasParams {
-            texture_size: super::state::paint_layer::TEXEL_LAYER_SIZE,
+            texture_size,
             ..Default::default()
         };
         let a = crate::geometry::uv_atlas(&mesh.positions, &mesh.faces, &params, &|_| {}, cancel)?;

@@ -4,7 +4,6 @@
 //! uncoloured mesh. Visibility and opacity change what is shown and exported, never what the
 //! applications read (completion reads the paint, exemplar painting's region the mask).
 
-use super::paint_layer::{TexelLayer, has_uvs};
 use super::*;
 
 /// How one layer is shown.
@@ -84,60 +83,7 @@ pub fn result_shown(result: [f32; 3], w: f32) -> [f32; 3] {
     over(HIDDEN_RESULT, [result[0], result[1], result[2], 1.0], w)
 }
 
-impl MeshSlot {
-    /// The vertex colours a view draws. Without UVs, every layer is composited here (the
-    /// vertex paint is the paint layer). With UVs, the result alone (its colours with the
-    /// vertex layer over them, applications' outcomes land there); the view composites the
-    /// result's weight and the texel layers per pixel.
-    pub fn shown_colors(&self, layers: &Layers) -> Vec<[f32; 3]> {
-        if has_uvs(self.displayed()) {
-            return self.display_colors();
-        }
-        let [wr, wp, wm] = layers.weights();
-        let none = [0.0f32; 4];
-        (0..self.base_colors.len())
-            .map(|v| {
-                let c = result_shown(self.base_colors[v], wr);
-                let p = self.paint.as_ref().and_then(|p| p.get(v)).unwrap_or(&none);
-                let m = self.mask.as_ref().and_then(|m| m.get(v)).unwrap_or(&none);
-                over(over(c, *p, wp), *m, wm)
-            })
-            .collect()
-    }
-
-    /// The vertex and texel layers the brush paints into for `target`.
-    pub fn target_layers(
-        &mut self,
-        target: PaintTarget,
-    ) -> (&mut Option<Vec<[f32; 4]>>, &mut Option<TexelLayer>) {
-        match target {
-            PaintTarget::Paint => (&mut self.paint, &mut self.texels),
-            PaintTarget::Mask => (&mut self.mask, &mut self.mask_texels),
-        }
-    }
-
-    /// Mask coverage per displayed vertex (the texel mask sampled at the vertices over the
-    /// vertex mask); `None` when the slot has no mask paint.
-    pub fn mask_per_vertex(&self) -> Option<Vec<[f32; 4]>> {
-        let texel = self
-            .mask_texels
-            .as_ref()
-            .and_then(|l| l.per_vertex(self.displayed()));
-        super::paint_layer::stack_per_vertex(self.mask.as_ref(), texel)
-    }
-}
-
 impl<P: AppParams> AppState<P> {
-    /// The region exemplar painting acts on, per displayed vertex of one side: the mask's
-    /// coverage when the mask has paint, else the paint's (0 where unpainted).
-    pub fn region_coverage(&self, side: Side) -> Option<Vec<f32>> {
-        let slot = self.slot(side)?;
-        match slot.mask_per_vertex() {
-            Some(m) if m.iter().any(|c| c[3] > 0.0) => Some(m.iter().map(|c| c[3]).collect()),
-            _ => self.paint_coverage(side),
-        }
-    }
-
     /// Show or change a layer: views redraw, vertex colours are rebuilt.
     pub fn set_layers(&mut self, layers: Layers) {
         if layers == self.layers {
