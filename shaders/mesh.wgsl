@@ -12,6 +12,8 @@ struct Uniforms {
     eye: vec4<f32>,
     // rgb: wireframe colour, a: ambient term
     wire: vec4<f32>,
+    // Weights of the result (over grey), the paint layer and the mask layer; w unused.
+    layers: vec4<f32>,
 };
 
 @group(0) @binding(0) var<uniform> u: Uniforms;
@@ -19,6 +21,10 @@ struct Uniforms {
 @group(1) @binding(1) var base_samp: sampler;
 // Paint over the base (sRGB colour, coverage), a 1x1 transparent texture when there is none.
 @group(1) @binding(2) var paint_tex: texture_2d<f32>;
+// The mask over the paint, the same way.
+@group(1) @binding(3) var mask_tex: texture_2d<f32>;
+// A hidden result shows this grey (0.75 sRGB, linear).
+const HIDDEN_RESULT: f32 = 0.5225;
 
 struct VsOut {
     @builtin(position) clip: vec4<f32>,
@@ -50,11 +56,11 @@ fn vs_main(
     return out;
 }
 
-// The paint layer at `uv` (repeating outside [0, 1], edges clamped): bilinear over its four
+// A texel layer at `uv` (repeating outside [0, 1], edges clamped): bilinear over its four
 // nearest texels with the colours weighted by coverage, so an unpainted texel beside a painted
 // one lowers the coverage but never darkens the colour. Linear colour, coverage in alpha.
-fn paint_at(uv: vec2<f32>) -> vec4<f32> {
-    let dim = vec2<i32>(textureDimensions(paint_tex));
+fn paint_at(tex: texture_2d<f32>, uv: vec2<f32>) -> vec4<f32> {
+    let dim = vec2<i32>(textureDimensions(tex));
     let inside = (uv >= vec2<f32>(0.0)) & (uv <= vec2<f32>(1.0));
     let p = select(fract(uv), uv, inside) * vec2<f32>(dim) - 0.5;
     let i = vec2<i32>(floor(p));
@@ -63,7 +69,7 @@ fn paint_at(uv: vec2<f32>) -> vec4<f32> {
     for (var k = 0; k < 4; k = k + 1) {
         let o = vec2<i32>(k & 1, k >> 1u);
         let q = clamp(i + o, vec2<i32>(0), dim - 1);
-        let t = textureLoad(paint_tex, q, 0);
+        let t = textureLoad(tex, q, 0);
         let w = select(1.0 - f.x, f.x, o.x == 1) * select(1.0 - f.y, f.y, o.y == 1) * t.a;
         acc = acc + vec4<f32>(t.rgb * w, w);
     }
@@ -85,9 +91,12 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
         lambert = abs(dot(n, v));
     }
     let ambient = u.wire.a;
-    let under = in.color * textureSample(base_tex, base_samp, in.uv).rgb;
-    let paint = paint_at(in.uv);
-    let base = mix(under, paint.rgb, paint.a);
+    let result = in.color * textureSample(base_tex, base_samp, in.uv).rgb;
+    let under = mix(vec3<f32>(HIDDEN_RESULT), result, u.layers.x);
+    let paint = paint_at(paint_tex, in.uv);
+    let painted = mix(under, paint.rgb, paint.a * u.layers.y);
+    let mask = paint_at(mask_tex, in.uv);
+    let base = mix(painted, mask.rgb, mask.a * u.layers.z);
     return vec4<f32>(base * (ambient + (1.0 - ambient) * lambert), 1.0);
 }
 

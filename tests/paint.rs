@@ -3,7 +3,10 @@
 //! on a mesh with UVs the paint lives in a texel layer at the texture's resolution (a stroke
 //! across a UV seam paints both charts without a gap or a bleed into the gutter, its edge is the
 //! brush's, undo restores the layer exactly, a GLB export carries it at full resolution, and
-//! completion reads it as it reads vertex paint).
+//! completion reads it as it reads vertex paint). A region fill stays inside its region (it stops
+//! at a strong colour edge, crosses UV seams, never reaches the gutter), an island fill paints
+//! exactly its chart's texels, undo of a fill restores the layer exactly; hidden layers stay out
+//! of the composite and the export, opacity 0.5 blends half, and sessions keep the mask.
 
 #![cfg(feature = "gui")]
 
@@ -470,14 +473,38 @@ fn a_session_keeps_the_texel_layer_in_a_png_beside_it() {
         .as_ref()
         .unwrap()
         .to_image();
+    // A mask stroke too, into the mask layer.
+    st.brush.target = meshmatch::app::state::PaintTarget::Mask;
+    st.brush.color = [0.1, 0.2, 0.9];
+    stroke(
+        &mut st,
+        &mesh,
+        Vec3::new(0.2, 0.8, 0.0),
+        Vec3::new(0.8, 0.3, 0.0),
+        30,
+    );
+    let mask = st
+        .slot(Side::Target)
+        .unwrap()
+        .mask_texels
+        .as_ref()
+        .unwrap()
+        .to_image();
     let session = dir.join("s.json");
     st.save_session(&session).unwrap();
     assert!(dir.join("s.target_paint_texels.png").exists());
+    assert!(dir.join("s.target_mask_texels.png").exists());
     let mut back = AppState::<NoParams>::new();
     back.open_session(&session).unwrap();
-    let layer = back.slot(Side::Target).unwrap().texels.as_ref().unwrap();
+    let slot = back.slot(Side::Target).unwrap();
+    let layer = slot.texels.as_ref().unwrap();
     assert!(layer.to_image() == painted, "the reopened layer differs");
+    assert!(
+        slot.mask_texels.as_ref().unwrap().to_image() == mask,
+        "the reopened mask differs"
+    );
     assert!(back.slot(Side::Source).unwrap().texels.is_none());
+    assert!(back.slot(Side::Source).unwrap().mask_texels.is_none());
 }
 
 /// The face of a z = 0 plane that contains `p` (in x, y).
@@ -528,4 +555,345 @@ fn the_eyedropper_returns_the_colour_under_the_cursor_and_strokes_fill_the_histo
     for k in 0..3 {
         assert!((c[k] - grey[k]).abs() < 0.01, "{c:?}");
     }
+}
+
+/// The seamed plane with a dark band painted across the left chart's texels at v in
+/// [0.45, 0.55] (a strong colour edge for a fill to stop at).
+fn plane_with_band() -> (TriMesh, AppState<NoParams>) {
+    let mesh = seamed_plane(8);
+    let mut st = state_with(Side::Target, mesh.clone());
+    st.brush.radius = 0.05;
+    st.brush.hardness = 0.999;
+    st.brush.color = [0.05, 0.05, 0.05];
+    stroke(
+        &mut st,
+        &mesh,
+        Vec3::new(0.0, 0.5, 0.0),
+        Vec3::new(1.0, 0.5, 0.0),
+        80,
+    );
+    (mesh, st)
+}
+
+#[test]
+fn a_region_fill_stays_inside_its_region_and_stops_at_a_strong_colour_edge() {
+    use meshmatch::app::state::paint_fill::FillKind;
+    let (mesh, mut st) = plane_with_band();
+    let before = st
+        .slot(Side::Target)
+        .unwrap()
+        .texels
+        .as_ref()
+        .unwrap()
+        .to_image();
+    st.brush.color = [0.0, 0.8, 0.2];
+    st.brush.fill_tolerance = 0.1;
+    // Click the lower left quarter (grey, below the band).
+    let p = Vec3::new(0.2, 0.2, 0.0);
+    let n = st.fill_at(
+        Side::Target,
+        face_under(&mesh, p),
+        p.to_array(),
+        FillKind::Region,
+    );
+    assert!(n > 10_000, "{n} texels filled");
+    let layer = st.slot(Side::Target).unwrap().texels.as_ref().unwrap();
+    let green = |uv: [f32; 2]| {
+        let s = layer.sample(uv);
+        s[3] > 0.99 && s[1] > 0.75 && s[0] < 0.05
+    };
+    // Below the band, both charts (the fill crosses the UV seam through the seam's links):
+    for (x, y) in [
+        (0.1, 0.1),
+        (0.45, 0.3),
+        (0.55, 0.3),
+        (0.9, 0.1),
+        (0.3, 0.38),
+    ] {
+        let u = if x > 0.5 {
+            0.55 + 0.8 * (x - 0.5)
+        } else {
+            0.05 + 0.8 * x
+        };
+        assert!(green([u, 0.05 + 0.9 * y]), "not filled at ({x}, {y})");
+    }
+    // Above the band (y > 0.55 on the plane) nothing changes, nor does any texel the band
+    // painted fully; the gutter stays empty.
+    let (w, h) = (layer.width, layer.height);
+    let above = ((1.0 - (0.05 + 0.9 * 0.55)) * h as f32) as u32;
+    let mut band = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let b = before.get_pixel(x, y).0;
+            if y < above || b[3] == 255 {
+                band += usize::from(b[3] == 255);
+                assert_eq!(layer.get(x, y), b, "changed at {x},{y}");
+            }
+        }
+    }
+    assert!(band > 50_000, "{band} texels in the band");
+    let (lo, hi) = ((0.45 * 2048.0 + 1.5) as u32, (0.55 * 2048.0 - 1.5) as u32);
+    for y in 0..h {
+        for x in lo..=hi {
+            assert_eq!(layer.get(x, y)[3], 0, "paint in the gutter at {x},{y}");
+        }
+    }
+    // The dark band is not green anywhere.
+    for k in 0..=100 {
+        let x = 0.02 + 0.96 * k as f32 / 100.0;
+        let u = if x > 0.5 {
+            0.55 + 0.8 * (x - 0.5)
+        } else {
+            0.05 + 0.8 * x
+        };
+        let s = layer.sample([u, 0.05 + 0.9 * 0.5]);
+        assert!(s[1] < 0.1, "the fill crossed the band at x = {x}: {s:?}");
+    }
+}
+
+#[test]
+fn an_island_fill_paints_exactly_its_charts_texels_and_undo_restores_the_layer() {
+    use meshmatch::app::state::paint_fill::{FillKind, uv_charts};
+    use meshmatch::app::state::paint_layer::for_texels;
+    let (mesh, mut st) = plane_with_band();
+    let before = st
+        .slot(Side::Target)
+        .unwrap()
+        .texels
+        .as_ref()
+        .unwrap()
+        .to_image();
+    let charts = uv_charts(&mesh);
+    let mut ids: Vec<u32> = charts.clone();
+    ids.sort_unstable();
+    ids.dedup();
+    assert_eq!(ids.len(), 2, "the seamed plane has two charts");
+    st.brush.color = [1.0, 0.9, 0.0];
+    let p = Vec3::new(0.8, 0.7, 0.0);
+    let f = face_under(&mesh, p);
+    let n = st.fill_at(Side::Target, f, p.to_array(), FillKind::Island);
+    let mut expected = vec![false; 2048 * 2048];
+    for_texels(
+        &mesh,
+        2048,
+        2048,
+        (0..mesh.faces.len()).filter(|&g| charts[g] == charts[f]),
+        &|_| true,
+        &mut |x, y, _, _| expected[(y * 2048 + x) as usize] = true,
+    );
+    let layer = st.slot(Side::Target).unwrap().texels.as_ref().unwrap();
+    let mut filled = 0;
+    for y in 0..2048 {
+        for x in 0..2048 {
+            let inside = expected[(y * 2048 + x) as usize];
+            let p = layer.get(x, y);
+            if inside {
+                assert_eq!(p, [255, 230, 0, 255], "chart texel {x},{y} not filled");
+                filled += 1;
+            } else {
+                assert_eq!(
+                    p,
+                    before.get_pixel(x, y).0,
+                    "texel {x},{y} off the chart changed"
+                );
+            }
+        }
+    }
+    assert!(filled > 100_000 && n > 0, "{filled} texels in the chart");
+    // One undo step restores the layer exactly.
+    assert!(st.undo());
+    let layer = st.slot(Side::Target).unwrap().texels.as_ref().unwrap();
+    assert!(layer.to_image() == before, "undo did not restore the layer");
+}
+
+#[test]
+fn fills_without_uvs_act_on_vertices_and_undo_in_one_step() {
+    use meshmatch::app::state::paint_fill::FillKind;
+    // Two separate sheets side by side: an island fill takes one, a region fill stops at paint.
+    let mut mesh = TriMesh::default();
+    grid(40, 0.0, false, &mut mesh);
+    let base = mesh.positions.len() as u32;
+    grid(40, 0.0, false, &mut mesh);
+    for p in &mut mesh.positions[base as usize..] {
+        p[0] += 2.0;
+    }
+    mesh.file_index = (0..mesh.positions.len() as u32).collect();
+    mesh.file_vertex_count = mesh.positions.len();
+    let mut st = state_with(Side::Target, mesh.clone());
+    st.brush.color = [0.0, 0.0, 1.0];
+    let top = |x: f32, y: f32| Vec3::new(x, y, 0.0);
+    let face_at = |p: Vec3| {
+        (0..mesh.faces.len())
+            .find(|&f| {
+                let c = mesh.faces[f].map(|v| Vec3::from(mesh.positions[v as usize]));
+                c.iter().all(|q| (q.z - p.z).abs() < 1e-6) && {
+                    let lo = c[0].min(c[1]).min(c[2]);
+                    let hi = c[0].max(c[1]).max(c[2]);
+                    p.x >= lo.x && p.x <= hi.x && p.y >= lo.y && p.y <= hi.y
+                }
+            })
+            .unwrap()
+    };
+    let p = top(0.5, 0.5);
+    let n = st.fill_at(Side::Target, face_at(p), p.to_array(), FillKind::Island);
+    assert_eq!(
+        n, base as usize,
+        "the island fill takes the first slab's vertices"
+    );
+    let paint = st.slot(Side::Target).unwrap().paint.clone().unwrap();
+    assert!(
+        paint[..base as usize]
+            .iter()
+            .all(|c| *c == [0.0, 0.0, 1.0, 1.0])
+    );
+    assert!(paint[base as usize..].iter().all(|c| c[3] == 0.0));
+    assert!(st.undo());
+    assert!(st.slot(Side::Target).unwrap().paint.is_none());
+    // A painted line across the first slab's top splits it for a region fill.
+    st.brush.color = [0.0, 0.0, 0.0];
+    st.brush.radius = 0.03;
+    st.brush.hardness = 0.999;
+    for k in 0..=60 {
+        let q = top(k as f32 / 60.0, 0.5);
+        st.paint_dab(Side::Target, &view_of(&mesh, Vec3::Z, q), k == 0);
+    }
+    st.brush.color = [1.0, 1.0, 0.0];
+    let p = top(0.5, 0.2);
+    st.fill_at(Side::Target, face_at(p), p.to_array(), FillKind::Region);
+    let slot = st.slot(Side::Target).unwrap();
+    let paint = slot.paint.as_ref().unwrap();
+    for (v, q) in mesh.positions.iter().enumerate().take(base as usize) {
+        let yellow = paint[v] == [1.0, 1.0, 0.0, 1.0];
+        if q[1] < 0.4 {
+            assert!(yellow, "vertex {v} at {q:?} below the line not filled");
+        }
+        if q[1] > 0.6 {
+            assert!(!yellow, "vertex {v} at {q:?} beyond the line filled");
+        }
+    }
+}
+
+#[test]
+fn hidden_layers_stay_out_of_the_export_and_half_opacity_blends_half() {
+    use meshmatch::app::state::PaintTarget;
+    let mut mesh = seamed_plane(8);
+    let base = [0.2f32, 0.4, 0.6];
+    mesh.colors = Some(vec![base; mesh.positions.len()]);
+    let mut st = state_with(Side::Target, mesh.clone());
+    st.brush.radius = 0.05;
+    st.brush.hardness = 0.999;
+    // Paint red at one spot, a blue mask over the same spot.
+    let p = Vec3::new(0.3, 0.6, 0.0);
+    st.brush.color = [1.0, 0.0, 0.0];
+    st.paint_dab(Side::Target, &view_of(&mesh, Vec3::Z, p), true);
+    st.brush.target = PaintTarget::Mask;
+    st.brush.color = [0.0, 0.0, 1.0];
+    st.paint_dab(Side::Target, &view_of(&mesh, Vec3::Z, p), true);
+    let (x, y) = (
+        ((0.05 + 0.8 * 0.3) * 2048.0) as u32,
+        ((1.0 - (0.05 + 0.9 * 0.6)) * 2048.0) as u32,
+    );
+    {
+        let slot = st.slot(Side::Target).unwrap();
+        assert_eq!(slot.texels.as_ref().unwrap().get(x, y), [255, 0, 0, 255]);
+        assert_eq!(
+            slot.mask_texels.as_ref().unwrap().get(x, y),
+            [0, 0, 255, 255]
+        );
+    }
+    let texel = |st: &AppState<NoParams>| -> [i32; 3] {
+        let m = st.painted_export_mesh(Side::Target).unwrap();
+        m.texture
+            .as_ref()
+            .unwrap()
+            .image
+            .get_pixel(x, y)
+            .0
+            .map(|v| v as i32)
+    };
+    let near = |a: [i32; 3], b: [f32; 3]| {
+        (0..3).all(|k| (a[k] - (b[k] * 255.0).round() as i32).abs() <= 1)
+    };
+    // Everything shown: the mask on top.
+    assert!(near(texel(&st), [0.0, 0.0, 1.0]), "{:?}", texel(&st));
+    // Mask hidden: the paint.
+    st.layers.mask.visible = false;
+    assert!(near(texel(&st), [1.0, 0.0, 0.0]), "{:?}", texel(&st));
+    // Paint hidden too: the result underneath, exactly as if never painted.
+    st.layers.paint.visible = false;
+    assert!(near(texel(&st), base), "{:?}", texel(&st));
+    // Paint at half opacity: half the result, half the paint.
+    st.layers.paint.visible = true;
+    st.layers.paint.opacity = 0.5;
+    let half = [0.5 * base[0] + 0.5, 0.5 * base[1], 0.5 * base[2]];
+    assert!(near(texel(&st), half), "{:?} vs {half:?}", texel(&st));
+    // The eyedropper sees what the view shows.
+    let c = st
+        .color_at(Side::Target, face_under(&mesh, p), p.to_array())
+        .unwrap();
+    for k in 0..3 {
+        assert!((c[k] - half[k]).abs() < 0.01, "{c:?} vs {half:?}");
+    }
+    // The result hidden: grey under the half paint.
+    st.layers.result.visible = false;
+    let g = meshmatch::render::gpu::DEFAULT_VERTEX_COLOR;
+    let grey_half = [0.5 * g[0] + 0.5, 0.5 * g[1], 0.5 * g[2]];
+    assert!(
+        near(texel(&st), grey_half),
+        "{:?} vs {grey_half:?}",
+        texel(&st)
+    );
+    // The mask stroke is its own undo step: undoing it leaves the paint.
+    assert!(st.undo());
+    let slot = st.slot(Side::Target).unwrap();
+    assert!(slot.mask_texels.is_none());
+    assert_eq!(slot.texels.as_ref().unwrap().get(x, y), [255, 0, 0, 255]);
+}
+
+#[test]
+fn vertex_layers_composite_by_visibility_and_opacity() {
+    use meshmatch::app::state::PaintTarget;
+    let mut mesh = slab(0.05);
+    let base = [0.2f32, 0.4, 0.6];
+    mesh.colors = Some(vec![base; mesh.positions.len()]);
+    let mut st = state_with(Side::Target, mesh.clone());
+    st.brush.hardness = 0.999;
+    let p = Vec3::new(0.5, 0.5, 0.025);
+    st.brush.color = [1.0, 1.0, 1.0];
+    st.paint_dab(Side::Target, &view_of(&mesh, Vec3::Z, p), true);
+    st.brush.target = PaintTarget::Mask;
+    st.brush.color = [0.0, 0.0, 0.0];
+    st.paint_dab(
+        Side::Target,
+        &view_of(&mesh, Vec3::Z, Vec3::new(0.1, 0.1, 0.025)),
+        true,
+    );
+    let slot = st.slot(Side::Target).unwrap();
+    let paint = slot.paint.as_ref().unwrap();
+    let mask = slot.mask.as_ref().unwrap();
+    let v = (0..paint.len())
+        .find(|&v| paint[v][3] == 1.0 && mask[v][3] == 0.0)
+        .unwrap();
+    let m = (0..mask.len())
+        .find(|&v| mask[v][3] == 1.0 && paint[v][3] == 0.0)
+        .unwrap();
+    let shown = |st: &AppState<NoParams>| st.slot(Side::Target).unwrap().shown_colors(&st.layers);
+    assert_eq!(shown(&st)[v], [1.0; 3]);
+    assert_eq!(shown(&st)[m], [0.0; 3]);
+    st.layers.paint.opacity = 0.5;
+    st.layers.mask.visible = false;
+    let c = shown(&st);
+    for k in 0..3 {
+        assert!((c[v][k] - (0.5 * base[k] + 0.5)).abs() < 1e-5, "{:?}", c[v]);
+        assert!((c[m][k] - base[k]).abs() < 1e-5, "{:?}", c[m]);
+    }
+    // Layers change what is shown, not what the applications read.
+    assert_eq!(st.paint_coverage(Side::Target).unwrap()[v], 1.0);
+    // The export carries the same colours.
+    let e = st.painted_export_mesh(Side::Target).unwrap();
+    assert_eq!(e.colors.as_ref().unwrap()[v], c[v]);
+    // Exemplar painting's region is the mask once it has paint.
+    let region = st.region_coverage(Side::Target).unwrap();
+    assert_eq!(region[m], 1.0);
+    assert_eq!(region[v], 0.0);
 }

@@ -8,7 +8,7 @@
 //! attenuated by the angle between the surface and the line of sight. "Paint through" instead
 //! paints a ball in space around the picked point, every surface inside it, seen or not.
 
-use glam::{Mat4, Vec2, Vec3, Vec4Swizzles};
+use glam::{Mat4, Vec2, Vec3, Vec4, Vec4Swizzles};
 
 use crate::render::{Camera, Frame, fov_y};
 
@@ -49,7 +49,13 @@ impl BrushView {
     /// the near plane (where the views clip the mesh away) or behind the eye.
     #[inline]
     pub fn project(&self, p: Vec3) -> Option<(Vec2, f32)> {
-        let c = self.view_proj * p.extend(1.0);
+        self.project_clip(self.view_proj * p.extend(1.0))
+    }
+
+    /// [`Self::project`] of a point given in clip space (clip coordinates are linear in the
+    /// barycentric coordinates of a triangle's corners, so a face's texels interpolate them).
+    #[inline]
+    pub fn project_clip(&self, c: Vec4) -> Option<(Vec2, f32)> {
         if c.w <= 1e-9 || c.z < 0.0 {
             return None;
         }

@@ -241,6 +241,23 @@ where
                     "suggesting correspondences needs a source and a target mesh".into(),
                 )),
             },
+            "atlas-source" | "atlas-target" => {
+                let side = if which == "atlas-target" {
+                    Side::Target
+                } else {
+                    Side::Source
+                };
+                match self.state.slot(side) {
+                    Some(s) => Ok(tools::atlas_job(
+                        side,
+                        s.id,
+                        s.working.clone().unwrap_or_else(|| s.file.clone()),
+                        state::paint_layer::TEXEL_LAYER_SIZE,
+                        wake,
+                    )),
+                    None => Err(Error::InvalidInput(format!("no {side:?} mesh to lay out"))),
+                }
+            }
             "detail" => match (self.state.slot(Side::Source), self.state.slot(Side::Target)) {
                 (Some(s), Some(t)) => Ok(tools::detail_job(
                     (*s.file).clone(),
@@ -790,6 +807,92 @@ where
         });
     }
 
+    /// For a side whose displayed mesh has no UVs (it paints its vertices): a button that lays
+    /// out a UV atlas on it, so that strokes paint a texel layer.
+    fn atlas_buttons(&mut self, ui: &mut egui::Ui) {
+        for side in [Side::Source, Side::Target] {
+            let Some(slot) = self.state.slot(side) else {
+                continue;
+            };
+            if state::paint_layer::has_uvs(slot.displayed()) {
+                continue;
+            }
+            let free = self.tool.is_none();
+            if ui
+                .add_enabled(
+                    free,
+                    egui::Button::new(format!("UV atlas for the {side:?}")),
+                )
+                .on_hover_text(format!(
+                    "The {side:?} mesh has no UVs, so strokes paint its vertices. Lay out a UV \
+                     atlas on it (in the background) to paint a {0}x{0} texel layer instead; \
+                     paint already on its vertices stays with the result",
+                    state::paint_layer::TEXEL_LAYER_SIZE
+                ))
+                .clicked()
+            {
+                self.start_tool(match side {
+                    Side::Source => "atlas-source",
+                    Side::Target => "atlas-target",
+                });
+            }
+        }
+    }
+
+    /// Visibility and opacity of the result, the paint and the mask, and the layer painted into.
+    fn layers_panel(&mut self, ui: &mut egui::Ui) {
+        use state::PaintTarget;
+        ui.label(egui::RichText::new("Layers").strong());
+        let mut layers = self.state.layers;
+        let target = &mut self.state.brush.target;
+        egui::Grid::new("paint layers").num_columns(3).show(ui, |ui| {
+            let rows = [
+                (
+                    "Result",
+                    &mut layers.result,
+                    None,
+                    "The mesh's texture or colours, a transfer's result, an application's outcome",
+                ),
+                (
+                    "Paint",
+                    &mut layers.paint,
+                    Some(PaintTarget::Paint),
+                    "The brush's paint (completion takes it as the example)",
+                ),
+                (
+                    "Mask",
+                    &mut layers.mask,
+                    Some(PaintTarget::Mask),
+                    "A mask: painting with exemplar acts where it is painted",
+                ),
+            ];
+            ui.label(egui::RichText::new("shown").small().weak());
+            ui.label(egui::RichText::new("opacity").small().weak());
+            ui.label(egui::RichText::new("paint into").small().weak());
+            ui.end_row();
+            for (name, l, t, tip) in rows {
+                ui.checkbox(&mut l.visible, name)
+                    .on_hover_text(format!("{tip}. Shown and exported when ticked"));
+                ui.add(egui::Slider::new(&mut l.opacity, 0.0..=1.0))
+                    .on_hover_text("How strongly the views and the export show the layer");
+                match t {
+                    Some(t) => {
+                        ui.radio_value(target, t, "")
+                            .on_hover_text("Strokes and fills go into this layer");
+                    }
+                    None => {
+                        ui.label("");
+                    }
+                }
+                ui.end_row();
+            }
+        });
+        if layers != self.state.layers {
+            self.state.set_layers(layers);
+            self.views.invalidate();
+        }
+    }
+
     fn side_panel(&mut self, ui: &mut egui::Ui) {
         egui::ScrollArea::vertical().show(ui, |ui| {
             ui.heading("Tool");
@@ -804,6 +907,31 @@ where
             });
             if self.views.tool == Tool::Paint {
                 let b = &mut self.state.brush;
+                ui.horizontal(|ui| {
+                    use state::PaintMode;
+                    ui.selectable_value(&mut b.mode, PaintMode::Brush, "Brush")
+                        .on_hover_text("Click or drag to paint");
+                    ui.selectable_value(&mut b.mode, PaintMode::Eyedropper, "Eyedropper")
+                        .on_hover_text(
+                            "Click to take the colour under the pointer (also Ctrl+click)",
+                        );
+                    ui.selectable_value(&mut b.mode, PaintMode::Fill, "Fill").on_hover_text(
+                        "Click to fill the connected region of similar colour under the pointer \
+                         (across UV seams); one undo step",
+                    );
+                    ui.selectable_value(&mut b.mode, PaintMode::IslandFill, "Island")
+                        .on_hover_text(
+                            "Click to fill the whole UV island (chart) under the pointer; \
+                             without UVs, the connected part of the mesh. One undo step",
+                        );
+                });
+                if b.mode == state::PaintMode::Fill {
+                    ui.add(egui::Slider::new(&mut b.fill_tolerance, 0.0..=1.0).text("tolerance"))
+                        .on_hover_text(
+                            "A fill spreads while the shown colour differs from the clicked one by \
+                             at most this in every channel",
+                        );
+                }
                 ui.add(egui::Slider::new(&mut b.radius, 0.005..=0.5).text("radius"))
                     .on_hover_text("Brush radius as a fraction of the mesh size");
                 ui.add(egui::Slider::new(&mut b.hardness, 0.0..=1.0).text("hardness"))
@@ -856,6 +984,8 @@ where
                     .small()
                     .weak(),
                 );
+                self.layers_panel(ui);
+                self.atlas_buttons(ui);
             }
             ui.separator();
             ui.horizontal(|ui| {
@@ -1176,8 +1306,10 @@ where
                 .last_frame_start
                 .map_or(0.0, |t| clock.duration_since(t).as_secs_f32() * 1000.0);
             eprintln!(
-                "frame-ms {frame_ms:.3} interval-ms {interval:.3} paint-ms {:.3} running {} partials {} outcome {}",
+                "frame-ms {frame_ms:.3} interval-ms {interval:.3} paint-ms {:.3} upload-ms {:.3} dabs {} running {} partials {} outcome {}",
                 self.views.paint_ms.get(),
+                self.views.upload_ms.get(),
+                self.views.dabs.get(),
                 self.state.job.running as u8,
                 self.state.job.partials,
                 self.state.job.outcome
@@ -1185,6 +1317,8 @@ where
         }
         self.last_frame_start = Some(clock);
         self.views.paint_ms.set(0.0);
+        self.views.upload_ms.set(0.0);
+        self.views.dabs.set(0);
         if let Some(every) = self.frame_log_every
             && self.frame_log_at.elapsed() >= every
         {

@@ -95,6 +95,44 @@ fn stroke_times(mesh: TriMesh, zoom: f32) -> (f64, f64, f64) {
     (first, at(0.5), at(0.95))
 }
 
+/// Time a stroke of [`DABS`] dabs across the middle of `mesh` as the app's default view shows
+/// it in an 800x600 viewport, the points picked under a horizontal line through the centre:
+/// (first dab, median, 95th percentile) seconds and the median number of texels per dab.
+fn picked_stroke_times(mesh: TriMesh) -> (f64, f64, f64, usize) {
+    let mut st = AppState::<crate::meshmatch::TransferParams>::new();
+    let frame = Frame::of_points(&mesh.positions);
+    let camera = Camera::default();
+    let size = Vec2::new(800.0, 600.0);
+    let points: Vec<(Vec2, Vec3)> = (0..DABS)
+        .filter_map(|k| {
+            let s = Vec2::new(250.0 + 300.0 * k as f32 / (DABS - 1) as f32, 300.0);
+            let (o, d) = camera.ray(&frame, s, size);
+            let hit = crate::render::pick(&mesh.positions, &mesh.faces, o, d)?;
+            Some((s, hit.point))
+        })
+        .collect();
+    st.set_mesh(Side::Target, mesh, false);
+    let mut times = Vec::with_capacity(points.len());
+    let mut texels = Vec::with_capacity(points.len());
+    for (k, &(s, p)) in points.iter().enumerate() {
+        let view = BrushView::new(&camera, &frame, size, s, p);
+        let clock = Instant::now();
+        texels.push(st.paint_dab(Side::Target, &view, k == 0));
+        times.push(clock.elapsed().as_secs_f64());
+    }
+    let first = times.first().copied().unwrap_or(0.0);
+    let mut rest = times[1.min(times.len())..].to_vec();
+    rest.sort_by(f64::total_cmp);
+    texels.sort_unstable();
+    let at = |q: f64| {
+        rest.get(((rest.len() as f64 - 1.0) * q).round() as usize)
+            .copied()
+            .unwrap_or(0.0)
+    };
+    let tex = texels.get(texels.len() / 2).copied().unwrap_or(0);
+    (first, at(0.5), at(0.95), tex)
+}
+
 /// The rows: texel layer at 2048² and vertex paint, both on a sphere of about `n` vertices.
 pub fn paint_rows(n: usize) -> Result<Vec<SystemRow>> {
     let mesh = uv_sphere(n);
@@ -126,4 +164,41 @@ pub fn paint_rows(n: usize) -> Result<Vec<SystemRow>> {
         });
     }
     Ok(rows)
+}
+
+/// The demo giraffe (the default scene's target) with a generated UV atlas for a 2048² texel
+/// layer, a stroke across its middle as the app's default view shows it: the row reports the
+/// median number of texels a dab paints in the case name.
+pub fn giraffe_row() -> Result<SystemRow> {
+    let mut mesh = crate::demo::giraffe();
+    let params = crate::geometry::AtlasParams {
+        texture_size: super::state::paint_layer::TEXEL_LAYER_SIZE,
+        ..Default::default()
+    };
+    let a = crate::geometry::uv_atlas(
+        &mesh.positions,
+        &mesh.faces,
+        &params,
+        &|_| {},
+        &crate::work::CancelToken::new(),
+    )?;
+    mesh.uvs = Some(a.uvs);
+    mesh.texture = None;
+    mesh.colors = None;
+    let vertices = mesh.positions.len();
+    let (first, median, p95, texels) = picked_stroke_times(mesh);
+    Ok(SystemRow {
+        case: format!(
+            "paint dab, texel layer 2048^2, giraffe with a generated atlas ({texels} texels a dab)"
+        ),
+        vertices,
+        stages: vec![
+            ("first dab".into(), first),
+            ("dab median".into(), median),
+            ("dab p95".into(), p95),
+        ],
+        total_s: median,
+        faces: 0,
+        peak_rss_mb: peak_rss_mb(),
+    })
 }

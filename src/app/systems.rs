@@ -60,7 +60,7 @@ impl<P: AppParams> SystemTool<P> for ExemplarDialog {
     fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob> {
         let side = self.settings.side;
         let (Some(mut mesh), Some(coverage)) =
-            (state.painted_mesh(side), state.paint_coverage(side))
+            (state.painted_mesh(side), state.region_coverage(side))
         else {
             return Err(Error::InvalidInput(format!(
                 "open a {side:?} mesh to paint first"

@@ -33,6 +33,9 @@ pub enum ToolOutcome {
     Correspondences(Vec<crate::correspondence::Correspondence>, String),
     /// Nothing to apply (a file was written): the status message to show.
     Done(String),
+    /// Per-corner UVs (a generated atlas) for the displayed mesh of one side, identified by its
+    /// slot's id, with the status message to show.
+    Uvs(Side, u64, Vec<[f32; 2]>, String),
 }
 
 /// A partial result: colours per vertex of the tool's working mesh.
@@ -160,6 +163,34 @@ pub fn completion_job(
             format!("{side:?} completed from its paint (Ctrl+Z undoes)"),
         ))
     }))
+}
+
+/// A UV atlas for a `texture_size`² texel layer on `mesh` (one side's displayed mesh, its slot
+/// `id`), so that a mesh without UVs can be painted at texel resolution.
+pub fn atlas_job(
+    side: Side,
+    id: u64,
+    mesh: Arc<TriMesh>,
+    texture_size: u32,
+    wake: impl Fn() + Send + Sync + 'static,
+) -> ToolJob {
+    ToolJob::spawn("UV atlas", wake, move |_sink, cancel| {
+        let params = crate::geometry::AtlasParams {
+            texture_size,
+            ..Default::default()
+        };
+        let a = crate::geometry::uv_atlas(&mesh.positions, &mesh.faces, &params, &|_| {}, cancel)?;
+        Ok(ToolOutcome::Uvs(
+            side,
+            id,
+            a.uvs,
+            format!(
+                "{side:?}: UV atlas of {} charts ({:.0}% of the texture); strokes now paint texels",
+                a.charts,
+                100.0 * a.utilization
+            ),
+        ))
+    })
 }
 
 /// Texture update: `old` (textured) re-applied to `new` geometry; the outcome replaces the target.
@@ -722,7 +753,7 @@ impl ExemplarDialog {
             }
         });
         let painted = state
-            .paint_coverage(s.side)
+            .region_coverage(s.side)
             .map_or(0, |c| c.iter().filter(|&&c| c >= 0.5).count());
         ui.horizontal(|ui| {
             ui.label("Apply to:");
@@ -734,8 +765,9 @@ impl ExemplarDialog {
                 format!("Painted region ({painted} vertices)"),
             )
             .on_hover_text(
-                "Only the vertices painted with the Paint tool; the rest keep their colours \
-                 and guide the border",
+                "Only the vertices painted with the Paint tool (the mask layer's when it has \
+                 any paint, else the paint layer's); the rest keep their colours and guide the \
+                 border",
             );
             ui.selectable_value(&mut s.region, Region::Texture, "Into a texture")
                 .on_hover_text(format!(

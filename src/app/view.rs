@@ -6,12 +6,13 @@ use eframe::wgpu;
 use glam::Vec2 as GVec2;
 
 use super::brush::BrushView;
+use super::state::paint_fill::FillKind;
 use super::state::paint_layer::{TILE, has_uvs};
-use super::state::{AppParams, AppState, Selection, marker_color, side_index};
+use super::state::{AppParams, AppState, PaintMode, Selection, marker_color, side_index};
 use crate::correspondence::Side;
 use crate::geometry::TriangleBvh;
 use crate::render::{
-    Camera, DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, fov_y, pick,
+    Camera, DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, PaintSlot, RenderTarget, fov_y, pick,
 };
 
 /// What a left-drag does in a viewport.
@@ -93,6 +94,10 @@ pub struct Views {
     smoothed: Pos2,
     /// Milliseconds spent painting dabs in the current frame (the frame log prints it).
     pub paint_ms: std::cell::Cell<f32>,
+    /// Of `paint_ms`, the milliseconds spent uploading texel tiles this frame.
+    pub upload_ms: std::cell::Cell<f32>,
+    /// Dabs painted in the current frame (the frame log prints it).
+    pub dabs: std::cell::Cell<u32>,
     /// Milliseconds spent encoding+submitting the last redraw of each view.
     pub last_draw_ms: [f32; 2],
     /// Screen rectangles of the two views in the last frame (points).
@@ -117,6 +122,8 @@ impl Default for Views {
             last_dab: None,
             smoothed: Pos2::ZERO,
             paint_ms: std::cell::Cell::new(0.0),
+            upload_ms: std::cell::Cell::new(0.0),
+            dabs: std::cell::Cell::new(0),
             last_draw_ms: [0.0; 2],
             rects: [Rect::NOTHING; 2],
             last_hovered: None,
@@ -173,7 +180,7 @@ impl Views {
                 }
                 Some(slot) => {
                     if slot.geometry_dirty || g.mesh.is_none() {
-                        let cols = slot.display_colors();
+                        let cols = slot.shown_colors(&state.layers);
                         let m = slot.displayed();
                         g.mesh = Some(GpuMesh::new(
                             &rs.device,
@@ -191,35 +198,57 @@ impl Views {
                     } else if slot.colors_dirty {
                         let textured = slot.shows_texture();
                         if let Some(m) = g.mesh.as_mut() {
-                            m.update_colors(&rs.queue, &slot.display_colors(), textured);
+                            m.update_colors(&rs.queue, &slot.shown_colors(&state.layers), textured);
                         }
                         slot.colors_dirty = false;
                         g.dirty = true;
                     }
-                    // The texel paint layer, tile by tile as strokes change it.
+                    // The texel layers (paint, mask), tile by tile as strokes change them.
                     let uvs = has_uvs(slot.displayed());
-                    match (slot.texels.as_mut(), g.mesh.as_mut()) {
-                        (Some(layer), Some(m)) if uvs => {
-                            let clock = std::time::Instant::now();
-                            if m.set_paint_layer(&rs.device, renderer, layer.width, layer.height) {
-                                layer.mark_all_dirty();
+                    let weights = if uvs {
+                        state.layers.weights()
+                    } else {
+                        [1.0; 3]
+                    };
+                    if let Some(m) = g.mesh.as_mut()
+                        && m.set_layers(weights)
+                    {
+                        g.dirty = true;
+                    }
+                    for (which, layer) in [
+                        (PaintSlot::Paint, slot.texels.as_mut()),
+                        (PaintSlot::Mask, slot.mask_texels.as_mut()),
+                    ] {
+                        match (layer, g.mesh.as_mut()) {
+                            (Some(layer), Some(m)) if uvs => {
+                                let clock = std::time::Instant::now();
+                                if m.set_paint_layer(
+                                    &rs.device,
+                                    renderer,
+                                    which,
+                                    layer.width,
+                                    layer.height,
+                                ) {
+                                    layer.mark_all_dirty();
+                                }
+                                let tiles = layer.take_dirty();
+                                for &t in &tiles {
+                                    let (rect, bytes) = layer.tile_data(t);
+                                    m.write_paint(&rs.queue, which, rect, bytes, (4 * TILE) as u32);
+                                }
+                                if !tiles.is_empty() {
+                                    g.dirty = true;
+                                }
+                                let ms = clock.elapsed().as_secs_f32() * 1000.0;
+                                self.paint_ms.set(self.paint_ms.get() + ms);
+                                self.upload_ms.set(self.upload_ms.get() + ms);
                             }
-                            let tiles = layer.take_dirty();
-                            for &t in &tiles {
-                                let (rect, bytes) = layer.tile_data(t);
-                                m.write_paint(&rs.queue, rect, bytes, (4 * TILE) as u32);
-                            }
-                            if !tiles.is_empty() {
+                            (_, Some(m)) if m.paint_layer_size(which).is_some() => {
+                                m.clear_paint_layer(&rs.device, renderer, which);
                                 g.dirty = true;
                             }
-                            self.paint_ms
-                                .set(self.paint_ms.get() + clock.elapsed().as_secs_f32() * 1000.0);
+                            _ => {}
                         }
-                        (_, Some(m)) if m.paint_layer_size().is_some() => {
-                            m.clear_paint_layer(&rs.device, renderer);
-                            g.dirty = true;
-                        }
-                        _ => {}
                     }
                 }
             }
@@ -602,7 +631,12 @@ impl Views {
         if resp.drag_started_by(egui::PointerButton::Primary)
             && let Some(pos) = resp.interact_pointer_pos()
         {
-            if self.tool == Tool::Paint && !mods.alt && !mods.shift && !mods.command {
+            if self.tool == Tool::Paint
+                && state.brush.mode == PaintMode::Brush
+                && !mods.alt
+                && !mods.shift
+                && !mods.command
+            {
                 if self.dab(state, side, rect, pos, true) {
                     self.painting = true;
                     self.last_dab = Some((side, pos));
@@ -674,10 +708,22 @@ impl Views {
             && !mods.alt
             && let Some(pos) = resp.interact_pointer_pos()
         {
-            if mods.command {
+            let fill = match state.brush.mode {
+                PaintMode::Fill => Some(FillKind::Region),
+                PaintMode::IslandFill => Some(FillKind::Island),
+                _ => None,
+            };
+            if mods.command || state.brush.mode == PaintMode::Eyedropper {
                 if let Some(hit) = self.pick_at(state, side, rect, pos) {
                     state.pick_color(side, hit.face, hit.point.to_array());
                 }
+            } else if let Some(kind) = fill {
+                let clock = std::time::Instant::now();
+                if let Some(hit) = self.pick_at(state, side, rect, pos) {
+                    state.fill_at(side, hit.face, hit.point.to_array(), kind);
+                }
+                self.paint_ms
+                    .set(self.paint_ms.get() + clock.elapsed().as_secs_f32() * 1000.0);
             } else if mods.shift {
                 if let Some((s, from)) = self.last_dab
                     && s == side
@@ -968,6 +1014,7 @@ impl Views {
             return false;
         };
         state.paint_dab(side, &view, record);
+        self.dabs.set(self.dabs.get() + 1);
         self.paint_ms
             .set(self.paint_ms.get() + clock.elapsed().as_secs_f32() * 1000.0);
         true

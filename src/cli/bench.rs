@@ -28,7 +28,7 @@ pub struct BenchArgs {
     /// texture (full-resolution delivery of a ground-truth task solved at the first size, at
     /// 1024, 2048 and 4096 texels per side, with its scores), paint (the UI thread's time per
     /// dab of a stroke on a UV sphere of each size, into a 2048² texel layer and into vertex
-    /// paint) or
+    /// paint, and on the demo giraffe with a generated atlas) or
     /// synth (`synth` with its defaults, every shared texture on every shared mesh, on the
     /// surface) or synth-texture (the same into each mesh's texture space, as `--out o.glb`).
     #[arg(long, default_value = "meshmatch")]
@@ -99,6 +99,7 @@ impl BenchArgs {
             for n in sizes {
                 crate::bench::print_rows(crate::app::paint_bench::paint_rows(n)?, self.json);
             }
+            crate::bench::print_rows(vec![crate::app::paint_bench::giraffe_row()?], self.json);
             return Ok(0);
         }
         if self.system != "meshmatch" {

@@ -22,6 +22,7 @@ struct Uniforms {
     view_proj: [[f32; 4]; 4],
     eye: [f32; 4],
     wire: [f32; 4],
+    layers: [f32; 4],
 }
 
 #[repr(C)]
@@ -142,6 +143,17 @@ impl MeshRenderer {
                 // Paint over the base, through the same UVs (read texel by texel).
                 wgpu::BindGroupLayoutEntry {
                     binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                // The mask over the paint, the same way.
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
                     visibility: wgpu::ShaderStages::FRAGMENT,
                     ty: wgpu::BindingType::Texture {
                         sample_type: wgpu::TextureSampleType::Float { filterable: true },
@@ -305,6 +317,7 @@ impl MeshRenderer {
                 view_proj: vp.to_cols_array_2d(),
                 eye: [eye.x, eye.y, eye.z, 2e-4],
                 wire: [0.05, 0.05, 0.05, style.ambient],
+                layers: mesh.layers,
             };
             queue.write_buffer(&mesh.uniforms, 0, bytemuck::bytes_of(&u));
         }
@@ -459,12 +472,14 @@ pub struct GpuMesh {
     white_group: wgpu::BindGroup,
     /// The mesh's own texture, if it has one with UVs.
     texture_group: Option<wgpu::BindGroup>,
-    /// Views the groups are made of: white, the mesh's texture, and the paint layer (a 1x1
-    /// transparent texture when there is none).
+    /// Views the groups are made of: white, the mesh's texture, and the paint and mask layers
+    /// (a 1x1 transparent texture where there is none).
     white_view: wgpu::TextureView,
     base_view: Option<wgpu::TextureView>,
-    paint: Option<(wgpu::Texture, u32, u32)>,
+    paint: [Option<PaintTexture>; 2],
     no_paint_view: wgpu::TextureView,
+    /// Weights of the result, the paint layer and the mask layer (see [`Self::set_layers`]).
+    layers: [f32; 4],
     /// Whether the texture is drawn (else the vertex colours).
     textured: bool,
     /// Mesh vertex of every drawn vertex.
@@ -477,6 +492,23 @@ pub struct GpuMesh {
     marker_count: u32,
     /// Bounding sphere of the mesh (the camera frames it).
     pub frame: Frame,
+}
+
+/// A texel layer on the GPU: its texture, a view of it and its size.
+struct PaintTexture {
+    texture: wgpu::Texture,
+    view: wgpu::TextureView,
+    width: u32,
+    height: u32,
+}
+
+/// Which texel layer [`GpuMesh::write_paint`] and its kin address.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PaintSlot {
+    /// The paint layer.
+    Paint = 0,
+    /// The mask layer, drawn over the paint.
+    Mask = 1,
 }
 
 /// Whether `mesh` can be drawn through its texture (a texture and per-corner UVs).
@@ -568,6 +600,7 @@ fn texture_group(
     renderer: &MeshRenderer,
     base: &wgpu::TextureView,
     paint: &wgpu::TextureView,
+    mask: &wgpu::TextureView,
 ) -> wgpu::BindGroup {
     device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("mesh texture group"),
@@ -584,6 +617,10 @@ fn texture_group(
             wgpu::BindGroupEntry {
                 binding: 2,
                 resource: wgpu::BindingResource::TextureView(paint),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::TextureView(mask),
             },
         ],
     })
@@ -686,14 +723,20 @@ impl GpuMesh {
         let white_view = upload_texture(device, queue, &white);
         let clear = image::RgbaImage::from_pixel(1, 1, image::Rgba([0; 4]));
         let no_paint_view = upload_texture(device, queue, &clear);
-        let white_group = texture_group(device, renderer, &white_view, &no_paint_view);
+        let white_group = texture_group(
+            device,
+            renderer,
+            &white_view,
+            &no_paint_view,
+            &no_paint_view,
+        );
         let base_view = mesh.texture.as_ref().filter(|_| can_texture).map(|t| {
             let rgba = image::DynamicImage::ImageRgb8(t.image.clone()).to_rgba8();
             upload_texture(device, queue, &rgba)
         });
         let texture_group = base_view
             .as_ref()
-            .map(|v| texture_group(device, renderer, v, &no_paint_view));
+            .map(|v| texture_group(device, renderer, v, &no_paint_view, &no_paint_view));
         GpuMesh {
             vertices,
             colors,
@@ -705,8 +748,9 @@ impl GpuMesh {
             texture_group,
             white_view,
             base_view,
-            paint: None,
+            paint: [None, None],
             no_paint_view,
+            layers: [1.0; 4],
             textured,
             draw_vertex: d.vertex,
             index_count: tris.len() as u32,
@@ -758,66 +802,91 @@ impl GpuMesh {
         }
     }
 
-    /// Draw a paint layer of `width`×`height` texels over the mesh through its UVs (a new,
+    /// Weights the view composites with (see the shader): the result over grey, the paint
+    /// layer and the mask layer.
+    pub fn set_layers(&mut self, weights: [f32; 3]) -> bool {
+        let l = [weights[0], weights[1], weights[2], 0.0];
+        let changed = l != self.layers;
+        self.layers = l;
+        changed
+    }
+
+    fn rebind(&mut self, device: &wgpu::Device, renderer: &MeshRenderer) {
+        let view = |p: &Option<PaintTexture>| p.as_ref().map(|p| p.view.clone());
+        let paint = view(&self.paint[0]).unwrap_or_else(|| self.no_paint_view.clone());
+        let mask = view(&self.paint[1]).unwrap_or_else(|| self.no_paint_view.clone());
+        self.white_group = texture_group(device, renderer, &self.white_view, &paint, &mask);
+        self.texture_group = self
+            .base_view
+            .as_ref()
+            .map(|b| texture_group(device, renderer, b, &paint, &mask));
+    }
+
+    /// Draw a texel layer of `width`×`height` texels over the mesh through its UVs (a new,
     /// transparent one when there was none of that size; write it with [`Self::write_paint`]).
     /// True when a new texture was made.
     pub fn set_paint_layer(
         &mut self,
         device: &wgpu::Device,
         renderer: &MeshRenderer,
+        slot: PaintSlot,
         width: u32,
         height: u32,
     ) -> bool {
-        if self
-            .paint
+        let i = slot as usize;
+        if self.paint[i]
             .as_ref()
-            .is_some_and(|(_, w, h)| (*w, *h) == (width, height))
+            .is_some_and(|p| (p.width, p.height) == (width, height))
         {
             return false;
         }
-        let tex = paint_texture(device, width, height);
-        let view = tex.create_view(&Default::default());
-        self.white_group = texture_group(device, renderer, &self.white_view, &view);
-        self.texture_group = self
-            .base_view
-            .as_ref()
-            .map(|b| texture_group(device, renderer, b, &view));
-        self.paint = Some((tex, width, height));
+        let texture = paint_texture(device, width, height);
+        let view = texture.create_view(&Default::default());
+        self.paint[i] = Some(PaintTexture {
+            texture,
+            view,
+            width,
+            height,
+        });
+        self.rebind(device, renderer);
         true
     }
 
-    /// Stop drawing a paint layer.
-    pub fn clear_paint_layer(&mut self, device: &wgpu::Device, renderer: &MeshRenderer) {
-        if self.paint.take().is_some() {
-            self.white_group =
-                texture_group(device, renderer, &self.white_view, &self.no_paint_view);
-            self.texture_group = self
-                .base_view
-                .as_ref()
-                .map(|b| texture_group(device, renderer, b, &self.no_paint_view));
+    /// Stop drawing a texel layer.
+    pub fn clear_paint_layer(
+        &mut self,
+        device: &wgpu::Device,
+        renderer: &MeshRenderer,
+        slot: PaintSlot,
+    ) {
+        if self.paint[slot as usize].take().is_some() {
+            self.rebind(device, renderer);
         }
     }
 
-    /// Size of the paint layer drawn, if any.
-    pub fn paint_layer_size(&self) -> Option<(u32, u32)> {
-        self.paint.as_ref().map(|(_, w, h)| (*w, *h))
+    /// Size of a texel layer drawn, if any.
+    pub fn paint_layer_size(&self, slot: PaintSlot) -> Option<(u32, u32)> {
+        self.paint[slot as usize]
+            .as_ref()
+            .map(|p| (p.width, p.height))
     }
 
-    /// Write the texels `rect` = (x, y, width, height) of the paint layer from RGBA8 rows of
+    /// Write the texels `rect` = (x, y, width, height) of a texel layer from RGBA8 rows of
     /// `bytes_per_row` bytes.
     pub fn write_paint(
         &self,
         queue: &wgpu::Queue,
+        slot: PaintSlot,
         rect: [u32; 4],
         bytes: &[u8],
         bytes_per_row: u32,
     ) {
-        let Some((tex, _, _)) = &self.paint else {
+        let Some(p) = &self.paint[slot as usize] else {
             return;
         };
         queue.write_texture(
             wgpu::TexelCopyTextureInfo {
-                texture: tex,
+                texture: &p.texture,
                 mip_level: 0,
                 origin: wgpu::Origin3d {
                     x: rect[0],

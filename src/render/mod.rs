@@ -15,7 +15,8 @@ use eframe::wgpu;
 pub use camera::{Camera, FOV_Y_DEG, Frame, Hit, fov_y, pick};
 pub use draw_mesh::{DrawMesh, SHARP_ANGLE_DEG, draw_mesh};
 pub use gpu::{
-    DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, RenderTarget, display_colors, has_texture,
+    DrawStyle, GpuMesh, MarkerInstance, MeshRenderer, PaintSlot, RenderTarget, display_colors,
+    has_texture,
 };
 
 use crate::error::{Error, Result};

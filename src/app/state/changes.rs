@@ -80,10 +80,16 @@ impl<P: AppParams> AppState<P> {
             let Some(slot) = &self.meshes[i] else {
                 continue;
             };
-            if slot
-                .paint
-                .as_ref()
-                .is_some_and(|p| p.iter().any(|c| c[3] > 0.0))
+            let vertex = |l: &Option<Vec<[f32; 4]>>| {
+                l.as_ref().is_some_and(|p| p.iter().any(|c| c[3] > 0.0))
+            };
+            let texel = |l: &Option<super::paint_layer::TexelLayer>| {
+                l.as_ref().is_some_and(|l| !l.is_empty())
+            };
+            if vertex(&slot.paint)
+                || vertex(&slot.mask)
+                || texel(&slot.texels)
+                || texel(&slot.mask_texels)
             {
                 out.push(format!("paint on the {name}"));
             }

@@ -9,8 +9,28 @@ pub(super) struct Snapshot {
     pub(super) paint: [Option<Vec<[f32; 4]>>; 2],
     /// Texel layers' tiles (shared with the layer until a stroke touches them).
     pub(super) texels: [Option<paint_layer::TexelTiles>; 2],
+    /// Mask layers: per vertex, and the texel one's tiles.
+    pub(super) mask: [Option<Vec<[f32; 4]>>; 2],
+    pub(super) mask_texels: [Option<paint_layer::TexelTiles>; 2],
     /// A whole mesh replaced by a tool (index in `meshes`, the slot before): undoing puts it back.
     pub(super) slot: Option<(usize, Box<MeshSlot>)>,
+}
+
+/// Put a texel layer back to kept tiles (or remove it).
+fn restore_texels(
+    layer: &mut Option<paint_layer::TexelLayer>,
+    tiles: Option<paint_layer::TexelTiles>,
+) {
+    match (layer.as_mut(), tiles) {
+        (Some(l), Some(t)) => {
+            if !l.restore(&t) {
+                *layer = Some(paint_layer::TexelLayer::from_tiles(&t));
+            }
+        }
+        (None, Some(t)) => *layer = Some(paint_layer::TexelLayer::from_tiles(&t)),
+        (Some(_), None) => *layer = None,
+        (None, None) => {}
+    }
 }
 
 /// Brush settings for painting vertex colours.
@@ -34,6 +54,27 @@ pub struct Brush {
     /// Stroke smoothing: 0 follows the pointer, towards 1 the stroke lags behind it and its
     /// path smooths out.
     pub smoothing: f32,
+    /// What a click or drag in the view does.
+    pub mode: PaintMode,
+    /// The layer strokes and fills go into.
+    pub target: super::PaintTarget,
+    /// A region fill takes the texels (or vertices) whose shown colour differs from the seed's
+    /// by at most this in every channel (0..=1).
+    pub fill_tolerance: f32,
+}
+
+/// What a click or drag in a view does with the Paint tool.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PaintMode {
+    /// Dabs along the drag.
+    #[default]
+    Brush,
+    /// A click takes the colour under the pointer.
+    Eyedropper,
+    /// A click fills the region of similar colour under the pointer.
+    Fill,
+    /// A click fills the UV island (chart) under the pointer.
+    IslandFill,
 }
 
 impl Default for Brush {
@@ -47,6 +88,9 @@ impl Default for Brush {
             normal_falloff: true,
             spacing: 0.25,
             smoothing: 0.0,
+            mode: PaintMode::Brush,
+            target: super::PaintTarget::Paint,
+            fill_tolerance: 0.1,
         }
     }
 }
@@ -67,6 +111,12 @@ impl<P: AppParams> AppState<P> {
                 self.meshes[i]
                     .as_ref()
                     .and_then(|s| s.texels.as_ref().map(|l| l.tiles()))
+            }),
+            mask: [0, 1].map(|i| self.meshes[i].as_ref().and_then(|s| s.mask.clone())),
+            mask_texels: [0, 1].map(|i| {
+                self.meshes[i]
+                    .as_ref()
+                    .and_then(|s| s.mask_texels.as_ref().map(|l| l.tiles()))
             }),
             slot: None,
         }
@@ -107,20 +157,20 @@ impl<P: AppParams> AppState<P> {
                 slot.colors_dirty = true;
             }
         }
-        for (i, t) in s.texels.into_iter().enumerate() {
+        for (i, m) in s.mask.into_iter().enumerate() {
+            if let Some(slot) = self.meshes[i].as_mut()
+                && slot.mask != m
+                && m.as_ref()
+                    .is_none_or(|l| l.len() == slot.displayed().num_vertices())
+            {
+                slot.mask = m;
+                slot.colors_dirty = true;
+            }
+        }
+        for (i, (t, m)) in s.texels.into_iter().zip(s.mask_texels).enumerate() {
             if let Some(slot) = self.meshes[i].as_mut() {
-                match (slot.texels.as_mut(), t) {
-                    (Some(l), Some(t)) => {
-                        if !l.restore(&t) {
-                            slot.texels = Some(paint_layer::TexelLayer::from_tiles(&t));
-                        }
-                    }
-                    (None, Some(t)) => {
-                        slot.texels = Some(paint_layer::TexelLayer::from_tiles(&t));
-                    }
-                    (Some(_), None) => slot.texels = None,
-                    (None, None) => {}
-                }
+                restore_texels(&mut slot.texels, t);
+                restore_texels(&mut slot.mask_texels, m);
             }
         }
         if let Some(sel) = self.selected
@@ -205,6 +255,27 @@ impl<P: AppParams> AppState<P> {
         use crate::app::tools::ToolOutcome;
         match outcome {
             ToolOutcome::Done(message) => self.message = message,
+            ToolOutcome::Uvs(side, id, uvs, message) => {
+                let Some(slot) = self.meshes[side_index(side)].as_mut() else {
+                    return;
+                };
+                let m = slot.displayed();
+                if slot.id != id || uvs.len() != 3 * m.faces.len() {
+                    self.report("the mesh changed while its atlas was laid out; lay it out again");
+                    return;
+                }
+                let mut shown = m.clone();
+                shown.uvs = Some(uvs);
+                let shown = Arc::new(shown);
+                match slot.working {
+                    Some(_) => slot.working = Some(shown),
+                    None => slot.file = shown,
+                }
+                slot.geometry_dirty = true;
+                slot.colors_dirty = true;
+                self.mark_changed();
+                self.message = message;
+            }
             ToolOutcome::Colors(side, colors, message) => {
                 self.end_tool_preview();
                 let Some(n) = self.slot(side).map(|s| s.displayed().num_vertices()) else {

@@ -8,13 +8,16 @@
 mod changes;
 mod correspondences;
 mod history;
+pub mod layers;
+pub mod paint_fill;
 pub mod paint_layer;
 mod session;
 mod slot;
 
 pub use correspondences::Selection;
-pub use history::Brush;
 use history::Snapshot;
+pub use history::{Brush, PaintMode};
+pub use layers::{LayerShow, Layers, PaintTarget};
 pub use session::{RecentFile, RecentKind, Session, default_recent_store};
 pub use slot::{MeshSlot, nearest_map, remap_paint};
 
@@ -97,6 +100,8 @@ pub struct AppState<P: AppParams> {
     pub message: String,
     /// Brush settings.
     pub brush: Brush,
+    /// Visibility and opacity of the result, the paint and the mask (views and export).
+    pub layers: Layers,
     /// Colours strokes were painted with, newest first.
     pub color_history: Vec<[f32; 3]>,
     /// Recently opened files, newest first.
@@ -153,6 +158,7 @@ impl<P: AppParams> AppState<P> {
             errors: Vec::new(),
             message: String::new(),
             brush: Brush::default(),
+            layers: Layers::default(),
             color_history: Vec::new(),
             recent: Vec::new(),
             recent_store: None,
@@ -363,7 +369,7 @@ impl<P: AppParams> AppState<P> {
                     .undo
                     .iter()
                     .chain(self.redo.iter())
-                    .any(|s| s.paint[i].is_some());
+                    .any(|s| s.paint[i].is_some() || s.mask[i].is_some());
                 let Some(slot) = self.slot_mut(side) else {
                     return;
                 };
@@ -398,7 +404,7 @@ impl<P: AppParams> AppState<P> {
                 // this side) onto the working mesh by nearest vertex.
                 let old_positions = slot.displayed().positions.clone();
                 let restored = slot.restored_paint.take();
-                let map = if slot.paint.is_some() || history_paint {
+                let map = if slot.paint.is_some() || slot.mask.is_some() || history_paint {
                     nearest_map(&old_positions, &working.positions)
                 } else {
                     Vec::new()
@@ -423,6 +429,9 @@ impl<P: AppParams> AppState<P> {
                         p.filter(|l| l.len() == working.positions.len())
                     }
                 };
+                let mut mask = slot.mask.take();
+                carry(&mut mask);
+                slot.mask = mask.filter(|l| l.len() == working.positions.len());
                 slot.normals =
                     crate::render::gpu::vertex_normals(&working.positions, &working.faces);
                 slot.working = Some(working);
@@ -432,6 +441,7 @@ impl<P: AppParams> AppState<P> {
                 slot.colors_dirty = true;
                 for snap in self.undo.iter_mut().chain(self.redo.iter_mut()) {
                     carry(&mut snap.paint[i]);
+                    carry(&mut snap.mask[i]);
                 }
             }
             WorkerEvent::Job { job, event } => {

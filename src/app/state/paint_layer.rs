@@ -12,6 +12,7 @@ use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 
+use super::layers::{Layers, PaintTarget};
 use super::*;
 use crate::app::brush::{BrushView, Dab, ball_vertex_weights, falloff};
 
@@ -403,6 +404,16 @@ pub fn load_texel_layer(path: &std::path::Path) -> Result<TexelLayer> {
     Ok(TexelLayer::from_image(&img.to_rgba8()))
 }
 
+/// An empty texel layer for `mesh`: its texture's size, else [`TEXEL_LAYER_SIZE`]².
+pub fn new_layer_for(mesh: &TriMesh) -> TexelLayer {
+    let (w, h) = mesh
+        .texture
+        .as_ref()
+        .map(|t| t.image.dimensions())
+        .unwrap_or((TEXEL_LAYER_SIZE, TEXEL_LAYER_SIZE));
+    TexelLayer::new(w, h)
+}
+
 /// Whether `mesh` has per-corner UVs a texel layer can be painted through.
 pub fn has_uvs(mesh: &TriMesh) -> bool {
     mesh.uvs
@@ -511,6 +522,89 @@ fn raster_uv(t: [Vec2; 3], width: u32, height: u32, visit: &mut dyn FnMut(u32, u
     }
 }
 
+// ----- layers on a slot (see `super::layers`) -----
+
+impl MeshSlot {
+    /// The vertex colours a view draws. Without UVs, every layer is composited here (the
+    /// vertex paint is the paint layer). With UVs, the result alone (its colours with the
+    /// vertex layer over them, applications' outcomes land there); the view composites the
+    /// result's weight and the texel layers per pixel.
+    pub fn shown_colors(&self, layers: &Layers) -> Vec<[f32; 3]> {
+        if has_uvs(self.displayed()) {
+            return self.display_colors();
+        }
+        let [wr, wp, wm] = layers.weights();
+        let none = [0.0f32; 4];
+        (0..self.base_colors.len())
+            .map(|v| {
+                let c = super::layers::result_shown(self.base_colors[v], wr);
+                let p = self.paint.as_ref().and_then(|p| p.get(v)).unwrap_or(&none);
+                let m = self.mask.as_ref().and_then(|m| m.get(v)).unwrap_or(&none);
+                super::layers::over(super::layers::over(c, *p, wp), *m, wm)
+            })
+            .collect()
+    }
+
+    /// The vertex and texel layers the brush paints into for `target`.
+    pub fn target_layers(
+        &mut self,
+        target: PaintTarget,
+    ) -> (&mut Option<Vec<[f32; 4]>>, &mut Option<TexelLayer>) {
+        match target {
+            PaintTarget::Paint => (&mut self.paint, &mut self.texels),
+            PaintTarget::Mask => (&mut self.mask, &mut self.mask_texels),
+        }
+    }
+
+    /// Mask coverage per displayed vertex (the texel mask sampled at the vertices over the
+    /// vertex mask); `None` when the slot has no mask paint.
+    pub fn mask_per_vertex(&self) -> Option<Vec<[f32; 4]>> {
+        let texel = self
+            .mask_texels
+            .as_ref()
+            .and_then(|l| l.per_vertex(self.displayed()));
+        stack_per_vertex(self.mask.as_ref(), texel)
+    }
+}
+
+impl<P: AppParams> AppState<P> {
+    /// The region exemplar painting acts on, per displayed vertex of one side: the mask's
+    /// coverage when the mask has paint, else the paint's (0 where unpainted).
+    pub fn region_coverage(&self, side: Side) -> Option<Vec<f32>> {
+        let slot = self.slot(side)?;
+        match slot.mask_per_vertex() {
+            Some(m) if m.iter().any(|c| c[3] > 0.0) => Some(m.iter().map(|c| c[3]).collect()),
+            _ => self.paint_coverage(side),
+        }
+    }
+}
+
+/// A vertex layer with a texel layer sampled at the vertices over it (straight colour and
+/// coverage per vertex); `None` when there is neither.
+pub fn stack_per_vertex(
+    vertex: Option<&Vec<[f32; 4]>>,
+    texel: Option<Vec<[f32; 4]>>,
+) -> Option<Vec<[f32; 4]>> {
+    match (vertex, texel) {
+        (None, None) => None,
+        (Some(p), None) => Some(p.clone()),
+        (None, Some(t)) => Some(t),
+        (Some(p), Some(t)) => Some(
+            p.iter()
+                .zip(&t)
+                .map(|(v, t)| {
+                    let a = t[3] + v[3] * (1.0 - t[3]);
+                    if a <= 0.0 {
+                        return [0.0; 4];
+                    }
+                    let c = [0, 1, 2].map(|k| (t[k] * t[3] + v[k] * v[3] * (1.0 - t[3])) / a);
+                    [c[0], c[1], c[2], a]
+                })
+                .collect(),
+        ),
+    }
+}
+
 /// Where a dab is: seen from a view, or a ball in space (paint through).
 #[derive(Clone, Copy, Debug)]
 pub enum DabAt {
@@ -528,24 +622,7 @@ impl MeshSlot {
             .texels
             .as_ref()
             .and_then(|l| l.per_vertex(self.displayed()));
-        match (&self.paint, texel) {
-            (None, None) => None,
-            (Some(p), None) => Some(p.clone()),
-            (None, Some(t)) => Some(t),
-            (Some(p), Some(t)) => Some(
-                p.iter()
-                    .zip(&t)
-                    .map(|(v, t)| {
-                        let a = t[3] + v[3] * (1.0 - t[3]);
-                        if a <= 0.0 {
-                            return [0.0; 4];
-                        }
-                        let c = [0, 1, 2].map(|k| (t[k] * t[3] + v[k] * v[3] * (1.0 - t[3])) / a);
-                        [c[0], c[1], c[2], a]
-                    })
-                    .collect(),
-            ),
-        }
+        stack_per_vertex(self.paint.as_ref(), texel)
     }
 
     /// Colours with all paint composited per vertex (the texel layer sampled at the vertices).
@@ -561,16 +638,17 @@ impl MeshSlot {
         }
     }
 
-    /// The displayed mesh with its texture at the texel layer's resolution, the layer over its
-    /// base (the mesh's own texture, else its colours and vertex paint baked through the UVs),
-    /// for export; `None` without a texel layer or UVs.
-    pub fn painted_texture_mesh(&self) -> Option<TriMesh> {
-        let layer = self.texels.as_ref()?;
+    /// The displayed mesh with its texture at the texel layers' resolution, the layers shown
+    /// as `layers` says (see [`super::layers`]): the result (the mesh's own texture, else its
+    /// colours with the vertex layer baked through the UVs) over the hidden-result grey, the
+    /// paint over it, the mask over that; for export. `None` without a texel layer or UVs.
+    pub fn painted_texture_mesh(&self, layers: &Layers) -> Option<TriMesh> {
+        let size = self.texels.as_ref().or(self.mask_texels.as_ref())?;
         let m = self.displayed();
         if !has_uvs(m) {
             return None;
         }
-        let (w, h) = (layer.width, layer.height);
+        let (w, h) = (size.width, size.height);
         let mut img = image::RgbImage::new(w, h);
         match (&m.texture, self.shows_texture()) {
             (Some(t), true) => {
@@ -593,14 +671,28 @@ impl MeshSlot {
                 });
             }
         }
+        let [wr, wp, wm] = layers.weights();
+        let stack: Vec<(&TexelLayer, f32)> = [(&self.texels, wp), (&self.mask_texels, wm)]
+            .into_iter()
+            .filter_map(|(l, wt)| {
+                l.as_ref()
+                    .filter(|l| wt > 0.0 && (l.width, l.height) == (w, h))
+                    .map(|l| (l, wt))
+            })
+            .collect();
         for (x, y, px) in img.enumerate_pixels_mut() {
-            let p = layer.get(x, y);
-            if p[3] > 0 {
-                let a = p[3] as f32 / 255.0;
-                for (c, &v) in px.0.iter_mut().zip(&p[..3]) {
-                    *c = (*c as f32 * (1.0 - a) + v as f32 * a).round() as u8;
+            let mut c = px.0.map(|v| v as f32 / 255.0);
+            if wr < 1.0 {
+                c = super::layers::result_shown(c, wr);
+            }
+            for (l, wt) in &stack {
+                let p = l.get(x, y);
+                if p[3] > 0 {
+                    let p = [0, 1, 2, 3].map(|k| p[k] as f32 / 255.0);
+                    c = super::layers::over(c, p, *wt);
                 }
             }
+            px.0 = c.map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8);
         }
         let mut out = m.clone();
         out.colors = None;
@@ -614,12 +706,16 @@ impl MeshSlot {
 
 impl<P: AppParams> AppState<P> {
     /// The displayed mesh of one side with its paint, for "Export painted mesh": with a texel
-    /// layer, its UVs and a texture at the layer's resolution carrying the paint; otherwise
-    /// the paint in vertex colours ([`AppState::painted_mesh`]).
+    /// layer, its UVs and a texture at the layer's resolution; otherwise vertex colours. Either
+    /// way it carries what the view shows: the visible layers at their opacities.
     pub fn painted_export_mesh(&self, side: Side) -> Option<TriMesh> {
         self.slot(side)
-            .and_then(MeshSlot::painted_texture_mesh)
-            .or_else(|| self.painted_mesh(side))
+            .and_then(|s| s.painted_texture_mesh(&self.layers))
+            .or_else(|| {
+                let mut m = self.painted_mesh(side)?;
+                m.colors = self.slot(side).map(|s| s.shown_colors(&self.layers));
+                Some(m)
+            })
     }
 
     /// The colour the view shows at `point` of face `face` of one side's displayed mesh
@@ -639,20 +735,28 @@ impl<P: AppParams> AppState<P> {
                 [acc[0] + bary[k] * t[0], acc[1] + bary[k] * t[1]]
             })
         });
+        let [wr, wp, wm] = self.layers.weights();
+        let textured = uv.is_some();
+        let cols = if textured {
+            slot.display_colors()
+        } else {
+            slot.shown_colors(&self.layers)
+        };
         let mut col = match (&m.texture, uv, slot.shows_texture()) {
             (Some(t), Some(uv), true) => crate::mesh::sample_texture(t, uv),
-            _ => {
-                let cols = slot.display_colors();
-                [0, 1, 2].map(|k| {
-                    (0..3)
-                        .map(|j| bary[j] * cols.get(f[j] as usize).map_or(0.0, |c| c[k]))
-                        .sum::<f32>()
-                })
-            }
+            _ => [0, 1, 2].map(|k| {
+                (0..3)
+                    .map(|j| bary[j] * cols.get(f[j] as usize).map_or(0.0, |c| c[k]))
+                    .sum::<f32>()
+            }),
         };
-        if let (Some(layer), Some(uv)) = (slot.texels.as_ref(), uv) {
-            let p = layer.sample(uv);
-            col = [0, 1, 2].map(|k| col[k] * (1.0 - p[3]) + p[k] * p[3]);
+        if let Some(uv) = uv {
+            col = super::layers::result_shown(col, wr);
+            for (l, wt) in [(slot.texels.as_ref(), wp), (slot.mask_texels.as_ref(), wm)] {
+                if let Some(l) = l {
+                    col = super::layers::over(col, l.sample(uv), wt);
+                }
+            }
         }
         Some(col.map(|x| x.clamp(0.0, 1.0)))
     }
@@ -704,14 +808,10 @@ impl<P: AppParams> AppState<P> {
         let r_world = (brush.radius * frame.radius).max(1e-9);
         let normals = std::mem::take(&mut slot.normals);
         let count = if has_uvs(&mesh) {
-            let layer = slot.texels.get_or_insert_with(|| {
-                let (w, h) = mesh
-                    .texture
-                    .as_ref()
-                    .map(|t| t.image.dimensions())
-                    .unwrap_or((TEXEL_LAYER_SIZE, TEXEL_LAYER_SIZE));
-                TexelLayer::new(w, h)
-            });
+            let layer = slot
+                .target_layers(brush.target)
+                .1
+                .get_or_insert_with(|| new_layer_for(&mesh));
             if record || !layer.in_stroke() {
                 layer.begin_stroke(brush.color, brush.eraser);
             }
@@ -735,7 +835,10 @@ impl<P: AppParams> AppState<P> {
                 }
             };
             let n = mesh.positions.len();
-            let paint = slot.paint.get_or_insert_with(|| vec![[0.0; 4]; n]);
+            let paint = slot
+                .target_layers(brush.target)
+                .0
+                .get_or_insert_with(|| vec![[0.0; 4]; n]);
             for &(v, w) in &weights {
                 let dst = &mut paint[v as usize];
                 if brush.eraser {
@@ -765,7 +868,7 @@ impl<P: AppParams> AppState<P> {
 }
 
 /// Barycentric coordinates of `p` (projected onto the triangle's plane) in the triangle `t`.
-fn barycentric(p: Vec3, t: [Vec3; 3]) -> [f32; 3] {
+pub(super) fn barycentric(p: Vec3, t: [Vec3; 3]) -> [f32; 3] {
     let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], p - t[0]);
     let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
     let (d1, d2) = (d.dot(e1), d.dot(e2));
@@ -782,10 +885,127 @@ fn barycentric(p: Vec3, t: [Vec3; 3]) -> [f32; 3] {
 pub const COLOR_HISTORY: usize = 10;
 
 /// Put `c` first in the colour history (once).
-fn remember_color(history: &mut Vec<[f32; 3]>, c: [f32; 3]) {
+pub(super) fn remember_color(history: &mut Vec<[f32; 3]>, c: [f32; 3]) {
     history.retain(|h| h != &c);
     history.insert(0, c);
     history.truncate(COLOR_HISTORY);
+}
+
+/// Threads that compute a dab's texels for the UI thread: a pool of their own at the window's
+/// priority, so that a transfer filling rayon's global pool (at a lower priority) does not
+/// delay a dab.
+fn paint_pool() -> Option<&'static rayon::ThreadPool> {
+    static POOL: std::sync::OnceLock<Option<rayon::ThreadPool>> = std::sync::OnceLock::new();
+    POOL.get_or_init(|| {
+        let n = std::thread::available_parallelism().map_or(1, |n| n.get());
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .thread_name(|i| format!("meshmatch-paint-{i}"))
+            .build()
+            .ok()
+    })
+    .as_ref()
+}
+
+/// Faces per parallel task of a dab.
+const DAB_FACE_CHUNK: usize = 16;
+
+/// A face's corners as a dab reads them at every texel: positions, vertex normals (zero where
+/// missing) and, seen from a view, clip coordinates.
+#[derive(Clone, Copy, Default)]
+struct FaceCorners {
+    p: [Vec3; 3],
+    n: [Vec3; 3],
+    clip: [glam::Vec4; 3],
+}
+
+impl FaceCorners {
+    fn new(mesh: &TriMesh, normals: &[[f32; 3]], view_proj: Option<glam::Mat4>, f: usize) -> Self {
+        let face = mesh.faces[f];
+        let p = face.map(|v| Vec3::from(mesh.positions[v as usize]));
+        let n = face.map(|v| {
+            normals
+                .get(v as usize)
+                .map_or(Vec3::ZERO, |n| Vec3::from(*n))
+        });
+        let clip = match view_proj {
+            Some(m) => p.map(|q| m * q.extend(1.0)),
+            None => [glam::Vec4::ZERO; 3],
+        };
+        FaceCorners { p, n, clip }
+    }
+
+    #[inline]
+    fn point(&self, b: [f32; 3]) -> Vec3 {
+        self.p[0] * b[0] + self.p[1] * b[1] + self.p[2] * b[2]
+    }
+
+    #[inline]
+    fn normal(&self, b: [f32; 3]) -> Vec3 {
+        (self.n[0] * b[0] + self.n[1] * b[1] + self.n[2] * b[2]).normalize_or_zero()
+    }
+
+    #[inline]
+    fn clip(&self, b: [f32; 3]) -> glam::Vec4 {
+        self.clip[0] * b[0] + self.clip[1] * b[1] + self.clip[2] * b[2]
+    }
+}
+
+/// Stamp the weights `weight` gives the texels of `faces` (culled by `keep`, see
+/// [`for_texels`]) into the stroke: the weights of texels the stroke has not yet given their
+/// full weight are computed in parallel over chunks of faces (each face's corners read once,
+/// see [`FaceCorners`]), then stamped in order. Returns the number of texels that changed.
+#[allow(clippy::too_many_arguments)]
+fn stamp_faces(
+    layer: &mut TexelLayer,
+    mesh: &TriMesh,
+    normals: &[[f32; 3]],
+    view_proj: Option<glam::Mat4>,
+    faces: &[usize],
+    keep: &(dyn Fn([Vec3; 3]) -> bool + Sync),
+    weight: &(dyn Fn(&FaceCorners, [f32; 3]) -> f32 + Sync),
+) -> usize {
+    use rayon::prelude::*;
+    let (w, h) = (layer.width, layer.height);
+    let l: &TexelLayer = layer;
+    let chunk = |faces: &[usize]| {
+        let mut out: Vec<(u32, f32)> = Vec::new();
+        let mut at = usize::MAX;
+        let mut corners = FaceCorners::default();
+        for_texels(
+            mesh,
+            w,
+            h,
+            faces.iter().copied(),
+            keep,
+            &mut |x, y, f, b| {
+                // Full already this stroke: nothing more to add.
+                if l.saturated(x, y) {
+                    return;
+                }
+                if f != at {
+                    corners = FaceCorners::new(mesh, normals, view_proj, f);
+                    at = f;
+                }
+                let wt = weight(&corners, b);
+                if wt > 0.0 {
+                    out.push((y * w + x, wt));
+                }
+            },
+        );
+        out
+    };
+    let found: Vec<Vec<(u32, f32)>> = match paint_pool() {
+        Some(pool) => pool.install(|| faces.par_chunks(DAB_FACE_CHUNK).map(chunk).collect()),
+        None => vec![chunk(faces)],
+    };
+    let mut count = 0;
+    for (t, wt) in found.into_iter().flatten() {
+        if layer.stamp(t % w, t / w, wt) {
+            count += 1;
+        }
+    }
+    count
 }
 
 /// One dab into a texel layer: the texels of the faces the dab can reach, weighted.
@@ -798,25 +1018,6 @@ fn texel_dab(
     r_world: f32,
     scale: f32,
 ) -> usize {
-    let (w, h) = (layer.width, layer.height);
-    let normal = |f: usize, b: [f32; 3]| -> Vec3 {
-        let face = mesh.faces[f];
-        (0..3)
-            .map(|k| {
-                normals
-                    .get(face[k] as usize)
-                    .map_or(Vec3::ZERO, |n| Vec3::from(*n) * b[k])
-            })
-            .sum::<Vec3>()
-            .normalize_or_zero()
-    };
-    let point = |f: usize, b: [f32; 3]| -> Vec3 {
-        let face = mesh.faces[f];
-        (0..3)
-            .map(|k| Vec3::from(mesh.positions[face[k] as usize]) * b[k])
-            .sum()
-    };
-    let mut count = 0;
     match at {
         DabAt::Ball(c) => {
             let c = Vec3::from(c);
@@ -825,18 +1026,13 @@ fn texel_dab(
                 let hi = p[0].max(p[1]).max(p[2]);
                 c.clamp(lo, hi).distance_squared(c) <= r_world * r_world
             };
-            let faces = (0..mesh.faces.len())
-                .filter(|&f| keep(mesh.faces[f].map(|v| Vec3::from(mesh.positions[v as usize]))));
-            let faces: Vec<usize> = faces.collect();
-            for_texels(mesh, w, h, faces.into_iter(), &keep, &mut |x, y, f, b| {
-                if layer.saturated(x, y) {
-                    return;
-                }
-                let wt = falloff(point(f, b).distance(c) / r_world, brush.hardness);
-                if wt > 0.0 && layer.stamp(x, y, wt) {
-                    count += 1;
-                }
-            });
+            let faces: Vec<usize> = (0..mesh.faces.len())
+                .filter(|&f| keep(mesh.faces[f].map(|v| Vec3::from(mesh.positions[v as usize]))))
+                .collect();
+            let weight = |fc: &FaceCorners, b: [f32; 3]| {
+                falloff(fc.point(b).distance(c) / r_world, brush.hardness)
+            };
+            stamp_faces(layer, mesh, normals, None, &faces, &keep, &weight)
         }
         DabAt::View(view) => {
             let dab = Dab::new(
@@ -873,29 +1069,29 @@ fn texel_dab(
                 }
                 slo.x <= hi.x && slo.y <= hi.y && shi.x >= lo.x && shi.y >= lo.y
             };
-            for_texels(mesh, w, h, faces.into_iter(), &keep, &mut |x, y, f, b| {
-                // Full already this stroke: nothing more to add.
-                if layer.saturated(x, y) {
-                    return;
-                }
-                let p = point(f, b);
-                let Some((s, q)) = view.project(p) else {
-                    return;
+            let weight = |fc: &FaceCorners, b: [f32; 3]| {
+                let Some((s, q)) = view.project_clip(fc.clip(b)) else {
+                    return 0.0;
                 };
                 if !dab.in_disc(s) {
-                    return;
+                    return 0.0;
                 }
                 let n = if brush.normal_falloff {
-                    normal(f, b)
+                    fc.normal(b)
                 } else {
                     Vec3::ZERO
                 };
-                let wt = dab.weight_projected(p, n, s, q);
-                if wt > 0.0 && layer.stamp(x, y, wt) {
-                    count += 1;
-                }
-            });
+                dab.weight_projected(fc.point(b), n, s, q)
+            };
+            stamp_faces(
+                layer,
+                mesh,
+                normals,
+                Some(view.view_proj),
+                &faces,
+                &keep,
+                &weight,
+            )
         }
     }
-    count
 }

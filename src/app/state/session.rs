@@ -40,6 +40,12 @@ pub struct Session<P> {
     /// The target's texel paint layer (RGBA PNG sidecar), if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target_paint_texels: Option<PathBuf>,
+    /// The source's texel mask layer (RGBA PNG sidecar), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub source_mask_texels: Option<PathBuf>,
+    /// The target's texel mask layer (RGBA PNG sidecar), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_mask_texels: Option<PathBuf>,
 }
 
 /// What a recently opened file was opened as.
@@ -236,22 +242,34 @@ impl<P: AppParams> AppState<P> {
             let name = p.file_name().map_or_else(|| p.clone(), PathBuf::from);
             paint[side_index(side)] = (Some(name), Some(coverage));
         }
-        let mut texels: [Option<PathBuf>; 2] = [None, None];
-        for (side, suffix) in [
-            (Side::Source, "source_paint_texels"),
-            (Side::Target, "target_paint_texels"),
+        let mut texels: [Option<PathBuf>; 4] = [None, None, None, None];
+        for (k, side, suffix) in [
+            (0, Side::Source, "source_paint_texels"),
+            (1, Side::Target, "target_paint_texels"),
+            (2, Side::Source, "source_mask_texels"),
+            (3, Side::Target, "target_mask_texels"),
         ] {
-            let Some(layer) = self.slot(side).and_then(|s| s.texels.as_ref()) else {
+            let Some(slot) = self.slot(side) else {
                 continue;
             };
-            if layer.is_empty() {
+            let layer = if k < 2 {
+                slot.texels.as_ref()
+            } else {
+                slot.mask_texels.as_ref()
+            };
+            let Some(layer) = layer.filter(|l| !l.is_empty()) else {
                 continue;
-            }
+            };
             let p = path.with_extension(format!("{suffix}.png"));
             paint_layer::save_texel_layer(layer, &p)?;
-            texels[side_index(side)] = Some(p.file_name().map_or_else(|| p.clone(), PathBuf::from));
+            texels[k] = Some(p.file_name().map_or_else(|| p.clone(), PathBuf::from));
         }
-        let [source_paint_texels, target_paint_texels] = texels;
+        let [
+            source_paint_texels,
+            target_paint_texels,
+            source_mask_texels,
+            target_mask_texels,
+        ] = texels;
         let [(src_paint, src_cov), (tgt_paint, tgt_cov)] = paint;
         let [(source, source_scene), (target, target_scene)] = names;
         let session = Session {
@@ -270,6 +288,8 @@ impl<P: AppParams> AppState<P> {
                 .and_then(|s| s.texture_file.as_ref().map(|p| abs(p))),
             source_paint_texels,
             target_paint_texels,
+            source_mask_texels,
+            target_mask_texels,
         };
         let text = serde_json::to_string_pretty(&session)
             .map_err(|e| Error::InvalidInput(format!("cannot serialise session: {e}")))?;
@@ -365,10 +385,15 @@ impl<P: AppParams> AppState<P> {
                 rgba,
             });
         }
-        let mut texel_layers = [None, None];
-        for (i, sidecar) in [&s.source_paint_texels, &s.target_paint_texels]
-            .into_iter()
-            .enumerate()
+        let mut texel_layers = [None, None, None, None];
+        for (i, sidecar) in [
+            &s.source_paint_texels,
+            &s.target_paint_texels,
+            &s.source_mask_texels,
+            &s.target_mask_texels,
+        ]
+        .into_iter()
+        .enumerate()
         {
             if let Some(sidecar) = sidecar {
                 texel_layers[i] = Some(paint_layer::load_texel_layer(&resolve(sidecar))?);
@@ -412,8 +437,12 @@ impl<P: AppParams> AppState<P> {
             }
         }
         for (i, layer) in texel_layers.into_iter().enumerate() {
-            if let (Some(layer), Some(slot)) = (layer, self.meshes[i].as_mut()) {
-                slot.texels = Some(layer);
+            if let (Some(layer), Some(slot)) = (layer, self.meshes[i % 2].as_mut()) {
+                if i < 2 {
+                    slot.texels = Some(layer);
+                } else {
+                    slot.mask_texels = Some(layer);
+                }
             }
         }
         self.params = s.params;

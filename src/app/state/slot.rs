@@ -29,6 +29,10 @@ pub struct MeshSlot {
     pub paint: Option<Vec<[f32; 4]>>,
     /// Paint at the texture's resolution, through the displayed mesh's UVs (over `paint`).
     pub texels: Option<super::paint_layer::TexelLayer>,
+    /// Mask layer on the displayed mesh's vertices (meshes without UVs): RGB + coverage.
+    pub mask: Option<Vec<[f32; 4]>>,
+    /// Mask at the texture's resolution, through the displayed mesh's UVs.
+    pub mask_texels: Option<super::paint_layer::TexelLayer>,
     /// Geometry changed since the renderer last uploaded it.
     pub geometry_dirty: bool,
     /// Colours changed since the renderer last uploaded them.
@@ -58,6 +62,8 @@ impl MeshSlot {
             own_signal: true,
             paint: None,
             texels: None,
+            mask: None,
+            mask_texels: None,
             geometry_dirty: true,
             colors_dirty: true,
             scene: None,
