@@ -279,9 +279,9 @@ impl Hierarchy {
 /// the order of their ends' `keys` (lower, then higher), and the end with the lower key
 /// survives. Returns the coarse level, the parent of every fine vertex and the coarse vertices'
 /// keys (their survivors').
-/// Collapse-order bins per octave of edge length: lengths within about 4% of each other (the
+/// Collapse-order bins per octave of edge length: lengths within about 0.3% of each other (the
 /// same bin) count as ties, broken by the vertices' keys.
-const BINS_PER_OCTAVE: f64 = 16.0;
+const BINS_PER_OCTAVE: f64 = 256.0;
 
 /// The collapse order's key of a squared edge length: its bin on a log scale relative to
 /// `mean`, the mean squared edge length, the same for the mesh in any units. Bins this wide
