@@ -1,7 +1,7 @@
 """The Blender add-on in real Blender (bpy as a Python module, background mode): registered from
 blender/meshmatch, each operator run on shared meshes imported with their file coordinates, the
-results checked against the CLI's on the same files (background mode keeps no undo stack: see
-test_each_operator_is_one_undo_step).
+results checked against the CLI's on the same files, and Blender's own undo taking each result
+back (test_undo_takes_each_result_back).
 
 Meshes are imported with up Z and forward Y (no axis conversion), so Blender's world coordinates
 are the file's and the add-on's world-space meshes equal what the CLI loads. Background mode has
@@ -125,13 +125,64 @@ def test_the_manifest_is_a_blender_extension():
 
 
 def test_each_operator_is_one_undo_step():
-    # bpy as a module runs in background mode, where Blender keeps no undo stack
-    # (bpy.ops.ed.undo's poll fails), so Ctrl+Z itself cannot be driven here: what makes an
-    # operator one undo step is its UNDO option (Blender pushes one memfile step when it
-    # finishes), and its results being datablocks and attributes that global undo restores.
+    # Blender pushes one undo step when an operator with the UNDO option finishes in the UI;
+    # operators called from a script in background mode push none (test_undo_takes_each_result
+    # _back pushes the step itself).
     for op in ("transfer", "complete", "weather", "synthesize", "quilt", "curves", "add_pair"):
         cls = getattr(bpy.types, f"MESHMATCH_OT_{op}")
         assert {'REGISTER', 'UNDO'} <= set(cls.bl_options), op
+
+
+def undone(run, state):
+    """Run an operator between two undo steps as the UI does (one step before, one pushed when
+    it finishes); Blender's undo must bring back `state()` as it was, and redo the result."""
+    bpy.ops.ed.undo_push(message="before")
+    before = state()
+    assert run() == {'FINISHED'}
+    bpy.ops.ed.undo_push(message="MeshMatch")
+    after = state()
+    assert after != before, "the operator changed nothing"
+    bpy.ops.ed.undo()
+    assert state() == before
+    bpy.ops.ed.redo()
+    assert state() == after
+
+
+def test_undo_takes_each_result_back():
+    # a colour attribute on the target (its mesh data), the source untouched
+    spot = import_obj("spot/spot.obj")
+    penguin = import_obj("penguin/penguin.obj")
+    select(spot, penguin)
+
+    def attributes():
+        return {
+            o.name: sorted(o.data.color_attributes.keys()) for o in bpy.data.objects
+        }
+
+    undone(lambda: bpy.ops.meshmatch.transfer(**FAST), attributes)
+    # a new image wired into the target's material
+    bpy.ops.wm.read_homefile(use_empty=True)
+    src = import_obj("spot/spot.obj")
+    tgt = import_obj("spot/spot.obj")
+    select(src, tgt)
+    name = tgt.name
+
+    def texture():
+        img = base_color_image(bpy.data.objects[name])
+        return (sorted(i.name for i in bpy.data.images), img.name if img else None)
+
+    undone(lambda: bpy.ops.meshmatch.transfer(texture_size=64, **FAST), texture)
+    # new objects: a quilt, curves
+    bpy.ops.wm.read_homefile(use_empty=True)
+    cat = import_obj("cat/cat.obj")
+
+    def objects():
+        return sorted((o.name, o.type) for o in bpy.data.objects)
+
+    select(cat)
+    undone(lambda: bpy.ops.meshmatch.curves(), objects)
+    select(bpy.data.objects["cat"])
+    undone(lambda: bpy.ops.meshmatch.quilt(swatch='studs'), objects)
 
 
 def test_transfer_writes_the_clis_colours_as_a_colour_attribute(tmp_path, cli):
