@@ -331,6 +331,64 @@ def test_the_modal_job_reports_progress_and_stops_on_cancel():
     assert job.result is None
 
 
+def modal_operator(cls, **props):
+    """The state `invoke` leaves an operator of `cls` in, on a stand-in object (background mode
+    has no window to add a modal handler to): its properties' defaults and `props`, its tasks
+    prepared and the first job started. `modal` is then driven with events by hand."""
+    import types
+
+    class Stand:
+        pass
+
+    op = Stand()
+    for k, d in cls.__annotations__.items():
+        setattr(op, k, d.keywords.get("default"))
+    for k, v in props.items():
+        setattr(op, k, v)
+    op.reports = []
+    op.report = lambda kind, msg: op.reports.append((set(kind), msg))
+    for name in ("_prepare", "_next", "_finish", "tasks"):
+        setattr(op, name, types.MethodType(getattr(cls, name), op))
+    tasks = op._prepare(bpy.context)
+    assert tasks
+    op._queue, op._done, op._results, op._total, op._timer = list(tasks), 0, [], len(tasks), None
+    op._next()
+    return op
+
+
+class Event:
+    def __init__(self, kind):
+        self.type = kind
+
+
+def test_the_modal_handler_runs_to_the_end_and_esc_cancels_without_writing():
+    cls = bpy.types.MESHMATCH_OT_transfer
+    ctx = bpy.context
+    spot = import_obj("spot/spot.obj")
+    penguin = import_obj("penguin/penguin.obj")
+    select(spot, penguin)
+    # Esc: the job stops, the handler ends cancelled with a warning, the target is untouched
+    op = modal_operator(cls, vertices=200_000)
+    while op._job.fraction == 0.0 and not op._job.done:
+        assert cls.modal(op, ctx, Event('TIMER')) == {'RUNNING_MODAL'}
+        op._job.wait(0.05)
+    assert cls.modal(op, ctx, Event('MOUSEMOVE')) == {'PASS_THROUGH'}
+    assert cls.modal(op, ctx, Event('ESC')) == {'RUNNING_MODAL'}
+    op._job.wait()
+    assert cls.modal(op, ctx, Event('TIMER')) == {'CANCELLED'}
+    assert op.reports and op.reports[-1][0] == {'WARNING'} and "cancelled" in op.reports[-1][1]
+    assert "MeshMatch" not in penguin.data.color_attributes
+    # timer events carry it to the end, where the result is written
+    op = modal_operator(cls, **FAST)
+    while True:
+        r = cls.modal(op, ctx, Event('TIMER'))
+        if r != {'RUNNING_MODAL'}:
+            break
+        op._job.wait(0.05)
+    assert r == {'FINISHED'}
+    assert "MeshMatch" in penguin.data.color_attributes
+
+
 def test_synthesize_on_a_mesh_without_uvs_or_material_adds_both():
     penguin = import_obj("penguin/penguin.obj")
     assert len(penguin.data.uv_layers) == 0
