@@ -100,6 +100,13 @@ pub fn unit_exponent(positions: &[[f32; 3]]) -> i32 {
     }
 }
 
+/// `positions` times `2^e` (exact in floating point within f32's range: the same computation
+/// on the result takes the same steps as on the input, in units `2^e` times smaller).
+pub fn scaled_by_power_of_two(positions: &[[f32; 3]], e: i32) -> Vec<[f32; 3]> {
+    let f = 2f32.powi(e);
+    positions.iter().map(|p| p.map(|x| x * f)).collect()
+}
+
 pub fn face_normals(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<[f32; 3]> {
     faces
         .par_iter()

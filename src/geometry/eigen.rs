@@ -68,8 +68,7 @@ pub fn laplacian_eigen(
     }
     let e = super::unit_exponent(positions);
     if e != 0 {
-        let down = 2f32.powi(-e);
-        let unit: Vec<[f32; 3]> = positions.iter().map(|p| p.map(|x| x * down)).collect();
+        let unit = super::scaled_by_power_of_two(positions, -e);
         let (mut vals, mut vecs) = laplacian_eigen_unit(&unit, faces, k)?;
         // exact: powers of two
         let (lam, phi) = (2f64.powi(-2 * e), 2f64.powi(-e));

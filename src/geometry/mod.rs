@@ -59,7 +59,8 @@ mod uv_atlas;
 mod uv_bake;
 
 pub use basic::{
-    face_areas, face_normals, mean_edge_length, taubin_smooth, unit_exponent, vertex_normals, weld,
+    face_areas, face_normals, mean_edge_length, scaled_by_power_of_two, taubin_smooth,
+    unit_exponent, vertex_normals, weld,
 };
 /// The renderer's picking shares the closest-point query's barycentric tolerance.
 #[cfg(feature = "gui")]

@@ -202,9 +202,7 @@ pub fn features_on_surface(
     if e == 0 {
         return features_unit(positions, faces, surface, params, cancel);
     }
-    let down = 2f32.powi(-e);
-    let scale =
-        |ps: &[[f32; 3]]| -> Vec<[f32; 3]> { ps.iter().map(|p| p.map(|x| x * down)).collect() };
+    let scale = |ps: &[[f32; 3]]| crate::geometry::scaled_by_power_of_two(ps, -e);
     let unit = scale(positions);
     let unit_surface = surface.map(|(p, f)| (scale(p), f));
     let mut fs = features_unit(

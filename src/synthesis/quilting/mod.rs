@@ -1076,11 +1076,10 @@ pub fn run(
     if e == 0 {
         return run_unit(input, params, sink, cancel);
     }
+    use crate::geometry::scaled_by_power_of_two;
     let (down, up) = (2f32.powi(-e), 2f32.powi(e));
     let mut base = input.base.clone();
-    base.positions
-        .iter_mut()
-        .for_each(|p| *p = p.map(|x| x * down));
+    base.positions = scaled_by_power_of_two(&base.positions, -e);
     let unit_params = Params {
         swatch_size: params.swatch_size.map(|l| l * down),
         thickness: params.thickness.map(|h| h * down),
@@ -1091,10 +1090,7 @@ pub fn run(
         ..*input
     };
     let mut out = run_unit(&unit_input, &unit_params, sink, cancel)?;
-    out.elements
-        .positions
-        .iter_mut()
-        .for_each(|p| *p = p.map(|x| x * up));
+    out.elements.positions = scaled_by_power_of_two(&out.elements.positions, e);
     out.stats.swatch_size *= up;
     out.stats.thickness *= up;
     Ok(out)
