@@ -13,7 +13,7 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 
-use crate::stats::quantized;
+use crate::stats::beats;
 
 /// Colour channels of the synthesised signal.
 pub(crate) const C: usize = 3;
@@ -194,23 +194,22 @@ impl Ctx<'_> {
     /// fan rotated by a cyclic shift of k angle steps), stopping early once it reaches `best`.
     #[inline(always)]
     ///
-    /// A distance under `best` comes back [`quantized`] (so that the search's choices are the
-    /// same in any units); one that stopped early is at least `best`, which callers compare
-    /// with quantized distances only.
+    /// Callers keep a candidate only when it [`beats`] the best so far by a margin, so that the
+    /// search's choices are the same in any units.
     pub fn dist(&self, p: &mut Patch, s: usize, k: usize, best: f32) -> f32 {
         let d = self.shape_dist(p.t, s);
         if d >= best {
             return d;
         }
         if self.wc == 0.0 {
-            return quantized(d);
+            return d;
         }
         self.colour(p);
         let lb = d + self.ring_bound(p, s);
         if lb >= best {
             return lb;
         }
-        quantized(self.fan_dist(p, s, k, d, best))
+        self.fan_dist(p, s, k, d, best)
     }
 
     /// A lower bound of the weighted colour fan distance at every rotation
@@ -262,7 +261,11 @@ impl Ctx<'_> {
         let mut bk = u8::MAX;
         if self.wc == 0.0 {
             let d = self.dist(p, s, 0, f32::INFINITY);
-            return if d < best { (d, 0) } else { (best, u8::MAX) };
+            return if beats(d, best) {
+                (d, 0)
+            } else {
+                (best, u8::MAX)
+            };
         }
         // The shape part is the same for every rotation: once, and out early if it already
         // loses.
@@ -275,8 +278,8 @@ impl Ctx<'_> {
             return (bd, bk);
         }
         for k in 0..FAN_ANGLES {
-            let d = quantized(self.fan_dist(p, s, k, sd, bd));
-            if d < bd {
+            let d = self.fan_dist(p, s, k, sd, bd);
+            if beats(d, bd) {
                 bd = d;
                 bk = k as u8;
             }
@@ -344,7 +347,7 @@ pub(crate) fn exhaustive(
             let mut best = (lo as u32, 0u8);
             for s in lo..hi {
                 let (dd, k) = ctx.best_rotation(p, s, bd);
-                if k != u8::MAX && dd < bd {
+                if k != u8::MAX && beats(dd, bd) {
                     bd = dd;
                     best = (s as u32, k);
                 }
@@ -528,7 +531,7 @@ fn propagate_one(
         for dk in [1, FAN_ANGLES - 1] {
             let k = (bk as usize + dk) % FAN_ANGLES;
             let d = ctx.dist(p, bs as usize, k, bd);
-            if d < bd {
+            if beats(d, bd) {
                 bd = d;
                 bk = k as u8;
             }
@@ -554,7 +557,7 @@ fn try_candidate(
         return;
     }
     let d = ctx.dist(p, c as usize, k as usize, *bd);
-    if d < *bd {
+    if beats(d, *bd) {
         *bd = d;
         *bs = c;
         *bk = k;
@@ -656,7 +659,7 @@ impl RandomSearch<'_, '_> {
                     continue;
                 }
                 let (bd, bk) = ctx.best_rotation(&mut p, c as usize, *dd);
-                if bk != u8::MAX && bd < *dd {
+                if bk != u8::MAX && beats(bd, *dd) {
                     *dd = bd;
                     *mm = (c, bk);
                 }
@@ -686,7 +689,7 @@ fn walk(level: &Level, frames: &Frames, s: usize, x: f32, y: f32) -> usize {
         let cur = best;
         for &u in level.adjacency.row(cur) {
             let d = (Vec3::from(level.positions[u as usize]) - goal).length_squared();
-            if d < bd {
+            if beats(d, bd) {
                 bd = d;
                 best = u as usize;
             }
@@ -786,10 +789,10 @@ pub(crate) fn upsample(
                         + ang.sin() * Vec3::from(fs[l + 1].t2[sc]));
             let mut best = usize::MAX;
             let mut bd = f32::INFINITY;
-            // nearest the goal, distances compared [`quantized`] (the same choice in any units)
+            // nearest the goal; a nearer one must [`beat`](beats) the one found first
             for &c in hs.children(l + 1, sc as u32) {
-                let d = quantized((Vec3::from(lsf.positions[c as usize]) - goal).length_squared());
-                if d < bd {
+                let d = (Vec3::from(lsf.positions[c as usize]) - goal).length_squared();
+                if beats(d, bd) {
                     bd = d;
                     best = c as usize;
                 }
@@ -797,9 +800,8 @@ pub(crate) fn upsample(
             for _ in 0..4 {
                 let cur = best;
                 for &u in lsf.adjacency.row(cur) {
-                    let d =
-                        quantized((Vec3::from(lsf.positions[u as usize]) - goal).length_squared());
-                    if d < bd {
+                    let d = (Vec3::from(lsf.positions[u as usize]) - goal).length_squared();
+                    if beats(d, bd) {
                         bd = d;
                         best = u as usize;
                     }

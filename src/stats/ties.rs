@@ -9,6 +9,20 @@
 //! way every time; a flip needs a distance within its last bits of a rounding step, which is
 //! rare.
 
+/// The relative margin by which a candidate must beat the best so far ([`beats`]).
+const MARGIN: f32 = 1.0 / 1024.0;
+
+/// Whether a candidate at distance `d` replaces the best so far, at `best`: only when it is
+/// nearer by more than 2^-10 of `best`. Candidates that tie up to the inputs' rounding (exact
+/// ties in one unit, near ties in another) keep the one found first in every unit; a choice
+/// flips only where two distances differ by the margin itself, to within their rounding. A
+/// search with early outs may stop once a partial sum reaches `best`: such a candidate cannot
+/// beat it. `best` may be infinite (nothing found yet).
+#[inline(always)]
+pub fn beats(d: f32, best: f32) -> bool {
+    d < best * (1.0 - MARGIN)
+}
+
 /// Low mantissa bits a distance drops ([`quantized`]).
 const DROPPED_BITS: u32 = 12;
 
@@ -27,6 +41,16 @@ pub fn quantized(d: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_candidate_must_win_by_the_margin() {
+        assert!(beats(1.0, f32::INFINITY));
+        assert!(beats(0.99, 1.0));
+        // the same distance, off in its last bits (another unit): the first one stays
+        assert!(!beats(f32::from_bits(1.0f32.to_bits() - 3), 1.0));
+        assert!(!beats(1.0, 1.0));
+        assert!(!beats(0.0, 0.0));
+    }
 
     #[test]
     fn close_distances_tie_and_far_ones_keep_their_order() {
