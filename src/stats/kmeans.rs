@@ -34,15 +34,15 @@ fn d2(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum()
 }
 
-/// Nearest centre of `x` and its squared distance, [`quantized`](super::quantized): centres
-/// closer than its step tie and go to the first, so that the same data in other units (off in
-/// their last bits) are labelled the same.
+/// Nearest centre of `x` and its squared distance; a later centre must [`beat`](super::beats)
+/// the nearest so far by a margin, so that the same data in other units (off in their last
+/// bits) are labelled the same.
 #[inline]
 pub fn nearest(centers: &[f32], dim: usize, x: &[f32]) -> (u32, f32) {
     let mut best = (0u32, f32::INFINITY);
     for (c, ctr) in centers.chunks_exact(dim).enumerate() {
-        let d = super::quantized(d2(ctr, x));
-        if d < best.1 {
+        let d = d2(ctr, x);
+        if super::beats(d, best.1) {
             best = (c as u32, d);
         }
     }

@@ -5,7 +5,7 @@
 //! - [`kmeans`] / [`KMeans`]: k-means++ seeding and Lloyd iterations
 //! - [`histogram`]: quantile functions, Heeger-Bergen histogram matching, KS distance
 //! - [`KdTree`]: exact k-nearest neighbours in a few dimensions
-//! - [`beats`], [`quantized`]: distances compared so that near ties keep one order (ties)
+//! - [`beats`]: a candidate must win by a margin, so that near ties keep one order (ties)
 
 pub mod cca;
 pub mod histogram;
@@ -22,4 +22,4 @@ pub use histogram::{
 pub use kdtree::KdTree;
 pub use kmeans::{KMeans, kmeans};
 pub use pdf_transfer::{PdfTransferParams, pdf_transfer, random_rotation};
-pub use ties::{beats, quantized};
+pub use ties::beats;

@@ -6,11 +6,11 @@
 use rayon::prelude::*;
 
 use super::neigh::ExemplarLevel;
-use crate::stats::quantized;
+use crate::stats::beats;
 
-/// Squared L2 distance between a query and candidate `c`, giving up once it exceeds `bound`;
-/// a complete distance comes back [`quantized`], so that the choice between two candidates is
-/// the same for the mesh in any units.
+/// Squared L2 distance between a query and candidate `c`, giving up once it exceeds `bound`.
+/// The searches keep a candidate only when it [`beats`] the best so far by a margin, so that
+/// the choice between two near-equal candidates is the same for the mesh in any units.
 #[inline]
 pub(crate) fn dist(
     ex: &ExemplarLevel,
@@ -42,7 +42,7 @@ pub(crate) fn dist(
             }
         }
     }
-    quantized(d)
+    d
 }
 
 #[inline]
@@ -64,7 +64,7 @@ pub(crate) fn exhaustive(
             let mut best = (u32::MAX, f32::INFINITY);
             for c in ch * CHUNK..((ch + 1) * CHUNK).min(n) {
                 let d = dist(ex, c as u32, q_cur, q_par, best.1);
-                if d < best.1 {
+                if beats(d, best.1) {
                     best = (c as u32, d);
                 }
             }
@@ -73,6 +73,7 @@ pub(crate) fn exhaustive(
         .reduce(
             || (u32::MAX, f32::INFINITY),
             |a, b| {
+                // a total order across chunks (their merge order varies with the threads)
                 if b.1 < a.1 || (b.1 == a.1 && b.0 < a.0) {
                     b
                 } else {
@@ -96,7 +97,7 @@ pub(crate) fn fast(
     let mut best = (u32::MAX, f32::INFINITY);
     for &c in cands.iter() {
         let d = dist(ex, c, q_cur, q_par, best.1);
-        if d < best.1 {
+        if beats(d, best.1) {
             best = (c, d);
         }
     }
@@ -109,7 +110,7 @@ pub(crate) fn fast(
         for dx in -1i64..=1 {
             let c = ex.cand_at(bx as i64 + dx, by as i64 + dy);
             let d = dist(ex, c, q_cur, q_par, best.1);
-            if d < best.1 {
+            if beats(d, best.1) {
                 best = (c, d);
             }
         }
@@ -122,7 +123,7 @@ pub(crate) fn fast(
             let ny = y as i64 + rng.random_range(-radius..=radius);
             let c = ex.cand_at(nx, ny);
             let d = dist(ex, c, q_cur, q_par, best.1);
-            if d < best.1 {
+            if beats(d, best.1) {
                 best = (c, d);
             }
             radius /= 2;
