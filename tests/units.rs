@@ -45,7 +45,7 @@ fn scaled(dir: &Path, rel: &str, s: f64) -> PathBuf {
 }
 
 /// Run `meshmatch args` and load its output `out`.
-fn run(args: &[&dyn AsRef<std::ffi::OsStr>], out: &Path) -> TriMesh {
+fn run<S: AsRef<std::ffi::OsStr>>(args: &[S], out: &Path) -> TriMesh {
     let o = bin().args(args).output().unwrap();
     assert!(
         o.status.success(),
@@ -104,23 +104,11 @@ fn colours_follow_the_units(
     let dir = Scratch::new(&format!("units-{name}"));
     let one: Vec<PathBuf> = inputs.iter().map(|r| scaled(&dir, r, 1.0)).collect();
     let out1 = dir.join("out_1.ply");
-    let base = run(
-        &args(&one, &out1)
-            .iter()
-            .map(|a| a as &dyn AsRef<std::ffi::OsStr>)
-            .collect::<Vec<_>>(),
-        &out1,
-    );
+    let base = run(&args(&one, &out1), &out1);
     for s in SCALES {
         let ins: Vec<PathBuf> = inputs.iter().map(|r| scaled(&dir, r, s)).collect();
         let out = dir.join(format!("out_{s}.ply"));
-        let got = run(
-            &args(&ins, &out)
-                .iter()
-                .map(|a| a as &dyn AsRef<std::ffi::OsStr>)
-                .collect::<Vec<_>>(),
-            &out,
-        );
+        let got = run(&args(&ins, &out), &out);
         let (m, off) = colour_difference(&base, &got);
         eprintln!(
             "{name} x{s}: mean colour difference {m:.3} of 255, {off:.4} of the vertices off by more than 2"
@@ -289,7 +277,7 @@ fn detail_and_quilting_scale_their_geometry_with_the_units() {
         let base = scaled(&dir, "bunny/bunny.obj", s);
         let out = dir.join(format!("quilt_{s}.ply"));
         run(
-            &[
+            &os(&[
                 &"quilt",
                 &"--base",
                 &base,
@@ -297,7 +285,7 @@ fn detail_and_quilting_scale_their_geometry_with_the_units() {
                 &"chain",
                 &"--out",
                 &out,
-            ],
+            ]),
             &out,
         )
     };
@@ -321,7 +309,7 @@ fn detail_and_quilting_scale_their_geometry_with_the_units() {
         let tgt = scaled(&dir, "bunny/bunny.obj", s);
         let out = dir.join(format!("detail_{s}.ply"));
         run(
-            &[
+            &os(&[
                 &"detail",
                 &"--source",
                 &src,
@@ -331,7 +319,7 @@ fn detail_and_quilting_scale_their_geometry_with_the_units() {
                 &"4000",
                 &"--out",
                 &out,
-            ],
+            ]),
             &out,
         )
     };
