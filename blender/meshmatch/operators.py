@@ -185,6 +185,12 @@ def solve_props(cls):
     return cls
 
 
+def _solve_kwargs(op):
+    """The solver settings of an operator with `solve_props`, as keyword arguments."""
+    return dict(vertices=op.vertices, iterations=op.iterations, seed=op.seed,
+                texture_size=_texture_size(op.texture_size))
+
+
 def _texture_size(v):
     return None if v == 0 else v
 
@@ -219,11 +225,9 @@ class MESHMATCH_OT_transfer(MeshMatchOperator):
             s_sel, t_sel = selected_vertices(src), selected_vertices(ex)
             if len(s_sel) == 1 and t_sel:
                 pairs.append((s_sel[0], t_sel))
-            kwargs = dict(vertices=self.vertices, iterations=self.iterations, seed=self.seed,
-                          texture_size=_texture_size(self.texture_size))
             tasks.append(Task(
                 f"transfer to {t.name}", meshmatch.transfer,
-                (src.mesh, ex.mesh, pairs or None), kwargs,
+                (src.mesh, ex.mesh, pairs or None), _solve_kwargs(self),
                 lambda ctx, r, ex=ex: convert.apply_surface_result(ex, r, "MeshMatch")))
         return tasks
 
@@ -246,8 +250,7 @@ class MESHMATCH_OT_complete(MeshMatchOperator):
         if ex.mesh.colors is None:
             raise meshmatch.MeshMatchError(
                 f"{obj.name}: paint a colour attribute first (Vertex Paint or Texture Paint)")
-        kwargs = dict(painted=ex.mesh, vertices=self.vertices, iterations=self.iterations,
-                      seed=self.seed, texture_size=_texture_size(self.texture_size))
+        kwargs = dict(painted=ex.mesh, **_solve_kwargs(self))
         return [Task(f"complete {obj.name}", meshmatch.complete, (ex.mesh,), kwargs,
                      lambda ctx, r: convert.apply_surface_result(ex, r, "MeshMatch Complete"))]
 
