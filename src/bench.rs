@@ -896,6 +896,10 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
             every_shared_pair(synth_row, "on", json);
             Vec::new()
         }
+        "synth-character" => {
+            synth_character_rows(json)?;
+            Vec::new()
+        }
         "synth-texture" => {
             every_shared_pair(synth_texture_row, "into", json);
             Vec::new()
@@ -1062,5 +1066,129 @@ pub fn print_rows(rows: Vec<SystemRow>, json: bool) {
                 r.peak_rss_mb
             );
         }
+    }
+}
+
+/// `meshmatch bench --system synth-character`: for each shared mesh and image (or the pairs in
+/// `MESHMATCH_PAIRS`, `mesh.obj:image.png,...` by file name), what `synth` gives with its
+/// defaults, with `--method neighbourhood`, and triplanar projection at the same scale baked into
+/// the same atlas, measured texel by texel ([`crate::synthesis::wei_levoy::character`]).
+pub fn synth_character_rows(json: bool) -> Result<()> {
+    use crate::synthesis::wei_levoy::character::{Exemplar, measure, triplanar_texture};
+    let (meshes, textures) = shared_meshes_and_textures();
+    let wanted: Option<Vec<(String, String)>> = std::env::var("MESHMATCH_PAIRS").ok().map(|v| {
+        v.split(',')
+            .filter_map(|p| p.split_once(':'))
+            .map(|(m, t)| (m.to_string(), t.to_string()))
+            .collect()
+    });
+    let name = |p: &std::path::Path| {
+        p.file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    if !json {
+        println!(
+            "| mesh x image | method | contrast | Lab W1 | patch distance | reverse distance | seconds |"
+        );
+        println!("| --- | --- | ---: | ---: | ---: | ---: | ---: |");
+    }
+    for m in &meshes {
+        for t in &textures {
+            if let Some(w) = &wanted
+                && !w.iter().any(|(wm, wt)| *wm == name(m) && *wt == name(t))
+            {
+                continue;
+            }
+            let mut target = crate::mesh::io::load(m)?;
+            target.repair()?;
+            let (tex, alpha) = crate::mesh::io::load_texture_with_alpha(t)?;
+            let (lo, hi) = target.bounds().unwrap_or(([0.0; 3], [0.0; 3]));
+            let scale = glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) / 4.0;
+            let ex = Exemplar {
+                image: &tex.image,
+                alpha: alpha.as_ref(),
+                scale,
+            };
+            let mut atlas_mesh = None;
+            let methods = std::env::var("MESHMATCH_METHODS")
+                .unwrap_or_else(|_| "auto,neighbourhood,triplanar".into());
+            for method in methods.split(',').filter(|m| *m != "triplanar") {
+                let args =
+                    <crate::cli::synth::SynthArgs as clap::FromArgMatches>::from_arg_matches(
+                        &<crate::cli::synth::SynthArgs as clap::Args>::augment_args(
+                            clap::Command::new("synth"),
+                        )
+                        .get_matches_from([
+                            "synth",
+                            "--exemplar",
+                            "e.png",
+                            "--target",
+                            "t.obj",
+                            "--out",
+                            "o.glb",
+                            "--method",
+                            method,
+                        ]),
+                    )
+                    .map_err(|e| crate::error::Error::InvalidInput(e.to_string()))?;
+                let plan = crate::cli::synth::check(&args)?;
+                let t0 = Instant::now();
+                let (exemplar, al) = crate::cli::synth::prepare_exemplar(
+                    &args,
+                    tex.image.clone(),
+                    alpha.clone(),
+                    t,
+                )?;
+                let s = crate::cli::synth::synthesize(
+                    &args,
+                    &plan,
+                    &exemplar,
+                    al.as_ref(),
+                    &target,
+                    None,
+                    None,
+                    &|_| {},
+                    &CancelToken::new(),
+                )?;
+                let secs = t0.elapsed().as_secs_f64();
+                let texture = s.mesh.texture.as_ref().map(|x| x.image.clone());
+                if let Some(tx) = texture
+                    && let Some(c) = measure(&s.mesh, &tx, &ex, 1)
+                {
+                    print_character(json, &name(m), &name(t), method, &c, secs);
+                }
+                atlas_mesh.get_or_insert(s.mesh);
+            }
+            if methods.split(',').any(|m| m == "triplanar")
+                && let Some(am) = &atlas_mesh
+                && let Some(tx) = triplanar_texture(am, &ex, 2048)
+                && let Some(c) = measure(am, &tx, &ex, 1)
+            {
+                print_character(json, &name(m), &name(t), "triplanar", &c, 0.0);
+            }
+        }
+    }
+    Ok(())
+}
+
+fn print_character(
+    json: bool,
+    mesh: &str,
+    image: &str,
+    method: &str,
+    c: &crate::synthesis::wei_levoy::character::Character,
+    secs: f64,
+) {
+    if json {
+        println!(
+            "{}",
+            serde_json::json!({"mesh": mesh, "image": image, "method": method, "character": c, "seconds": secs})
+        );
+    } else {
+        println!(
+            "| {mesh} x {image} | {method} | {:.2} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            c.contrast, c.lab_w1, c.patch_distance, c.reverse_distance, secs
+        );
     }
 }

@@ -2410,7 +2410,7 @@ fn paint_with_exemplar_into_a_texture_textures_the_mesh_through_its_uvs_and_undo
         "{green} green texels"
     );
     assert!(
-        app.state.message.contains("texels synthesized"),
+        app.state.message.contains("patches pasted"),
         "{}",
         app.state.message
     );

@@ -165,7 +165,7 @@ def synthesize(
     search: Literal["exhaustive", "fast"] = "fast",
     seed: int = 0,
     displace: bool = False,
-    method: Literal["neighbourhood", "optimize"] = "neighbourhood",
+    method: Literal["auto", "patches", "neighbourhood", "optimize"] = "auto",
     align_features: bool = False,
     feature_mask: ArrayLike | None = None,
     space: Literal["auto", "texture", "surface"] = "auto",

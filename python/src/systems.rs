@@ -449,8 +449,7 @@ fn detail(
     vertex_budget=meshmatch::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET,
     orientation="auto".to_string(), levels=4, mask=None,
     search=meshmatch::synthesis::Search::default().as_str().to_string(), seed=0,
-    displace=false,
-    method=meshmatch::synthesis::Method::default().as_str().to_string(),
+    displace=false, method="auto".to_string(),
     align_features=false, feature_mask=None, space="auto".to_string(),
     texel_budget=meshmatch::synthesis::wei_levoy::DEFAULT_TEXEL_BUDGET,
     output="texture".to_string(), progress=None, cancel=None))]

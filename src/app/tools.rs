@@ -490,6 +490,9 @@ pub struct ExemplarSettings {
     pub search: Search,
     /// Random seed.
     pub seed: u64,
+    /// Into a texture: paste whole patches of the image (lapped textures, which keep its
+    /// contrast and large structures) instead of Wei-Levoy's texel-by-texel synthesis.
+    pub patches: bool,
 }
 
 impl Default for ExemplarSettings {
@@ -503,6 +506,7 @@ impl Default for ExemplarSettings {
             pixels: 64,
             search: Search::default(),
             seed: 0,
+            patches: true,
         }
     }
 }
@@ -584,7 +588,14 @@ pub fn exemplar_job(
     let pixels = settings.pixels;
     let n = mesh.num_vertices();
     if settings.region == Region::Texture {
-        return Ok(texture_job(path, params, mesh, side, wake));
+        return Ok(texture_job(
+            path,
+            params,
+            settings.patches,
+            mesh,
+            side,
+            wake,
+        ));
     }
     let mut job = ToolJob::spawn("paint with exemplar", wake, move |sink, cancel| {
         let (img, alpha) = load_exemplar(&path, pixels)?;
@@ -622,6 +633,7 @@ pub fn exemplar_job(
 fn texture_job(
     path: PathBuf,
     params: SynthParams,
+    patches: bool,
     mesh: TriMesh,
     side: Side,
     wake: impl Fn() + Send + Sync + 'static,
@@ -641,8 +653,30 @@ fn texture_job(
             texture_size: TEXTURE_SIDE,
             ..Default::default()
         };
-        let r = wei_levoy::synthesize_texture(&input, &p, sink, cancel)?;
         let name = path.file_name().unwrap_or_default().to_string_lossy();
+        if patches {
+            let r = wei_levoy::patch_pasting::paste_patches(
+                &input,
+                &p,
+                &wei_levoy::patch_pasting::PatchParams::default(),
+                sink,
+                cancel,
+            )?;
+            let atlas = match &r.atlas_reason {
+                Some(why) => format!("; a UV atlas was generated: {why}"),
+                None => String::new(),
+            };
+            return Ok(ToolOutcome::Mesh(
+                side,
+                r.mesh,
+                format!(
+                    "{side:?} textured with {name}: {} patches pasted into a {TEXTURE_SIDE}x\
+                     {TEXTURE_SIDE} texture in {:.1} s{atlas} (Ctrl+Z undoes)",
+                    r.patches, r.seconds
+                ),
+            ));
+        }
+        let r = wei_levoy::synthesize_texture(&input, &p, sink, cancel)?;
         let atlas = match &r.atlas_reason {
             Some(why) => format!("; a UV atlas was generated: {why}"),
             None => String::new(),
@@ -785,6 +819,14 @@ impl ExemplarDialog {
             "How wide the exemplar appears on the surface, as a fraction of the mesh's \
              bounding-box diagonal: smaller = more repetitions, finer texture",
         );
+        if s.region == Region::Texture {
+            ui.checkbox(&mut s.patches, "Paste whole patches")
+                .on_hover_text(
+                    "Paste large discs of the image onto the surface, each placed where it matches \
+                 its neighbours (lapped textures): keeps the image's contrast, large structures \
+                 and sharpness. Off: Wei-Levoy synthesis texel by texel (finer mixing, softer)",
+                );
+        }
         if s.region != Region::Texture {
             ui.add(egui::Slider::new(&mut s.pixels, 32..=256).text("exemplar width (px)"))
                 .on_hover_text(

@@ -61,10 +61,14 @@ pub struct SynthArgs {
     /// Treat the exemplar as a grey displacement map and displace the surface along its normals.
     #[arg(long)]
     pub displace: bool,
-    /// neighbourhood (Wei-Levoy, coarse to fine) or optimize (then surface texture optimisation,
-    /// Kwatra et al. 2005: whole 32- and 16-texel patches blended along the field, which keeps
-    /// structured exemplars whole; slower).
-    #[arg(long, default_value = crate::synthesis::Method::default().as_str())]
+    /// patches (large discs of the image pasted onto the surface and placed by matching their
+    /// overlap, lapped textures: keeps the image's contrast, large structures and sharpness; a
+    /// textured output only), neighbourhood (Wei-Levoy, coarse to fine), optimize (then surface
+    /// texture optimisation, Kwatra et al. 2005: whole 32- and 16-texel patches blended along
+    /// the field; slower), or auto (patches for a textured output without --mask, --displace,
+    /// --out-dense, --exemplar-width, --align-features or --space surface; neighbourhood
+    /// otherwise).
+    #[arg(long, default_value = "auto")]
     pub method: String,
     /// Put the exemplar's principal line (its darkest or brightest thin horizontal stroke, or
     /// --feature-mask) exactly on the mesh's salient curves (Xu et al. 2009 §5.2). Implies
@@ -123,6 +127,8 @@ pub struct Plan {
     pub texture_space: bool,
     /// The output carries a texture (`--out` ends in .glb, .gltf or .obj).
     pub textured_out: bool,
+    /// Paste patches of the image ([`crate::synthesis::wei_levoy::patch_pasting`]).
+    pub patches: bool,
 }
 
 /// Check `synth`'s flags against each other and their ranges before any file is read (the
@@ -139,12 +145,16 @@ pub fn check(a: &SynthArgs) -> Result<Plan> {
     let search: Search = a.search.parse().map_err(|_| {
         Error::InvalidInput(format!("--search {}: use exhaustive or fast", a.search))
     })?;
-    let mut method: crate::synthesis::Method = a.method.parse().map_err(|_| {
-        Error::InvalidInput(format!(
-            "--method {}: use neighbourhood or optimize",
-            a.method
-        ))
-    })?;
+    let asked = a.method.to_ascii_lowercase();
+    let mut method: crate::synthesis::Method = match asked.as_str() {
+        "auto" | "patches" => crate::synthesis::Method::Neighbourhood,
+        m => m.parse().map_err(|_| {
+            Error::InvalidInput(format!(
+                "--method {}: use auto, patches, neighbourhood or optimize",
+                a.method
+            ))
+        })?,
+    };
     let mut orientation = orientation;
     if a.feature_mask.is_some() && !a.align_features {
         return Err(Error::InvalidInput(
@@ -246,12 +256,46 @@ pub fn check(a: &SynthArgs) -> Result<Plan> {
             a.texel_budget
         )));
     }
+    let patches = match asked.as_str() {
+        "patches" => {
+            let clash = if !textured_out {
+                Some("an output with a texture (.glb, .gltf or .obj)")
+            } else if a.displace {
+                Some("no --displace")
+            } else if a.mask.is_some() {
+                Some("no --mask")
+            } else if a.out_dense.is_some() {
+                Some("no --out-dense (there is no dense mesh)")
+            } else if a.align_features {
+                Some("no --align-features (it runs the texture optimisation)")
+            } else if a.space == "surface" {
+                Some("no --space surface (patches go into the texture)")
+            } else {
+                None
+            };
+            if let Some(c) = clash {
+                return Err(Error::InvalidInput(format!("--method patches needs {c}")));
+            }
+            true
+        }
+        "auto" => {
+            textured_out
+                && !a.displace
+                && a.mask.is_none()
+                && a.out_dense.is_none()
+                && a.exemplar_width.is_none()
+                && !a.align_features
+                && a.space != "surface"
+        }
+        _ => false,
+    };
     Ok(Plan {
         orientation,
         search,
         method,
-        texture_space,
+        texture_space: texture_space || patches,
         textured_out,
+        patches,
     })
 }
 
@@ -366,6 +410,7 @@ pub fn synthesize(
         method,
         texture_space,
         textured_out,
+        patches,
     } = *plan;
     let optimise = method == crate::synthesis::Method::Optimize;
     if let Some(m) = file_mask
@@ -376,6 +421,10 @@ pub fn synthesize(
             m.len(),
             target.file_vertex_count
         )));
+    }
+    if patches {
+        let mesh = synth_patches(a, exemplar, alpha, target, orientation, sink, cancel)?;
+        return Ok(Synthesized { mesh, dense: None });
     }
     if texture_space {
         let mesh = synth_texture(
@@ -626,6 +675,57 @@ fn synth_texture(
         r.timings.search,
         r.timings.magnify,
         r.level_energy.first().copied().unwrap_or(0.0),
+        a.texture_size,
+        a.texture_size
+    );
+    Ok(r.mesh)
+}
+
+/// `synth --method patches`: large patches of the image pasted into the target's texture.
+fn synth_patches(
+    a: &SynthArgs,
+    exemplar: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+    target: &crate::mesh::TriMesh,
+    orientation: crate::synthesis::Orientation,
+    sink: &dyn Fn(crate::work::Event),
+    cancel: &CancelToken,
+) -> Result<crate::mesh::TriMesh> {
+    use crate::synthesis::wei_levoy::patch_pasting::{PatchParams, paste_patches};
+    use crate::synthesis::wei_levoy::{TextureInput, TextureParams};
+    let params = TextureParams {
+        synth: crate::synthesis::SynthParams {
+            scale: a.scale,
+            orientation,
+            seed: a.seed,
+            ..Default::default()
+        },
+        texture_size: a.texture_size,
+        ..Default::default()
+    };
+    let input = TextureInput {
+        exemplar,
+        alpha,
+        target,
+        field: None,
+    };
+    let r = paste_patches(&input, &params, &PatchParams::default(), sink, cancel)?;
+    print_anisotropy(r.anisotropy, r.orientation_used);
+    if let (Some(at), Some(why)) = (&r.atlas, &r.atlas_reason) {
+        eprintln!(
+            "generated a UV atlas for the target ({why}): {} charts, {:.0}% of the texture",
+            at.charts,
+            100.0 * at.utilization
+        );
+    }
+    eprintln!(
+        "pasted {} patches of radius {:.4} (orientation {}) in {:.2} s; {:.2}% of the texels \
+         filled from their neighbours; texture {}x{}",
+        r.patches,
+        r.radius,
+        r.orientation_used.as_str(),
+        r.seconds,
+        100.0 * r.uncovered,
         a.texture_size,
         a.texture_size
     );

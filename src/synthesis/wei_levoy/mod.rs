@@ -11,9 +11,11 @@
 //! per level: parent level only, then current + parent level.
 
 pub mod anisotropy;
+pub mod character;
 mod metrics;
 mod neigh;
 mod orient;
+pub mod patch_pasting;
 mod pyramid;
 mod search;
 pub mod texture_space;

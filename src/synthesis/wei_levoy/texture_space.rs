@@ -129,19 +129,19 @@ pub struct TextureOutput {
 
 /// The target's surface as the texel stencils need it: welded topology (so templates cross UV
 /// seams), per-corner UVs, smooth normals, and each face's surface length per unit of UV.
-struct Surface<'a> {
-    positions: &'a [[f32; 3]],
-    faces: Vec<[u32; 3]>,
-    uvs: &'a [[f32; 2]],
-    normals: Vec<[f32; 3]>,
+pub(super) struct Surface<'a> {
+    pub(super) positions: &'a [[f32; 3]],
+    pub(super) faces: Vec<[u32; 3]>,
+    pub(super) uvs: &'a [[f32; 2]],
+    pub(super) normals: Vec<[f32; 3]>,
     /// Faces sharing an edge with each face (welded).
     face_adj: Csr,
     /// sqrt(surface area / UV area) of each face: one UV unit in surface units.
-    uv_scale: Vec<f32>,
+    pub(super) uv_scale: Vec<f32>,
 }
 
 impl<'a> Surface<'a> {
-    fn new(mesh: &'a TriMesh, uvs: &'a [[f32; 2]]) -> Surface<'a> {
+    pub(super) fn new(mesh: &'a TriMesh, uvs: &'a [[f32; 2]]) -> Surface<'a> {
         // weld exactly coincident positions (files split at UV seams)
         let mut ids: std::collections::HashMap<[u32; 3], u32> = Default::default();
         let canon: Vec<u32> = mesh
@@ -208,14 +208,14 @@ impl<'a> Surface<'a> {
         }
     }
 
-    fn point(&self, f: u32, b: [f32; 3]) -> Vec3 {
+    pub(super) fn point(&self, f: u32, b: [f32; 3]) -> Vec3 {
         let face = self.faces[f as usize];
         (0..3).fold(Vec3::ZERO, |acc, k| {
             acc + b[k] * Vec3::from(self.positions[face[k] as usize])
         })
     }
 
-    fn normal(&self, f: u32, b: [f32; 3]) -> Vec3 {
+    pub(super) fn normal(&self, f: u32, b: [f32; 3]) -> Vec3 {
         let face = self.faces[f as usize];
         let n = (0..3).fold(Vec3::ZERO, |acc, k| {
             acc + b[k] * Vec3::from(self.normals[face[k] as usize])
@@ -300,6 +300,34 @@ fn unusable_uvs(mesh: &TriMesh) -> Option<String> {
         ));
     }
     None
+}
+
+/// The target with the UV layout a synthesized texture goes through: its own UVs when they can
+/// carry one ([`unusable_uvs`]), else a generated atlas (also when `params.new_atlas`), with the
+/// atlas and the reason it was generated.
+pub(super) fn texture_layout(
+    target: &TriMesh,
+    params: &TextureParams,
+    cancel: &CancelToken,
+) -> Result<(TriMesh, Option<crate::geometry::UvAtlas>, Option<String>)> {
+    let mut mesh = target.clone();
+    let mut atlas = None;
+    let atlas_reason = if params.new_atlas {
+        Some("asked for".to_string())
+    } else {
+        unusable_uvs(&mesh)
+    };
+    if atlas_reason.is_some() {
+        let ap = crate::geometry::AtlasParams {
+            texture_size: params.texture_size,
+            ..Default::default()
+        };
+        let a = crate::geometry::uv_atlas(&mesh.positions, &mesh.faces, &ap, &|_| {}, cancel)?;
+        mesh.uvs = Some(a.uvs.clone());
+        atlas = Some(a);
+    }
+    cancel.check()?;
+    Ok((mesh, atlas, atlas_reason))
 }
 
 /// One level of texels: the grid side, the sample index of every texel (`u32::MAX` outside the
@@ -813,23 +841,7 @@ pub fn synthesize_texture(
 
     // ---- the UV layout
     let sw = Stopwatch::start();
-    let mut mesh = target.clone();
-    let mut atlas = None;
-    let atlas_reason = if params.new_atlas {
-        Some("asked for".to_string())
-    } else {
-        unusable_uvs(&mesh)
-    };
-    if atlas_reason.is_some() {
-        let ap = crate::geometry::AtlasParams {
-            texture_size: params.texture_size,
-            ..Default::default()
-        };
-        let a = crate::geometry::uv_atlas(&mesh.positions, &mesh.faces, &ap, &|_| {}, cancel)?;
-        mesh.uvs = Some(a.uvs.clone());
-        atlas = Some(a);
-    }
-    cancel.check()?;
+    let (mut mesh, atlas, atlas_reason) = texture_layout(target, params, cancel)?;
     let uvs = mesh.uvs.clone().expect("UVs set above");
     let surface = Surface::new(&mesh, &uvs);
     let uv_area = surface.uv_area().clamp(1e-6, 1.0);

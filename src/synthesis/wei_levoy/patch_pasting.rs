@@ -1,0 +1,912 @@
+//! Exemplar synthesis by pasting large patches of the image onto the surface: lapped textures
+//! (Praun, Finkelstein & Hoppe 2000) with each patch placed by matching its overlap with what is
+//! already there (Efros & Freeman 2001's overlap matching, carried onto the surface).
+//!
+//! Wei-Levoy's per-sample search keeps only what a small neighbourhood sees: an image whose
+//! features are larger than the neighbourhood (plumes, bark strips, brick courses) comes out as
+//! a scatter of small blotches, and averaging near-ties flattens its contrast. Pasting whole
+//! discs of the image keeps everything inside a disc exactly as the image has it (its contrast,
+//! colours, large structures and every pixel's sharpness), so only the discs' rims are made up.
+//!
+//! The steps ([`paste_patches`]):
+//! 1. **Layout**: the target's UVs, or a generated atlas, as texture-space synthesis uses; every
+//!    texel of the output texture is a surface point.
+//! 2. **Orientation** of each patch: random for isotropic images, else the field the image's
+//!    anisotropy asks for (a smooth direction field, projected up, or the salient curves'),
+//!    read at the patch's seed, with the field's symmetry.
+//! 3. **Seeds**: texels in a random order; the next one not yet covered starts a patch.
+//! 4. **Flatten**: the discrete exponential map ([`crate::geometry::exp_map`]) of the geodesic
+//!    disc around the seed gives every vertex within reach a 2D coordinate in surface units;
+//!    faces whose flattened edges stretch by more than 2x (where the disc wraps around a thin
+//!    part and meets itself) or flip are left out of the patch, for another patch to cover.
+//! 5. **Splotch**: the patch's shape is a disc whose rim wobbles (a few random harmonics, as
+//!    lapped textures' hand-drawn splotch), with a feathered edge.
+//! 6. **Place**: among random image positions (and rotations, when the field allows), the one
+//!    whose image colours best match the texels already covered under the new patch's
+//!    footprint (sum of squared differences weighted by both alphas), refined by a pattern
+//!    search.
+//! 7. **Paste**: each texel of the patch's faces reads the full-resolution image at its
+//!    coordinate (bilinear) and is composited over what is there with the splotch's alpha.
+//!    Transparent image pixels give alpha 0, so they never reach the surface.
+//!
+//! Texels no patch covers (faces every flattening left out) are filled from their neighbours
+//! with the gutters.
+
+use glam::{Vec2, Vec3};
+use rand::Rng;
+use rand::seq::SliceRandom;
+use rayon::prelude::*;
+
+use super::pyramid::{Img, stage_rng};
+use super::texture_space::{Surface, TextureInput, TextureParams, texture_layout};
+use super::{Orientation, anisotropy, feature_field, transparent_filled};
+use crate::error::{Error, Result};
+use crate::mesh::{Csr, TriMesh};
+use crate::work::{CancelToken, Event, Progress, Stopwatch};
+
+/// Parameters of patch pasting beyond [`TextureParams`].
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct PatchParams {
+    /// A patch's radius as a fraction of the image's shorter side: large enough to hold the
+    /// image's large structures whole, small enough to leave room to choose where to cut.
+    pub radius: f32,
+    /// Width of the feathered rim, as a fraction of the radius.
+    pub feather: f32,
+    /// How far the splotch's rim wobbles in and out, as a fraction of the radius.
+    pub wobble: f32,
+    /// Image positions (and rotations) tried per patch before refining the best.
+    pub candidates: usize,
+}
+
+impl Default for PatchParams {
+    fn default() -> Self {
+        PatchParams {
+            radius: 0.3,
+            feather: 0.08,
+            wobble: 0.18,
+            candidates: 96,
+        }
+    }
+}
+
+/// What [`paste_patches`] made.
+#[derive(Clone, Debug)]
+pub struct PatchOutput {
+    /// The target with UVs (its own or the generated atlas's) and the texture; no vertex colours.
+    pub mesh: TriMesh,
+    /// Charts and coverage of a generated atlas.
+    pub atlas: Option<crate::geometry::UvAtlas>,
+    /// Why the atlas was generated.
+    pub atlas_reason: Option<String>,
+    /// Patches pasted.
+    pub patches: usize,
+    /// Patch radius in surface units.
+    pub radius: f32,
+    /// Share of the layout's texels no patch reached (filled from their neighbours).
+    pub uncovered: f64,
+    /// The orientation used (`Auto` resolved).
+    pub orientation_used: Orientation,
+    /// The image's measured anisotropy, when `Auto` chose the orientation.
+    pub anisotropy: Option<anisotropy::Anisotropy>,
+    /// Wall-clock seconds of the whole call.
+    pub seconds: f64,
+}
+
+/// Overlap texels a placement is scored on, at most.
+const SCORE_SAMPLES: usize = 384;
+
+/// Most patches: a scale this small against the surface is a tiling job, not patch pasting.
+const MAX_PATCHES: f64 = 200_000.0;
+
+/// Synthesize the exemplar into the target's texture by pasting patches (see the module doc).
+/// Uses `params.synth`'s scale (image width in surface units, default a quarter of the
+/// bounding-box diagonal), orientation and seed, and `params.texture_size`; emits progress and
+/// honours `cancel`.
+pub fn paste_patches(
+    input: &TextureInput,
+    params: &TextureParams,
+    pp: &PatchParams,
+    sink: &dyn Fn(Event),
+    cancel: &CancelToken,
+) -> Result<PatchOutput> {
+    let total = Stopwatch::start();
+    let sp = &params.synth;
+    let target = input.target;
+    check_inputs(input, params, pp)?;
+    let (lo, hi) = target
+        .bounds()
+        .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
+    let diag = Vec3::from(hi).distance(Vec3::from(lo));
+    if !(diag > 0.0 && diag.is_finite()) {
+        return Err(Error::InvalidMesh("target mesh has zero extent".into()));
+    }
+    let scale = sp.scale.unwrap_or(diag / 4.0);
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "scale must be positive, got {scale}"
+        )));
+    }
+    let (ew, eh) = input.exemplar.dimensions();
+    let pixel = scale / ew as f32;
+    let radius = pp.radius * ew.min(eh) as f32 * pixel;
+    let area = target.area().max(1e-30);
+    let expected = area / (std::f64::consts::PI * (radius as f64 * 0.7).powi(2));
+    if expected > MAX_PATCHES {
+        return Err(Error::InvalidInput(format!(
+            "at scale {scale} the image is too small against the surface for patches (about \
+             {expected:.0} of them): use a larger scale or --method neighbourhood"
+        )));
+    }
+    let out_texels = (params.texture_size as u64).pow(2);
+    crate::work::check_memory(
+        out_texels.saturating_mul(64),
+        &format!("a {0}x{0} texture", params.texture_size),
+        "use a smaller --texture-size",
+    )?;
+
+    // 1. layout
+    let (mut mesh, atlas, atlas_reason) = texture_layout(target, params, cancel)?;
+    let uvs = mesh.uvs.clone().expect("the layout sets UVs");
+    let surface = Surface::new(&mesh, &uvs);
+    let size = params.texture_size as usize;
+    let texels = crate::geometry::uv_texels(&uvs, surface.faces.len(), size, size);
+    let face_texels = face_texel_lists(&texels, surface.faces.len());
+    cancel.check()?;
+
+    // 2. orientation
+    let image = match input.alpha {
+        None => Img::from_rgb(input.exemplar),
+        Some(a) => transparent_filled(input.exemplar, a)?.0,
+    };
+    let opacity: Option<Vec<f32>> = input
+        .alpha
+        .map(|a| a.pixels().map(|p| p.0[0] as f32 / 255.0).collect());
+    let anis = (sp.orientation == Orientation::Auto).then(|| {
+        let probe = super::shrink_exemplar(input.exemplar.clone(), ew.min(256));
+        let pa = input
+            .alpha
+            .map(|a| super::resize_alpha(a.clone(), probe.width(), probe.height()));
+        anisotropy::exemplar_anisotropy(&probe, pa.as_ref())
+    });
+    let orientation = anis.map_or(sp.orientation, anisotropy::choose_orientation);
+    let field = orientation_field(input, &surface, orientation, radius, cancel)?;
+    // 0: patches turn freely (no field); else the field's symmetry
+    let symmetry = match (&field, orientation) {
+        (None, _) => 0,
+        (_, Orientation::Relax4) => 4,
+        (_, Orientation::Relax2 | Orientation::Features) => 2,
+        _ => 1,
+    };
+    cancel.check()?;
+
+    // 3.-7. seeds, flatten, splotch, place, paste
+    let ctx = Context {
+        surface: &surface,
+        adjacency: crate::mesh::vertex_adjacency(surface.positions.len(), &surface.faces),
+        vertex_faces: crate::mesh::vertex_faces(surface.positions.len(), &surface.faces),
+        texels: &texels,
+        face_texels: &face_texels,
+        image: &image,
+        opacity: opacity.as_deref(),
+        pixel,
+        radius,
+        reach: radius * (1.0 + pp.wobble) * 1.1 + longest_edge(&surface),
+        border_fade: (pp.feather * radius / pixel).max(1.0),
+        pp,
+    };
+    let mut canvas = Canvas {
+        color: vec![[0.0; 3]; texels.len()],
+        alpha: vec![0.0; texels.len()],
+        covered: 0,
+        usage: vec![0.0; USAGE * USAGE],
+    };
+    let layout_texels = texels.iter().filter(|t| t.is_some()).count().max(1);
+    let mut rng = stage_rng(sp.seed, 11);
+    let mut order: Vec<u32> = (0..texels.len() as u32)
+        .filter(|&t| texels[t as usize].is_some())
+        .collect();
+    order.shuffle(&mut rng);
+    let mut scratch = Scratch {
+        uv: vec![[0.0; 2]; surface.positions.len()],
+        stamp: vec![0; surface.positions.len()],
+        fstamp: vec![0; surface.faces.len()],
+        now: 0,
+    };
+    let mut patches = 0usize;
+    let mut last_report = Stopwatch::start();
+    for &seed_texel in &order {
+        if canvas.alpha[seed_texel as usize] >= 0.5 {
+            continue;
+        }
+        cancel.check()?;
+        let (face, bary) = texels[seed_texel as usize].expect("a layout texel");
+        let n = surface.normal(face, bary);
+        let e1 = seed_direction(&surface, field.as_deref(), face, bary, n, &mut rng);
+        let Some(patch) = ctx.flatten(face, bary, n, e1, &mut scratch) else {
+            continue;
+        };
+        let splotch = Splotch::random(&mut rng, pp);
+        let place = ctx.place(&patch, &splotch, &canvas, symmetry, &mut rng);
+        ctx.paste(&patch, &splotch, &place, &mut canvas);
+        patches += 1;
+        if last_report.secs() > 0.1 {
+            last_report = Stopwatch::start();
+            sink(Event::Progress(Progress {
+                stage: "patches",
+                level: 0,
+                levels: 1,
+                iteration: patches,
+                energy: 0.0,
+                elapsed: total.secs(),
+                fraction: canvas.covered as f32 / layout_texels as f32,
+            }));
+        }
+    }
+
+    // the texture: normalised colours, uncovered texels filled with the gutters
+    let mut uncovered = 0usize;
+    let covered: Vec<bool> = canvas
+        .alpha
+        .iter()
+        .zip(&texels)
+        .map(|(&a, t)| {
+            if t.is_some() && a <= 1e-3 {
+                uncovered += 1;
+            }
+            a > 1e-3
+        })
+        .collect();
+    let pixels: Vec<[f32; 3]> = canvas
+        .color
+        .par_iter()
+        .zip(canvas.alpha.par_iter())
+        .map(|(c, &a)| {
+            if a > 1e-3 {
+                c.map(|x| (x / a).clamp(0.0, 1.0))
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    let mut baked = crate::geometry::BakedImage {
+        width: size,
+        height: size,
+        pixels,
+        covered,
+    };
+    crate::geometry::fill_gutters(&mut baked);
+    mesh.colors = None;
+    mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
+        image: baked.to_rgb8(),
+        path: None,
+    }));
+    Ok(PatchOutput {
+        mesh,
+        atlas,
+        atlas_reason,
+        patches,
+        radius,
+        uncovered: uncovered as f64 / layout_texels as f64,
+        orientation_used: orientation,
+        anisotropy: anis,
+        seconds: total.secs(),
+    })
+}
+
+/// Refuse what cannot be pasted, in one line each.
+fn check_inputs(input: &TextureInput, params: &TextureParams, pp: &PatchParams) -> Result<()> {
+    let (ew, eh) = input.exemplar.dimensions();
+    if ew.min(eh) < 8 {
+        return Err(Error::InvalidInput(format!(
+            "the exemplar is {ew}x{eh} pixels: patches need at least 8 a side"
+        )));
+    }
+    if !(16..=8192).contains(&params.texture_size) {
+        return Err(Error::InvalidInput(format!(
+            "texture size must be between 16 and 8192, got {}",
+            params.texture_size
+        )));
+    }
+    if input.target.faces.is_empty() {
+        return Err(Error::InvalidMesh("the target has no faces".into()));
+    }
+    if let Some(f) = input.field
+        && f.len() != input.target.num_vertices()
+    {
+        return Err(Error::InvalidInput(format!(
+            "orientation field has {} entries, the target has {} vertices",
+            f.len(),
+            input.target.num_vertices()
+        )));
+    }
+    let ok = |x: f32, lo: f32, hi: f32| x.is_finite() && x >= lo && x <= hi;
+    if !(ok(pp.radius, 0.05, 0.5) && ok(pp.feather, 0.01, 0.5) && ok(pp.wobble, 0.0, 0.5))
+        || pp.candidates == 0
+    {
+        return Err(Error::InvalidInput(format!(
+            "patch parameters out of range: radius {} (0.05-0.5), feather {} (0.01-0.5), wobble \
+             {} (0-0.5), candidates {} (1 or more)",
+            pp.radius, pp.feather, pp.wobble, pp.candidates
+        )));
+    }
+    Ok(())
+}
+
+/// The output texels of each face (CSR, face-major).
+fn face_texel_lists(texels: &[Option<(u32, [f32; 3])>], faces: usize) -> Csr {
+    let mut offsets = vec![0u32; faces + 1];
+    for (f, _) in texels.iter().flatten() {
+        offsets[*f as usize + 1] += 1;
+    }
+    for i in 0..faces {
+        offsets[i + 1] += offsets[i];
+    }
+    let mut fill = offsets.clone();
+    let mut indices = vec![0u32; offsets[faces] as usize];
+    for (t, hit) in texels.iter().enumerate() {
+        if let Some((f, _)) = hit {
+            let slot = &mut fill[*f as usize];
+            indices[*slot as usize] = t as u32;
+            *slot += 1;
+        }
+    }
+    Csr { offsets, indices }
+}
+
+/// The longest edge of the surface: a disc's flattening reaches this much beyond its rim, so the
+/// faces the rim crosses have all three corners.
+fn longest_edge(surface: &Surface) -> f32 {
+    surface
+        .faces
+        .par_iter()
+        .map(|f| {
+            let p = f.map(|v| Vec3::from(surface.positions[v as usize]));
+            p[0].distance(p[1])
+                .max(p[1].distance(p[2]))
+                .max(p[2].distance(p[0]))
+        })
+        .reduce(|| 0.0, f32::max)
+}
+
+/// The texture direction per vertex the orientation asks for, or `None` for random patches.
+fn orientation_field(
+    input: &TextureInput,
+    surface: &Surface,
+    orientation: Orientation,
+    radius: f32,
+    cancel: &CancelToken,
+) -> Result<Option<Vec<[f32; 3]>>> {
+    if let Some(f) = input.field
+        && !matches!(orientation, Orientation::Random | Orientation::Up)
+    {
+        return Ok(Some(f.to_vec()));
+    }
+    Ok(match orientation {
+        Orientation::Random | Orientation::Auto => None,
+        Orientation::Up => Some(vec![[0.0, 1.0, 0.0]; surface.positions.len()]),
+        Orientation::Features => Some(feature_field(input.target, cancel)?),
+        Orientation::Relax2 | Orientation::Relax4 => {
+            // the smoothest field nearest "up", smooth at the patches' size
+            let guide = vec![[0.0, 1.0, 0.0]; surface.positions.len()];
+            Some(crate::geometry::smooth_direction_field(
+                surface.positions,
+                &surface.faces,
+                &surface.normals,
+                &guide,
+                radius as f64,
+            )?)
+        }
+    })
+}
+
+/// The patch's +u direction at its seed: the field there (made tangent), or a random tangent.
+fn seed_direction(
+    surface: &Surface,
+    field: Option<&[[f32; 3]]>,
+    face: u32,
+    bary: [f32; 3],
+    n: Vec3,
+    rng: &mut impl Rng,
+) -> Vec3 {
+    if let Some(f) = field {
+        let corners = surface.faces[face as usize];
+        let d = (0..3).fold(Vec3::ZERO, |acc, k| {
+            acc + bary[k] * Vec3::from(f[corners[k] as usize])
+        });
+        let t = d - n * n.dot(d);
+        if t.length_squared() > 1e-12 {
+            return t.normalize();
+        }
+    }
+    let a = n.any_orthonormal_vector();
+    let b = n.cross(a);
+    let angle = rng.random::<f32>() * std::f32::consts::TAU;
+    a * angle.cos() + b * angle.sin()
+}
+
+/// What every patch reads.
+struct Context<'a> {
+    surface: &'a Surface<'a>,
+    adjacency: Csr,
+    vertex_faces: Csr,
+    texels: &'a [Option<(u32, [f32; 3])>],
+    face_texels: &'a Csr,
+    image: &'a Img,
+    opacity: Option<&'a [f32]>,
+    /// Surface units per image pixel.
+    pixel: f32,
+    /// Patch radius in surface units.
+    radius: f32,
+    /// How far a flattening reaches.
+    reach: f32,
+    /// Image pixels over which a patch fades out at the image's border.
+    border_fade: f32,
+    pp: &'a PatchParams,
+}
+
+/// The composited texture so far: premultiplied colour and alpha per texel, and how often each
+/// part of the image has been pasted.
+struct Canvas {
+    color: Vec<[f32; 3]>,
+    alpha: Vec<f32>,
+    /// Texels with alpha at least 0.5.
+    covered: usize,
+    /// Patches whose core covered each cell of a `USAGE² ` grid over the image.
+    usage: Vec<f32>,
+}
+
+/// Cells a side of the image's usage grid.
+const USAGE: usize = 16;
+
+/// Per-vertex flattening buffers, reused across patches.
+struct Scratch {
+    uv: Vec<[f32; 2]>,
+    stamp: Vec<u32>,
+    fstamp: Vec<u32>,
+    now: u32,
+}
+
+/// A flattened patch: its faces, and each face's corners in surface units around the seed.
+struct Patch {
+    faces: Vec<u32>,
+    corners: Vec<[Vec2; 3]>,
+}
+
+/// A splotch: the rim's radius at angle `a` is `1 + Σ amp_k cos(k a + phase_k)` (in radii).
+struct Splotch {
+    harmonics: [(f32, f32); 4],
+    feather: f32,
+}
+
+impl Splotch {
+    fn random(rng: &mut impl Rng, pp: &PatchParams) -> Splotch {
+        let mut harmonics = [(0.0, 0.0); 4];
+        let mut total = 0.0;
+        for (k, h) in harmonics.iter_mut().enumerate() {
+            let amp = rng.random::<f32>() / (k + 1) as f32;
+            total += amp;
+            *h = (amp, rng.random::<f32>() * std::f32::consts::TAU);
+        }
+        let norm = if total > 0.0 { pp.wobble / total } else { 0.0 };
+        for h in harmonics.iter_mut() {
+            h.0 *= norm;
+        }
+        Splotch {
+            harmonics,
+            feather: pp.feather,
+        }
+    }
+
+    /// Alpha at `q` (in radii from the seed): 1 inside, 0 beyond the rim, a linear ramp of
+    /// `feather` radii inside it.
+    fn alpha(&self, q: Vec2) -> f32 {
+        let rho = q.length();
+        if rho < 1.0 - self.harmonics.iter().map(|h| h.0).sum::<f32>() - self.feather {
+            return 1.0;
+        }
+        let a = q.y.atan2(q.x);
+        let rim = 1.0
+            + self
+                .harmonics
+                .iter()
+                .enumerate()
+                .map(|(k, &(amp, ph))| amp * ((k + 1) as f32 * a + ph).cos())
+                .sum::<f32>();
+        ((rim - rho) / self.feather).clamp(0.0, 1.0)
+    }
+}
+
+/// Where a patch reads the image: the image point at the seed and the rotation of the surface's
+/// (u, v) into the image's (x right, y down).
+#[derive(Clone, Copy, Debug)]
+struct Placement {
+    centre: Vec2,
+    cos: f32,
+    sin: f32,
+}
+
+impl Placement {
+    fn new(centre: Vec2, angle: f32) -> Placement {
+        Placement {
+            centre,
+            cos: angle.cos(),
+            sin: angle.sin(),
+        }
+    }
+
+    /// The image point (pixel units, centres at integers) of surface offset `q` (surface units
+    /// divided by the pixel size).
+    fn image_point(&self, q: Vec2) -> Vec2 {
+        Vec2::new(
+            self.centre.x + self.cos * q.x - self.sin * q.y,
+            self.centre.y - (self.sin * q.x + self.cos * q.y),
+        )
+    }
+}
+
+impl Context<'_> {
+    /// Step 4: the faces around the seed flattened by the exponential map, without the faces
+    /// the flattening stretches or flips; `None` when the seed's own face is among those.
+    fn flatten(
+        &self,
+        face: u32,
+        bary: [f32; 3],
+        n: Vec3,
+        e1: Vec3,
+        sc: &mut Scratch,
+    ) -> Option<Patch> {
+        let s = self.surface;
+        let corners = s.faces[face as usize];
+        let seed = crate::geometry::DiscSeed {
+            face: corners,
+            point: s.point(face, bary).to_array(),
+            normal: n.to_array(),
+            e1: e1.to_array(),
+        };
+        let em =
+            crate::geometry::exp_map(s.positions, &s.normals, &self.adjacency, &seed, self.reach);
+        sc.now = sc.now.wrapping_add(1);
+        if sc.now == 0 {
+            sc.stamp.fill(0);
+            sc.fstamp.fill(0);
+            sc.now = 1;
+        }
+        let now = sc.now;
+        for (&v, uv) in em.vertices.iter().zip(&em.uv) {
+            sc.stamp[v as usize] = now;
+            sc.uv[v as usize] = *uv;
+        }
+        let rim = self.radius * (1.0 + self.pp.wobble);
+        let mut patch = Patch {
+            faces: Vec::new(),
+            corners: Vec::new(),
+        };
+        let mut seed_kept = false;
+        for &v in &em.vertices {
+            for &f in self.vertex_faces.row(v as usize) {
+                if sc.fstamp[f as usize] == now {
+                    continue;
+                }
+                sc.fstamp[f as usize] = now;
+                let c = s.faces[f as usize];
+                if c.iter().any(|&w| sc.stamp[w as usize] != now) {
+                    continue;
+                }
+                let q = c.map(|w| Vec2::from(sc.uv[w as usize]));
+                // the face's flattening must meet the disc
+                let near = (0..3).any(|k| q[k].length() <= rim)
+                    || segment_meets_disc(q[0], q[1], rim)
+                    || segment_meets_disc(q[1], q[2], rim)
+                    || segment_meets_disc(q[2], q[0], rim)
+                    || contains_origin(&q);
+                if !near || !faithful(s, c, &q) {
+                    continue;
+                }
+                seed_kept |= f == face;
+                patch.faces.push(f);
+                patch.corners.push(q);
+            }
+        }
+        seed_kept.then_some(patch)
+    }
+
+    /// Alpha and image point of a texel at barycentric `b` of a patch face with flattened
+    /// `corners`, under `splotch` and `place`.
+    #[inline]
+    fn sample(
+        &self,
+        corners: &[Vec2; 3],
+        b: [f32; 3],
+        splotch: &Splotch,
+        place: &Placement,
+    ) -> (f32, Vec2) {
+        let q = corners[0] * b[0] + corners[1] * b[1] + corners[2] * b[2];
+        let a = splotch.alpha(q / self.radius);
+        if a <= 0.0 {
+            return (0.0, Vec2::ZERO);
+        }
+        let p = place.image_point(q / self.pixel);
+        // faded over the image's border, so a patch that runs off the image ends softly
+        let (w, h) = (self.image.w as f32, self.image.h as f32);
+        let border = (p.x + 0.5)
+            .min(p.y + 0.5)
+            .min(w - 0.5 - p.x)
+            .min(h - 0.5 - p.y);
+        if border <= 0.0 {
+            return (0.0, p);
+        }
+        let a = a * (border / self.border_fade).min(1.0);
+        let a = match self.opacity {
+            None => a,
+            Some(op) => a * bilinear_scalar(op, self.image.w, self.image.h, p),
+        };
+        (a, p)
+    }
+
+    /// Step 6: the placement whose image best matches the covered texels under the patch.
+    fn place(
+        &self,
+        patch: &Patch,
+        splotch: &Splotch,
+        canvas: &Canvas,
+        symmetry: usize,
+        rng: &mut dyn rand::RngCore,
+    ) -> Placement {
+        // the texels already covered under the patch, a spread subset
+        let mut overlap: Vec<(u32, usize)> = Vec::new();
+        for (i, &f) in patch.faces.iter().enumerate() {
+            for &t in self.face_texels.row(f as usize) {
+                if canvas.alpha[t as usize] > 0.05 {
+                    overlap.push((t, i));
+                }
+            }
+        }
+        if overlap.len() > SCORE_SAMPLES {
+            let step = overlap.len() as f64 / SCORE_SAMPLES as f64;
+            overlap = (0..SCORE_SAMPLES)
+                .map(|k| overlap[(k as f64 * step) as usize])
+                .collect();
+        }
+        let (w, h) = (self.image.w as f32, self.image.h as f32);
+        // centres within half a radius of the border: a patch may run off the image (it fades
+        // there and other patches cover the rest), so every part of the image can be a core
+        let margin = 0.5 * self.radius / self.pixel;
+        let span = |len: f32| -> (f32, f32) {
+            if len > 2.0 * margin {
+                (margin, len - margin)
+            } else {
+                (0.5 * len, 0.5 * len)
+            }
+        };
+        let (xs, ys) = (span(w), span(h));
+        // without a field a patch turns freely; with one it keeps the field's direction up to
+        // the field's symmetry
+        let free_rotation = symmetry == 0;
+        let draw = |rng: &mut dyn rand::RngCore| -> Placement {
+            let angle = |rng: &mut dyn rand::RngCore| -> f32 {
+                if free_rotation {
+                    rng.random::<f32>() * std::f32::consts::TAU
+                } else {
+                    rng.random_range(0..symmetry) as f32 * std::f32::consts::TAU / symmetry as f32
+                }
+            };
+            for _ in 0..16 {
+                let c = Vec2::new(
+                    xs.0 + rng.random::<f32>() * (xs.1 - xs.0),
+                    ys.0 + rng.random::<f32>() * (ys.1 - ys.0),
+                );
+                let opaque = self
+                    .opacity
+                    .is_none_or(|op| bilinear_scalar(op, self.image.w, self.image.h, c) > 0.5);
+                if opaque {
+                    return Placement::new(c, angle(rng));
+                }
+            }
+            Placement::new(Vec2::new(0.5 * (xs.0 + xs.1), 0.5 * (ys.0 + ys.1)), 0.0)
+        };
+        if overlap.is_empty() {
+            return draw(rng);
+        }
+        let score = |pl: &Placement| -> f32 {
+            let mut sum = 0.0f32;
+            let mut wsum = 0.0f32;
+            for &(t, i) in &overlap {
+                let (_, b) = self.texels[t as usize].expect("a layout texel");
+                let (a, p) = self.sample(&patch.corners[i], b, splotch, pl);
+                if a <= 0.0 {
+                    continue;
+                }
+                let old_a = canvas.alpha[t as usize];
+                let old = canvas.color[t as usize].map(|x| x / old_a);
+                let new = self.image.bilinear(p.x, p.y);
+                let wgt = a * old_a;
+                let d: f32 = (0..3).map(|k| (old[k] - new[k]).powi(2)).sum();
+                sum += wgt * d;
+                wsum += wgt;
+            }
+            if wsum > 1e-6 {
+                sum / wsum
+            } else {
+                f32::INFINITY
+            }
+        };
+        // a placement over parts of the image pasted more often than the rest scores worse, so
+        // that all of the image reaches the surface (the score is scaled, so a good match still
+        // wins over an unused part)
+        let core_px = self.radius * (1.0 - self.pp.wobble - self.pp.feather) / self.pixel;
+        let mean_usage = canvas.usage.iter().sum::<f32>() / canvas.usage.len() as f32;
+        let score = |pl: &Placement| -> f32 {
+            let s = score(pl);
+            if mean_usage <= 0.0 {
+                return s;
+            }
+            let u = usage_under(
+                &canvas.usage,
+                self.image.w,
+                self.image.h,
+                pl.centre,
+                core_px,
+            );
+            s * (1.0 + USAGE_WEIGHT * u / mean_usage)
+        };
+        let mut best = draw(rng);
+        let mut best_score = score(&best);
+        for _ in 1..self.pp.candidates {
+            let c = draw(rng);
+            let sc = score(&c);
+            if sc < best_score {
+                best = c;
+                best_score = sc;
+            }
+        }
+        // pattern search around the best
+        let mut step = (margin * 0.25).max(1.0);
+        let mut angle = best.sin.atan2(best.cos);
+        let mut astep = if free_rotation { 0.2 } else { 0.0 };
+        for _ in 0..12 {
+            let mut improved = false;
+            let mut tries: Vec<(Vec2, f32)> = vec![
+                (best.centre + Vec2::new(step, 0.0), angle),
+                (best.centre - Vec2::new(step, 0.0), angle),
+                (best.centre + Vec2::new(0.0, step), angle),
+                (best.centre - Vec2::new(0.0, step), angle),
+            ];
+            if astep > 0.0 {
+                tries.push((best.centre, angle + astep));
+                tries.push((best.centre, angle - astep));
+            }
+            for (c, a) in tries {
+                if c.x < xs.0 || c.x > xs.1 || c.y < ys.0 || c.y > ys.1 {
+                    continue;
+                }
+                let pl = Placement::new(c, a);
+                let sc = score(&pl);
+                if sc < best_score {
+                    best = pl;
+                    best_score = sc;
+                    angle = a;
+                    improved = true;
+                }
+            }
+            if !improved {
+                step *= 0.5;
+                astep *= 0.5;
+                if step < 0.5 {
+                    break;
+                }
+            }
+        }
+        best
+    }
+
+    /// Step 7: composite the patch's texels over the canvas.
+    fn paste(&self, patch: &Patch, splotch: &Splotch, place: &Placement, canvas: &mut Canvas) {
+        let core_px = self.radius * (1.0 - self.pp.wobble - self.pp.feather) / self.pixel;
+        let (w, h) = (self.image.w as f32, self.image.h as f32);
+        for cy in 0..USAGE {
+            for cx in 0..USAGE {
+                let c = Vec2::new(
+                    (cx as f32 + 0.5) * w / USAGE as f32,
+                    (cy as f32 + 0.5) * h / USAGE as f32,
+                );
+                if c.distance(place.centre) <= core_px {
+                    canvas.usage[cy * USAGE + cx] += 1.0;
+                }
+            }
+        }
+        for (i, &f) in patch.faces.iter().enumerate() {
+            for &t in self.face_texels.row(f as usize) {
+                let t = t as usize;
+                let (_, b) = self.texels[t].expect("a layout texel");
+                let (a, p) = self.sample(&patch.corners[i], b, splotch, place);
+                if a <= 0.0 {
+                    continue;
+                }
+                let c = self.image.bilinear(p.x, p.y);
+                let old = canvas.alpha[t];
+                for k in 0..3 {
+                    canvas.color[t][k] = a * c[k] + (1.0 - a) * canvas.color[t][k];
+                }
+                let new = a + (1.0 - a) * old;
+                if old < 0.5 && new >= 0.5 {
+                    canvas.covered += 1;
+                }
+                canvas.alpha[t] = new;
+            }
+        }
+    }
+}
+
+/// How strongly a placement's score grows with the use of its part of the image, relative to
+/// the mean use.
+const USAGE_WEIGHT: f32 = 0.5;
+
+/// The mean use of the usage grid's cells within `r` pixels of `c` (the nearest cell's when none
+/// is).
+fn usage_under(usage: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
+    let (cw, ch) = (w as f32 / USAGE as f32, h as f32 / USAGE as f32);
+    let (mut sum, mut n) = (0.0, 0);
+    for cy in 0..USAGE {
+        for cx in 0..USAGE {
+            let p = Vec2::new((cx as f32 + 0.5) * cw, (cy as f32 + 0.5) * ch);
+            if p.distance(c) <= r {
+                sum += usage[cy * USAGE + cx];
+                n += 1;
+            }
+        }
+    }
+    if n > 0 {
+        return sum / n as f32;
+    }
+    let cx = ((c.x / cw) as usize).min(USAGE - 1);
+    let cy = ((c.y / ch) as usize).min(USAGE - 1);
+    usage[cy * USAGE + cx]
+}
+
+/// Whether a face's flattening is faithful: not flipped, and no edge stretched or shrunk by more
+/// than 2x (where a disc wraps around a thin part its two fronts meet with unrelated
+/// coordinates).
+fn faithful(s: &Surface, c: [u32; 3], q: &[Vec2; 3]) -> bool {
+    let area2 = (q[1] - q[0]).perp_dot(q[2] - q[0]);
+    if area2 <= 0.0 {
+        return false;
+    }
+    let p = c.map(|v| Vec3::from(s.positions[v as usize]));
+    (0..3).all(|k| {
+        let l3 = p[k].distance(p[(k + 1) % 3]);
+        let l2 = q[k].distance(q[(k + 1) % 3]);
+        l3 <= 1e-20 || (l2 <= 2.0 * l3 && l2 >= 0.5 * l3)
+    })
+}
+
+/// Whether segment `a`-`b` passes within `r` of the origin.
+fn segment_meets_disc(a: Vec2, b: Vec2, r: f32) -> bool {
+    let d = b - a;
+    let len2 = d.length_squared();
+    let t = if len2 > 0.0 {
+        (-a.dot(d) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + d * t).length() <= r
+}
+
+/// Whether the triangle `q` contains the origin.
+fn contains_origin(q: &[Vec2; 3]) -> bool {
+    let s = [0, 1, 2].map(|k| q[k].perp_dot(q[(k + 1) % 3]));
+    (s[0] >= 0.0 && s[1] >= 0.0 && s[2] >= 0.0) || (s[0] <= 0.0 && s[1] <= 0.0 && s[2] <= 0.0)
+}
+
+/// Bilinear lookup of a scalar image at pixel coordinates (centres at integers), clamped.
+fn bilinear_scalar(v: &[f32], w: usize, h: usize, p: Vec2) -> f32 {
+    let (x0, y0) = (p.x.floor(), p.y.floor());
+    let (fx, fy) = (p.x - x0, p.y - y0);
+    let at = |x: f32, y: f32| {
+        let xi = (x as isize).clamp(0, w as isize - 1) as usize;
+        let yi = (y as isize).clamp(0, h as isize - 1) as usize;
+        v[yi * w + xi]
+    };
+    (at(x0, y0) * (1.0 - fx) + at(x0 + 1.0, y0) * fx) * (1.0 - fy)
+        + (at(x0, y0 + 1.0) * (1.0 - fx) + at(x0 + 1.0, y0 + 1.0) * fx) * fy
+}
