@@ -1,0 +1,129 @@
+//! Exemplar synthesis keeps the image's character: with `synth`'s defaults for a textured output
+//! (patch pasting), the texture's contrast and colour distribution are the image's, and its
+//! patches are nearer the image's than triplanar projection's at the same scale in the same
+//! atlas (`synthesis::wei_levoy::character`).
+
+use meshmatch::synthesis::wei_levoy::character::{Exemplar, measure, triplanar_texture};
+use meshmatch::synthesis::wei_levoy::patch_pasting::{PatchParams, paste_patches};
+use meshmatch::synthesis::wei_levoy::{TextureInput, TextureParams};
+use meshmatch::testdata::data_path;
+use meshmatch::work::CancelToken;
+
+fn load(mesh: &str) -> meshmatch::mesh::TriMesh {
+    let mut m = meshmatch::mesh::io::load(&data_path(mesh)).unwrap();
+    m.repair().unwrap();
+    m
+}
+
+/// Patches against triplanar on one shared mesh and image, at a quarter of the diagonal.
+fn compare(mesh: &str, image: &str) {
+    let target = load(mesh);
+    let (tex, alpha) = meshmatch::mesh::io::load_texture_with_alpha(&data_path(image)).unwrap();
+    let input = TextureInput {
+        exemplar: &tex.image,
+        alpha: alpha.as_ref(),
+        target: &target,
+        field: None,
+    };
+    let r = paste_patches(
+        &input,
+        &TextureParams::default(),
+        &PatchParams::default(),
+        &|_| {},
+        &CancelToken::new(),
+    )
+    .unwrap();
+    let (lo, hi) = target.bounds().unwrap();
+    let ex = Exemplar {
+        image: &tex.image,
+        alpha: alpha.as_ref(),
+        scale: glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) / 4.0,
+    };
+    let texture = &r.mesh.texture.as_ref().unwrap().image;
+    let ours = measure(&r.mesh, texture, &ex, 1).unwrap();
+    let projected = triplanar_texture(&r.mesh, &ex, texture.width() as usize).unwrap();
+    let base = measure(&r.mesh, &projected, &ex, 1).unwrap();
+    eprintln!("{mesh} x {image}: patches {ours:?}\n  triplanar {base:?}");
+    assert!(
+        (0.85..=1.15).contains(&ours.contrast),
+        "{mesh} x {image}: contrast {:.2} of the image's",
+        ours.contrast
+    );
+    assert!(
+        ours.lab_w1 <= base.lab_w1,
+        "{mesh} x {image}: Lab W1 {:.2} against triplanar's {:.2}",
+        ours.lab_w1,
+        base.lab_w1
+    );
+    assert!(
+        ours.patch_distance < base.patch_distance,
+        "{mesh} x {image}: patch distance {:.2} against triplanar's {:.2}",
+        ours.patch_distance,
+        base.patch_distance
+    );
+    assert!(r.uncovered < 0.001, "{:.4} of the texels uncovered", r.uncovered);
+}
+
+#[test]
+fn ink_clouds_on_the_bunny_keep_their_contrast_and_plumes() {
+    compare("bunny/bunny.obj", "textures/2.jpg");
+}
+
+#[test]
+fn bark_on_the_penguin_keeps_its_contrast_and_strips() {
+    compare("penguin/penguin.obj", "textures/3.jpg");
+}
+
+#[test]
+fn a_transparent_hole_never_reaches_the_surface_and_own_uvs_are_kept() {
+    // bricks.png: an opaque brick wall with a transparent white ellipse in the middle
+    let target = load("spot/spot.obj");
+    let (tex, alpha) =
+        meshmatch::mesh::io::load_texture_with_alpha(&data_path("textures/bricks.png")).unwrap();
+    assert!(alpha.is_some(), "bricks.png has transparent pixels");
+    let input = TextureInput {
+        exemplar: &tex.image,
+        alpha: alpha.as_ref(),
+        target: &target,
+        field: None,
+    };
+    let params = TextureParams {
+        texture_size: 1024,
+        ..Default::default()
+    };
+    let r = paste_patches(
+        &input,
+        &params,
+        &PatchParams::default(),
+        &|_| {},
+        &CancelToken::new(),
+    )
+    .unwrap();
+    assert!(r.atlas.is_none(), "Spot's own UVs carry the texture");
+    assert_eq!(r.mesh.uvs, target.uvs);
+    let texture = &r.mesh.texture.as_ref().unwrap().image;
+    let uvs = r.mesh.uvs.as_ref().unwrap();
+    let texels = meshmatch::geometry::uv_texels(uvs, r.mesh.faces.len(), 1024, 1024);
+    let (mut white, mut covered) = (0usize, 0usize);
+    for (t, hit) in texels.iter().enumerate() {
+        if hit.is_some() {
+            covered += 1;
+            let p = texture.get_pixel((t % 1024) as u32, (t / 1024) as u32).0;
+            if p.iter().all(|&c| c > 235) {
+                white += 1;
+            }
+        }
+    }
+    // the wall itself has no near-white pixel; the hole is white
+    let wall_white = tex
+        .image
+        .pixels()
+        .zip(alpha.as_ref().unwrap().pixels())
+        .filter(|(p, a)| a.0[0] >= 128 && p.0.iter().all(|&c| c > 235))
+        .count();
+    assert!(wall_white < 50, "{wall_white} near-white wall pixels");
+    assert!(
+        (white as f64) < 0.002 * covered as f64,
+        "{white} of {covered} texels show the hole's white"
+    );
+}
