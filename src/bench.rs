@@ -1071,10 +1071,14 @@ pub fn print_rows(rows: Vec<SystemRow>, json: bool) {
 
 /// `meshmatch bench --system synth-character`: for each shared mesh and image (or the pairs in
 /// `MESHMATCH_PAIRS`, `mesh.obj:image.png,...` by file name), what `synth` gives with its
-/// defaults, with `--method neighbourhood`, and triplanar projection at the same scale baked into
-/// the same atlas, measured texel by texel ([`crate::synthesis::wei_levoy::character`]).
+/// defaults for a textured output (patch pasting), with `--method neighbourhood` (Wei-Levoy in
+/// texture space), and triplanar projection at the same scale, all in the same layout, measured
+/// texel by texel ([`crate::synthesis::wei_levoy::character`]); `MESHMATCH_METHODS` picks
+/// among `patches,neighbourhood,triplanar`.
 pub fn synth_character_rows(json: bool) -> Result<()> {
     use crate::synthesis::wei_levoy::character::{Exemplar, measure, triplanar_texture};
+    use crate::synthesis::wei_levoy::patch_pasting::{PatchParams, paste_patches};
+    use crate::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
     let (meshes, textures) = shared_meshes_and_textures();
     let wanted: Option<Vec<(String, String)>> = std::env::var("MESHMATCH_PAIRS").ok().map(|v| {
         v.split(',')
@@ -1110,62 +1114,53 @@ pub fn synth_character_rows(json: bool) -> Result<()> {
                 alpha: alpha.as_ref(),
                 scale,
             };
-            let mut atlas_mesh = None;
             let methods = std::env::var("MESHMATCH_METHODS")
-                .unwrap_or_else(|_| "auto,neighbourhood,triplanar".into());
-            for method in methods.split(',').filter(|m| *m != "triplanar") {
-                let args =
-                    <crate::cli::synth::SynthArgs as clap::FromArgMatches>::from_arg_matches(
-                        &<crate::cli::synth::SynthArgs as clap::Args>::augment_args(
-                            clap::Command::new("synth"),
-                        )
-                        .get_matches_from([
-                            "synth",
-                            "--exemplar",
-                            "e.png",
-                            "--target",
-                            "t.obj",
-                            "--out",
-                            "o.glb",
-                            "--method",
-                            method,
-                        ]),
-                    )
-                    .map_err(|e| crate::error::Error::InvalidInput(e.to_string()))?;
-                let plan = crate::cli::synth::check(&args)?;
-                let t0 = Instant::now();
-                let (exemplar, al) = crate::cli::synth::prepare_exemplar(
-                    &args,
-                    tex.image.clone(),
-                    alpha.clone(),
-                    t,
-                )?;
-                let s = crate::cli::synth::synthesize(
-                    &args,
-                    &plan,
-                    &exemplar,
-                    al.as_ref(),
-                    &target,
-                    None,
-                    None,
-                    &|_| {},
-                    &CancelToken::new(),
-                )?;
-                let secs = t0.elapsed().as_secs_f64();
-                let texture = s.mesh.texture.as_ref().map(|x| x.image.clone());
-                if let Some(tx) = texture
-                    && let Some(c) = measure(&s.mesh, &tx, &ex, 1)
+                .unwrap_or_else(|_| "patches,neighbourhood,triplanar".into());
+            let input = TextureInput {
+                exemplar: &tex.image,
+                alpha: alpha.as_ref(),
+                target: &target,
+                field: None,
+            };
+            let params = TextureParams::default();
+            let cancel = CancelToken::new();
+            // patch pasting lays the texture out (the target's UVs or an atlas); the others
+            // go into the same layout
+            let t0 = Instant::now();
+            let patches =
+                paste_patches(&input, &params, &PatchParams::default(), &|_| {}, &cancel)?;
+            let secs = t0.elapsed().as_secs_f64();
+            let laid = &patches.mesh;
+            let texture = |m: &TriMesh| m.texture.as_ref().map(|x| x.image.clone());
+            for method in methods.split(',') {
+                let (tx, secs) = match method {
+                    "patches" => (texture(laid), secs),
+                    "neighbourhood" => {
+                        let mut m = target.clone();
+                        m.uvs.clone_from(&laid.uvs);
+                        let t0 = Instant::now();
+                        let r = synthesize_texture(
+                            &TextureInput {
+                                target: &m,
+                                ..input
+                            },
+                            &params,
+                            &|_| {},
+                            &cancel,
+                        )?;
+                        (texture(&r.mesh), t0.elapsed().as_secs_f64())
+                    }
+                    "triplanar" => (
+                        triplanar_texture(laid, &ex, params.texture_size as usize),
+                        0.0,
+                    ),
+                    _ => continue,
+                };
+                if let Some(tx) = tx
+                    && let Some(c) = measure(laid, &tx, &ex, 1)
                 {
                     print_character(json, &name(m), &name(t), method, &c, secs);
                 }
-                atlas_mesh.get_or_insert(s.mesh);
-            }
-            if methods.split(',').any(|m| m == "triplanar")
-                && let Some(am) = &atlas_mesh
-                && let Some(tx) = triplanar_texture(am, &ex, 2048)
-                && let Some(c) = measure(am, &tx, &ex, 1)
-            {
-                print_character(json, &name(m), &name(t), "triplanar", &c, 0.0);
             }
         }
     }

@@ -61,7 +61,11 @@ fn compare(mesh: &str, image: &str) {
         ours.patch_distance,
         base.patch_distance
     );
-    assert!(r.uncovered < 0.001, "{:.4} of the texels uncovered", r.uncovered);
+    assert!(
+        r.uncovered < 0.001,
+        "{:.4} of the texels uncovered",
+        r.uncovered
+    );
 }
 
 #[test]

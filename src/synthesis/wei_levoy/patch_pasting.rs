@@ -825,8 +825,8 @@ impl Context<'_> {
                 }
                 let c = self.image.bilinear(p.x, p.y);
                 let old = canvas.alpha[t];
-                for k in 0..3 {
-                    canvas.color[t][k] = a * c[k] + (1.0 - a) * canvas.color[t][k];
+                for (dst, src) in canvas.color[t].iter_mut().zip(c) {
+                    *dst = a * src + (1.0 - a) * *dst;
                 }
                 let new = a + (1.0 - a) * old;
                 if old < 0.5 && new >= 0.5 {
