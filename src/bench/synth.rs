@@ -1,0 +1,156 @@
+//! Exemplar synthesis rows (`meshmatch bench --system synth|synth-texture`): every shared
+//! texture on every shared mesh, as a user runs `synth` with its defaults.
+
+use super::{SystemRow, peak_rss_mb, print_rows};
+use crate::error::Result;
+use crate::work::CancelToken;
+use std::time::Instant;
+
+/// `synth` with its defaults (vertex budget, auto orientation, alpha) of one shared texture on
+/// one shared mesh: what a user gets from `meshmatch synth --exemplar T --target M --out o.ply`.
+pub fn synth_row(mesh: &std::path::Path, texture: &std::path::Path) -> Result<SystemRow> {
+    use crate::synthesis::wei_levoy::{self, DEFAULT_VERTEX_BUDGET, SynthParams};
+    let t = Instant::now();
+    let mut target = crate::mesh::io::load(mesh)?;
+    target.repair()?;
+    let (tex, alpha) = crate::mesh::io::load_texture_with_alpha(texture)?;
+    let params = SynthParams::default();
+    let min = (4u32 << (params.levels.clamp(1, 8) - 1)).max(8);
+    let (ex, _) =
+        wei_levoy::fit_exemplar_to_budget(tex.image, &target, None, DEFAULT_VERTEX_BUDGET, min);
+    let alpha = alpha.map(|a| wei_levoy::resize_alpha(a, ex.width(), ex.height()));
+    let input = wei_levoy::Input {
+        exemplar: &ex,
+        target: &target,
+        mask: None,
+        alpha: alpha.as_ref(),
+    };
+    let r = wei_levoy::run(&input, &params, &|_| {}, &CancelToken::new())?;
+    let name = |p: &std::path::Path| {
+        p.file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    Ok(SystemRow {
+        case: format!(
+            "synth {} on {} ({}x{} px, {})",
+            name(texture),
+            name(mesh),
+            ex.width(),
+            ex.height(),
+            r.orientation_used.as_str()
+        ),
+        vertices: r.mesh.num_vertices(),
+        stages: vec![
+            ("prepare".into(), r.timings.prepare),
+            ("orientation".into(), r.timings.orientation),
+            ("neighbourhoods".into(), r.timings.neighbourhoods),
+            ("search".into(), r.timings.search),
+        ],
+        total_s: t.elapsed().as_secs_f64(),
+        faces: 0,
+        peak_rss_mb: peak_rss_mb(),
+    })
+}
+
+/// `synth` into a texture with its defaults (texel budget, auto orientation, alpha, a
+/// 2048² texture): what a user gets from `meshmatch synth --exemplar T --target M --out o.glb`.
+pub fn synth_texture_row(mesh: &std::path::Path, texture: &std::path::Path) -> Result<SystemRow> {
+    use crate::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
+    let t = Instant::now();
+    let mut target = crate::mesh::io::load(mesh)?;
+    target.repair()?;
+    let (tex, alpha) = crate::mesh::io::load_texture_with_alpha(texture)?;
+    let input = TextureInput {
+        exemplar: &tex.image,
+        alpha: alpha.as_ref(),
+        target: &target,
+        field: None,
+    };
+    let r = synthesize_texture(
+        &input,
+        &TextureParams::default(),
+        &|_| {},
+        &CancelToken::new(),
+    )?;
+    let name = |p: &std::path::Path| {
+        p.file_name()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    Ok(SystemRow {
+        case: format!(
+            "synth {} into {}'s texture ({}, {}² working, exemplar {} px wide, {})",
+            name(texture),
+            name(mesh),
+            if r.atlas.is_some() {
+                "atlas"
+            } else {
+                "own UVs"
+            },
+            r.working_size,
+            r.working_exemplar_width,
+            r.orientation_used.as_str()
+        ),
+        vertices: r.level_texels.first().copied().unwrap_or(0),
+        stages: vec![
+            ("prepare".into(), r.timings.prepare),
+            ("orientation".into(), r.timings.orientation),
+            ("neighbourhoods".into(), r.timings.neighbourhoods),
+            ("search".into(), r.timings.search),
+            ("magnify".into(), r.timings.magnify),
+        ],
+        total_s: t.elapsed().as_secs_f64(),
+        faces: 0,
+        peak_rss_mb: peak_rss_mb(),
+    })
+}
+
+/// The shared meshes (one level of folders under the data directory, robustness cases left out)
+/// and textures (`textures/`), sorted.
+fn shared_meshes_and_textures() -> (Vec<std::path::PathBuf>, Vec<std::path::PathBuf>) {
+    let dir = crate::testdata::data_dir();
+    let ext = |p: &std::path::Path| {
+        p.extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .unwrap_or_default()
+    };
+    let mut meshes = Vec::new();
+    let mut textures = Vec::new();
+    for entry in std::fs::read_dir(&dir).into_iter().flatten().flatten() {
+        let sub = entry.path();
+        let robustness = sub.file_name().is_some_and(|n| n == "robustness");
+        for f in std::fs::read_dir(&sub).into_iter().flatten().flatten() {
+            let p = f.path();
+            match ext(&p).as_str() {
+                "obj" | "ply" | "glb" | "gltf" if !robustness => meshes.push(p),
+                "png" | "jpg" | "jpeg" if sub.file_name().is_some_and(|n| n == "textures") => {
+                    textures.push(p)
+                }
+                _ => {}
+            }
+        }
+    }
+    meshes.sort();
+    textures.sort();
+    (meshes, textures)
+}
+
+/// `row` for every shared mesh with every shared texture, printed as each finishes (a failed
+/// pair prints its error, `synth TEXTURE <joiner> MESH: ...`).
+pub(super) fn every_shared_pair(
+    row: fn(&std::path::Path, &std::path::Path) -> Result<SystemRow>,
+    joiner: &str,
+    json: bool,
+) {
+    let (meshes, textures) = shared_meshes_and_textures();
+    for m in &meshes {
+        for t in &textures {
+            match row(m, t) {
+                Ok(r) => print_rows(vec![r], json),
+                Err(e) => println!("synth {} {joiner} {}: {e}", t.display(), m.display()),
+            }
+        }
+    }
+}
