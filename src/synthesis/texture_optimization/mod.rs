@@ -35,10 +35,10 @@ mod exemplar;
 pub mod exemplar_lines;
 mod samples;
 mod search;
+mod vote;
 
 use std::sync::Arc;
 
-use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
@@ -47,7 +47,8 @@ pub use exemplar_lines::{ExemplarLines, find_principal_lines};
 
 use exemplar::Exemplar;
 use samples::{poisson_samples, regions};
-use search::{DIM, Index, constrained_knn, full_rms, masked_rms, patch_cells, project_into};
+use search::{Index, nearest_patches};
+use vote::vote;
 
 /// Cells per patch side in the search vectors.
 const CELLS: usize = 8;
@@ -165,62 +166,10 @@ pub fn optimize(
     cancel: &CancelToken,
 ) -> Result<Report> {
     let sw = Stopwatch::start();
+    validate(surface, colors, exemplar, constraint.as_ref(), params)?;
     let n = surface.positions.len();
-    for (what, len) in [
-        ("colours", colors.len()),
-        ("normals", surface.normals.len()),
-        ("field", surface.field.len()),
-    ] {
-        if len != n {
-            return Err(Error::InvalidInput(format!(
-                "texture optimisation: {len} {what} for {n} vertices"
-            )));
-        }
-    }
-    if let Some(c) = &constraint
-        && (c.curve_distance.len() != n
-            || (c.lines.width, c.lines.height)
-                != (exemplar.width() as usize, exemplar.height() as usize))
-    {
-        return Err(Error::InvalidInput(
-            "texture optimisation: the constraint does not match the mesh or the exemplar".into(),
-        ));
-    }
-    if !(surface.texel.is_finite() && surface.texel > 0.0) {
-        return Err(Error::InvalidInput(format!(
-            "texture optimisation: texel size {}",
-            surface.texel
-        )));
-    }
-    if params.patch < CELLS || !params.patch.is_multiple_of(CELLS) {
-        return Err(Error::InvalidInput(format!(
-            "patch size {}: use a multiple of {CELLS}",
-            params.patch
-        )));
-    }
-    if !(params.spacing > 0.0 && params.spacing <= 1.0) {
-        return Err(Error::InvalidInput(format!(
-            "sample spacing {}: use a fraction in (0, 1]",
-            params.spacing
-        )));
-    }
     let ex = Exemplar::new(exemplar, alpha)?;
-    // The largest patch the exemplar holds, at most the asked one.
-    let fit = (ex.w.min(ex.h).saturating_sub(1) / CELLS) * CELLS;
-    let w0 = params.patch.min(fit);
-    if w0 < CELLS {
-        return Err(Error::InvalidInput(format!(
-            "the exemplar ({}x{}) is too small for texture optimisation (needs at least {}x{})",
-            ex.w,
-            ex.h,
-            CELLS + 1,
-            CELLS + 1
-        )));
-    }
-    let mut scales = vec![w0];
-    if params.multiscale && 2 * w0 <= fit {
-        scales.insert(0, 2 * w0);
-    }
+    let scales = patch_scales(&ex, params)?;
     let adj = crate::mesh::vertex_adjacency(n, surface.faces);
     let h = surface.texel;
     // λ_p of eq. (4): curve-free components share the farthest finite distance.
@@ -287,97 +236,17 @@ pub fn optimize(
         for it in 0..params.iterations.max(1) {
             cancel.check()?;
             // ---- E: nearest exemplar patch per sample
-            let found: Vec<(u32, f32)> = (0..ns)
-                .into_par_iter()
-                .map_init(
-                    || {
-                        (
-                            vec![0.0f32; DIM],
-                            vec![0u32; CELLS * CELLS],
-                            Vec::new(),
-                            vec![0.0f32; DIM],
-                            vec![0.0f32; index.k],
-                            Vec::with_capacity(VERIFY + 1),
-                            Vec::with_capacity(VERIFY + 1),
-                        )
-                    },
-                    |(cells, cnt, knn, exv, q, cands, best_k), s| {
-                        patch_cells(&reg, s, colors, w, cells, cnt);
-                        project_into(cells, &index.mean, &index.basis, q);
-                        cands.clear();
-                        if let Some(dt) = target_d[s] {
-                            constrained_knn(
-                                &index,
-                                lines.expect("lines"),
-                                q,
-                                dt,
-                                params.feature_tolerance,
-                                best_k,
-                                cands,
-                            );
-                        }
-                        if cands.is_empty() {
-                            index.tree.knn(q, VERIFY, knn);
-                            cands.extend(knn.iter().map(|&(_, i)| i));
-                        }
-                        if z[s] != u32::MAX && !cands.contains(&z[s]) {
-                            // coherence: keep the previous patch if it still satisfies the constraint
-                            let ok = match target_d[s] {
-                                Some(dt) => {
-                                    let c = index.centres[z[s] as usize] as usize;
-                                    (lines.expect("lines").distance[c] - dt).abs()
-                                        < params.feature_tolerance
-                                }
-                                None => true,
-                            };
-                            if ok {
-                                cands.push(z[s]);
-                            }
-                        }
-                        let mut best = (u32::MAX, f32::INFINITY);
-                        for &c in cands.iter() {
-                            let pix = index.centres[c as usize] as usize;
-                            ex.cells(pix % ex.w, pix / ex.w, w, exv);
-                            let d = masked_rms(cells, exv, cnt);
-                            if d < best.1 {
-                                best = (c, d);
-                            }
-                        }
-                        if best.0 == u32::MAX {
-                            return best;
-                        }
-                        // Register at full resolution: the cells see the patch at w/8 texels,
-                        // so its phase is found among the shifts within a cell.
-                        let pix = index.centres[best.0 as usize] as usize;
-                        let (bx, by) = ((pix % ex.w) as isize, (pix / ex.w) as isize);
-                        let mut fine = (best.0, f32::INFINITY);
-                        for dy in -REFINE..=REFINE {
-                            for dx in -REFINE..=REFINE {
-                                let (x, y) = (bx + dx, by + dy);
-                                if x < 0 || y < 0 || x >= ex.w as isize || y >= ex.h as isize {
-                                    continue;
-                                }
-                                let q = y as usize * ex.w + x as usize;
-                                let c = index.slot[q];
-                                if c == u32::MAX {
-                                    continue;
-                                }
-                                if let Some(dt) = target_d[s]
-                                    && (lines.expect("lines").distance[q] - dt).abs()
-                                        >= params.feature_tolerance
-                                {
-                                    continue;
-                                }
-                                let d = full_rms(&reg, s, colors, &ex, x as f32, y as f32, fine.1);
-                                if d < fine.1 {
-                                    fine = (c, d);
-                                }
-                            }
-                        }
-                        if fine.1.is_finite() { fine } else { best }
-                    },
-                )
-                .collect();
+            let found = nearest_patches(
+                &index,
+                &ex,
+                &reg,
+                colors,
+                w,
+                &target_d,
+                lines,
+                &z,
+                params.feature_tolerance,
+            );
             let mut changed = 0usize;
             let mut energy = 0.0f64;
             for (s, &(c, d)) in found.iter().enumerate() {
@@ -389,75 +258,17 @@ pub fn optimize(
                 energy += dist[s] as f64;
             }
             // ---- M: per vertex, the weighted mean of the covering patches' predictions
-            let weight: Vec<f32> = (0..ns)
-                .map(|s| {
-                    if z[s] == u32::MAX {
-                        0.0
-                    } else {
-                        lambda[s] * dist[s].max(1e-3).powf(params.robust - 2.0)
-                    }
-                })
-                .collect();
-            let centre_xy: Vec<[f32; 2]> = z
-                .iter()
-                .map(|&c| {
-                    if c == u32::MAX {
-                        [0.0; 2]
-                    } else {
-                        let pix = index.centres[c as usize] as usize;
-                        [(pix % ex.w) as f32, (pix / ex.w) as f32]
-                    }
-                })
-                .collect();
-            colors
-                .par_iter_mut()
-                .zip(source.par_iter_mut())
-                .enumerate()
-                .for_each(|(v, (col, src))| {
-                    let mut acc = [0.0f64; 3];
-                    let mut wsum = 0.0f64;
-                    let mut strongest = (0.0f32, [u32::MAX; 2]);
-                    for &e in &reg.cover[reg.cover_start[v]..reg.cover_start[v + 1]] {
-                        let s = reg.owner[e as usize] as usize;
-                        let wt = weight[s];
-                        if wt <= 0.0 {
-                            continue;
-                        }
-                        let o = reg.offset[e as usize];
-                        let (x, y) = (centre_xy[s][0] + o[0], centre_xy[s][1] + o[1]);
-                        let c = ex.bilinear(x, y);
-                        for k in 0..3 {
-                            acc[k] += wt as f64 * c[k] as f64;
-                        }
-                        wsum += wt as f64;
-                        if wt > strongest.0 {
-                            let px = x.round().clamp(0.0, (ex.w - 1) as f32) as u32;
-                            let py = y.round().clamp(0.0, (ex.h - 1) as f32) as u32;
-                            strongest = (wt, [px, py]);
-                        }
-                    }
-                    if wsum > 0.0 {
-                        let mean = acc.map(|a| (a / wsum) as f32);
-                        // The prediction nearest the weighted mean (the vote's mode, as
-                        // Wexler et al. 2007): an exemplar colour, not a blend of misregistered
-                        // patches.
-                        let mut pick = (f32::INFINITY, mean);
-                        for &e in &reg.cover[reg.cover_start[v]..reg.cover_start[v + 1]] {
-                            let s = reg.owner[e as usize] as usize;
-                            if weight[s] <= 0.0 {
-                                continue;
-                            }
-                            let o = reg.offset[e as usize];
-                            let c = ex.nearest(centre_xy[s][0] + o[0], centre_xy[s][1] + o[1]);
-                            let d = (0..3).map(|k| (c[k] - mean[k]).powi(2)).sum::<f32>();
-                            if d < pick.0 {
-                                pick = (d, c);
-                            }
-                        }
-                        *col = pick.1;
-                        *src = strongest.1;
-                    }
-                });
+            vote(
+                &reg,
+                &ex,
+                &index,
+                &z,
+                &dist,
+                &lambda,
+                params.robust,
+                colors,
+                &mut source,
+            );
             let frac = changed as f64 / ns.max(1) as f64;
             sr.energy.push(energy / ns.max(1) as f64);
             sr.changed.push(frac);
@@ -483,6 +294,78 @@ pub fn optimize(
     report.seconds = sw.secs();
     sink(Event::StageTime("optimize", report.seconds));
     Ok(report)
+}
+
+/// The inputs and parameters [`optimize`] refuses, as one-line errors.
+fn validate(
+    surface: &Surface,
+    colors: &[[f32; 3]],
+    exemplar: &image::RgbImage,
+    constraint: Option<&Constraint>,
+    params: &Params,
+) -> Result<()> {
+    let n = surface.positions.len();
+    for (what, len) in [
+        ("colours", colors.len()),
+        ("normals", surface.normals.len()),
+        ("field", surface.field.len()),
+    ] {
+        if len != n {
+            return Err(Error::InvalidInput(format!(
+                "texture optimisation: {len} {what} for {n} vertices"
+            )));
+        }
+    }
+    if let Some(c) = constraint
+        && (c.curve_distance.len() != n
+            || (c.lines.width, c.lines.height)
+                != (exemplar.width() as usize, exemplar.height() as usize))
+    {
+        return Err(Error::InvalidInput(
+            "texture optimisation: the constraint does not match the mesh or the exemplar".into(),
+        ));
+    }
+    if !(surface.texel.is_finite() && surface.texel > 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "texture optimisation: texel size {}",
+            surface.texel
+        )));
+    }
+    if params.patch < CELLS || !params.patch.is_multiple_of(CELLS) {
+        return Err(Error::InvalidInput(format!(
+            "patch size {}: use a multiple of {CELLS}",
+            params.patch
+        )));
+    }
+    if !(params.spacing > 0.0 && params.spacing <= 1.0) {
+        return Err(Error::InvalidInput(format!(
+            "sample spacing {}: use a fraction in (0, 1]",
+            params.spacing
+        )));
+    }
+    Ok(())
+}
+
+/// The patch widths, coarse first: the asked one, or the largest the exemplar holds, and twice
+/// it before it with [`Params::multiscale`].
+fn patch_scales(ex: &Exemplar, params: &Params) -> Result<Vec<usize>> {
+    // The largest patch the exemplar holds, at most the asked one.
+    let fit = (ex.w.min(ex.h).saturating_sub(1) / CELLS) * CELLS;
+    let w0 = params.patch.min(fit);
+    if w0 < CELLS {
+        return Err(Error::InvalidInput(format!(
+            "the exemplar ({}x{}) is too small for texture optimisation (needs at least {}x{})",
+            ex.w,
+            ex.h,
+            CELLS + 1,
+            CELLS + 1
+        )));
+    }
+    let mut scales = vec![w0];
+    if params.multiscale && 2 * w0 <= fit {
+        scales.insert(0, 2 * w0);
+    }
+    Ok(scales)
 }
 
 /// How `synth` and feature-aligned texturing make their texture.

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use super::exemplar::Exemplar;
 use super::exemplar_lines::ExemplarLines;
 use super::samples::Regions;
-use super::{CELLS, VERIFY};
+use super::{CELLS, REFINE, VERIFY};
 use crate::error::{Error, Result};
 use crate::stats::KdTree;
 
@@ -286,4 +286,111 @@ pub(super) fn constrained_knn(
         }
     }
     out.extend(best.iter().map(|&(_, i)| i));
+}
+
+/// Kwatra et al.'s E-step: per sample of `reg`, the nearest exemplar patch of width `w` to its
+/// patch under `colors` (the index's candidates, constrained to the line distance `target_d`
+/// within `tolerance` where given, plus the previous patch `z`), verified on every filled cell
+/// and registered at full resolution; (centre slot, distance), `u32::MAX` where none.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn nearest_patches(
+    index: &Index,
+    ex: &Exemplar,
+    reg: &Regions,
+    colors: &[[f32; 3]],
+    w: usize,
+    target_d: &[Option<f32>],
+    lines: Option<&ExemplarLines>,
+    z: &[u32],
+    tolerance: f32,
+) -> Vec<(u32, f32)> {
+    (0..reg.samples.len())
+        .into_par_iter()
+        .map_init(
+            || {
+                (
+                    vec![0.0f32; DIM],
+                    vec![0u32; CELLS * CELLS],
+                    Vec::new(),
+                    vec![0.0f32; DIM],
+                    vec![0.0f32; index.k],
+                    Vec::with_capacity(VERIFY + 1),
+                    Vec::with_capacity(VERIFY + 1),
+                )
+            },
+            |(cells, cnt, knn, exv, q, cands, best_k), s| {
+                patch_cells(reg, s, colors, w, cells, cnt);
+                project_into(cells, &index.mean, &index.basis, q);
+                cands.clear();
+                if let Some(dt) = target_d[s] {
+                    constrained_knn(
+                        &index,
+                        lines.expect("lines"),
+                        q,
+                        dt,
+                        tolerance,
+                        best_k,
+                        cands,
+                    );
+                }
+                if cands.is_empty() {
+                    index.tree.knn(q, VERIFY, knn);
+                    cands.extend(knn.iter().map(|&(_, i)| i));
+                }
+                if z[s] != u32::MAX && !cands.contains(&z[s]) {
+                    // coherence: keep the previous patch if it still satisfies the constraint
+                    let ok = match target_d[s] {
+                        Some(dt) => {
+                            let c = index.centres[z[s] as usize] as usize;
+                            (lines.expect("lines").distance[c] - dt).abs() < tolerance
+                        }
+                        None => true,
+                    };
+                    if ok {
+                        cands.push(z[s]);
+                    }
+                }
+                let mut best = (u32::MAX, f32::INFINITY);
+                for &c in cands.iter() {
+                    let pix = index.centres[c as usize] as usize;
+                    ex.cells(pix % ex.w, pix / ex.w, w, exv);
+                    let d = masked_rms(cells, exv, cnt);
+                    if d < best.1 {
+                        best = (c, d);
+                    }
+                }
+                if best.0 == u32::MAX {
+                    return best;
+                }
+                // Register at full resolution: the cells see the patch at w/8 texels,
+                // so its phase is found among the shifts within a cell.
+                let pix = index.centres[best.0 as usize] as usize;
+                let (bx, by) = ((pix % ex.w) as isize, (pix / ex.w) as isize);
+                let mut fine = (best.0, f32::INFINITY);
+                for dy in -REFINE..=REFINE {
+                    for dx in -REFINE..=REFINE {
+                        let (x, y) = (bx + dx, by + dy);
+                        if x < 0 || y < 0 || x >= ex.w as isize || y >= ex.h as isize {
+                            continue;
+                        }
+                        let q = y as usize * ex.w + x as usize;
+                        let c = index.slot[q];
+                        if c == u32::MAX {
+                            continue;
+                        }
+                        if let Some(dt) = target_d[s]
+                            && (lines.expect("lines").distance[q] - dt).abs() >= tolerance
+                        {
+                            continue;
+                        }
+                        let d = full_rms(reg, s, colors, ex, x as f32, y as f32, fine.1);
+                        if d < fine.1 {
+                            fine = (c, d);
+                        }
+                    }
+                }
+                if fine.1.is_finite() { fine } else { best }
+            },
+        )
+        .collect()
 }
