@@ -324,7 +324,7 @@ pub(super) fn nearest_patches(
                 cands.clear();
                 if let Some(dt) = target_d[s] {
                     constrained_knn(
-                        &index,
+                        index,
                         lines.expect("lines"),
                         q,
                         dt,
