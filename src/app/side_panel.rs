@@ -24,143 +24,10 @@ where
                     );
             });
             if self.views.tool == Tool::Paint {
-                let b = &mut self.state.brush;
-                ui.horizontal(|ui| {
-                    use state::PaintMode;
-                    ui.selectable_value(&mut b.mode, PaintMode::Brush, "Brush")
-                        .on_hover_text("Click or drag to paint");
-                    ui.selectable_value(&mut b.mode, PaintMode::Eyedropper, "Eyedropper")
-                        .on_hover_text(
-                            "Click to take the colour under the pointer (also Ctrl+click)",
-                        );
-                    ui.selectable_value(&mut b.mode, PaintMode::Fill, "Fill").on_hover_text(
-                        "Click to fill the connected region of similar colour under the pointer \
-                         (across UV seams); one undo step",
-                    );
-                    ui.selectable_value(&mut b.mode, PaintMode::IslandFill, "Island")
-                        .on_hover_text(
-                            "Click to fill the whole UV island (chart) under the pointer; \
-                             without UVs, the connected part of the mesh. One undo step",
-                        );
-                });
-                if b.mode == state::PaintMode::Fill {
-                    ui.add(egui::Slider::new(&mut b.fill_tolerance, 0.0..=1.0).text("tolerance"))
-                        .on_hover_text(
-                            "A fill spreads while the shown colour differs from the clicked one by \
-                             at most this in every channel",
-                        );
-                }
-                ui.add(egui::Slider::new(&mut b.radius, 0.005..=0.5).text("radius"))
-                    .on_hover_text("Brush radius as a fraction of the mesh size");
-                ui.add(egui::Slider::new(&mut b.hardness, 0.0..=1.0).text("hardness"))
-                    .on_hover_text("1 = hard edge, 0 = soft falloff");
-                ui.horizontal(|ui| {
-                    ui.color_edit_button_rgb(&mut b.color);
-                    ui.checkbox(&mut b.eraser, "eraser");
-                });
-                ui.horizontal(|ui| {
-                    ui.checkbox(&mut b.through, "paint through").on_hover_text(
-                        "Paint a ball around the point under the pointer, surfaces hidden from \
-                         the view included (for masks). Off: only what the view sees under the \
-                         brush.",
-                    );
-                    ui.add_enabled(
-                        !b.through,
-                        egui::Checkbox::new(&mut b.normal_falloff, "normal falloff"),
-                    )
-                    .on_hover_text("Fade the dab where the surface turns away from the view");
-                });
-                ui.add(egui::Slider::new(&mut b.spacing, 0.05..=2.0).text("spacing"))
-                    .on_hover_text("Distance between a stroke's dabs, in brush radii");
-                ui.add(egui::Slider::new(&mut b.smoothing, 0.0..=0.95).text("smoothing"))
-                    .on_hover_text(
-                        "Stroke smoothing: the stroke lags behind the pointer and \
-                                    its path smooths out",
-                    );
-                if !self.state.color_history.is_empty() {
-                    ui.horizontal_wrapped(|ui| {
-                        for c in self.state.color_history.clone() {
-                            let [r, g, bl] = c.map(|x| (x * 255.0).round() as u8);
-                            let swatch = egui::Button::new("")
-                                .fill(Color32::from_rgb(r, g, bl))
-                                .min_size(egui::vec2(18.0, 18.0));
-                            if ui
-                                .add(swatch)
-                                .on_hover_text("A colour painted with: click to paint with it")
-                                .clicked()
-                            {
-                                self.state.brush.color = c;
-                                self.state.brush.eraser = false;
-                            }
-                        }
-                    });
-                }
-                ui.label(
-                    egui::RichText::new(
-                        "Ctrl+click picks a colour, Shift+click draws a straight line",
-                    )
-                    .small()
-                    .weak(),
-                );
-                self.layers_panel(ui);
-                self.atlas_buttons(ui);
+                self.brush_panel(ui);
             }
             ui.separator();
-            ui.horizontal(|ui| {
-                ui.heading("Correspondences");
-                let ready = self.tool.is_none()
-                    && self.state.slot(Side::Source).is_some()
-                    && self.state.slot(Side::Target).is_some();
-                if ui
-                    .add_enabled(ready, egui::Button::new("Suggest"))
-                    .on_hover_text(format!(
-                        "Add {} well-spread pairs from the global shape map (functional maps, \
-                         the current pairs as landmarks); move or delete any. One undo step.",
-                        tools::SUGGESTED_PAIRS
-                    ))
-                    .clicked()
-                {
-                    self.start_tool("suggest");
-                }
-            });
-            if let Some(v) = self.state.pending_source {
-                ui.colored_label(Color32::YELLOW, format!("source {v} waiting for a target"));
-            }
-            let mut delete = None;
-            let mut select = None;
-            egui::Grid::new("pairs").striped(true).show(ui, |ui| {
-                for (i, c) in self.state.corr.iter().enumerate() {
-                    let [r, g, b] = state::marker_color(i);
-                    let sel = self.state.selected.is_some_and(|s| s.pair == i);
-                    let label = egui::RichText::new(format!("{:>2}", i + 1))
-                        .color(Color32::from_rgb(r, g, b))
-                        .strong();
-                    if ui.selectable_label(sel, label).clicked() {
-                        select = Some(i);
-                    }
-                    let targets: Vec<String> =
-                        c.target_vertices.iter().map(|t| t.to_string()).collect();
-                    ui.label(format!("{} -> {}", c.source_vertex, targets.join(", ")));
-                    if ui
-                        .small_button("x")
-                        .on_hover_text("Delete this pair")
-                        .clicked()
-                    {
-                        delete = Some(i);
-                    }
-                    ui.end_row();
-                }
-            });
-            if let Some(i) = select {
-                self.state.select(Some(Selection {
-                    pair: i,
-                    side: Side::Source,
-                    k: 0,
-                }));
-            }
-            if let Some(i) = delete {
-                self.state.delete_pair(i);
-            }
+            self.correspondences_panel(ui);
             ui.separator();
             ui.heading("Parameters");
             self.signal.ui(ui);
@@ -192,6 +59,147 @@ where
                 }
             });
         });
+    }
+
+    /// The brush: mode, size, hardness, colour, stroke settings, recent colours, then the
+    /// layers and the UV atlas buttons.
+    fn brush_panel(&mut self, ui: &mut egui::Ui) {
+        let b = &mut self.state.brush;
+        ui.horizontal(|ui| {
+            use state::PaintMode;
+            ui.selectable_value(&mut b.mode, PaintMode::Brush, "Brush")
+                .on_hover_text("Click or drag to paint");
+            ui.selectable_value(&mut b.mode, PaintMode::Eyedropper, "Eyedropper")
+                .on_hover_text("Click to take the colour under the pointer (also Ctrl+click)");
+            ui.selectable_value(&mut b.mode, PaintMode::Fill, "Fill")
+                .on_hover_text(
+                    "Click to fill the connected region of similar colour under the pointer \
+                 (across UV seams); one undo step",
+                );
+            ui.selectable_value(&mut b.mode, PaintMode::IslandFill, "Island")
+                .on_hover_text(
+                    "Click to fill the whole UV island (chart) under the pointer; \
+                     without UVs, the connected part of the mesh. One undo step",
+                );
+        });
+        if b.mode == state::PaintMode::Fill {
+            ui.add(egui::Slider::new(&mut b.fill_tolerance, 0.0..=1.0).text("tolerance"))
+                .on_hover_text(
+                    "A fill spreads while the shown colour differs from the clicked one by \
+                     at most this in every channel",
+                );
+        }
+        ui.add(egui::Slider::new(&mut b.radius, 0.005..=0.5).text("radius"))
+            .on_hover_text("Brush radius as a fraction of the mesh size");
+        ui.add(egui::Slider::new(&mut b.hardness, 0.0..=1.0).text("hardness"))
+            .on_hover_text("1 = hard edge, 0 = soft falloff");
+        ui.horizontal(|ui| {
+            ui.color_edit_button_rgb(&mut b.color);
+            ui.checkbox(&mut b.eraser, "eraser");
+        });
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut b.through, "paint through").on_hover_text(
+                "Paint a ball around the point under the pointer, surfaces hidden from \
+                 the view included (for masks). Off: only what the view sees under the \
+                 brush.",
+            );
+            ui.add_enabled(
+                !b.through,
+                egui::Checkbox::new(&mut b.normal_falloff, "normal falloff"),
+            )
+            .on_hover_text("Fade the dab where the surface turns away from the view");
+        });
+        ui.add(egui::Slider::new(&mut b.spacing, 0.05..=2.0).text("spacing"))
+            .on_hover_text("Distance between a stroke's dabs, in brush radii");
+        ui.add(egui::Slider::new(&mut b.smoothing, 0.0..=0.95).text("smoothing"))
+            .on_hover_text(
+                "Stroke smoothing: the stroke lags behind the pointer and \
+                            its path smooths out",
+            );
+        if !self.state.color_history.is_empty() {
+            ui.horizontal_wrapped(|ui| {
+                for c in self.state.color_history.clone() {
+                    let [r, g, bl] = c.map(|x| (x * 255.0).round() as u8);
+                    let swatch = egui::Button::new("")
+                        .fill(Color32::from_rgb(r, g, bl))
+                        .min_size(egui::vec2(18.0, 18.0));
+                    if ui
+                        .add(swatch)
+                        .on_hover_text("A colour painted with: click to paint with it")
+                        .clicked()
+                    {
+                        self.state.brush.color = c;
+                        self.state.brush.eraser = false;
+                    }
+                }
+            });
+        }
+        ui.label(
+            egui::RichText::new("Ctrl+click picks a colour, Shift+click draws a straight line")
+                .small()
+                .weak(),
+        );
+        self.layers_panel(ui);
+        self.atlas_buttons(ui);
+    }
+
+    /// The correspondences: Suggest, the pending source, the pairs (select, delete).
+    fn correspondences_panel(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            ui.heading("Correspondences");
+            let ready = self.tool.is_none()
+                && self.state.slot(Side::Source).is_some()
+                && self.state.slot(Side::Target).is_some();
+            if ui
+                .add_enabled(ready, egui::Button::new("Suggest"))
+                .on_hover_text(format!(
+                    "Add {} well-spread pairs from the global shape map (functional maps, \
+                 the current pairs as landmarks); move or delete any. One undo step.",
+                    tools::SUGGESTED_PAIRS
+                ))
+                .clicked()
+            {
+                self.start_tool("suggest");
+            }
+        });
+        if let Some(v) = self.state.pending_source {
+            ui.colored_label(Color32::YELLOW, format!("source {v} waiting for a target"));
+        }
+        let mut delete = None;
+        let mut select = None;
+        egui::Grid::new("pairs").striped(true).show(ui, |ui| {
+            for (i, c) in self.state.corr.iter().enumerate() {
+                let [r, g, b] = state::marker_color(i);
+                let sel = self.state.selected.is_some_and(|s| s.pair == i);
+                let label = egui::RichText::new(format!("{:>2}", i + 1))
+                    .color(Color32::from_rgb(r, g, b))
+                    .strong();
+                if ui.selectable_label(sel, label).clicked() {
+                    select = Some(i);
+                }
+                let targets: Vec<String> =
+                    c.target_vertices.iter().map(|t| t.to_string()).collect();
+                ui.label(format!("{} -> {}", c.source_vertex, targets.join(", ")));
+                if ui
+                    .small_button("x")
+                    .on_hover_text("Delete this pair")
+                    .clicked()
+                {
+                    delete = Some(i);
+                }
+                ui.end_row();
+            }
+        });
+        if let Some(i) = select {
+            self.state.select(Some(Selection {
+                pair: i,
+                side: Side::Source,
+                k: 0,
+            }));
+        }
+        if let Some(i) = delete {
+            self.state.delete_pair(i);
+        }
     }
 
     /// Visibility and opacity of the result, the paint and the mask, and the layer painted into.
