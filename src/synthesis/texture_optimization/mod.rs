@@ -39,7 +39,6 @@ mod vote;
 
 use std::sync::Arc;
 
-
 use crate::error::{Error, Result};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
