@@ -123,6 +123,13 @@
 //!    weave leaves on curved bases come from lattices of neighbouring patches that disagree
 //!    sideways, which no end-to-end join repairs.
 //!
+//! Where the steps live: [`run`] chains them, one file each: `setup.rs` (1, and the tile's
+//! distances the later steps compare against), `shell.rs` (5's shell, built first),
+//! `lattice.rs` (2's global lattice), `seed.rs` and `flatten.rs` (2, on `flat.rs`'s point
+//! location), `matching.rs` (3), `candidates.rs` (4's candidates through 5's shell map),
+//! `cut.rs` (4's conflicts, cut and greedy pass), `join.rs` (a merge at a seam, through
+//! [`merging`]), `nudge.rs`, and `output.rs` (the shell guard and the measures).
+//!
 //! Output: all kept elements merged in one [`TriMesh`], with a per-vertex element id and a
 //! per-element source (swatch element index). Planar quilting is the same code on a flat base
 //! ([`plane`]).
