@@ -1844,7 +1844,7 @@ fn weather_tool_learns_dark_crevices_from_the_source_and_one_undo_restores() {
     let after = slot.display_colors();
     let truth = ao(slot.displayed());
     let lum: Vec<f32> = after.iter().map(|c| (c[0] + c[1] + c[2]) / 3.0).collect();
-    let r = pearson(&lum, &truth);
+    let r = meshmatch::stats::pearson(&lum, &truth) as f32;
     println!("weather: correlation of the target's lightness with its own AO: {r:.3}");
     assert!(r > 0.6, "correlation {r}");
     assert!(
@@ -1856,18 +1856,6 @@ fn weather_tool_learns_dark_crevices_from_the_source_and_one_undo_restores() {
     h.state_mut().state.undo();
     let undone = h.state().state.slot(Side::Target).unwrap().display_colors();
     assert!(undone == before, "undo did not restore the colours");
-}
-
-fn pearson(a: &[f32], b: &[f32]) -> f32 {
-    let n = a.len() as f32;
-    let (ma, mb) = (a.iter().sum::<f32>() / n, b.iter().sum::<f32>() / n);
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        sab += (x - ma) * (y - mb);
-        saa += (x - ma) * (x - ma);
-        sbb += (y - mb) * (y - mb);
-    }
-    sab / (saa.sqrt() * sbb.sqrt()).max(1e-12)
 }
 
 #[test]

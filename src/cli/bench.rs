@@ -30,7 +30,10 @@ pub struct BenchArgs {
     /// dab of a stroke on a UV sphere of each size, into a 2048² texel layer and into vertex
     /// paint, and on the demo giraffe with a generated atlas) or
     /// synth (`synth` with its defaults, every shared texture on every shared mesh, on the
-    /// surface) or synth-texture (the same into each mesh's texture space, as `--out o.glb`).
+    /// surface), synth-texture (the same into each mesh's texture space with Wei-Levoy) or
+    /// synth-character (patch pasting, Wei-Levoy and triplanar projection in the same layout,
+    /// measured against the image: contrast, Lab W1, patch and reverse distance; pairs by file
+    /// name in MESHMATCH_PAIRS, e.g. `bunny.obj:2.jpg,penguin.obj:3.jpg`).
     #[arg(long, default_value = "meshmatch")]
     pub system: String,
     /// Worker threads, one run of the whole table per count, e.g. `1,2` for the parallel

@@ -250,22 +250,9 @@ fn project(a: &[f32], c: usize, mean: &[f64], w: &[f64], d: usize) -> Vec<f32> {
 mod tests {
     use super::*;
     use crate::stats::pdf_transfer::gaussian;
+    use crate::stats::pearson;
     use rand::SeedableRng;
     use rand::rngs::SmallRng;
-
-    fn pearson(a: &[f32], b: &[f32]) -> f64 {
-        let n = a.len() as f64;
-        let ma = a.iter().map(|&x| x as f64).sum::<f64>() / n;
-        let mb = b.iter().map(|&x| x as f64).sum::<f64>() / n;
-        let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-        for (&x, &y) in a.iter().zip(b) {
-            let (dx, dy) = (x as f64 - ma, y as f64 - mb);
-            sab += dx * dy;
-            saa += dx * dx;
-            sbb += dy * dy;
-        }
-        sab / (saa * sbb).sqrt()
-    }
 
     #[test]
     fn recovers_a_planted_linear_relation() {

@@ -6,8 +6,10 @@
 //! - [`histogram`]: quantile functions, Heeger-Bergen histogram matching, KS distance
 //! - [`KdTree`]: exact k-nearest neighbours in a few dimensions
 //! - [`beats`]: a candidate must win by a margin, so that near ties keep one order (ties)
+//! - [`pearson`]: Pearson's correlation coefficient (correlation)
 
 pub mod cca;
+pub mod correlation;
 pub mod histogram;
 pub mod kdtree;
 pub mod kmeans;
@@ -15,6 +17,7 @@ pub mod pdf_transfer;
 pub mod ties;
 
 pub use cca::{Cca, cca};
+pub use correlation::pearson;
 pub use histogram::{
     blend_quantiles, ks_distance, match_histogram, match_to_quantiles, quantile_function,
     quantile_sorted,

@@ -150,20 +150,8 @@ pub fn try_merge(
     let bvh_b = TriangleBvh::new(b.positions, b.faces);
     // 1. correspondence pairs: closer than delta, normals within 60 degrees (a vertex facing
     // the other element's cap or side is no partner)
-    let pair = |g: &ElementGeometry, other: &TriangleBvh, og: &ElementGeometry| {
-        let vn = vertex_normals(g.positions, g.faces);
-        g.positions
-            .iter()
-            .zip(&vn)
-            .map(|(&p, n)| {
-                closest(other, og, p)
-                    .filter(|x| x.1 <= delta && x.2.dot(Vec3::from(*n)) >= 0.5)
-                    .map(|x| x.0)
-            })
-            .collect::<Vec<Option<Vec3>>>()
-    };
-    let ha = pair(a, &bvh_b, b);
-    let hb = pair(b, &bvh_a, a);
+    let ha = pairs(a, &bvh_b, b, delta);
+    let hb = pairs(b, &bvh_a, a, delta);
     let fa = ha.iter().filter(|h| h.is_some()).count() as f32 / na as f32;
     let fb = hb.iter().filter(|h| h.is_some()).count() as f32 / nb as f32;
     if fa < MIN_SHARED || fb < MIN_SHARED {
@@ -173,52 +161,122 @@ pub fn try_merge(
         return Err("duplicate");
     }
     // 2. both half-way (eq. (5), mu = 1)
-    let adj_a = vertex_adjacency(na, a.faces);
-    let adj_b = vertex_adjacency(nb, b.faces);
-    // goals: paired vertices half-way; vertices more than HOLD_RINGS edges from any paired
-    // one stay where they are, so an element changes only around the joint
-    let goals = |g: &ElementGeometry, h: &[Option<Vec3>], adj: &crate::mesh::Csr| {
-        let n = h.len();
-        let mut hops = vec![u32::MAX; n];
-        let mut queue: std::collections::VecDeque<u32> =
-            (0..n as u32).filter(|&i| h[i as usize].is_some()).collect();
-        for &i in &queue {
-            hops[i as usize] = 0;
+    let wa = half_way(a, &ha);
+    let wb = half_way(b, &hb);
+    // 3. the common cut, 4. the new loops stitched
+    let mut joined = cut_across(a, b, (&wa, &wb), (&ha, &hb))?;
+    let (la, lb) = stitch(a, b, &mut joined, delta)?;
+    // 5. integrity, then the joint smoothed
+    let Joined {
+        mut positions,
+        faces,
+        ..
+    } = joined;
+    let closed = boundary_loops(a.faces).is_empty() && boundary_loops(b.faces).is_empty();
+    if !oriented_manifold(&faces, closed)
+        || euler_characteristic(positions.len(), &faces) != euler_characteristic(na, a.faces)
+        || connected_components(positions.len(), &faces).1 != 1
+    {
+        return Err("stitched element breaks the topology");
+    }
+    smooth_seam(
+        &mut positions,
+        &faces,
+        la.iter().chain(&lb).flatten().copied().collect(),
+    );
+    Ok(Merged { positions, faces })
+}
+
+/// Step 1: per vertex of `g`, its closest point on `og` (through `other`, its BVH) when closer
+/// than `delta` with normals within 60 degrees.
+fn pairs(
+    g: &ElementGeometry,
+    other: &TriangleBvh,
+    og: &ElementGeometry,
+    delta: f32,
+) -> Vec<Option<Vec3>> {
+    let vn = vertex_normals(g.positions, g.faces);
+    g.positions
+        .iter()
+        .zip(&vn)
+        .map(|(&p, n)| {
+            closest(other, og, p)
+                .filter(|x| x.1 <= delta && x.2.dot(Vec3::from(*n)) >= 0.5)
+                .map(|x| x.0)
+        })
+        .collect::<Vec<Option<Vec3>>>()
+}
+
+/// Step 2: `g` deformed with its paired vertices (`h`) half-way to their partners; vertices
+/// more than [`HOLD_RINGS`] edges from any paired one stay where they are, so an element
+/// changes only around the joint.
+fn half_way(g: &ElementGeometry, h: &[Option<Vec3>]) -> Vec<[f32; 3]> {
+    let adj = vertex_adjacency(g.positions.len(), g.faces);
+    laplacian_deform(g.positions, &adj, &goals(g, h, &adj), 1.0, 400)
+}
+
+/// The deformation's goals: paired vertices half-way, those beyond [`HOLD_RINGS`] held.
+fn goals(g: &ElementGeometry, h: &[Option<Vec3>], adj: &crate::mesh::Csr) -> Vec<(u32, [f32; 3])> {
+    let n = h.len();
+    let mut hops = vec![u32::MAX; n];
+    let mut queue: std::collections::VecDeque<u32> =
+        (0..n as u32).filter(|&i| h[i as usize].is_some()).collect();
+    for &i in &queue {
+        hops[i as usize] = 0;
+    }
+    while let Some(i) = queue.pop_front() {
+        let d = hops[i as usize];
+        if d >= HOLD_RINGS {
+            continue;
         }
-        while let Some(i) = queue.pop_front() {
-            let d = hops[i as usize];
-            if d >= HOLD_RINGS {
-                continue;
-            }
-            for &j in adj.row(i as usize) {
-                if hops[j as usize] == u32::MAX {
-                    hops[j as usize] = d + 1;
-                    queue.push_back(j);
-                }
+        for &j in adj.row(i as usize) {
+            if hops[j as usize] == u32::MAX {
+                hops[j as usize] = d + 1;
+                queue.push_back(j);
             }
         }
-        (0..n)
-            .filter_map(|i| match h[i] {
-                Some(h) => Some((
-                    i as u32,
-                    ((Vec3::from(g.positions[i]) + h) * 0.5).to_array(),
-                )),
-                None if hops[i] >= HOLD_RINGS => Some((i as u32, g.positions[i])),
-                None => None,
-            })
-            .collect::<Vec<(u32, [f32; 3])>>()
-    };
-    let wa = laplacian_deform(a.positions, &adj_a, &goals(a, &ha, &adj_a), 1.0, 400);
-    let wb = laplacian_deform(b.positions, &adj_b, &goals(b, &hb, &adj_b), 1.0, 400);
-    // 3. the common cut: the plane through the middle of the overlap (the mean of the paired
-    // vertices, deformed) across the direction from a's centroid to b's
+    }
+    (0..n)
+        .filter_map(|i| match h[i] {
+            Some(h) => Some((
+                i as u32,
+                ((Vec3::from(g.positions[i]) + h) * 0.5).to_array(),
+            )),
+            None if hops[i] >= HOLD_RINGS => Some((i as u32, g.positions[i])),
+            None => None,
+        })
+        .collect::<Vec<(u32, [f32; 3])>>()
+}
+
+/// The two pieces joined in one vertex numbering (`a`'s used vertices, then from `split` on
+/// `b`'s), before the stitch.
+struct Joined {
+    positions: Vec<[f32; 3]>,
+    faces: Vec<[u32; 3]>,
+    map_a: Vec<u32>,
+    map_b: Vec<u32>,
+    split: u32,
+    /// Half the larger mean edge length: the gap each piece keeps from the cutting plane.
+    g: f32,
+}
+
+/// Step 3: both deformed elements (`wa`, `wb`, paired as `ha`, `hb`) cut by the plane through
+/// the middle of the overlap (the mean of the paired vertices, deformed) across the direction
+/// from a's centroid to b's.
+fn cut_across(
+    a: &ElementGeometry,
+    b: &ElementGeometry,
+    (wa, wb): (&[[f32; 3]], &[[f32; 3]]),
+    (ha, hb): (&[Option<Vec3>], &[Option<Vec3>]),
+) -> Result<Joined, &'static str> {
+    let (na, nb) = (a.positions.len(), b.positions.len());
     let mean = |w: &[[f32; 3]]| w.iter().map(|&p| Vec3::from(p)).sum::<Vec3>() / w.len() as f32;
-    let axis = (mean(&wb) - mean(&wa)).normalize_or_zero();
+    let axis = (mean(wb) - mean(wa)).normalize_or_zero();
     if axis == Vec3::ZERO {
         return Err("the elements share a centroid");
     }
     let (mut mid, mut k) = (Vec3::ZERO, 0usize);
-    for (w, h) in [(&wa, &ha), (&wb, &hb)] {
+    for (w, h) in [(wa, ha), (wb, hb)] {
         for (p, h) in w.iter().zip(h.iter()) {
             if h.is_some() {
                 mid += Vec3::from(*p);
@@ -257,8 +315,8 @@ pub fn try_merge(
             .filter(|f| good.contains(&label[f[0] as usize]))
             .collect::<Vec<_>>()
     };
-    let ka = keep(a.faces, &sa, &ha, true);
-    let kb = keep(b.faces, &sb, &hb, false);
+    let ka = keep(a.faces, &sa, ha, true);
+    let kb = keep(b.faces, &sb, hb, false);
     if ka.is_empty() || kb.is_empty() {
         return Err("nothing kept");
     }
@@ -285,7 +343,34 @@ pub fn try_merge(
     }
     let mut faces: Vec<[u32; 3]> = ka.iter().map(|f| f.map(|v| map_a[v as usize])).collect();
     faces.extend(kb.iter().map(|f| f.map(|v| map_b[v as usize])));
-    // 4. the new loops (boundaries the elements did not have) and the strips between them
+    Ok(Joined {
+        positions,
+        faces,
+        map_a,
+        map_b,
+        split,
+        g,
+    })
+}
+
+/// Step 4: each new boundary loop of `a`'s piece paired with the nearest of `b`'s and the strip
+/// between them triangulated into `joined`; returns the loops (a's, b's).
+#[allow(clippy::type_complexity)]
+fn stitch(
+    a: &ElementGeometry,
+    b: &ElementGeometry,
+    joined: &mut Joined,
+    delta: f32,
+) -> Result<(Vec<Vec<u32>>, Vec<Vec<u32>>), &'static str> {
+    let Joined {
+        positions,
+        faces,
+        map_a,
+        map_b,
+        split,
+        g,
+    } = joined;
+    let (split, g) = (*split, *g);
     let old_boundary = |faces: &[[u32; 3]], map: &[u32]| -> std::collections::HashSet<(u32, u32)> {
         boundary_loops(faces)
             .iter()
@@ -293,9 +378,9 @@ pub fn try_merge(
             .map(|(x, y)| (map[x as usize], map[y as usize]))
             .collect()
     };
-    let mut was = old_boundary(a.faces, &map_a);
-    was.extend(old_boundary(b.faces, &map_b));
-    let loops: Vec<Vec<u32>> = boundary_loops(&faces)
+    let mut was = old_boundary(a.faces, map_a);
+    was.extend(old_boundary(b.faces, map_b));
+    let loops: Vec<Vec<u32>> = boundary_loops(faces)
         .into_iter()
         .filter(|l| {
             l.len() >= 3 && (0..l.len()).any(|i| !was.contains(&(l[i], l[(i + 1) % l.len()])))
@@ -362,32 +447,26 @@ pub fn try_merge(
             }
         }
     }
-    // 5. integrity
-    let closed = boundary_loops(a.faces).is_empty() && boundary_loops(b.faces).is_empty();
-    if !oriented_manifold(&faces, closed)
-        || euler_characteristic(positions.len(), &faces) != euler_characteristic(na, a.faces)
-        || connected_components(positions.len(), &faces).1 != 1
-    {
-        return Err("stitched element breaks the topology");
-    }
-    // smooth the joint: loop vertices half-way to their 1-ring mean, twice
-    let adj = vertex_adjacency(positions.len(), &faces);
-    let seam: Vec<u32> = la.iter().chain(&lb).flatten().copied().collect();
+    Ok((la, lb))
+}
+
+/// The joint smoothed: the `seam` vertices half-way to their 1-ring mean, twice.
+fn smooth_seam(positions: &mut [[f32; 3]], faces: &[[u32; 3]], seam: Vec<u32>) {
+    let adj = vertex_adjacency(positions.len(), faces);
     for _ in 0..2 {
         let moved: Vec<[f32; 3]> = seam
             .iter()
             .map(|&v| {
                 let row = adj.row(v as usize);
-                let mean = row.iter().map(|&u| pos_of(&positions, u)).sum::<Vec3>()
+                let mean = row.iter().map(|&u| pos_of(positions, u)).sum::<Vec3>()
                     / row.len().max(1) as f32;
-                ((pos_of(&positions, v) + mean) * 0.5).to_array()
+                ((pos_of(positions, v) + mean) * 0.5).to_array()
             })
             .collect();
         for (&v, p) in seam.iter().zip(moved) {
             positions[v as usize] = p;
         }
     }
-    Ok(Merged { positions, faces })
 }
 
 fn pos_of(p: &[[f32; 3]], v: u32) -> Vec3 {

@@ -1,0 +1,127 @@
+//! Step 4's candidates: every swatch element (and, for a periodic tile or a lattice patch, its
+//! copies one period apart) centred within the placement disc, mapped through the flattening
+//! and into the shell (§3.2's shell map).
+
+use glam::{Vec2, Vec3};
+
+use super::QuiltStats;
+use super::elements::{Candidate, centre_and_radius};
+use super::flat::uv_to_3d;
+use super::flatten::Patch;
+use super::setup::Setup;
+use super::shell::Base;
+
+/// Maps swatch elements into the shell through one patch's flattening.
+pub(super) struct Mapper<'a> {
+    pub(super) setup: &'a Setup<'a>,
+    pub(super) base: &'a Base<'a>,
+    pub(super) patch: &'a Patch,
+    /// The patch's rotation (+u to the swatch's +x).
+    pub(super) rot: Vec2,
+}
+
+impl Mapper<'_> {
+    /// Swatch element `e` shifted by `shift` (swatch units), mapped into the shell; `None`
+    /// (counted in `stats`) when part of it falls off the flattened base, on too distorted
+    /// faces, or tears across a lattice chart's sheets.
+    pub(super) fn map(&self, e: usize, shift: Vec2, stats: &mut QuiltStats) -> Option<Candidate> {
+        let Mapper {
+            setup,
+            base,
+            patch,
+            rot,
+        } = *self;
+        let (params, sw, s, hscale) = (setup.params, setup.sw, setup.s, setup.hscale);
+        let (r_elem, tau, elem_faces) = (setup.r_elem, setup.tau, &setup.elem_faces);
+        let (flat, rho, lattice_t) = (&patch.flat, &patch.rho, patch.lattice_t);
+        let corners = |f: u32| base.faces[f as usize].map(|v| Vec3::from(base.p[v as usize]));
+        let el = &sw.elements[e];
+        let uvc = rot.rotate((Vec2::new(el.centre[0], el.centre[1]) + shift) * s);
+        let (af, ab, true) = flat.locate(uvc, 0.0)? else {
+            return None;
+        };
+        let mut ps = Vec::with_capacity(el.vertices.len());
+        let mut worst = 1.0f32;
+        for q in sw.element_positions(e) {
+            let uv = rot.rotate((Vec2::new(q[0], q[1]) + shift) * s);
+            let Some((f, b, _)) = flat.locate(uv, r_elem + tau) else {
+                stats.dropped_unmapped += 1;
+                return None;
+            };
+            worst = worst.max(rho[flat.index[&f] as usize]);
+            ps.push(base.shell_point(f, b, q[2] * hscale).to_array());
+        }
+        if worst > 2.0 * params.max_distortion {
+            stats.dropped_distorted += 1;
+            return None;
+        }
+        // a lattice chart that overlaps itself past a singularity can send part of an
+        // element to the other sheet: no edge may come out stretched to twice its length
+        if lattice_t.is_some() {
+            let qs = sw.element_positions(e);
+            let torn = elem_faces[e].iter().any(|f| {
+                (0..3).any(|k| {
+                    let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
+                    let d = Vec3::from(qs[a]) - Vec3::from(qs[b]);
+                    let want = Vec3::new(d.x * s, d.y * s, d.z * hscale).length();
+                    Vec3::from(ps[a]).distance(Vec3::from(ps[b])) > 2.0 * want + tau
+                })
+            });
+            if torn {
+                stats.dropped_distorted += 1;
+                return None;
+            }
+        }
+        stats.max_element_distortion = stats.max_element_distortion.max(worst);
+        let (centre, radius) = centre_and_radius(&ps);
+        let k = flat.index[&af] as usize;
+        let dir = uv_to_3d(&flat.faces[k].1, corners(af), rot).normalize_or_zero();
+        Some(Candidate {
+            source: e as u32,
+            positions: ps,
+            centre,
+            radius,
+            anchor: (af, ab),
+            dir,
+            seed_dist: uvc.length(),
+            shift,
+        })
+    }
+}
+
+/// The patch's candidates at translation `t` (swatch units): each element within the disc,
+/// with its copies one period apart when the tile repeats.
+pub(super) fn candidates(mapper: &Mapper, t: Vec2, stats: &mut QuiltStats) -> Vec<Candidate> {
+    let (sw, s, period) = (mapper.setup.sw, mapper.setup.s, mapper.setup.period);
+    let (rp, lattice_t) = (mapper.patch.rp, mapper.patch.lattice_t);
+    let mut cands: Vec<Candidate> = Vec::new();
+    let rs = rp / s;
+    for (e, el) in sw.elements.iter().enumerate() {
+        let c = Vec2::new(el.centre[0], el.centre[1]) + t;
+        let ranges: [(i64, i64); 2] = if sw.periodic || lattice_t.is_some() {
+            let mut r = [(0, 0); 2];
+            for a in 0..2 {
+                let p = period[a];
+                r[a] = (
+                    ((-rs - c[a]) / p).ceil() as i64,
+                    ((rs - c[a]) / p).floor() as i64,
+                );
+            }
+            r
+        } else {
+            [(0, 0), (0, 0)]
+        };
+        for jy in ranges[1].0..=ranges[1].1 {
+            for jx in ranges[0].0..=ranges[0].1 {
+                let off = Vec2::new(jx as f32 * period[0], jy as f32 * period[1]);
+                if ((c + off) * s).length() > rp {
+                    continue;
+                }
+                if let Some(cand) = mapper.map(e, t + off, stats) {
+                    cands.push(cand);
+                }
+            }
+        }
+    }
+    cands
+}
