@@ -20,6 +20,7 @@
 //!
 //! Colours are handled in a decorrelated basis: the PCA of the source's sRGB colours.
 
+pub mod feature_maps;
 mod features;
 pub mod nonparametric;
 pub mod parametric;
