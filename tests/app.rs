@@ -2365,6 +2365,56 @@ fn view_menu_opens_the_geometric_feature_window() {
 }
 
 #[test]
+fn the_feature_window_saves_every_map_through_the_meshs_uvs() {
+    use meshmatch::app::weather::FeatureDialog;
+    let spot_path = meshmatch::testdata::data_path("spot/spot.obj");
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.open_mesh(Side::Target, &spot_path).unwrap();
+    let mut h = harness(app);
+    h.run_steps(2);
+    let scratch = Scratch::new("feature_maps");
+    let out = scratch.join("spot.png");
+    let i = system_index::<FeatureDialog>(&mut h);
+    {
+        let d = h.state_mut().system_mut::<FeatureDialog>().unwrap();
+        d.side = Side::Target;
+        d.rays = 16;
+        d.texture_size = 256;
+        d.bits = 16;
+        d.save_to = Some(out.clone());
+    }
+    h.state_mut().start_system(i);
+    assert!(h.state().tool.is_some(), "{:?}", h.state().state.errors);
+    wait_tool(&mut h, Duration::from_secs(120));
+    let st = &h.state().state;
+    assert!(st.errors.is_empty(), "{:?}", st.errors);
+    assert!(st.message.contains("wrote 6 maps"), "{}", st.message);
+    assert!(
+        !st.message.contains("atlas"),
+        "spot has UVs: {}",
+        st.message
+    );
+    for name in ["ao", "curvature", "cavity", "thickness", "normal", "height"] {
+        let img = image::open(scratch.join(format!("spot_{name}.png"))).unwrap();
+        assert_eq!((img.width(), img.height()), (256, 256), "{name}");
+        assert!(
+            matches!(img.color(), image::ColorType::L16 | image::ColorType::Rgb16),
+            "{name}: {:?}",
+            img.color()
+        );
+    }
+    // the next run shows a feature again, it does not save
+    assert!(
+        h.state()
+            .system::<FeatureDialog>()
+            .unwrap()
+            .save_to
+            .is_none()
+    );
+}
+
+#[test]
 fn paint_with_exemplar_into_a_texture_textures_the_mesh_through_its_uvs_and_undo_restores() {
     use meshmatch::app::tools::{ExemplarSettings, Region, TEXTURE_SIDE};
     let spot_path = meshmatch::testdata::data_path("spot/spot.obj");

@@ -554,6 +554,13 @@ where
                 }
                 Ok(())
             }
+            A::SystemSave(i, _) => {
+                if let Some(t) = self.systems.get_mut(i) {
+                    t.set_save_file(p.clone());
+                }
+                self.start_system(i);
+                return;
+            }
             A::EditedGeometry => crate::mesh::io::load(&p).map(|m| self.start_update(m)),
         };
         match result {
@@ -1170,6 +1177,11 @@ where
             if action == systems::ToolAction::ChooseFile {
                 let prompt = self.systems[i].file_prompt();
                 self.files.request(files::FileAction::SystemFile(i, prompt));
+                action = systems::ToolAction::None;
+            }
+            if action == systems::ToolAction::ChooseSaveFile {
+                let prompt = self.systems[i].save_prompt();
+                self.files.request(files::FileAction::SystemSave(i, prompt));
                 action = systems::ToolAction::None;
             }
             self.systems[i].set_open(open && action == systems::ToolAction::None);

@@ -13,7 +13,8 @@ use super::system_tool::{FilePrompt, SystemTool, ToolAction, Wake};
 use super::tools::{ToolJob, ToolOutcome};
 use crate::correspondence::Side;
 use crate::error::{Error, Result};
-use crate::synthesis::mertens::{self, CcaReport, Method, Params, Up};
+use crate::synthesis::mertens::{self, CcaReport, Method, Params, Up, feature_maps};
+use crate::work::Event;
 
 /// Working vertices of an app run (responsive; the CLI's default is the paper's density).
 pub const APP_VERTICES: usize = 32_000;
@@ -210,6 +211,13 @@ pub struct FeatureDialog {
     pub up: Up,
     /// Occlusion rays per vertex.
     pub rays: usize,
+    /// Side of the baked maps ("Save maps...").
+    pub texture_size: u32,
+    /// Bits per channel of the saved maps (8 or 16).
+    pub bits: u8,
+    /// Where the next job writes every map (`<stem>_<map>.png`); `None`: the next job shows the
+    /// feature.
+    pub save_to: Option<PathBuf>,
 }
 
 impl Default for FeatureDialog {
@@ -220,8 +228,53 @@ impl Default for FeatureDialog {
             feature: "ao".into(),
             up: Up::Y,
             rays: Params::default().rays,
+            texture_size: 2048,
+            bits: 8,
+            save_to: None,
         }
     }
+}
+
+/// Bake every feature map of `mesh` (its UVs, or a generated atlas) and write them beside
+/// `path` as `<stem>_<map>.png`: the "Save maps..." job.
+pub fn save_maps_job(
+    mesh: crate::mesh::TriMesh,
+    params: feature_maps::MapParams,
+    bits: u8,
+    path: PathBuf,
+    wake: Wake,
+) -> ToolJob {
+    ToolJob::spawn("feature maps", wake, move |sink, cancel| {
+        let progress = |f: f32| {
+            sink(Event::Progress(crate::work::Progress {
+                stage: "feature maps",
+                fraction: f,
+                ..Default::default()
+            }))
+        };
+        let maps = feature_maps::bake_feature_maps(
+            &mesh,
+            &feature_maps::MAP_NAMES,
+            &params,
+            &progress,
+            cancel,
+        )?;
+        let written = feature_maps::save_map_pngs(&maps, &path, bits)?;
+        let atlas = if maps.atlas.is_some() {
+            " (through a generated atlas: the mesh has no UVs)"
+        } else {
+            ""
+        };
+        Ok(ToolOutcome::Done(format!(
+            "wrote {} maps{atlas}: {}",
+            written.len(),
+            written
+                .iter()
+                .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )))
+    })
 }
 
 /// The features offered, with what they show.
@@ -286,13 +339,56 @@ impl<P: AppParams> SystemTool<P> for FeatureDialog {
                 action = ToolAction::Close;
             }
         });
+        ui.separator();
+        ui.label(
+            "Bake every map (ao, curvature, cavity, thickness, normal, height) into textures:",
+        );
+        ui.horizontal(|ui| {
+            egui::ComboBox::from_id_salt("feature_map_size")
+                .selected_text(format!("{} px", self.texture_size))
+                .show_ui(ui, |ui| {
+                    for s in [512u32, 1024, 2048, 4096] {
+                        ui.selectable_value(&mut self.texture_size, s, format!("{s} px"));
+                    }
+                });
+            ui.selectable_value(&mut self.bits, 8, "8-bit");
+            ui.selectable_value(&mut self.bits, 16, "16-bit");
+        });
+        if ui
+            .add_enabled(ready && !busy, egui::Button::new("Save maps..."))
+            .on_hover_text(
+                "One PNG per map beside the file you name (<name>_ao.png, ...), in the mesh's \
+                 UVs or a generated atlas, gutters filled; runs on its own thread",
+            )
+            .clicked()
+        {
+            action = ToolAction::ChooseSaveFile;
+        }
         action
+    }
+    fn save_prompt(&self) -> FilePrompt {
+        ("Save feature maps", "PNG image", &["png"])
+    }
+    fn set_save_file(&mut self, path: PathBuf) {
+        self.save_to = Some(path);
     }
     fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob> {
         let side = self.side;
-        let Some(mesh) = state.painted_mesh(side) else {
+        let Some(mut mesh) = state.painted_mesh(side) else {
             return Err(Error::InvalidInput(format!("open a {side:?} mesh first")));
         };
+        if let Some(path) = self.save_to.take() {
+            // through the mesh's own UVs, as displayed
+            mesh.uvs = state.slot(side).and_then(|s| s.displayed().uvs.clone());
+            mesh.colors = None;
+            let params = feature_maps::MapParams {
+                texture_size: self.texture_size,
+                rays: self.rays,
+                up: self.up,
+                ..Default::default()
+            };
+            return Ok(save_maps_job(mesh, params, self.bits, path, wake));
+        }
         let params = Params {
             up: self.up,
             rays: self.rays,

@@ -296,12 +296,13 @@ pub fn vertex_maps(
 
 /// Bake the maps `names` of `mesh` into `p.texture_size²` textures through its UVs (a generated
 /// atlas when it has none, or with `p.new_atlas`), gutters filled by pull-push. `progress`
-/// receives a fraction in [0, 1].
+/// receives a fraction in [0, 1] after each stage (atlas, features, each map), on the calling
+/// thread.
 pub fn bake_feature_maps(
     mesh: &TriMesh,
     names: &[&'static str],
     p: &MapParams,
-    progress: &(dyn Fn(f32) + Sync),
+    progress: &dyn Fn(f32),
     cancel: &CancelToken,
 ) -> Result<FeatureMaps> {
     check_map_params(p)?;
@@ -320,13 +321,7 @@ pub fn bake_feature_maps(
                 texture_size: p.texture_size,
                 ..Default::default()
             };
-            let a = crate::geometry::uv_atlas(
-                &mesh.positions,
-                &mesh.faces,
-                &ap,
-                &|f| progress(0.3 * f),
-                cancel,
-            )?;
+            let a = crate::geometry::uv_atlas(&mesh.positions, &mesh.faces, &ap, &|_| {}, cancel)?;
             let uvs = a.uvs.clone();
             atlas = Some(a);
             uvs
@@ -338,7 +333,8 @@ pub fn bake_feature_maps(
     let size = p.texture_size as usize;
     let faces = &mesh.faces;
     let mut maps = Vec::with_capacity(vertex.len());
-    for vm in &vertex {
+    for (i, vm) in vertex.iter().enumerate() {
+        progress(0.8 + 0.2 * i as f32 / vertex.len() as f32);
         cancel.check()?;
         let c = vm.channels;
         let vals = &vm.values;
