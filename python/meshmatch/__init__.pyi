@@ -188,12 +188,14 @@ def weather(
     rays: int = 64,
     clusters: int = 50,
     seed: int = 0,
+    components: list[int] | None = None,
     texture_size: int = 1024,
     textured: bool | None = None,
     progress: Progress | None = None,
     cancel: CancelToken | None = None,
 ) -> Mesh:
-    """Geometry-correlated transfer (Mertens et al. 2006)."""
+    """Geometry-correlated transfer (Mertens et al. 2006); `components` keeps only those CCA
+    components (0 = strongest), as `--components`."""
 
 def quilt(
     base: Mesh,

@@ -555,7 +555,7 @@ fn synthesize(
 #[pyo3(signature = (source, target, *, mask=None, method="parametric".to_string(),
     up="y".to_string(), vertices=mertens::Params::default().working_vertices,
     rays=mertens::Params::default().rays, clusters=mertens::Params::default().clusters,
-    seed=0, texture_size=1024, textured=None, progress=None, cancel=None))]
+    seed=0, components=None, texture_size=1024, textured=None, progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn weather(
     py: Python<'_>,
@@ -568,6 +568,7 @@ fn weather(
     rays: usize,
     clusters: usize,
     seed: u64,
+    components: Option<Vec<usize>>,
     texture_size: u32,
     textured: Option<bool>,
     progress: Option<&Bound<'_, PyAny>>,
@@ -576,6 +577,9 @@ fn weather(
     let method: mertens::Method = method.parse().or_py()?;
     let up: mertens::Up = up.parse().or_py()?;
     cli::weather::check_weather(vertices, rays, clusters, texture_size).or_py()?;
+    if let Some(c) = &components {
+        mertens::check_components(c, mertens::Params::default().cca_dims).or_py()?;
+    }
     let s = usable(py, source, "source")?;
     let t = usable(py, target, "target")?;
     let mask = mask
@@ -588,6 +592,7 @@ fn weather(
         clusters,
         method,
         seed,
+        components,
         ..mertens::Params::default()
     };
     let ext = ext_for(textured, &t);

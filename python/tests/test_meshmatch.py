@@ -171,6 +171,14 @@ def test_weather_equals_the_clis(tmp_path, data, cli, spot, penguin):
         "--out", out, "--vertices", "4000", "--rays", "16")
     r = meshmatch.weather(spot, penguin, vertices=4000, rays=16)
     assert np.abs(r.colors - ply_colors(out)).max() <= 0.5 / 255 + 1e-6
+    out2 = tmp_path / "cli_02.ply"
+    cli("weather", "--source", data / "spot/spot.obj", "--target", data / "penguin/penguin.obj",
+        "--out", out2, "--vertices", "4000", "--rays", "16", "--components", "0,2")
+    r2 = meshmatch.weather(spot, penguin, vertices=4000, rays=16, components=[0, 2])
+    assert np.abs(r2.colors - ply_colors(out2)).max() <= 0.5 / 255 + 1e-6
+    assert np.abs(r2.colors - r.colors).max() > 0.05, "a component switched off changes nothing"
+    with pytest.raises(meshmatch.MeshMatchError, match="no component 7"):
+        meshmatch.weather(spot, penguin, vertices=4000, rays=16, components=[7])
 
 
 def test_synthesize_equals_the_clis_texture(tmp_path, data, cli, spot):

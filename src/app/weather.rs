@@ -34,6 +34,18 @@ pub struct WeatherSettings {
     pub clusters: usize,
     /// Random seed.
     pub seed: u64,
+    /// Canonical components the guidance keeps (the rules found; all on: the paper).
+    pub components: [bool; 3],
+}
+
+impl WeatherSettings {
+    /// [`Params::components`] for these settings: `None` when every component is on.
+    pub fn component_list(&self) -> Option<Vec<usize>> {
+        if self.components.iter().all(|&c| c) {
+            return None;
+        }
+        Some((0..3).filter(|&k| self.components[k]).collect())
+    }
 }
 
 impl Default for WeatherSettings {
@@ -46,6 +58,7 @@ impl Default for WeatherSettings {
             rays: p.rays,
             clusters: p.clusters,
             seed: 0,
+            components: [true; 3],
         }
     }
 }
@@ -113,10 +126,36 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
         ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));
         if let Some(r) = self.report.lock().ok().and_then(|r| r.clone()) {
             ui.separator();
-            ui.label("Which features mattered (last run, CCA weights):");
-            ui.monospace(r.to_text());
+            ui.label("Rules found (canonical components of the last run):")
+                .on_hover_text(
+                    "Each component is one way the source's colour follows its geometry; its \
+                     correlation says how strongly, its features what it follows. Switch one \
+                     off and Run again to drop the rule it carries.",
+                );
+            for k in 0..r.correlations.len().min(3) {
+                let top = r
+                    .top_features(k, 3)
+                    .iter()
+                    .map(|(n, w)| format!("{n} {w:+.2}"))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                ui.checkbox(
+                    &mut s.components[k],
+                    format!(
+                        "component {k}: correlation {:.2}, weighs {top}",
+                        r.correlations[k]
+                    ),
+                );
+            }
+            egui::CollapsingHeader::new("All CCA weights")
+                .id_salt("weather_cca_weights")
+                .show(ui, |ui| {
+                    ui.monospace(r.to_text());
+                });
         }
-        let ready = state.slot(Side::Source).is_some() && state.slot(Side::Target).is_some();
+        let some_on = s.components.iter().any(|&c| c);
+        let ready =
+            state.slot(Side::Source).is_some() && state.slot(Side::Target).is_some() && some_on;
         ui.horizontal(|ui| {
             if ui
                 .add_enabled(ready && !busy, egui::Button::new("Run"))
@@ -129,7 +168,9 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
                 action = ToolAction::Close;
             }
         });
-        if !ready {
+        if !some_on {
+            ui.label("switch at least one component on");
+        } else if !ready {
             ui.label("open a textured source and a target first");
         }
         action
@@ -151,6 +192,7 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
             rays: s.rays,
             clusters: s.clusters,
             seed: s.seed,
+            components: s.component_list(),
             ..Params::default()
         };
         let n = target.num_vertices();
@@ -182,18 +224,12 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
     }
 }
 
-/// The three features with the largest weight in the first canonical direction.
+/// The three features with the largest weight in the first canonical direction kept.
 fn top_features(r: &CcaReport) -> String {
-    let mut w: Vec<(f64, &str)> = r
-        .feature_names
+    let k = r.enabled.iter().position(|&e| e).unwrap_or(0);
+    r.top_features(k, 3)
         .iter()
-        .zip(&r.weights)
-        .map(|(n, w)| (w.first().copied().unwrap_or(0.0).abs(), n.as_str()))
-        .collect();
-    w.sort_by(|a, b| b.0.total_cmp(&a.0));
-    w.iter()
-        .take(3)
-        .map(|(x, n)| format!("{n} {x:.2}"))
+        .map(|(n, x)| format!("{n} {:.2}", x.abs()))
         .collect::<Vec<_>>()
         .join(", ")
 }
