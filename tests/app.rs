@@ -2365,6 +2365,60 @@ fn view_menu_opens_the_geometric_feature_window() {
 }
 
 #[test]
+fn the_weather_window_runs_again_without_a_switched_off_component() {
+    use meshmatch::app::weather::WeatherDialog;
+    let mut source = bumpy_sphere(24, 36, 5.0, 0.18);
+    source.colors = Some(
+        source
+            .positions
+            .iter()
+            .map(|p| {
+                let t = 0.5 + 0.5 * p[1];
+                [t, 0.6 * t, 0.3]
+            })
+            .collect(),
+    );
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, source, false);
+    app.state
+        .set_mesh(Side::Target, bumpy_sphere(24, 36, 7.0, 0.14), false);
+    let mut h = harness(app);
+    h.run_steps(2);
+    let i = system_index::<WeatherDialog>(&mut h);
+    {
+        let d = h.state_mut().system_mut::<WeatherDialog>().unwrap();
+        d.open = true;
+        d.settings.vertices = 4_000;
+        d.settings.rays = 16;
+        d.settings.clusters = 8;
+        d.settings.components = [true, false, true];
+        assert_eq!(d.settings.component_list(), Some(vec![0, 2]));
+    }
+    h.state_mut().start_system(i);
+    assert!(h.state().tool.is_some(), "{:?}", h.state().state.errors);
+    wait_tool(&mut h, Duration::from_secs(120));
+    assert!(
+        h.state().state.errors.is_empty(),
+        "{:?}",
+        h.state().state.errors
+    );
+    let report = {
+        let d = h.state_mut().system_mut::<WeatherDialog>().unwrap();
+        d.report.lock().unwrap().clone().expect("a report")
+    };
+    assert_eq!(report.enabled, vec![true, false, true]);
+    assert!(report.to_text().contains("off"), "{}", report.to_text());
+    // the window lists every component with its switch
+    h.state_mut().system_mut::<WeatherDialog>().unwrap().open = true;
+    h.run_steps(3);
+    assert!(
+        h.query_by_label_contains("component 1: correlation")
+            .is_some(),
+        "the window does not list the components"
+    );
+}
+
+#[test]
 fn the_feature_window_saves_every_map_through_the_meshs_uvs() {
     use meshmatch::app::weather::FeatureDialog;
     let spot_path = meshmatch::testdata::data_path("spot/spot.obj");

@@ -158,10 +158,10 @@ fn all_maps_of_spot_carry_the_vertex_features_at_texel_centres_and_fill_their_gu
     let mut worst = 0.0f32;
     for &(f, x, y, b) in &probes {
         let mut n = [0.0f32; 3];
-        for k in 0..3 {
-            let v = mesh.faces[f][k] as usize;
-            for c in 0..3 {
-                n[c] += b[k] * (2.0 * nm.values[3 * v + c] - 1.0);
+        for (&v, &bk) in mesh.faces[f].iter().zip(&b) {
+            let v = v as usize;
+            for (c, nc) in n.iter_mut().enumerate() {
+                *nc += bk * (2.0 * nm.values[3 * v + c] - 1.0);
             }
         }
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
@@ -297,7 +297,7 @@ fn sixteen_bit_maps_carry_sixteen_bits() {
     for &(f, x, y, b) in &probes {
         let v = img.get_pixel(x as u32, y as u32).0[0];
         // open texels are exactly 1 (65535 = 255 × 257); the rest fall between 8-bit steps
-        not_8bit += (v % 257 != 0) as usize;
+        not_8bit += !v.is_multiple_of(257) as usize;
         saturated += (v == 65535) as usize;
         let want = interpolate(&vm[0], &mesh.faces, f, b);
         worst = worst.max((v as f32 / 65535.0 - want).abs());

@@ -356,8 +356,8 @@ pub fn fill_gutters_dilated(img: &mut BakedImage, rings: usize) {
                     for xx in x.saturating_sub(1)..(x + 2).min(w) {
                         let j = yy * w + xx;
                         if done[j] {
-                            for c in 0..3 {
-                                acc[c] += img.pixels[j][c];
+                            for (a, v) in acc.iter_mut().zip(img.pixels[j]) {
+                                *a += v;
                             }
                             k += 1.0;
                         }
