@@ -4,7 +4,7 @@
 //! `cargo run --release --example weather_recipes [-- --ablate] [--diagnose]`; `N` sets the
 //! working vertices (default 50000), `PAIRS` the pairs (`igea:bunny,cow:cat,nefertiti:penguin`),
 //! `RECIPES` the recipes by name, `VARIANTS` parameter variants beside the defaults (`np`,
-//! `dims1`, `dims2`, `noms`, `nomatch`, `half`, `noise0`, `noise05`, `k10`, `k200`, `nb1`, `nb2`, `nohb`).
+//! `dims1`, `dims2`, `noms`, `nomatch`, `half`, `noise0`, `noise05`, `k1`, `k10`, `k200`, `nb1`, `nb2`, `nohb`).
 
 use meshmatch::synthesis::mertens::recipes::{Recipe, Rule, diagnose, evaluate, prepare, recipes};
 use meshmatch::synthesis::mertens::{Method, Params, Up};
@@ -85,6 +85,10 @@ fn main() {
                 },
                 "noise05" => Params {
                     noise: 0.5,
+                    ..Params::default()
+                },
+                "k1" => Params {
+                    clusters: 1,
                     ..Params::default()
                 },
                 "k10" => Params {
