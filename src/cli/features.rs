@@ -58,6 +58,14 @@ impl FeaturesArgs {
     pub fn run(&self) -> Result<i32> {
         let up: Up = self.up.parse()?;
         check_rays(self.rays)?;
+        // every range before any file is read, whichever output is asked for
+        feature_maps::check_map_params(&self.map_params(up))?;
+        if !matches!(self.bits, 8 | 16) {
+            return Err(Error::InvalidInput(format!(
+                "--bits {}: use 8 or 16",
+                self.bits
+            )));
+        }
         let ext = self
             .out
             .extension()
