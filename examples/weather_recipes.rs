@@ -2,7 +2,9 @@
 //! applied to the target, with a k-nearest-neighbour regression on the recipe's features beside.
 //!
 //! `cargo run --release --example weather_recipes [-- --ablate] [--diagnose]`; `N` sets the
-//! working vertices (default 50000), `PAIRS` the pairs (`igea:bunny,cow:cat,nefertiti:penguin`).
+//! working vertices (default 50000), `PAIRS` the pairs (`igea:bunny,cow:cat,nefertiti:penguin`),
+//! `RECIPES` the recipes by name, `VARIANTS` parameter variants beside the defaults (`np`,
+//! `dims1`, `dims2`, `noms`, `nomatch`, `half`, `noise0`, `noise05`, `k1`, `k10`, `k200`, `nb1`, `nb2`, `nohb`).
 
 use meshmatch::synthesis::mertens::recipes::{Recipe, Rule, diagnose, evaluate, prepare, recipes};
 use meshmatch::synthesis::mertens::{Method, Params, Up};
@@ -46,6 +48,9 @@ fn main() {
         list = Rule::ALL.iter().map(|&r| Recipe::single(r)).collect();
         list.push(Recipe::new("all", &Rule::ALL));
     }
+    if let Ok(only) = std::env::var("RECIPES") {
+        list.retain(|r| only.split(',').any(|n| n == r.name));
+    }
     let mut variants: Vec<(&str, Params)> = vec![("default", Params::default())];
     if let Ok(v) = std::env::var("VARIANTS") {
         for name in v.split(',') {
@@ -72,6 +77,34 @@ fn main() {
                 },
                 "half" => Params {
                     match_strength: 0.5,
+                    ..Params::default()
+                },
+                "noise0" => Params {
+                    noise: 0.0,
+                    ..Params::default()
+                },
+                "noise05" => Params {
+                    noise: 0.5,
+                    ..Params::default()
+                },
+                "k1" => Params {
+                    clusters: 1,
+                    ..Params::default()
+                },
+                "k10" => Params {
+                    clusters: 10,
+                    ..Params::default()
+                },
+                "k200" => Params {
+                    clusters: 200,
+                    ..Params::default()
+                },
+                "nb1" => Params {
+                    neighbours: 1,
+                    ..Params::default()
+                },
+                "nb2" => Params {
+                    neighbours: 2,
                     ..Params::default()
                 },
                 "nohb" => Params {

@@ -2353,6 +2353,110 @@ fn view_menu_opens_the_geometric_feature_window() {
 }
 
 #[test]
+fn the_weather_window_runs_again_without_a_switched_off_component() {
+    use meshmatch::app::weather::WeatherDialog;
+    let mut source = bumpy_sphere(24, 36, 5.0, 0.18);
+    source.colors = Some(
+        source
+            .positions
+            .iter()
+            .map(|p| {
+                let t = 0.5 + 0.5 * p[1];
+                [t, 0.6 * t, 0.3]
+            })
+            .collect(),
+    );
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, source, false);
+    app.state
+        .set_mesh(Side::Target, bumpy_sphere(24, 36, 7.0, 0.14), false);
+    let mut h = harness(app);
+    h.run_steps(2);
+    let i = system_index::<WeatherDialog>(&mut h);
+    {
+        let d = h.state_mut().system_mut::<WeatherDialog>().unwrap();
+        d.open = true;
+        d.settings.vertices = 4_000;
+        d.settings.rays = 16;
+        d.settings.clusters = 8;
+        d.settings.components = [true, false, true];
+        assert_eq!(d.settings.component_list(), Some(vec![0, 2]));
+    }
+    h.state_mut().start_system(i);
+    assert!(h.state().tool.is_some(), "{:?}", h.state().state.errors);
+    wait_tool(&mut h, Duration::from_secs(120));
+    assert!(
+        h.state().state.errors.is_empty(),
+        "{:?}",
+        h.state().state.errors
+    );
+    let report = {
+        let d = h.state_mut().system_mut::<WeatherDialog>().unwrap();
+        d.report.lock().unwrap().clone().expect("a report")
+    };
+    assert_eq!(report.enabled, vec![true, false, true]);
+    assert!(report.to_text().contains("off"), "{}", report.to_text());
+    // the window lists every component with its switch
+    h.state_mut().system_mut::<WeatherDialog>().unwrap().open = true;
+    h.run_steps(3);
+    assert!(
+        h.query_by_label_contains("component 1: correlation")
+            .is_some(),
+        "the window does not list the components"
+    );
+}
+
+#[test]
+fn the_feature_window_saves_every_map_through_the_meshs_uvs() {
+    use meshmatch::app::weather::FeatureDialog;
+    let spot_path = meshmatch::testdata::data_path("spot/spot.obj");
+    let mut app = App::new(TestEngine::default(), None);
+    app.state.set_mesh(Side::Source, sphere(12, 16), false);
+    app.state.open_mesh(Side::Target, &spot_path).unwrap();
+    let mut h = harness(app);
+    h.run_steps(2);
+    let scratch = Scratch::new("feature_maps");
+    let out = scratch.join("spot.png");
+    let i = system_index::<FeatureDialog>(&mut h);
+    {
+        let d = h.state_mut().system_mut::<FeatureDialog>().unwrap();
+        d.side = Side::Target;
+        d.rays = 16;
+        d.texture_size = 256;
+        d.bits = 16;
+        d.save_to = Some(out.clone());
+    }
+    h.state_mut().start_system(i);
+    assert!(h.state().tool.is_some(), "{:?}", h.state().state.errors);
+    wait_tool(&mut h, Duration::from_secs(120));
+    let st = &h.state().state;
+    assert!(st.errors.is_empty(), "{:?}", st.errors);
+    assert!(st.message.contains("wrote 6 maps"), "{}", st.message);
+    assert!(
+        !st.message.contains("atlas"),
+        "spot has UVs: {}",
+        st.message
+    );
+    for name in ["ao", "curvature", "cavity", "thickness", "normal", "height"] {
+        let img = image::open(scratch.join(format!("spot_{name}.png"))).unwrap();
+        assert_eq!((img.width(), img.height()), (256, 256), "{name}");
+        assert!(
+            matches!(img.color(), image::ColorType::L16 | image::ColorType::Rgb16),
+            "{name}: {:?}",
+            img.color()
+        );
+    }
+    // the next run shows a feature again, it does not save
+    assert!(
+        h.state()
+            .system::<FeatureDialog>()
+            .unwrap()
+            .save_to
+            .is_none()
+    );
+}
+
+#[test]
 fn paint_with_exemplar_into_a_texture_textures_the_mesh_through_its_uvs_and_undo_restores() {
     use meshmatch::app::tools::{ExemplarSettings, Region, TEXTURE_SIDE};
     let spot_path = meshmatch::testdata::data_path("spot/spot.obj");

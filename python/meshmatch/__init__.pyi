@@ -188,12 +188,14 @@ def weather(
     rays: int = 64,
     clusters: int = 50,
     seed: int = 0,
+    components: list[int] | None = None,
     texture_size: int = 1024,
     textured: bool | None = None,
     progress: Progress | None = None,
     cancel: CancelToken | None = None,
 ) -> Mesh:
-    """Geometry-correlated transfer (Mertens et al. 2006)."""
+    """Geometry-correlated transfer (Mertens et al. 2006); `components` keeps only those CCA
+    components (0 = strongest), as `--components`."""
 
 def quilt(
     base: Mesh,
@@ -242,6 +244,23 @@ def features(
     cancel: CancelToken | None = None,
 ) -> npt.NDArray[np.float32]:
     """One geometric feature per vertex: ao, height, curvature[:i], normal-x|y|z, occlusion-x|y|z."""
+
+def feature_maps(
+    mesh: Mesh,
+    feature: str = "all",
+    *,
+    texture_size: int = 2048,
+    radius: float = 0.01,
+    cavity_radius: float = 0.003,
+    up: Literal["y", "z"] = "y",
+    rays: int = 64,
+    seed: int = 0,
+    new_atlas: bool = False,
+    progress: Progress | None = None,
+    cancel: CancelToken | None = None,
+) -> dict[str, npt.NDArray[np.float32]]:
+    """Baked feature maps (ao, curvature, cavity, thickness, normal, height) in the mesh's UVs or
+    a generated atlas, gutters filled: name -> (size, size) or (size, size, 3) in [0, 1]."""
 
 def bake(
     source: Mesh,

@@ -26,6 +26,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(quilt, m)?)?;
     m.add_function(wrap_pyfunction!(curves, m)?)?;
     m.add_function(wrap_pyfunction!(features, m)?)?;
+    m.add_function(wrap_pyfunction!(feature_maps, m)?)?;
     m.add_function(wrap_pyfunction!(bake, m)?)?;
     Ok(())
 }
@@ -553,7 +554,7 @@ fn synthesize(
 #[pyo3(signature = (source, target, *, mask=None, method="parametric".to_string(),
     up="y".to_string(), vertices=mertens::Params::default().working_vertices,
     rays=mertens::Params::default().rays, clusters=mertens::Params::default().clusters,
-    seed=0, texture_size=1024, textured=None, progress=None, cancel=None))]
+    seed=0, components=None, texture_size=1024, textured=None, progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn weather(
     py: Python<'_>,
@@ -566,6 +567,7 @@ fn weather(
     rays: usize,
     clusters: usize,
     seed: u64,
+    components: Option<Vec<usize>>,
     texture_size: u32,
     textured: Option<bool>,
     progress: Option<&Bound<'_, PyAny>>,
@@ -574,6 +576,9 @@ fn weather(
     let method: mertens::Method = method.parse().or_py()?;
     let up: mertens::Up = up.parse().or_py()?;
     cli::weather::check_weather(vertices, rays, clusters, texture_size).or_py()?;
+    if let Some(c) = &components {
+        mertens::check_components(c, mertens::Params::default().cca_dims).or_py()?;
+    }
     let s = usable(py, source, "source")?;
     let t = usable(py, target, "target")?;
     let mask = mask
@@ -586,6 +591,7 @@ fn weather(
         clusters,
         method,
         seed,
+        components,
         ..mertens::Params::default()
     };
     let ext = ext_for(textured, &t);
@@ -765,6 +771,79 @@ fn features<'py>(
         cli::features::feature_values(&m, &feature, &params, &ctx.cancel)
     })?;
     Ok(PyArray1::from_vec(py, v).into_any())
+}
+
+/// The feature maps artists bake (`meshmatch features --out X.png`): `feature` is `all`, one of
+/// ao, curvature, cavity, thickness, normal, height, or a comma-separated list; baked in the
+/// mesh's UVs (a generated atlas when it has none, or with `new_atlas`), gutters filled. Returns
+/// a dict name -> float32 array in [0, 1], (size, size) grey or (size, size, 3) for the normal,
+/// row 0 at the top, before the PNG's quantisation.
+#[pyfunction]
+#[pyo3(signature = (mesh, feature="all".to_string(), *, texture_size=2048,
+    radius=mertens::feature_maps::MapParams::default().radius,
+    cavity_radius=mertens::feature_maps::MapParams::default().cavity_radius,
+    up="y".to_string(), rays=mertens::Params::default().rays, seed=0, new_atlas=false,
+    progress=None, cancel=None))]
+#[allow(clippy::too_many_arguments)]
+fn feature_maps<'py>(
+    py: Python<'py>,
+    mesh: &Mesh,
+    feature: String,
+    texture_size: u32,
+    radius: f32,
+    cavity_radius: f32,
+    up: String,
+    rays: usize,
+    seed: u64,
+    new_atlas: bool,
+    progress: Option<&Bound<'py, PyAny>>,
+    cancel: Option<&Bound<'py, CancelToken>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use mertens::feature_maps as fm;
+    let up: mertens::Up = up.parse().or_py()?;
+    let names = fm::parse_map_names(&feature).or_py()?;
+    cli::common::check_texture_size(texture_size).or_py()?;
+    let params = fm::MapParams {
+        texture_size,
+        radius,
+        cavity_radius,
+        rays,
+        seed,
+        up,
+        new_atlas,
+    };
+    fm::check_map_params(&params).or_py()?;
+    let m = usable(py, mesh, "mesh")?;
+    let maps = job::run(py, progress, cancel, |ctx| {
+        fm::bake_feature_maps(
+            &m,
+            &names,
+            &params,
+            &|f| {
+                ctx.event(meshmatch::work::Event::Progress(
+                    meshmatch::work::Progress {
+                        stage: "feature maps",
+                        fraction: f,
+                        ..Default::default()
+                    },
+                ))
+            },
+            &ctx.cancel,
+        )
+    })?;
+    let out = PyDict::new(py);
+    for map in &maps.maps {
+        let (w, h) = (map.image.width, map.image.height);
+        let arr = if map.channels == 1 {
+            let v: Vec<f32> = map.image.pixels.iter().map(|p| p[0]).collect();
+            PyArray1::from_vec(py, v).reshape([h, w])?.into_any()
+        } else {
+            let v: Vec<f32> = map.image.pixels.iter().flatten().copied().collect();
+            PyArray1::from_vec(py, v).reshape([h, w, 3])?.into_any()
+        };
+        out.set_item(map.name, arr)?;
+    }
+    Ok(out)
 }
 
 /// Bake (`meshmatch bake`): `source`'s colours or texture baked into a texture of `texture_size`

@@ -171,6 +171,14 @@ def test_weather_equals_the_clis(tmp_path, data, cli, spot, penguin):
         "--out", out, "--vertices", "4000", "--rays", "16")
     r = meshmatch.weather(spot, penguin, vertices=4000, rays=16)
     assert np.abs(r.colors - ply_colors(out)).max() <= 0.5 / 255 + 1e-6
+    out2 = tmp_path / "cli_02.ply"
+    cli("weather", "--source", data / "spot/spot.obj", "--target", data / "penguin/penguin.obj",
+        "--out", out2, "--vertices", "4000", "--rays", "16", "--components", "0,2")
+    r2 = meshmatch.weather(spot, penguin, vertices=4000, rays=16, components=[0, 2])
+    assert np.abs(r2.colors - ply_colors(out2)).max() <= 0.5 / 255 + 1e-6
+    assert np.abs(r2.colors - r.colors).max() > 0.05, "a component switched off changes nothing"
+    with pytest.raises(meshmatch.MeshMatchError, match="no component 7"):
+        meshmatch.weather(spot, penguin, vertices=4000, rays=16, components=[7])
 
 
 def test_synthesize_equals_the_clis_texture(tmp_path, data, cli, spot):
@@ -190,6 +198,62 @@ def test_features_equal_the_clis_grey(tmp_path, data, cli, penguin):
     assert ao.shape == (penguin.num_vertices,)
     assert 0.0 <= ao.min() and ao.max() <= 1.0
     assert np.abs(ao - ply_colors(out)[:, 0]).max() <= 0.5 / 255 + 1e-6
+
+
+def read_png16_grey(path):
+    """A 16-bit grey PNG as a float64 array (zlib and the five row filters; no imaging library)."""
+    import struct
+    import zlib
+
+    raw = path.read_bytes()
+    assert raw[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, idat, w, h = 8, b"", 0, 0
+    while pos < len(raw):
+        n, kind = struct.unpack(">I4s", raw[pos:pos + 8])
+        body = raw[pos + 8:pos + 8 + n]
+        if kind == b"IHDR":
+            w, h, depth, colour = struct.unpack(">IIBB", body[:10])
+            assert (depth, colour) == (16, 0), (depth, colour)
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + n
+    data = zlib.decompress(idat)
+    bpp, stride = 2, 2 * w
+    rows, prev = [], bytearray(stride)
+    for y in range(h):
+        f = data[y * (stride + 1)]
+        line = bytearray(data[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        for i in range(stride):
+            a = line[i - bpp] if i >= bpp else 0
+            b = prev[i]
+            c = prev[i - bpp] if i >= bpp else 0
+            if f == 1:
+                line[i] = (line[i] + a) & 255
+            elif f == 2:
+                line[i] = (line[i] + b) & 255
+            elif f == 3:
+                line[i] = (line[i] + (a + b) // 2) & 255
+            elif f == 4:
+                p = a + b - c
+                pa, pb, pc = abs(p - a), abs(p - b), abs(p - c)
+                pred = a if pa <= pb and pa <= pc else (b if pb <= pc else c)
+                line[i] = (line[i] + pred) & 255
+        rows.append(bytes(line))
+        prev = line
+    return np.frombuffer(b"".join(rows), dtype=">u2").reshape(h, w).astype(np.float64)
+
+
+def test_feature_maps_equal_the_clis_16_bit_pngs(tmp_path, data, cli, spot):
+    out = tmp_path / "spot.png"
+    cli("features", data / "spot/spot.obj", "--feature", "ao,normal", "--out", out,
+        "--texture-size", "128", "--rays", "16", "--bits", "16")
+    maps = meshmatch.feature_maps(spot, "ao,normal", texture_size=128, rays=16)
+    assert sorted(maps) == ["ao", "normal"]
+    assert maps["ao"].shape == (128, 128) and maps["normal"].shape == (128, 128, 3)
+    ao = read_png16_grey(tmp_path / "spot_ao.png") / 65535.0
+    assert np.abs(maps["ao"] - ao).max() <= 0.5 / 65535 + 1e-6
+    with pytest.raises(meshmatch.MeshMatchError, match="unknown map"):
+        meshmatch.feature_maps(spot, "bogus")
 
 
 def test_curves_are_the_clis(tmp_path, data, cli):

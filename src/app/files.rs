@@ -34,6 +34,8 @@ pub enum FileAction {
     SaveSession,
     /// The input file of system tool `.0` (`app.systems`), as its prompt describes.
     SystemFile(usize, super::systems::FilePrompt),
+    /// The output file of system tool `.0`, written by its job (a save dialog).
+    SystemSave(usize, super::systems::FilePrompt),
     /// The edited geometry for Tools > Update texture for new geometry.
     EditedGeometry,
 }
@@ -51,7 +53,7 @@ impl FileAction {
             FileAction::ExportPainted(s) => format!("Export painted {} mesh", side_name(s)),
             FileAction::OpenSession => "Open session".into(),
             FileAction::SaveSession => "Save session".into(),
-            FileAction::SystemFile(_, p) => p.0.into(),
+            FileAction::SystemFile(_, p) | FileAction::SystemSave(_, p) => p.0.into(),
             FileAction::EditedGeometry => "Open the edited geometry".into(),
         }
     }
@@ -65,6 +67,7 @@ impl FileAction {
                 | FileAction::ExportDense
                 | FileAction::ExportPainted(_)
                 | FileAction::SaveSession
+                | FileAction::SystemSave(..)
         )
     }
 
@@ -75,7 +78,7 @@ impl FileAction {
                 ("meshes", &["obj", "ply", "gltf", "glb"])
             }
             FileAction::OpenTexture => ("images", &["png", "jpg", "jpeg"]),
-            FileAction::SystemFile(_, p) => (p.1, p.2),
+            FileAction::SystemFile(_, p) | FileAction::SystemSave(_, p) => (p.1, p.2),
             FileAction::OpenCorrespondences | FileAction::SaveCorrespondences => {
                 ("correspondences", &["json"])
             }

@@ -237,6 +237,13 @@ where
                 }
                 Ok(())
             }
+            A::SystemSave(i, _) => {
+                if let Some(t) = self.systems.get_mut(i) {
+                    t.set_save_file(p.clone());
+                }
+                self.start_system(i);
+                return;
+            }
             A::EditedGeometry => crate::mesh::io::load(&p).map(|m| self.start_update(m)),
         };
         match result {

@@ -21,6 +21,9 @@ pub enum ToolAction {
     Close,
     /// Ask for the system's input file (the app's file dialog; see [`SystemTool::file_prompt`]).
     ChooseFile,
+    /// Ask where to write the system's output (a save dialog; see [`SystemTool::save_prompt`]),
+    /// then start the job, which writes it.
+    ChooseSaveFile,
 }
 
 /// The file a system asks for: dialog title, filter name, extensions.
@@ -43,6 +46,12 @@ pub trait SystemTool<P: AppParams>: Any {
     fn file_prompt(&self) -> FilePrompt;
     /// The chosen file arrived.
     fn set_file(&mut self, path: PathBuf);
+    /// The file [`ToolAction::ChooseSaveFile`] asks for (a save dialog).
+    fn save_prompt(&self) -> FilePrompt {
+        ("", "", &[])
+    }
+    /// The file to write was chosen; the job starts next.
+    fn set_save_file(&mut self, _path: PathBuf) {}
     /// Draw the settings; `busy`: another tool is running.
     fn ui(&mut self, ui: &mut egui::Ui, state: &AppState<P>, busy: bool) -> ToolAction;
     /// Start the job on its own thread with the current settings.

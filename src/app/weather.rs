@@ -13,7 +13,8 @@ use super::system_tool::{FilePrompt, SystemTool, ToolAction, Wake};
 use super::tools::{ToolJob, ToolOutcome};
 use crate::correspondence::Side;
 use crate::error::{Error, Result};
-use crate::synthesis::mertens::{self, CcaReport, Method, Params, Up};
+use crate::synthesis::mertens::{self, CcaReport, Method, Params, Up, feature_maps};
+use crate::work::Event;
 
 /// Working vertices of an app run (responsive; the CLI's default is the paper's density).
 pub const APP_VERTICES: usize = 32_000;
@@ -33,6 +34,18 @@ pub struct WeatherSettings {
     pub clusters: usize,
     /// Random seed.
     pub seed: u64,
+    /// Canonical components the guidance keeps (the rules found; all on: the paper).
+    pub components: [bool; 3],
+}
+
+impl WeatherSettings {
+    /// [`Params::components`] for these settings: `None` when every component is on.
+    pub fn component_list(&self) -> Option<Vec<usize>> {
+        if self.components.iter().all(|&c| c) {
+            return None;
+        }
+        Some((0..3).filter(|&k| self.components[k]).collect())
+    }
 }
 
 impl Default for WeatherSettings {
@@ -45,6 +58,7 @@ impl Default for WeatherSettings {
             rays: p.rays,
             clusters: p.clusters,
             seed: 0,
+            components: [true; 3],
         }
     }
 }
@@ -112,10 +126,36 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
         ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "));
         if let Some(r) = self.report.lock().ok().and_then(|r| r.clone()) {
             ui.separator();
-            ui.label("Which features mattered (last run, CCA weights):");
-            ui.monospace(r.to_text());
+            ui.label("Rules found (canonical components of the last run):")
+                .on_hover_text(
+                    "Each component is one way the source's colour follows its geometry; its \
+                     correlation says how strongly, its features what it follows. Switch one \
+                     off and Run again to drop the rule it carries.",
+                );
+            for k in 0..r.correlations.len().min(3) {
+                let top = r
+                    .top_features(k, 3)
+                    .iter()
+                    .map(|(n, w)| format!("{n} {w:+.2}"))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                ui.checkbox(
+                    &mut s.components[k],
+                    format!(
+                        "component {k}: correlation {:.2}, weighs {top}",
+                        r.correlations[k]
+                    ),
+                );
+            }
+            egui::CollapsingHeader::new("All CCA weights")
+                .id_salt("weather_cca_weights")
+                .show(ui, |ui| {
+                    ui.monospace(r.to_text());
+                });
         }
-        let ready = state.slot(Side::Source).is_some() && state.slot(Side::Target).is_some();
+        let some_on = s.components.iter().any(|&c| c);
+        let ready =
+            state.slot(Side::Source).is_some() && state.slot(Side::Target).is_some() && some_on;
         ui.horizontal(|ui| {
             if ui
                 .add_enabled(ready && !busy, egui::Button::new("Run"))
@@ -128,7 +168,9 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
                 action = ToolAction::Close;
             }
         });
-        if !ready {
+        if !some_on {
+            ui.label("switch at least one component on");
+        } else if !ready {
             ui.label("open a textured source and a target first");
         }
         action
@@ -150,6 +192,7 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
             rays: s.rays,
             clusters: s.clusters,
             seed: s.seed,
+            components: s.component_list(),
             ..Params::default()
         };
         let n = target.num_vertices();
@@ -181,18 +224,12 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
     }
 }
 
-/// The three features with the largest weight in the first canonical direction.
+/// The three features with the largest weight in the first canonical direction kept.
 fn top_features(r: &CcaReport) -> String {
-    let mut w: Vec<(f64, &str)> = r
-        .feature_names
+    let k = r.enabled.iter().position(|&e| e).unwrap_or(0);
+    r.top_features(k, 3)
         .iter()
-        .zip(&r.weights)
-        .map(|(n, w)| (w.first().copied().unwrap_or(0.0).abs(), n.as_str()))
-        .collect();
-    w.sort_by(|a, b| b.0.total_cmp(&a.0));
-    w.iter()
-        .take(3)
-        .map(|(x, n)| format!("{n} {x:.2}"))
+        .map(|(n, x)| format!("{n} {:.2}", x.abs()))
         .collect::<Vec<_>>()
         .join(", ")
 }
@@ -210,6 +247,13 @@ pub struct FeatureDialog {
     pub up: Up,
     /// Occlusion rays per vertex.
     pub rays: usize,
+    /// Side of the baked maps ("Save maps...").
+    pub texture_size: u32,
+    /// Bits per channel of the saved maps (8 or 16).
+    pub bits: u8,
+    /// Where the next job writes every map (`<stem>_<map>.png`); `None`: the next job shows the
+    /// feature.
+    pub save_to: Option<PathBuf>,
 }
 
 impl Default for FeatureDialog {
@@ -220,8 +264,53 @@ impl Default for FeatureDialog {
             feature: "ao".into(),
             up: Up::Y,
             rays: Params::default().rays,
+            texture_size: 2048,
+            bits: 8,
+            save_to: None,
         }
     }
+}
+
+/// Bake every feature map of `mesh` (its UVs, or a generated atlas) and write them beside
+/// `path` as `<stem>_<map>.png`: the "Save maps..." job.
+pub fn save_maps_job(
+    mesh: crate::mesh::TriMesh,
+    params: feature_maps::MapParams,
+    bits: u8,
+    path: PathBuf,
+    wake: Wake,
+) -> ToolJob {
+    ToolJob::spawn("feature maps", wake, move |sink, cancel| {
+        let progress = |f: f32| {
+            sink(Event::Progress(crate::work::Progress {
+                stage: "feature maps",
+                fraction: f,
+                ..Default::default()
+            }))
+        };
+        let maps = feature_maps::bake_feature_maps(
+            &mesh,
+            &feature_maps::MAP_NAMES,
+            &params,
+            &progress,
+            cancel,
+        )?;
+        let written = feature_maps::save_map_pngs(&maps, &path, bits)?;
+        let atlas = if maps.atlas.is_some() {
+            " (through a generated atlas: the mesh has no UVs)"
+        } else {
+            ""
+        };
+        Ok(ToolOutcome::Done(format!(
+            "wrote {} maps{atlas}: {}",
+            written.len(),
+            written
+                .iter()
+                .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        )))
+    })
 }
 
 /// The features offered, with what they show.
@@ -286,13 +375,56 @@ impl<P: AppParams> SystemTool<P> for FeatureDialog {
                 action = ToolAction::Close;
             }
         });
+        ui.separator();
+        ui.label(
+            "Bake every map (ao, curvature, cavity, thickness, normal, height) into textures:",
+        );
+        ui.horizontal(|ui| {
+            egui::ComboBox::from_id_salt("feature_map_size")
+                .selected_text(format!("{} px", self.texture_size))
+                .show_ui(ui, |ui| {
+                    for s in [512u32, 1024, 2048, 4096] {
+                        ui.selectable_value(&mut self.texture_size, s, format!("{s} px"));
+                    }
+                });
+            ui.selectable_value(&mut self.bits, 8, "8-bit");
+            ui.selectable_value(&mut self.bits, 16, "16-bit");
+        });
+        if ui
+            .add_enabled(ready && !busy, egui::Button::new("Save maps..."))
+            .on_hover_text(
+                "One PNG per map beside the file you name (<name>_ao.png, ...), in the mesh's \
+                 UVs or a generated atlas, gutters filled; runs on its own thread",
+            )
+            .clicked()
+        {
+            action = ToolAction::ChooseSaveFile;
+        }
         action
+    }
+    fn save_prompt(&self) -> FilePrompt {
+        ("Save feature maps", "PNG image", &["png"])
+    }
+    fn set_save_file(&mut self, path: PathBuf) {
+        self.save_to = Some(path);
     }
     fn start(&mut self, state: &AppState<P>, wake: Wake) -> Result<ToolJob> {
         let side = self.side;
-        let Some(mesh) = state.painted_mesh(side) else {
+        let Some(mut mesh) = state.painted_mesh(side) else {
             return Err(Error::InvalidInput(format!("open a {side:?} mesh first")));
         };
+        if let Some(path) = self.save_to.take() {
+            // through the mesh's own UVs, as displayed
+            mesh.uvs = state.slot(side).and_then(|s| s.displayed().uvs.clone());
+            mesh.colors = None;
+            let params = feature_maps::MapParams {
+                texture_size: self.texture_size,
+                rays: self.rays,
+                up: self.up,
+                ..Default::default()
+            };
+            return Ok(save_maps_job(mesh, params, self.bits, path, wake));
+        }
         let params = Params {
             up: self.up,
             rays: self.rays,

@@ -58,6 +58,11 @@ where
                 self.files.request(files::FileAction::SystemFile(i, prompt));
                 action = systems::ToolAction::None;
             }
+            if action == systems::ToolAction::ChooseSaveFile {
+                let prompt = self.systems[i].save_prompt();
+                self.files.request(files::FileAction::SystemSave(i, prompt));
+                action = systems::ToolAction::None;
+            }
             self.systems[i].set_open(open && action == systems::ToolAction::None);
             if action == systems::ToolAction::Run {
                 self.start_system(i);

@@ -1,12 +1,14 @@
-//! `meshmatch features`: one geometric feature of a mesh as vertex colours (the ambient
-//! occlusion, curvature and height bakes texturing tools offer), from the features of the
-//! geometry-correlated transfer.
+//! `meshmatch features`: the geometric features of a mesh (the ambient occlusion, curvature,
+//! cavity, thickness, normal and height bakes texturing tools offer), from the features of the
+//! geometry-correlated transfer: as vertex colours (.ply), or baked into textures in the mesh's
+//! UVs or a generated atlas (.png maps, 8 or 16 bits; a textured .glb, .gltf or .obj).
 
 use std::path::PathBuf;
 
 use super::common::*;
 use crate::error::{Error, Result};
 use crate::mesh::io;
+use crate::synthesis::mertens::feature_maps::{self, MapParams};
 use crate::synthesis::mertens::{self, Params, Up};
 use crate::work::CancelToken;
 
@@ -15,14 +17,31 @@ use crate::work::CancelToken;
 pub struct FeaturesArgs {
     /// The mesh.
     pub mesh: PathBuf,
-    /// Output mesh with the feature as grey vertex colours (.ply, .glb, .gltf, .obj), on the mesh's own
-    /// vertices.
+    /// Output: .png bakes the map(s) into textures in the mesh's UVs (or a generated atlas);
+    /// .glb, .gltf or .obj writes the mesh textured with the map; .ply writes the feature as grey
+    /// vertex colours on the mesh's own vertices. Several maps go to <stem>_<map>.<ext> beside it.
     #[arg(long)]
     pub out: PathBuf,
-    /// ao, height, curvature[:i] (i = 0..3, radius index, small to large), normal-x|y|z,
-    /// occlusion-x|y|z.
+    /// Baked maps (.png, .glb, .gltf, .obj): all, or ao, curvature, cavity, thickness, normal,
+    /// height (comma-separated). Vertex colours (.ply): ao, height, curvature[:i] (i = 0..3,
+    /// radius index, small to large), normal-x|y|z, occlusion-x|y|z, or one of the maps.
     #[arg(long, default_value = "ao")]
     pub feature: String,
+    /// Side of the baked textures in pixels.
+    #[arg(long, default_value_t = 2048, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
+    pub texture_size: u32,
+    /// Bits per channel of baked PNG maps: 8 or 16.
+    #[arg(long, default_value_t = 8, allow_negative_numbers = true)]
+    pub bits: u8,
+    /// Curvature radius of the curvature map, fraction of the bounding-box diagonal.
+    #[arg(long, default_value_t = MapParams::default().radius, allow_negative_numbers = true)]
+    pub radius: f32,
+    /// Radius of the cavity map's fine-scale curvature, fraction of the diagonal.
+    #[arg(long, default_value_t = MapParams::default().cavity_radius, allow_negative_numbers = true)]
+    pub cavity_radius: f32,
+    /// Lay out a new atlas even if the mesh has UVs.
+    #[arg(long)]
+    pub new_atlas: bool,
     /// The object's up axis, for height: y or z.
     #[arg(long, default_value = "y")]
     pub up: String,
@@ -39,6 +58,27 @@ impl FeaturesArgs {
     pub fn run(&self) -> Result<i32> {
         let up: Up = self.up.parse()?;
         check_rays(self.rays)?;
+        // every range before any file is read, whichever output is asked for
+        feature_maps::check_map_params(&self.map_params(up))?;
+        if !matches!(self.bits, 8 | 16) {
+            return Err(Error::InvalidInput(format!(
+                "--bits {}: use 8 or 16",
+                self.bits
+            )));
+        }
+        let ext = self
+            .out
+            .extension()
+            .and_then(|e| e.to_str())
+            .unwrap_or("")
+            .to_ascii_lowercase();
+        let is_map = feature_maps::parse_map_names(&self.feature).is_ok();
+        if ext == "png" || (matches!(ext.as_str(), "glb" | "gltf" | "obj") && is_map) {
+            return self.bake(up, ext == "png");
+        }
+        if ext == "ply" && is_map && mertens::check_feature_name(&self.feature, 4).is_err() {
+            return self.vertex_maps(up);
+        }
         check_outputs(&[&self.mesh], &[("--out", &self.out, OutKind::Mesh)])?;
         let mesh = load_usable(&self.mesh)?;
         let params = Params {
@@ -88,6 +128,126 @@ impl FeaturesArgs {
             }
         );
         eprintln!("wrote {}", self.out.display());
+        Ok(0)
+    }
+}
+
+impl FeaturesArgs {
+    fn map_params(&self, up: Up) -> MapParams {
+        MapParams {
+            texture_size: self.texture_size,
+            radius: self.radius,
+            cavity_radius: self.cavity_radius,
+            rays: self.rays,
+            seed: self.seed,
+            up,
+            new_atlas: self.new_atlas,
+        }
+    }
+
+    /// The outputs `names` go to (`--out` itself for one map).
+    fn outputs(&self, names: &[&str]) -> Vec<PathBuf> {
+        names
+            .iter()
+            .map(|n| feature_maps::map_path(&self.out, n, names.len() == 1))
+            .collect()
+    }
+
+    /// Maps baked into textures: PNGs (`png`), else textured meshes.
+    fn bake(&self, up: Up, png: bool) -> Result<i32> {
+        let names = feature_maps::parse_map_names(&self.feature)?;
+        check_texture_size(self.texture_size)?;
+        if !matches!(self.bits, 8 | 16) {
+            return Err(Error::InvalidInput(format!(
+                "--bits {}: use 8 or 16",
+                self.bits
+            )));
+        }
+        if !png && self.bits != 8 {
+            return Err(Error::InvalidInput(format!(
+                "--bits {}: a mesh's texture has 8 bits; write .png maps for 16",
+                self.bits
+            )));
+        }
+        let params = self.map_params(up);
+        feature_maps::check_map_params(&params)?;
+        let outs = self.outputs(&names);
+        let kind = if png { OutKind::Png } else { OutKind::Mesh };
+        let checks: Vec<(&str, &std::path::Path, OutKind)> =
+            outs.iter().map(|p| ("--out", p.as_path(), kind)).collect();
+        check_outputs(&[&self.mesh], &checks)?;
+        let mesh = load_usable(&self.mesh)?;
+        let t = std::time::Instant::now();
+        let bar = progress_bar();
+        bar.set_message("feature maps");
+        let maps = feature_maps::bake_feature_maps(
+            &mesh,
+            &names,
+            &params,
+            &|f| bar.set_position((f * 1000.0) as u64),
+            &CancelToken::new(),
+        )?;
+        bar.finish_and_clear();
+        if let Some(a) = &maps.atlas {
+            eprintln!(
+                "generated a UV atlas: {} charts, {:.0}% of the texture, {:.1} texels per unit",
+                a.charts,
+                100.0 * a.utilization,
+                a.texels_per_unit,
+            );
+        }
+        for m in &maps.maps {
+            eprintln!("{}: {}", m.name, m.scale);
+        }
+        eprintln!(
+            "baked {} map(s) of {} vertices into {}x{} texels in {:.2} s",
+            maps.maps.len(),
+            mesh.num_vertices(),
+            self.texture_size,
+            self.texture_size,
+            t.elapsed().as_secs_f64()
+        );
+        if png {
+            for p in feature_maps::save_map_pngs(&maps, &self.out, self.bits)? {
+                eprintln!("wrote {}", p.display());
+            }
+        } else {
+            for (m, p) in maps.maps.iter().zip(&outs) {
+                io::save(&feature_maps::textured_with(&mesh, &maps, m), p)?;
+                eprintln!("wrote {}", p.display());
+            }
+        }
+        Ok(0)
+    }
+
+    /// Maps as vertex colours (.ply).
+    fn vertex_maps(&self, up: Up) -> Result<i32> {
+        let names = feature_maps::parse_map_names(&self.feature)?;
+        let params = self.map_params(up);
+        feature_maps::check_map_params(&params)?;
+        let outs = self.outputs(&names);
+        let checks: Vec<(&str, &std::path::Path, OutKind)> = outs
+            .iter()
+            .map(|p| ("--out", p.as_path(), OutKind::Mesh))
+            .collect();
+        check_outputs(&[&self.mesh], &checks)?;
+        let mesh = load_usable(&self.mesh)?;
+        let t = std::time::Instant::now();
+        let vm = feature_maps::vertex_maps(&mesh, &names, &params, &CancelToken::new())?;
+        eprintln!("{} map(s) in {:.2} s", vm.len(), t.elapsed().as_secs_f64());
+        for (m, p) in vm.iter().zip(&outs) {
+            let c = m.channels;
+            let mut out = mesh.clone();
+            out.colors = Some(
+                (0..mesh.num_vertices())
+                    .map(|v| std::array::from_fn(|k| m.values[v * c + k.min(c - 1)]))
+                    .collect(),
+            );
+            out.texture = None;
+            io::save(&out, p)?;
+            eprintln!("{}: {}", m.name, m.scale);
+            eprintln!("wrote {}", p.display());
+        }
         Ok(0)
     }
 }

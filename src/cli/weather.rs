@@ -54,6 +54,11 @@ pub struct WeatherArgs {
     /// Random seed.
     #[arg(long, default_value_t = 0, allow_negative_numbers = true, value_parser = SEED)]
     pub seed: u64,
+    /// Canonical components (CCA directions, 0 = strongest) to keep, e.g. 0,2: a component
+    /// switched off drops the rule it carries (the report lists what each one weighs). All by
+    /// default.
+    #[arg(long)]
+    pub components: Option<String>,
     /// Size of the baked texture (pixels per side) when the target has UVs, 1 to 8192.
     #[arg(long, default_value_t = 1024, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: u32,
@@ -66,6 +71,14 @@ impl WeatherArgs {
         let method: Method = a.method.parse()?;
         let up: Up = a.up.parse()?;
         check_weather(a.vertices, a.rays, a.clusters, a.texture_size)?;
+        let components = match &a.components {
+            Some(c) => {
+                let keep = mertens::parse_components(c)?;
+                mertens::check_components(&keep, Params::default().cca_dims)?;
+                Some(keep)
+            }
+            None => None,
+        };
         let inputs = input_paths(&[
             Some(&a.source),
             Some(&a.target),
@@ -90,6 +103,7 @@ impl WeatherArgs {
             clusters: a.clusters,
             method,
             seed: a.seed,
+            components,
             ..Params::default()
         };
         let bar = progress_bar();

@@ -20,7 +20,8 @@
 //!   Yoshizawa et al. 2005, creases by dihedral angle; Xu et al. 2009 §4.1 grouping)
 //! - [`oriented_curve_field`] (Xu et al. 2009 greedy curve orientation + harmonic diffusion)
 //! - [`distance_to_polylines`] (surface distance to salient curves: Euclidean near, edge paths far)
-//! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1)
+//! - [`directional_occlusion`] (ray-cast visibility on SH bands 0 and 1), [`thickness`] (mean
+//!   inward ray distance)
 //! - [`sparse_samples`] (a grid subsample of the vertices and the interpolation back: expensive
 //!   smooth fields evaluated at their own scale)
 //! - [`offset_surface`], [`shell_point`] / [`shell_point_ruled`], [`shell_stretch`], [`minimize_shell_stretch`]
@@ -55,6 +56,7 @@ mod shell_map;
 mod solid_angle_curvature;
 mod sparse_evaluation;
 mod stripe_patterns;
+mod thickness;
 mod uv_atlas;
 mod uv_bake;
 
@@ -96,8 +98,9 @@ pub use solid_angle_curvature::{
 };
 pub use sparse_evaluation::{SparseSamples, sparse_samples, sparse_samples_if_worth_it};
 pub use stripe_patterns::{StripePattern, stripe_pattern};
+pub use thickness::thickness;
 pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
 pub use uv_bake::{
     BAKE_BYTES_PER_TEXEL, BakedImage, bake_closest, bake_onto, bake_uv, check_bake_memory,
-    fill_gutters, mip_chain, sample_bilinear, uv_texels,
+    fill_gutters, fill_gutters_dilated, mip_chain, sample_bilinear, uv_texels,
 };

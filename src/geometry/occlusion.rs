@@ -75,6 +75,21 @@ impl OcclusionBvh {
                 self.tris[self.bvh.primitive_indices[id] as usize].intersect(ray)
             })
     }
+
+    /// Distance `t` to the first triangle (either side) the ray `o + t d`, `0 ≤ t ≤ tmax`,
+    /// crosses (`d` unit length), or `None`.
+    pub fn first_hit(&self, o: Vec3, d: Vec3, tmax: f32) -> Option<f32> {
+        if self.tris.is_empty() || tmax.is_nan() || tmax < 0.0 {
+            return None;
+        }
+        let ray = obvhs::ray::Ray::new(o.into(), d.into(), 0.0, tmax);
+        let mut hit = obvhs::ray::RayHit::none();
+        self.bvh
+            .ray_traverse(ray, &mut hit, |ray, id| {
+                self.tris[self.bvh.primitive_indices[id] as usize].intersect(ray)
+            })
+            .then_some(hit.t)
+    }
 }
 
 /// Grid of strata used for `rays` directions: `(rows, cols)`, `rows × cols ≥ rays`.
@@ -85,7 +100,7 @@ pub fn strata(rays: usize) -> (usize, usize) {
 
 /// An orthonormal frame `(t, b)` completing the unit normal `n` (Duff et al. 2017).
 #[inline]
-fn frame(n: Vec3) -> (Vec3, Vec3) {
+pub(crate) fn frame(n: Vec3) -> (Vec3, Vec3) {
     let s = 1.0f32.copysign(n.z);
     let a = -1.0 / (s + n.z);
     let b = n.x * n.y * a;

@@ -334,6 +334,54 @@ pub fn fill_gutters(img: &mut BakedImage) {
     pull_push(&mut img.pixels, &weights, img.width, img.height);
 }
 
+/// [`fill_gutters`] after `rings` rings of dilation, as the bakers of Substance Painter and
+/// Blender extend their charts: each ring, every uncovered texel next to the charts (8
+/// neighbours) takes the mean of its covered or already dilated neighbours; pull-push fills the
+/// rest. Bilinear filtering and the first mip levels at a chart border then see the border's own
+/// values. `img.covered` still marks the charts alone.
+pub fn fill_gutters_dilated(img: &mut BakedImage, rings: usize) {
+    let (w, h) = (img.width, img.height);
+    let mut done = img.covered.clone();
+    for _ in 0..rings {
+        let next: Vec<Option<[f32; 3]>> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                if done[i] {
+                    return None;
+                }
+                let (x, y) = (i % w, i / w);
+                let mut acc = [0.0f32; 3];
+                let mut k = 0.0f32;
+                for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        let j = yy * w + xx;
+                        if done[j] {
+                            for (a, v) in acc.iter_mut().zip(img.pixels[j]) {
+                                *a += v;
+                            }
+                            k += 1.0;
+                        }
+                    }
+                }
+                (k > 0.0).then(|| acc.map(|a| a / k))
+            })
+            .collect();
+        let mut grew = false;
+        for (i, v) in next.into_iter().enumerate() {
+            if let Some(v) = v {
+                img.pixels[i] = v;
+                done[i] = true;
+                grew = true;
+            }
+        }
+        if !grew {
+            break;
+        }
+    }
+    let weights: Vec<f32> = done.iter().map(|&c| c as u8 as f32).collect();
+    pull_push(&mut img.pixels, &weights, w, h);
+}
+
 fn pull_push(px: &mut [[f32; 3]], wt: &[f32], w: usize, h: usize) {
     if w <= 1 && h <= 1 {
         return;

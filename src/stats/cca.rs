@@ -221,6 +221,27 @@ impl Cca {
     pub fn project_y(&self, y: &[f32]) -> Vec<f32> {
         project(y, self.q, &self.y_mean, &self.wy, self.d)
     }
+    /// The model restricted to the canonical pairs `keep` (indices into `0..d`, in the order
+    /// given): projections then give only those variates. Out-of-range indices are skipped.
+    pub fn keep(&self, keep: &[usize]) -> Cca {
+        let keep: Vec<usize> = keep.iter().copied().filter(|&k| k < self.d).collect();
+        let cols = |w: &[f64], rows: usize| -> Vec<f64> {
+            (0..rows)
+                .flat_map(|r| keep.iter().map(move |&k| w[r * self.d + k]))
+                .collect()
+        };
+        Cca {
+            p: self.p,
+            q: self.q,
+            d: keep.len(),
+            x_mean: self.x_mean.clone(),
+            y_mean: self.y_mean.clone(),
+            x_std: self.x_std.clone(),
+            wx: cols(&self.wx, self.p),
+            wy: cols(&self.wy, self.q),
+            correlations: keep.iter().map(|&k| self.correlations[k]).collect(),
+        }
+    }
     /// X weights in standardised units (`w · std`): comparable magnitudes, one row per feature.
     pub fn standardised_wx(&self) -> Vec<f64> {
         (0..self.p * self.d)

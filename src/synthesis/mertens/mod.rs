@@ -20,6 +20,7 @@
 //!
 //! Colours are handled in a decorrelated basis: the PCA of the source's sRGB colours.
 
+pub mod feature_maps;
 mod features;
 pub mod nonparametric;
 pub mod parametric;
@@ -138,6 +139,10 @@ pub struct Params {
     /// paper's full PDF transfer, 0 = none (the guidance compared as it is), in between a blend
     /// of the two.
     pub match_strength: f32,
+    /// Canonical components (CCA directions, 0 = the strongest) the guidance keeps; `None` keeps
+    /// every one the CCA finds (the paper). Switching one off removes the rule it carries from
+    /// matching and synthesis.
+    pub components: Option<Vec<usize>>,
 }
 
 impl Default for Params {
@@ -158,6 +163,7 @@ impl Default for Params {
             noise: 1.0,
             multiscale_matching: true,
             match_strength: 1.0,
+            components: None,
         }
     }
 }
@@ -185,6 +191,9 @@ pub struct CcaReport {
     pub correlations: Vec<f64>,
     /// Source vertices used for training (after the mask).
     pub training_vertices: usize,
+    /// Per canonical direction, whether the guidance kept it ([`Params::components`]).
+    #[serde(default)]
+    pub enabled: Vec<bool>,
 }
 
 impl CcaReport {
@@ -209,8 +218,60 @@ impl CcaReport {
             s += &format!(" {r:>8.3}");
         }
         s.push('\n');
+        if self.enabled.iter().any(|e| !e) {
+            s += &format!("{:<14}", "used");
+            for e in &self.enabled {
+                s += &format!(" {:>8}", if *e { "on" } else { "off" });
+            }
+            s.push('\n');
+        }
         s
     }
+
+    /// The `count` features with the largest standardised weight (in magnitude) in canonical
+    /// direction `k`, largest first, with their signed weights.
+    pub fn top_features(&self, k: usize, count: usize) -> Vec<(String, f64)> {
+        let mut w: Vec<(String, f64)> = self
+            .feature_names
+            .iter()
+            .zip(&self.weights)
+            .map(|(n, w)| (n.clone(), w.get(k).copied().unwrap_or(0.0)))
+            .collect();
+        w.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+        w.truncate(count);
+        w
+    }
+}
+
+/// Refuse a component list ([`Params::components`]) that is empty or names a component past
+/// the `cca_dims` the CCA keeps (at most 3 with RGB colour).
+pub fn check_components(keep: &[usize], cca_dims: usize) -> Result<()> {
+    let most = cca_dims.min(3);
+    if keep.is_empty() {
+        return Err(Error::InvalidInput(
+            "--components: keep at least one canonical component".into(),
+        ));
+    }
+    if let Some(k) = keep.iter().find(|&&k| k >= most) {
+        return Err(Error::InvalidInput(format!(
+            "--components: there is no component {k} (the CCA has at most {most}: 0 to {})",
+            most.saturating_sub(1)
+        )));
+    }
+    Ok(())
+}
+
+/// The components of a `--components` list such as `0,2`.
+pub fn parse_components(s: &str) -> Result<Vec<usize>> {
+    s.split(',')
+        .map(|t| {
+            t.trim().parse::<usize>().map_err(|_| {
+                Error::InvalidInput(format!(
+                    "--components {s}: expected component numbers such as 0,2"
+                ))
+            })
+        })
+        .collect()
 }
 
 /// The result of [`run`].
@@ -425,6 +486,9 @@ pub fn run(
             "curvature radii must be positive".into(),
         ));
     }
+    if let Some(keep) = &params.components {
+        check_components(keep, params.cca_dims)?;
+    }
     if params.clusters == 0 || params.cca_dims == 0 {
         return Err(Error::InvalidInput(
             "clusters and cca_dims must be at least 1".into(),
@@ -541,6 +605,10 @@ pub fn run(
         })?;
     let d = model.d;
     let sw_std = model.standardised_wx();
+    let enabled: Vec<bool> = match &params.components {
+        None => vec![true; d],
+        Some(keep) => (0..d).map(|k| keep.contains(&k)).collect(),
+    };
     let report = CcaReport {
         feature_names: fs.names.clone(),
         weights: (0..p)
@@ -548,7 +616,22 @@ pub fn run(
             .collect(),
         correlations: model.correlations.clone(),
         training_vertices: train.len(),
+        enabled: enabled.clone(),
     };
+    // the components switched off leave the guidance (none off: the model as the paper has it)
+    let model = if enabled.iter().all(|&e| e) {
+        model
+    } else {
+        let keep: Vec<usize> = (0..d).filter(|&k| enabled[k]).collect();
+        if keep.is_empty() {
+            return Err(Error::InvalidInput(format!(
+                "every canonical component is switched off (the CCA found {d}: 0 to {}); keep at least one",
+                d - 1
+            )));
+        }
+        model.keep(&keep)
+    };
+    let d = model.d;
     let gs_train = model.project_x(&xs_train);
     let mut gt = model.project_x(&ft.values);
     timings.push(("cca", sw.secs()));

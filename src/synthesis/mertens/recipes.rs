@@ -413,6 +413,12 @@ pub struct Evaluation {
     pub seconds: f64,
     /// Canonical correlations of the run.
     pub correlations: Vec<f64>,
+    /// The run's CCA report (which features each component weighs, which were kept).
+    #[serde(skip)]
+    pub report: super::CcaReport,
+    /// The transfer's colours on the refined target (`Prepared::target_refined`).
+    #[serde(skip)]
+    pub colors: Vec<[f32; 3]>,
 }
 
 /// Colour the prepared source by `recipe`, transfer to the target with `params` (its
@@ -467,6 +473,8 @@ pub fn evaluate(
         knn: score(&knn, &truth, &adj),
         seconds,
         correlations: out.report.correlations.clone(),
+        report: out.report,
+        colors: out.colors,
     })
 }
 
