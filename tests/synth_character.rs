@@ -131,3 +131,44 @@ fn a_transparent_hole_never_reaches_the_surface_and_own_uvs_are_kept() {
         "{white} of {covered} texels show the hole's white"
     );
 }
+
+#[test]
+fn patches_are_the_same_in_any_units() {
+    // Spot with its own UVs and the penguin with a generated atlas, 1024 times larger and
+    // smaller (exact in floating point): the same texture, byte for byte
+    let (tex, _) =
+        meshmatch::mesh::io::load_texture_with_alpha(&data_path("textures/1.jpg")).unwrap();
+    for mesh in ["spot/spot.obj", "penguin/penguin.obj"] {
+        let base = load(mesh);
+        let texture_at = |s: f32| {
+            let mut m = base.clone();
+            m.positions.iter_mut().for_each(|p| *p = p.map(|x| x * s));
+            let input = TextureInput {
+                exemplar: &tex.image,
+                alpha: None,
+                target: &m,
+                field: None,
+            };
+            let params = TextureParams {
+                texture_size: 512,
+                ..Default::default()
+            };
+            let r = paste_patches(
+                &input,
+                &params,
+                &PatchParams::default(),
+                &|_| {},
+                &CancelToken::new(),
+            )
+            .unwrap();
+            r.mesh.texture.unwrap().image.clone()
+        };
+        let one = texture_at(1.0);
+        for s in [1024.0, 1.0 / 1024.0] {
+            assert!(
+                texture_at(s) == one,
+                "{mesh}: {s} times larger changed the texture"
+            );
+        }
+    }
+}
