@@ -19,7 +19,7 @@ pub use texture::texture_rows;
 pub use transfer::{
     BenchRow, CancelProbe, EXACT_SAMPLES, MAX_SOURCE_VERTICES, bench_size, cancel_probes, run,
 };
-pub use weather::{weather_recipe_rows, weather_row};
+pub use weather::{feature_map_rows, weather_recipe_rows, weather_row};
 
 use crate::error::Result;
 
@@ -91,6 +91,13 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
             every_shared_pair(synth_row, "on", json);
             Vec::new()
         }
+        "feature-maps" => {
+            let mut rows = Vec::new();
+            for &n in sizes {
+                rows.extend(feature_map_rows(n.clamp(16, 8192) as u32)?);
+            }
+            rows
+        }
         "synth-character" => {
             synth::synth_character_rows(json)?;
             Vec::new()
@@ -153,7 +160,8 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
         _ => {
             return Err(crate::error::Error::InvalidInput(format!(
                 "--system {system}: use meshmatch, weather, weather-recipes, features, quilt, map, texture, synth, \
-                 synth-texture or synth-character"
+                 synth-texture, synth-character \
+                 or feature-maps"
             )));
         }
     };
@@ -171,12 +179,17 @@ pub fn print_rows(rows: Vec<SystemRow>, json: bool) {
                 .iter()
                 .map(|(k, s)| format!("{k} {s:.2} s"))
                 .collect();
+            let stages = if stages.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", stages.join(", "))
+            };
             println!(
-                "{}: {} vertices, {:.2} s end to end ({}){}, peak RSS {:.0} MiB",
+                "{}: {} vertices, {:.2} s end to end{}{}, peak RSS {:.0} MiB",
                 r.case,
                 r.vertices,
                 r.total_s,
-                stages.join(", "),
+                stages,
                 if r.faces > 0 {
                     format!(", {} output faces", r.faces)
                 } else {

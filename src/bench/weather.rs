@@ -83,3 +83,40 @@ pub fn weather_recipe_rows(n: usize, json: bool) -> Result<()> {
     }
     Ok(())
 }
+
+/// Every feature map (`features MESH --out X.png --feature all`) of a shared mesh baked at
+/// `size²`: Spot through its own UVs, the bunny through a generated atlas.
+pub fn feature_map_rows(size: u32) -> Result<Vec<SystemRow>> {
+    use crate::synthesis::mertens::feature_maps::{MAP_NAMES, MapParams, bake_feature_maps};
+    let mut rows = Vec::new();
+    for (name, rel) in [
+        ("Spot (own UVs)", "spot/spot.obj"),
+        ("bunny (atlas)", "bunny/bunny.obj"),
+    ] {
+        let mut mesh = crate::mesh::io::load(&crate::testdata::data_path(rel))?;
+        mesh.repair()?;
+        let p = MapParams {
+            texture_size: size,
+            ..MapParams::default()
+        };
+        let t = Instant::now();
+        let maps = bake_feature_maps(&mesh, &MAP_NAMES, &p, &|_| {}, &CancelToken::new())?;
+        rows.push(SystemRow {
+            case: format!(
+                "feature maps: {name}, all {} at {size}², {}",
+                maps.maps.len(),
+                if maps.atlas.is_some() {
+                    "atlas generated"
+                } else {
+                    "own UVs"
+                }
+            ),
+            vertices: mesh.num_vertices(),
+            stages: Vec::new(),
+            total_s: t.elapsed().as_secs_f64(),
+            faces: 0,
+            peak_rss_mb: peak_rss_mb(),
+        });
+    }
+    Ok(rows)
+}

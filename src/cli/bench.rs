@@ -33,7 +33,9 @@ pub struct BenchArgs {
     /// surface), synth-texture (the same into each mesh's texture space with Wei-Levoy) or
     /// synth-character (patch pasting, Wei-Levoy and triplanar projection in the same layout,
     /// measured against the image: contrast, Lab W1, patch and reverse distance; pairs by file
-    /// name in MESHMATCH_PAIRS, e.g. `bunny.obj:2.jpg,penguin.obj:3.jpg`).
+    /// name in MESHMATCH_PAIRS, e.g. `bunny.obj:2.jpg,penguin.obj:3.jpg`) or feature-maps
+    /// (every baked feature map of Spot and the bunny, at each --sizes value as the texture
+    /// side, e.g. `--sizes 1024,2048`).
     #[arg(long, default_value = "meshmatch")]
     pub system: String,
     /// Worker threads, one run of the whole table per count, e.g. `1,2` for the parallel
