@@ -194,6 +194,25 @@ def new_image(name, texture):
     return img
 
 
+def new_map_images(obj, maps):
+    """Each baked map (name -> (H, W) or (H, W, 3) floats in [0, 1], row 0 at the top) as a new
+    packed float image named `MeshMatch <map> <object>`, non-colour data."""
+    images = []
+    for name, arr in maps.items():
+        arr = np.asarray(arr, np.float32)
+        h, w = arr.shape[:2]
+        img = bpy.data.images.new(f"MeshMatch {name} {obj.name}", width=w, height=h,
+                                  alpha=False, float_buffer=True)
+        img.colorspace_settings.name = 'Non-Color'
+        rgba = np.ones((h, w, 4), np.float32)
+        rgba[:, :, :3] = (arr if arr.ndim == 3 else arr[:, :, None])[::-1]
+        img.pixels.foreach_set(rgba.ravel())
+        img.file_format = 'OPEN_EXR'
+        img.pack()
+        images.append(img)
+    return images
+
+
 def write_texture(ex, result, name="MeshMatch"):
     """The result's texture as a new image wired into the object's material (Base Color, through
     the UV map it was baked in); a mesh without UVs gets the result's generated atlas as a new UV

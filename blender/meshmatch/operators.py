@@ -291,6 +291,45 @@ class MESHMATCH_OT_weather(MeshMatchOperator):
         return tasks
 
 
+class MESHMATCH_OT_feature_maps(MeshMatchOperator):
+    """Bake the selected meshes' feature maps (ambient occlusion, curvature, cavity, thickness,
+    world-space normal, height) into new float images through their active UV maps"""
+
+    bl_idname = "meshmatch.feature_maps"
+    bl_label = "Bake Feature Maps"
+
+    texture_size: IntProperty(name="Texture size", default=2048, min=16, max=8192)
+    radius: FloatProperty(name="Curvature radius", default=0.01, min=0.0001, max=0.5,
+                          description="Fraction of the bounding-box diagonal")
+    cavity_radius: FloatProperty(name="Cavity radius", default=0.003, min=0.0001, max=0.5,
+                                 description="Fraction of the bounding-box diagonal")
+    rays: IntProperty(name="Rays", default=64, min=1, max=4096,
+                      description="Rays per vertex for occlusion and thickness")
+    up: EnumProperty(name="Up", items=[('z', "Z", "Blender's up axis"), ('y', "Y", "")],
+                     default='z')
+    seed: IntProperty(name="Seed", default=0, min=0)
+
+    def tasks(self, context):
+        objs = mesh_objects(context)
+        if not objs:
+            raise meshmatch.MeshMatchError("select the meshes to bake")
+        dg = context.evaluated_depsgraph_get()
+        tasks = []
+        for o in objs:
+            ex = convert.extract(o, dg, colors=False, texture=False)
+            if ex.uv_name is None:
+                raise meshmatch.MeshMatchError(
+                    f"{o.name}: the maps are baked through a UV map: add one (UV > Smart UV "
+                    "Project) first")
+            kwargs = dict(texture_size=self.texture_size, radius=self.radius,
+                          cavity_radius=self.cavity_radius, rays=self.rays, up=self.up,
+                          seed=self.seed)
+            tasks.append(Task(f"feature maps of {o.name}", meshmatch.feature_maps,
+                              (ex.mesh, "all"), kwargs,
+                              lambda ctx, r, o=o: convert.new_map_images(o, r)))
+        return tasks
+
+
 class MESHMATCH_OT_synthesize(MeshMatchOperator):
     """Synthesize a texture from an image over the selected meshes (Wei and Levoy 2001)"""
 
@@ -455,6 +494,7 @@ classes = (
     MESHMATCH_OT_transfer,
     MESHMATCH_OT_complete,
     MESHMATCH_OT_weather,
+    MESHMATCH_OT_feature_maps,
     MESHMATCH_OT_synthesize,
     MESHMATCH_OT_quilt,
     MESHMATCH_OT_curves,

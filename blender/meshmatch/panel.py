@@ -38,6 +38,8 @@ class VIEW3D_PT_meshmatch(bpy.types.Panel):
         op = box.operator("meshmatch.complete", icon='VPAINT_HLT')
         op.vertices, op.seed = s.vertices, s.seed
         op = box.operator("meshmatch.curves", icon='CURVE_DATA')
+        op = box.operator("meshmatch.feature_maps", icon='IMAGE_RGB')
+        op.seed = s.seed
         box = self.layout.box()
         box.prop_search(s, "image", bpy.data, "images")
         row = box.row(align=True)

@@ -109,7 +109,8 @@ def base_color_image(obj):
 
 
 def test_the_addon_registers_its_operators_and_panel():
-    for op in ("transfer", "complete", "weather", "synthesize", "quilt", "curves", "add_pair"):
+    for op in ("transfer", "complete", "weather", "synthesize", "quilt", "curves", "add_pair",
+               "feature_maps"):
         assert hasattr(bpy.ops.meshmatch, op)
         assert getattr(bpy.ops.meshmatch, op).poll() in (True, False)
     assert hasattr(bpy.types, "VIEW3D_PT_meshmatch")
@@ -128,7 +129,8 @@ def test_each_operator_is_one_undo_step():
     # Blender pushes one undo step when an operator with the UNDO option finishes in the UI;
     # operators called from a script in background mode push none (test_undo_takes_each_result
     # _back pushes the step itself).
-    for op in ("transfer", "complete", "weather", "synthesize", "quilt", "curves", "add_pair"):
+    for op in ("transfer", "complete", "weather", "synthesize", "quilt", "curves", "add_pair",
+               "feature_maps"):
         cls = getattr(bpy.types, f"MESHMATCH_OT_{op}")
         assert {'REGISTER', 'UNDO'} <= set(cls.bl_options), op
 
@@ -259,6 +261,40 @@ def test_weather_writes_the_clis_colours(tmp_path, cli):
     assert bpy.ops.meshmatch.weather(vertices=4000, rays=16, up='y') == {'FINISHED'}
     got = attribute_colors(penguin, "MeshMatch Weather")
     assert np.abs(got - meshmatch.load(out).colors).max() <= TOL
+
+
+def test_feature_maps_become_float_images_equal_to_the_packages_bake():
+    from meshmatch_addon import convert
+
+    spot = import_obj("spot/spot.obj")
+    select(spot)
+    assert bpy.ops.meshmatch.feature_maps(texture_size=64, rays=8, up='z') == {'FINISHED'}
+    ex = convert.extract(spot, bpy.context.evaluated_depsgraph_get(), colors=False,
+                         texture=False)
+    want = meshmatch.feature_maps(ex.mesh, "all", texture_size=64, rays=8, up='z')
+    assert set(want) == {"ao", "curvature", "cavity", "thickness", "normal", "height"}
+    for name, arr in want.items():
+        img = bpy.data.images[f"MeshMatch {name} {spot.name}"]
+        assert tuple(img.size) == (64, 64) and img.is_float and img.packed_file is not None
+        assert img.colorspace_settings.name == 'Non-Color'
+        buf = np.empty(64 * 64 * 4, np.float32)
+        img.pixels.foreach_get(buf)
+        got = buf.reshape(64, 64, 4)[::-1, :, :3]
+        arr = np.asarray(arr)
+        exp = arr if arr.ndim == 3 else np.repeat(arr[:, :, None], 3, axis=2)
+        assert np.abs(got - exp).max() < 1e-5, name
+
+
+def test_feature_maps_refuse_a_mesh_without_uvs_in_one_line():
+    bpy.ops.mesh.primitive_cube_add()
+    cube = bpy.context.active_object
+    while cube.data.uv_layers:
+        cube.data.uv_layers.remove(cube.data.uv_layers[0])
+    cube.data.update()
+    select(cube)
+    with pytest.raises(RuntimeError, match="baked through a UV map"):
+        bpy.ops.meshmatch.feature_maps(texture_size=64, rays=8)
+    assert not [i for i in bpy.data.images if i.name.startswith("MeshMatch ")]
 
 
 def test_synthesize_from_an_image_bakes_the_clis_texture(tmp_path, cli):
