@@ -15,24 +15,43 @@ fn load(mesh: &str) -> meshmatch::mesh::TriMesh {
     m
 }
 
-/// Patches against triplanar on one shared mesh and image, at a quarter of the diagonal.
-fn compare(mesh: &str, image: &str) {
-    let target = load(mesh);
-    let (tex, alpha) = meshmatch::mesh::io::load_texture_with_alpha(&data_path(image)).unwrap();
+/// Patch pasting with its defaults at `size²`.
+fn paste(
+    exemplar: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+    target: &meshmatch::mesh::TriMesh,
+    size: u32,
+) -> meshmatch::synthesis::wei_levoy::patch_pasting::PatchOutput {
     let input = TextureInput {
-        exemplar: &tex.image,
-        alpha: alpha.as_ref(),
-        target: &target,
+        exemplar,
+        alpha,
+        target,
         field: None,
     };
-    let r = paste_patches(
+    let params = TextureParams {
+        texture_size: size,
+        ..Default::default()
+    };
+    paste_patches(
         &input,
-        &TextureParams::default(),
+        &params,
         &PatchParams::default(),
         &|_| {},
         &CancelToken::new(),
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// Patches against triplanar on one shared mesh and image, at a quarter of the diagonal.
+fn compare(mesh: &str, image: &str) {
+    let target = load(mesh);
+    let (tex, alpha) = meshmatch::mesh::io::load_texture_with_alpha(&data_path(image)).unwrap();
+    let r = paste(
+        &tex.image,
+        alpha.as_ref(),
+        &target,
+        TextureParams::default().texture_size,
+    );
     let (lo, hi) = target.bounds().unwrap();
     let ex = Exemplar {
         image: &tex.image,
@@ -85,24 +104,7 @@ fn a_transparent_hole_never_reaches_the_surface_and_own_uvs_are_kept() {
     let (tex, alpha) =
         meshmatch::mesh::io::load_texture_with_alpha(&data_path("textures/bricks.png")).unwrap();
     assert!(alpha.is_some(), "bricks.png has transparent pixels");
-    let input = TextureInput {
-        exemplar: &tex.image,
-        alpha: alpha.as_ref(),
-        target: &target,
-        field: None,
-    };
-    let params = TextureParams {
-        texture_size: 1024,
-        ..Default::default()
-    };
-    let r = paste_patches(
-        &input,
-        &params,
-        &PatchParams::default(),
-        &|_| {},
-        &CancelToken::new(),
-    )
-    .unwrap();
+    let r = paste(&tex.image, alpha.as_ref(), &target, 1024);
     assert!(r.atlas.is_none(), "Spot's own UVs carry the texture");
     assert_eq!(r.mesh.uvs, target.uvs);
     let texture = &r.mesh.texture.as_ref().unwrap().image;
@@ -143,24 +145,7 @@ fn patches_are_the_same_in_any_units() {
         let texture_at = |s: f32| {
             let mut m = base.clone();
             m.positions.iter_mut().for_each(|p| *p = p.map(|x| x * s));
-            let input = TextureInput {
-                exemplar: &tex.image,
-                alpha: None,
-                target: &m,
-                field: None,
-            };
-            let params = TextureParams {
-                texture_size: 512,
-                ..Default::default()
-            };
-            let r = paste_patches(
-                &input,
-                &params,
-                &PatchParams::default(),
-                &|_| {},
-                &CancelToken::new(),
-            )
-            .unwrap();
+            let r = paste(&tex.image, None, &m, 512);
             r.mesh.texture.unwrap().image.clone()
         };
         let one = texture_at(1.0);

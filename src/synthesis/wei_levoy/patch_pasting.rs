@@ -38,7 +38,7 @@ use rand::seq::SliceRandom;
 use rayon::prelude::*;
 
 use super::pyramid::{Img, stage_rng};
-use super::texture_space::{Surface, TextureInput, TextureParams, texture_layout};
+use super::texture_space::{Surface, TextureInput, TextureParams, set_texture, texture_layout};
 use super::{Orientation, anisotropy, feature_field, transparent_filled};
 use crate::error::{Error, Result};
 use crate::mesh::{Csr, TriMesh};
@@ -269,18 +269,7 @@ pub fn paste_patches(
             }
         })
         .collect();
-    let mut baked = crate::geometry::BakedImage {
-        width: size,
-        height: size,
-        pixels,
-        covered,
-    };
-    crate::geometry::fill_gutters(&mut baked);
-    mesh.colors = None;
-    mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
-        image: baked.to_rgb8(),
-        path: None,
-    }));
+    set_texture(&mut mesh, size, pixels, covered);
     Ok(PatchOutput {
         mesh,
         atlas,

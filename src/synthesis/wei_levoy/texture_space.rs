@@ -330,6 +330,28 @@ pub(super) fn texture_layout(
     Ok((mesh, atlas, atlas_reason))
 }
 
+/// Give `mesh` the `size²` texture of `pixels` (row 0 at the top), its texels outside
+/// `covered` filled as gutters, in place of its vertex colours.
+pub(super) fn set_texture(
+    mesh: &mut TriMesh,
+    size: usize,
+    pixels: Vec<[f32; 3]>,
+    covered: Vec<bool>,
+) {
+    let mut baked = crate::geometry::BakedImage {
+        width: size,
+        height: size,
+        pixels,
+        covered,
+    };
+    crate::geometry::fill_gutters(&mut baked);
+    mesh.colors = None;
+    mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
+        image: baked.to_rgb8(),
+        path: None,
+    }));
+}
+
 /// One level of texels: the grid side, the sample index of every texel (`u32::MAX` outside the
 /// charts) and the surface point of every sample.
 struct TexelGrid {
@@ -1040,18 +1062,7 @@ pub fn synthesize_texture(
         .collect();
     let covered: Vec<bool> = out_texels.iter().map(|t| t.is_some()).collect();
     drop(out_texels);
-    let mut baked = crate::geometry::BakedImage {
-        width: size,
-        height: size,
-        pixels,
-        covered,
-    };
-    crate::geometry::fill_gutters(&mut baked);
-    mesh.colors = None;
-    mesh.texture = Some(std::sync::Arc::new(crate::mesh::Texture {
-        image: baked.to_rgb8(),
-        path: None,
-    }));
+    set_texture(&mut mesh, size, pixels, covered);
     timings.magnify = sw.secs();
     sink(Event::StageTime("magnify", timings.magnify));
     timings.total = total.secs();
