@@ -3,6 +3,7 @@
 use meshmatch::TriMesh;
 use meshmatch::color::srgb_to_lab;
 use meshmatch::geometry::{directional_occlusion, vertex_normals};
+use meshmatch::stats::pearson;
 use meshmatch::synthesis::mertens::{Input, Params, Up, feature_field, features, run};
 use meshmatch::work::{CancelToken, Event, no_events};
 
@@ -59,20 +60,6 @@ fn truth_colours(m: &TriMesh) -> Vec<[f32; 3]> {
             ]
         })
         .collect()
-}
-
-fn pearson(a: &[f32], b: &[f32]) -> f64 {
-    let n = a.len() as f64;
-    let ma = a.iter().map(|&x| x as f64).sum::<f64>() / n;
-    let mb = b.iter().map(|&x| x as f64).sum::<f64>() / n;
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (&x, &y) in a.iter().zip(b) {
-        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
-        sab += dx * dy;
-        saa += dx * dx;
-        sbb += dy * dy;
-    }
-    sab / (saa * sbb).sqrt().max(1e-300)
 }
 
 fn params_small() -> Params {

@@ -137,20 +137,7 @@ pub fn directional_occlusion_with(
     let n = positions.len().min(normals.len());
     let (rows, cols) = strata(rays);
     let total = (rows * cols) as f32;
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for p in positions {
-        let p = Vec3::from(*p);
-        if p.is_finite() {
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-    }
-    let eps = if lo.x <= hi.x {
-        1e-4 * (hi - lo).length()
-    } else {
-        0.0
-    };
+    let eps = ray_offset(positions);
     let mut out = vec![[1.0f32, 0.0, 0.0, 0.0]; n];
     const BATCH: usize = 2048;
     for (bi, chunk) in out.chunks_mut(BATCH).enumerate() {
@@ -187,6 +174,25 @@ pub fn directional_occlusion_with(
         });
     }
     Ok(out)
+}
+
+/// How far rays start off the surface: 1e-4 of the finite positions' bounding-box diagonal (0
+/// when there is none), so a ray does not hit the face it leaves.
+pub(super) fn ray_offset(positions: &[[f32; 3]]) -> f32 {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for p in positions {
+        let p = Vec3::from(*p);
+        if p.is_finite() {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+    }
+    if lo.x <= hi.x {
+        1e-4 * (hi - lo).length()
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]

@@ -32,20 +32,7 @@ pub fn thickness(
 ) -> Result<Vec<f32>> {
     let n = positions.len().min(normals.len());
     let (rows, cols) = strata(rays);
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for p in positions {
-        let p = Vec3::from(*p);
-        if p.is_finite() {
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-    }
-    let eps = if lo.x <= hi.x {
-        1e-4 * (hi - lo).length()
-    } else {
-        0.0
-    };
+    let eps = super::occlusion::ray_offset(positions);
     let mut out = vec![f32::NAN; n];
     const BATCH: usize = 2048;
     for (bi, chunk) in out.chunks_mut(BATCH).enumerate() {

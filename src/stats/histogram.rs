@@ -164,6 +164,22 @@ pub fn blend_quantiles(qs: &[&[f32]], weights: &[f32]) -> Vec<f32> {
     out
 }
 
+/// Wasserstein-1 (earth mover's) distance between the value distributions of `a` and `b`: the
+/// mean absolute difference of their quantile functions, compared at as many levels as the
+/// shorter sample has values.
+pub fn wasserstein1(a: &[f32], b: &[f32]) -> f64 {
+    let mut a = a.to_vec();
+    let mut b = b.to_vec();
+    a.sort_by(f32::total_cmp);
+    b.sort_by(f32::total_cmp);
+    let n = a.len().min(b.len()).max(1);
+    if a.is_empty() || b.is_empty() {
+        return 0.0;
+    }
+    let q = |v: &[f32], i: usize| v[(i * v.len()) / n] as f64;
+    (0..n).map(|i| (q(&a, i) - q(&b, i)).abs()).sum::<f64>() / n as f64
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

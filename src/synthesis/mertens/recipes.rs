@@ -223,30 +223,6 @@ pub struct Scores {
     pub grain: f64,
 }
 
-fn pearson(a: &[f32], b: &[f32]) -> f64 {
-    let n = a.len().max(1) as f64;
-    let ma = a.iter().map(|&x| x as f64).sum::<f64>() / n;
-    let mb = b.iter().map(|&x| x as f64).sum::<f64>() / n;
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (&x, &y) in a.iter().zip(b) {
-        let (dx, dy) = (x as f64 - ma, y as f64 - mb);
-        sab += dx * dy;
-        saa += dx * dx;
-        sbb += dy * dy;
-    }
-    sab / (saa * sbb).sqrt().max(1e-300)
-}
-
-fn w1(a: &[f32], b: &[f32]) -> f64 {
-    let mut a = a.to_vec();
-    let mut b = b.to_vec();
-    a.sort_by(f32::total_cmp);
-    b.sort_by(f32::total_cmp);
-    let n = a.len().min(b.len()).max(1);
-    let q = |v: &[f32], i: usize| v[(i * v.len()) / n] as f64;
-    (0..n).map(|i| (q(&a, i) - q(&b, i)).abs()).sum::<f64>() / n as f64
-}
-
 fn high_freq_std(adj: &Csr, x: &[f32]) -> f64 {
     let n = x.len();
     let hf: Vec<f64> = (0..n)
@@ -270,8 +246,11 @@ pub fn score(out: &[[f32; 3]], truth: &[[f32; 3]], adj: &Csr) -> Scores {
     let (o, t) = (lab(out), lab(truth));
     let ht = high_freq_std(adj, &t[0]);
     Scores {
-        corr: [0, 1, 2].map(|k| pearson(&o[k], &t[k])),
-        w1: (0..3).map(|k| w1(&o[k], &t[k])).sum::<f64>() / 3.0,
+        corr: [0, 1, 2].map(|k| crate::stats::pearson(&o[k], &t[k])),
+        w1: (0..3)
+            .map(|k| crate::stats::wasserstein1(&o[k], &t[k]))
+            .sum::<f64>()
+            / 3.0,
         grain: high_freq_std(adj, &o[0]) / ht.max(1e-12),
     }
 }

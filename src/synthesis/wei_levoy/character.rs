@@ -3,7 +3,7 @@
 //! projection of the image at the same world scale, baked into the same layout.
 //!
 //! - **Contrast**: the standard deviation of the texture's CIE L* over the image's (1 = kept).
-//! - **Colour distribution**: the Wasserstein-1 distance between the texture's and the image's
+//! - **Colour distribution**: the Wasserstein-1 distance ([`crate::stats::wasserstein1`]) between the texture's and the image's
 //!   L*, a* and b* distributions (mean of the three; 0 = the same colours in the same amounts).
 //! - **Patch distance**: 11x11 patches of the texture, resampled at the image's pixel size in a
 //!   chart's texel grid, each to its nearest image patch (the best of 16 rotations of the
@@ -178,9 +178,9 @@ pub fn measure(
     let contrast = std_l(&lab_t) / std_l(&lab_i).max(1e-9);
     let lab_w1 = (0..3)
         .map(|k| {
-            wasserstein1(
-                lab_t.iter().map(|c| c[k] as f64).collect(),
-                lab_i.iter().map(|c| c[k] as f64).collect(),
+            crate::stats::wasserstein1(
+                &lab_t.iter().map(|c| c[k]).collect::<Vec<_>>(),
+                &lab_i.iter().map(|c| c[k]).collect::<Vec<_>>(),
             )
         })
         .sum::<f64>()
@@ -287,21 +287,6 @@ pub fn measure(
         patch_distance: 255.0 * patch_distance,
         reverse_distance: 255.0 * reverse_distance,
     })
-}
-
-/// Wasserstein-1 distance of two 1D samples (their quantile functions compared at 512 levels).
-fn wasserstein1(mut a: Vec<f64>, mut b: Vec<f64>) -> f64 {
-    a.sort_unstable_by(f64::total_cmp);
-    b.sort_unstable_by(f64::total_cmp);
-    const Q: usize = 512;
-    (0..Q)
-        .map(|i| {
-            let q = (i as f64 + 0.5) / Q as f64;
-            let pick = |v: &[f64]| v[((q * v.len() as f64) as usize).min(v.len() - 1)];
-            (pick(&a) - pick(&b)).abs()
-        })
-        .sum::<f64>()
-        / Q as f64
 }
 
 /// An image with a validity mask.
