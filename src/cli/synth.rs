@@ -641,13 +641,7 @@ fn synth_texture(
     let t = std::time::Instant::now();
     let r = synthesize_texture(&input, &params, sink, cancel)?;
     print_anisotropy(r.anisotropy, r.orientation_used);
-    if let (Some(at), Some(why)) = (&r.atlas, &r.atlas_reason) {
-        eprintln!(
-            "generated a UV atlas for the target ({why}): {} charts, {:.0}% of the texture",
-            at.charts,
-            100.0 * at.utilization
-        );
-    }
+    print_atlas(r.atlas.as_ref(), r.atlas_reason.as_deref());
     let (ew, _) = exemplar.dimensions();
     eprintln!(
         "synthesized in texture space: {} texels of a {w}x{w} working texture ({:.4} units a \
@@ -711,13 +705,7 @@ fn synth_patches(
     };
     let r = paste_patches(&input, &params, &PatchParams::default(), sink, cancel)?;
     print_anisotropy(r.anisotropy, r.orientation_used);
-    if let (Some(at), Some(why)) = (&r.atlas, &r.atlas_reason) {
-        eprintln!(
-            "generated a UV atlas for the target ({why}): {} charts, {:.0}% of the texture",
-            at.charts,
-            100.0 * at.utilization
-        );
-    }
+    print_atlas(r.atlas.as_ref(), r.atlas_reason.as_deref());
     eprintln!(
         "pasted {} patches of radius {:.4} (orientation {}) in {:.2} s; {:.2}% of the texels \
          filled from their neighbours; texture {}x{}",
@@ -730,6 +718,17 @@ fn synth_patches(
         a.texture_size
     );
     Ok(r.mesh)
+}
+
+/// The atlas generated for a texture-space result and why, on stderr.
+fn print_atlas(atlas: Option<&crate::geometry::UvAtlas>, why: Option<&str>) {
+    if let (Some(at), Some(why)) = (atlas, why) {
+        eprintln!(
+            "generated a UV atlas for the target ({why}): {} charts, {:.0}% of the texture",
+            at.charts,
+            100.0 * at.utilization
+        );
+    }
 }
 
 /// What `auto` measured and chose, on stderr.
