@@ -1,4 +1,4 @@
-//! The Mertens features evaluated sparsely (`mertens::features`: curvature at radius `r` on a
+//! The Mertens features evaluated sparsely (`weathering::features`: curvature at radius `r` on a
 //! grid of `r / 4`, occlusion on the finest grid, interpolated back) against every vertex
 //! evaluated (`solid_angle_curvature` and `directional_occlusion` on all vertices), on the horse
 //! refined to `N` points (default 100000; `N=500000 cargo run --release --example
@@ -9,7 +9,7 @@
 use meshmatch::geometry::{
     SolidAngleCurvature, directional_occlusion, refine_to_density, vertex_normals,
 };
-use meshmatch::synthesis::mertens::{Params, features_on_surface, opening_for_radius};
+use meshmatch::synthesis::weathering::{Params, features_on_surface, opening_for_radius};
 use meshmatch::work::{CancelToken, Stopwatch};
 
 fn std(a: &[f32]) -> f64 {

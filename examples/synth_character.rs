@@ -5,9 +5,9 @@
 //!
 //! `cargo run --release --example synth_character -- bunny/bunny.obj textures/2.jpg OUT_DIR`
 
-use meshmatch::synthesis::wei_levoy::character::{Exemplar, measure, triplanar_texture};
-use meshmatch::synthesis::wei_levoy::patch_pasting::{PatchParams, paste_patches};
-use meshmatch::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
+use meshmatch::synthesis::exemplar::character::{Exemplar, measure, triplanar_texture};
+use meshmatch::synthesis::exemplar::patch_pasting::{PatchParams, paste_patches};
+use meshmatch::synthesis::exemplar::{TextureInput, TextureParams, synthesize_texture};
 use meshmatch::testdata::data_path;
 use meshmatch::work::CancelToken;
 

@@ -204,7 +204,7 @@ fn main() {
         res.level_vertices, res.mesh_d, res.spacing, res.level_energy, res.timings
     );
     if measure {
-        use meshmatch::synthesis::wei_levoy::{exemplar_loo_distance, neighbourhood_distance};
+        use meshmatch::synthesis::exemplar::{exemplar_loo_distance, neighbourhood_distance};
         let d = neighbourhood_distance(&ex, &res.mesh, &res.orientation, res.spacing, 7, 1000, 5)
             .expect("measure");
         let loo = exemplar_loo_distance(&ex, 7, 3, 1000, 5);

@@ -6,8 +6,10 @@
 //! `RECIPES` the recipes by name, `VARIANTS` parameter variants beside the defaults (`np`,
 //! `dims1`, `dims2`, `noms`, `nomatch`, `half`, `noise0`, `noise05`, `k1`, `k10`, `k200`, `nb1`, `nb2`, `nohb`).
 
-use meshmatch::synthesis::mertens::recipes::{Recipe, Rule, diagnose, evaluate, prepare, recipes};
-use meshmatch::synthesis::mertens::{Method, Params, Up};
+use meshmatch::synthesis::weathering::recipes::{
+    Recipe, Rule, diagnose, evaluate, prepare, recipes,
+};
+use meshmatch::synthesis::weathering::{Method, Params, Up};
 use meshmatch::testdata::data_path;
 use meshmatch::work::CancelToken;
 
@@ -27,7 +29,7 @@ fn load(name: &str) -> meshmatch::TriMesh {
     m
 }
 
-fn row(label: &str, s: &meshmatch::synthesis::mertens::recipes::Scores) -> String {
+fn row(label: &str, s: &meshmatch::synthesis::weathering::recipes::Scores) -> String {
     format!(
         "{label:<8} L {:>5.2}  a {:>5.2}  b {:>5.2}  W1 {:>5.2}  grain {:>4.2}",
         s.corr[0], s.corr[1], s.corr[2], s.w1, s.grain
@@ -126,7 +128,7 @@ fn main() {
             pr.target_refined.num_vertices()
         );
         if args.iter().any(|a| a == "--coverage") {
-            use meshmatch::synthesis::mertens::recipes::rule_strength;
+            use meshmatch::synthesis::weathering::recipes::rule_strength;
             for (what, fs) in [
                 ("source", &pr.source_features),
                 ("target", &pr.target_features),

@@ -689,7 +689,7 @@ fn paint_with_exemplar_streams_partials_resembles_the_exemplar_and_undo_restores
     let dist = |a: [f32; 3], b: [f32; 3]| {
         ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
     };
-    let ex_colors: Vec<[f32; 3]> = meshmatch::synthesis::wei_levoy::image_colors(&ex)
+    let ex_colors: Vec<[f32; 3]> = meshmatch::synthesis::exemplar::image_colors(&ex)
         .into_iter()
         .zip(alpha.pixels())
         .filter(|(_, a)| a.0[0] >= 128)
@@ -1781,8 +1781,8 @@ fn system_index<T: 'static>(h: &mut Harness<'static, App>) -> usize {
 
 #[test]
 fn weather_tool_learns_dark_crevices_from_the_source_and_one_undo_restores() {
-    use meshmatch::app::weather::WeatherDialog;
-    use meshmatch::synthesis::mertens::{self, Params};
+    use meshmatch::app::weathering::WeatherDialog;
+    use meshmatch::synthesis::weathering::{self, Params};
     // The source's colour is its own ambient occlusion: dark in the crevices between bumps.
     let mut source = bumpy_sphere(40, 64, 5.0, 0.18);
     let params = Params {
@@ -1790,8 +1790,9 @@ fn weather_tool_learns_dark_crevices_from_the_source_and_one_undo_restores() {
         ..Params::default()
     };
     let ao = |m: &TriMesh| {
-        let fs = mertens::features(&m.positions, &m.faces, &params, &CancelToken::new()).unwrap();
-        mertens::feature_field(&fs, "ao").unwrap()
+        let fs =
+            weathering::features(&m.positions, &m.faces, &params, &CancelToken::new()).unwrap();
+        weathering::feature_field(&fs, "ao").unwrap()
     };
     source.colors = Some(ao(&source).iter().map(|&a| [a, a * 0.9, a * 0.8]).collect());
     let target = bumpy_sphere(48, 72, 7.0, 0.14);
@@ -1860,7 +1861,7 @@ fn weather_tool_learns_dark_crevices_from_the_source_and_one_undo_restores() {
 
 #[test]
 fn quilt_tool_covers_the_target_with_whole_elements_and_one_undo_brings_it_back() {
-    use meshmatch::app::quilt::QuiltDialog;
+    use meshmatch::app::quilting::QuiltDialog;
     let mut app = App::new(TestEngine::default(), None);
     app.state.set_mesh(Side::Source, sphere(12, 16), false);
     app.state.set_mesh(Side::Target, sphere(24, 32), false);
@@ -1888,7 +1889,7 @@ fn quilt_tool_covers_the_target_with_whole_elements_and_one_undo_brings_it_back(
     // the weave with "merge threads across seams" ticked: threads join, still one undo step
     {
         let d = h.state_mut().system_mut::<QuiltDialog>().unwrap();
-        d.swatch = meshmatch::app::quilt::SwatchChoice::Builtin(
+        d.swatch = meshmatch::app::quilting::SwatchChoice::Builtin(
             meshmatch::synthesis::quilting::SwatchKind::Weave,
         );
         d.merge = true;
@@ -2341,7 +2342,7 @@ fn a_textured_source_is_drawn_through_its_texture_before_and_after_preparation()
 
 #[test]
 fn view_menu_opens_the_geometric_feature_window() {
-    use meshmatch::app::weather::FeatureDialog;
+    use meshmatch::app::weathering::FeatureDialog;
     let mut h = harness(app_with_spheres());
     h.run_steps(2);
     assert!(!h.state().system::<FeatureDialog>().unwrap().open);
@@ -2354,7 +2355,7 @@ fn view_menu_opens_the_geometric_feature_window() {
 
 #[test]
 fn the_weather_window_runs_again_without_a_switched_off_component() {
-    use meshmatch::app::weather::WeatherDialog;
+    use meshmatch::app::weathering::WeatherDialog;
     let mut source = bumpy_sphere(24, 36, 5.0, 0.18);
     source.colors = Some(
         source
@@ -2408,7 +2409,7 @@ fn the_weather_window_runs_again_without_a_switched_off_component() {
 
 #[test]
 fn the_feature_window_saves_every_map_through_the_meshs_uvs() {
-    use meshmatch::app::weather::FeatureDialog;
+    use meshmatch::app::weathering::FeatureDialog;
     let spot_path = meshmatch::testdata::data_path("spot/spot.obj");
     let mut app = App::new(TestEngine::default(), None);
     app.state.set_mesh(Side::Source, sphere(12, 16), false);

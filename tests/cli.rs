@@ -187,16 +187,16 @@ fn synth_on_bunny_with_fast_search_uses_the_exemplars_palette() {
     );
     // and its colour distribution: the exemplar's, not a few of its colours
     let exc: Vec<[f32; 3]> = palette_colors(&ex);
-    let hx = meshmatch::synthesis::wei_levoy::color_histogram(&exc, 8);
-    let ho = meshmatch::synthesis::wei_levoy::color_histogram(cols, 8);
-    let l1 = meshmatch::synthesis::wei_levoy::histogram_l1(&hx, &ho);
+    let hx = meshmatch::synthesis::exemplar::color_histogram(&exc, 8);
+    let ho = meshmatch::synthesis::exemplar::color_histogram(cols, 8);
+    let l1 = meshmatch::synthesis::exemplar::histogram_l1(&hx, &ho);
     assert!(l1 < 0.5, "colour histogram L1 {l1}");
     std::fs::remove_dir_all(&d).ok();
 }
 
 fn palette_colors(path: &Path) -> Vec<[f32; 3]> {
     let img = image::open(path).unwrap().to_rgb8();
-    meshmatch::synthesis::wei_levoy::image_colors(&img)
+    meshmatch::synthesis::exemplar::image_colors(&img)
 }
 
 #[test]

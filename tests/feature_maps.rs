@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use meshmatch::cli::common::load_usable;
-use meshmatch::synthesis::mertens::feature_maps::{
+use meshmatch::synthesis::weathering::feature_maps::{
     MAP_NAMES, MapParams, VertexMap, bake_feature_maps, vertex_maps,
 };
 use meshmatch::testdata::data_path;

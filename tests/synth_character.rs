@@ -1,11 +1,11 @@
 //! Exemplar synthesis keeps the image's character: with `synth`'s defaults for a textured output
 //! (patch pasting), the texture's contrast and colour distribution are the image's, and its
 //! patches are nearer the image's than triplanar projection's at the same scale in the same
-//! atlas (`synthesis::wei_levoy::character`).
+//! atlas (`synthesis::exemplar::character`).
 
-use meshmatch::synthesis::wei_levoy::character::{Exemplar, measure, triplanar_texture};
-use meshmatch::synthesis::wei_levoy::patch_pasting::{PatchParams, paste_patches};
-use meshmatch::synthesis::wei_levoy::{TextureInput, TextureParams};
+use meshmatch::synthesis::exemplar::character::{Exemplar, measure, triplanar_texture};
+use meshmatch::synthesis::exemplar::patch_pasting::{PatchParams, paste_patches};
+use meshmatch::synthesis::exemplar::{TextureInput, TextureParams};
 use meshmatch::testdata::data_path;
 use meshmatch::work::CancelToken;
 
@@ -21,7 +21,7 @@ fn paste(
     alpha: Option<&image::GrayImage>,
     target: &meshmatch::mesh::TriMesh,
     size: u32,
-) -> meshmatch::synthesis::wei_levoy::patch_pasting::PatchOutput {
+) -> meshmatch::synthesis::exemplar::patch_pasting::PatchOutput {
     let input = TextureInput {
         exemplar,
         alpha,

@@ -6,7 +6,7 @@ use std::cell::RefCell;
 
 use glam::Vec3;
 use meshmatch::TriMesh;
-use meshmatch::synthesis::wei_levoy::{
+use meshmatch::synthesis::exemplar::{
     color_histogram, exemplar_loo_distance, histogram_l1, image_colors, neighbourhood_distance,
     orientation_energy,
 };
@@ -478,8 +478,8 @@ fn an_exemplars_transparent_hole_is_never_synthesized() {
     };
     let magenta = |c: &[f32; 3]| c[0] > 0.8 && c[1] < 0.25 && c[2] > 0.8;
     let run_with = |a: Option<&image::GrayImage>| {
-        meshmatch::synthesis::wei_levoy::run(
-            &meshmatch::synthesis::wei_levoy::Input {
+        meshmatch::synthesis::exemplar::run(
+            &meshmatch::synthesis::exemplar::Input {
                 exemplar: &rgb,
                 target: &sphere,
                 mask: None,

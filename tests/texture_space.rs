@@ -5,7 +5,7 @@
 use glam::{Vec2, Vec3};
 use meshmatch::TriMesh;
 use meshmatch::synthesis::SynthParams;
-use meshmatch::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
+use meshmatch::synthesis::exemplar::{TextureInput, TextureParams, synthesize_texture};
 use meshmatch::testdata::data_path;
 use meshmatch::work::{CancelToken, no_events};
 
@@ -145,15 +145,15 @@ fn spot_texture_space_synthesis_is_seamless_and_keeps_the_exemplars_detail() {
     // Detail: the same synthesis on the surface's vertices at the same budget, baked into
     // the same UVs, is softer: its texels interpolate vertex colours, ours read the full
     // exemplar at each texel's own place.
-    let (small, _) = meshmatch::synthesis::wei_levoy::fit_exemplar_to_budget(
+    let (small, _) = meshmatch::synthesis::exemplar::fit_exemplar_to_budget(
         ex.clone(),
         &spot,
         Some(1.2),
         60_000,
         32,
     );
-    let surf = meshmatch::synthesis::wei_levoy::run(
-        &meshmatch::synthesis::wei_levoy::Input {
+    let surf = meshmatch::synthesis::exemplar::run(
+        &meshmatch::synthesis::exemplar::Input {
             exemplar: &small,
             target: &spot,
             mask: None,

@@ -277,7 +277,7 @@ fn bake_command_puts_a_dense_result_into_a_generated_atlas() {
 
 #[test]
 fn synth_with_defaults_stays_within_its_vertex_budget() {
-    use meshmatch::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET;
+    use meshmatch::synthesis::exemplar::DEFAULT_VERTEX_BUDGET;
     // The penguin with the bricks (transparent hole, oriented): the defaults a new user runs.
     let row = meshmatch::bench::synth_row(
         &meshmatch::testdata::data_path("penguin/penguin.obj"),

@@ -1,12 +1,12 @@
-//! Multi-rule weathering recipes (`synthesis::mertens::recipes`) transferred cow -> cat: each
+//! Multi-rule weathering recipes (`synthesis::weathering::recipes`) transferred cow -> cat: each
 //! rule alone and all together, scored against the recipe applied to the cat, beside a
 //! k-nearest-neighbour regression on the recipe's own features.
 
 use std::sync::OnceLock;
 
-use meshmatch::synthesis::mertens::Params;
-use meshmatch::synthesis::mertens::Up;
-use meshmatch::synthesis::mertens::recipes::{
+use meshmatch::synthesis::weathering::Params;
+use meshmatch::synthesis::weathering::Up;
+use meshmatch::synthesis::weathering::recipes::{
     Evaluation, Prepared, Recipe, Rule, evaluate, prepare,
 };
 use meshmatch::testdata::data_path;
@@ -123,7 +123,7 @@ fn pearson(a: &[f32], b: &[f32]) -> f64 {
 /// their greenness with the moss rule's strength there, and of their darkness with the dirt
 /// rule's.
 fn moss_and_dirt(e: &Evaluation) -> (f64, f64) {
-    use meshmatch::synthesis::mertens::recipes::rule_strength;
+    use meshmatch::synthesis::weathering::recipes::rule_strength;
     let p = pair();
     let ft = &p.target_features;
     let moss: Vec<f32> = (0..ft.len())
@@ -143,7 +143,7 @@ fn moss_and_dirt(e: &Evaluation) -> (f64, f64) {
 
 /// The component that carries a rule: of the components whose largest standardised weight is on
 /// one of `features`, the one with the highest canonical correlation.
-fn carrier(r: &meshmatch::synthesis::mertens::CcaReport, features: &[&str]) -> usize {
+fn carrier(r: &meshmatch::synthesis::weathering::CcaReport, features: &[&str]) -> usize {
     (0..r.correlations.len())
         .filter(|&k| features.contains(&r.top_features(k, 1)[0].0.as_str()))
         .max_by(|&a, &b| r.correlations[a].total_cmp(&r.correlations[b]))

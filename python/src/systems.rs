@@ -7,7 +7,7 @@ use meshmatch::cli;
 use meshmatch::correspondence::{Correspondence, CorrespondenceFile};
 use meshmatch::mesh::TriMesh;
 use meshmatch::meshmatch::TransferParams;
-use meshmatch::synthesis::{mertens, quilting};
+use meshmatch::synthesis::{quilting, weathering};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -447,12 +447,12 @@ fn detail(
 /// synthesized mesh with vertex colours (or displaced, with `displace=True`).
 #[pyfunction]
 #[pyo3(signature = (exemplar, target, *, texture_size=2048, scale=None, exemplar_width=None,
-    vertex_budget=meshmatch::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET,
+    vertex_budget=meshmatch::synthesis::exemplar::DEFAULT_VERTEX_BUDGET,
     orientation="auto".to_string(), levels=4, mask=None,
     search=meshmatch::synthesis::Search::default().as_str().to_string(), seed=0,
     displace=false, method="auto".to_string(),
     align_features=false, feature_mask=None, space="auto".to_string(),
-    texel_budget=meshmatch::synthesis::wei_levoy::DEFAULT_TEXEL_BUDGET,
+    texel_budget=meshmatch::synthesis::exemplar::DEFAULT_TEXEL_BUDGET,
     output="texture".to_string(), progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn synthesize(
@@ -484,7 +484,7 @@ fn synthesize(
         o => return refuse(format!("output {o}: use texture or dense")),
     };
     let given = PathBuf::from("(array)");
-    let args = cli::synth::SynthArgs {
+    let args = cli::exemplar::SynthArgs {
         exemplar: PathBuf::from("exemplar"),
         target: PathBuf::from("target"),
         out: PathBuf::from(out),
@@ -505,7 +505,7 @@ fn synthesize(
         space,
         texel_budget,
     };
-    let plan = cli::synth::check(&args).or_py()?;
+    let plan = cli::exemplar::check(&args).or_py()?;
     let (rgb, alpha, name) = match exemplar.extract::<PathBuf>() {
         Ok(p) if !exemplar.hasattr("shape")? => {
             let (tex, alpha) = py
@@ -518,7 +518,7 @@ fn synthesize(
             (rgb, alpha, PathBuf::from("exemplar"))
         }
     };
-    let (rgb, alpha) = cli::synth::prepare_exemplar(&args, rgb, alpha, &name).or_py()?;
+    let (rgb, alpha) = cli::exemplar::prepare_exemplar(&args, rgb, alpha, &name).or_py()?;
     let t = usable(py, target, "target")?;
     let file_mask = mask
         .map(|m| self::mask(m, t.file_vertex_count, "mask"))
@@ -531,7 +531,7 @@ fn synthesize(
         None => None,
     };
     let s = job::run(py, progress, cancel, |ctx| {
-        cli::synth::synthesize(
+        cli::exemplar::synthesize(
             &args,
             &plan,
             &rgb,
@@ -552,8 +552,8 @@ fn synthesize(
 /// `mask` leaves source vertices out of training.
 #[pyfunction]
 #[pyo3(signature = (source, target, *, mask=None, method="parametric".to_string(),
-    up="y".to_string(), vertices=mertens::Params::default().working_vertices,
-    rays=mertens::Params::default().rays, clusters=mertens::Params::default().clusters,
+    up="y".to_string(), vertices=weathering::Params::default().working_vertices,
+    rays=weathering::Params::default().rays, clusters=weathering::Params::default().clusters,
     seed=0, components=None, texture_size=1024, textured=None, progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn weather(
@@ -573,18 +573,18 @@ fn weather(
     progress: Option<&Bound<'_, PyAny>>,
     cancel: Option<&Bound<'_, CancelToken>>,
 ) -> PyResult<Mesh> {
-    let method: mertens::Method = method.parse().or_py()?;
-    let up: mertens::Up = up.parse().or_py()?;
-    cli::weather::check_weather(vertices, rays, clusters, texture_size).or_py()?;
+    let method: weathering::Method = method.parse().or_py()?;
+    let up: weathering::Up = up.parse().or_py()?;
+    cli::weathering::check_weather(vertices, rays, clusters, texture_size).or_py()?;
     if let Some(c) = &components {
-        mertens::check_components(c, mertens::Params::default().cca_dims).or_py()?;
+        weathering::check_components(c, weathering::Params::default().cca_dims).or_py()?;
     }
     let s = usable(py, source, "source")?;
     let t = usable(py, target, "target")?;
     let mask = mask
         .map(|m| self::mask(m, s.file_vertex_count, "mask"))
         .transpose()?;
-    let params = mertens::Params {
+    let params = weathering::Params {
         working_vertices: vertices,
         up,
         rays,
@@ -592,11 +592,11 @@ fn weather(
         method,
         seed,
         components,
-        ..mertens::Params::default()
+        ..weathering::Params::default()
     };
     let ext = ext_for(textured, &t);
     let w = job::run(py, progress, cancel, |ctx| {
-        cli::weather::weather_meshes(
+        cli::weathering::weather_meshes(
             &s,
             &t,
             mask.as_deref(),
@@ -640,8 +640,8 @@ fn quilt<'py>(
     progress: Option<&Bound<'py, PyAny>>,
     cancel: Option<&Bound<'py, CancelToken>>,
 ) -> PyResult<(Mesh, Bound<'py, PyAny>)> {
-    cli::quilt::positive("swatch-size", swatch_size).or_py()?;
-    cli::quilt::positive("thickness", thickness).or_py()?;
+    cli::quilting::positive("swatch-size", swatch_size).or_py()?;
+    cli::quilting::positive("thickness", thickness).or_py()?;
     let sw = match swatch {
         SwatchArg::Mesh(m) => {
             let axis = match swatch_up.to_ascii_lowercase().as_str() {
@@ -654,7 +654,7 @@ fn quilt<'py>(
         }
         SwatchArg::Spec(p) => {
             let spec = p.to_string_lossy().into_owned();
-            py.detach(|| cli::quilt::load_any_swatch(&spec, &swatch_up, seed))
+            py.detach(|| cli::quilting::load_any_swatch(&spec, &swatch_up, seed))
                 .or_py()?
         }
     };
@@ -700,7 +700,7 @@ fn curves<'py>(
     cancel: Option<&Bound<'py, CancelToken>>,
 ) -> PyResult<Bound<'py, PyList>> {
     use meshmatch::geometry::{CurveKind, CurveParams, salient_curves};
-    cli::curves::check_curves(threshold, min_length, crease_angle).or_py()?;
+    cli::feature_aligned::check_curves(threshold, min_length, crease_angle).or_py()?;
     let m = usable(py, mesh, "mesh")?;
     let params = CurveParams {
         threshold,
@@ -747,7 +747,7 @@ fn curves<'py>(
 /// float32.
 #[pyfunction]
 #[pyo3(signature = (mesh, feature="ao".to_string(), *, up="y".to_string(),
-    rays=mertens::Params::default().rays, seed=0, progress=None, cancel=None))]
+    rays=weathering::Params::default().rays, seed=0, progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn features<'py>(
     py: Python<'py>,
@@ -759,13 +759,13 @@ fn features<'py>(
     progress: Option<&Bound<'py, PyAny>>,
     cancel: Option<&Bound<'py, CancelToken>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let up: mertens::Up = up.parse().or_py()?;
+    let up: weathering::Up = up.parse().or_py()?;
     let m = usable(py, mesh, "mesh")?;
-    let params = mertens::Params {
+    let params = weathering::Params {
         up,
         rays,
         seed,
-        ..mertens::Params::default()
+        ..weathering::Params::default()
     };
     let v = job::run(py, progress, cancel, |ctx| {
         cli::features::feature_values(&m, &feature, &params, &ctx.cancel)
@@ -780,9 +780,9 @@ fn features<'py>(
 /// row 0 at the top, before the PNG's quantisation.
 #[pyfunction]
 #[pyo3(signature = (mesh, feature="all".to_string(), *, texture_size=2048,
-    radius=mertens::feature_maps::MapParams::default().radius,
-    cavity_radius=mertens::feature_maps::MapParams::default().cavity_radius,
-    up="y".to_string(), rays=mertens::Params::default().rays, seed=0, new_atlas=false,
+    radius=weathering::feature_maps::MapParams::default().radius,
+    cavity_radius=weathering::feature_maps::MapParams::default().cavity_radius,
+    up="y".to_string(), rays=weathering::Params::default().rays, seed=0, new_atlas=false,
     progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn feature_maps<'py>(
@@ -799,8 +799,8 @@ fn feature_maps<'py>(
     progress: Option<&Bound<'py, PyAny>>,
     cancel: Option<&Bound<'py, CancelToken>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use mertens::feature_maps as fm;
-    let up: mertens::Up = up.parse().or_py()?;
+    use weathering::feature_maps as fm;
+    let up: weathering::Up = up.parse().or_py()?;
     let names = fm::parse_map_names(&feature).or_py()?;
     cli::common::check_texture_size(texture_size).or_py()?;
     let params = fm::MapParams {

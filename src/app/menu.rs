@@ -2,7 +2,7 @@
 
 use eframe::egui;
 
-use super::{AppParams, MeshMatchApp, files, state, unsaved, weather};
+use super::{AppParams, MeshMatchApp, files, state, unsaved, weathering};
 use crate::correspondence::Side;
 use crate::error::Result;
 use crate::jobs::worker::Engine;
@@ -247,7 +247,7 @@ where
             )
             .clicked()
         {
-            if let Some(d) = self.system_mut::<weather::FeatureDialog>() {
+            if let Some(d) = self.system_mut::<weathering::FeatureDialog>() {
                 d.open = true;
             }
             ui.close();

@@ -10,14 +10,14 @@ pub mod engine;
 pub mod feature_aligned;
 pub mod files;
 pub mod paint_bench;
-pub mod quilt;
+pub mod quilting;
 pub mod state;
 pub mod system_tool;
 pub mod systems;
 pub mod tools;
 pub mod unsaved;
 pub mod view;
-pub mod weather;
+pub mod weathering;
 
 mod menu;
 mod scenes;

@@ -17,9 +17,9 @@ use crate::error::{Error, Result};
 pub fn registry<P: AppParams>() -> Vec<Box<dyn SystemTool<P>>> {
     vec![
         Box::new(ExemplarDialog::default()),
-        Box::new(super::weather::WeatherDialog::default()),
-        Box::new(super::weather::FeatureDialog::default()),
-        Box::new(super::quilt::QuiltDialog::default()),
+        Box::new(super::weathering::WeatherDialog::default()),
+        Box::new(super::weathering::FeatureDialog::default()),
+        Box::new(super::quilting::QuiltDialog::default()),
         Box::new(super::feature_aligned::FeatureAlignedDialog::default()),
     ]
 }

@@ -14,7 +14,7 @@ use crate::correspondence::Side;
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
 use crate::meshmatch::TransferParams;
-use crate::synthesis::{Orientation, Search, SynthParams, wei_levoy};
+use crate::synthesis::{Orientation, Search, SynthParams, exemplar};
 use crate::work::{CancelToken, Event};
 
 /// Working vertices of the applications started from the app (a responsive default; the CLI
@@ -533,7 +533,7 @@ pub fn load_exemplar(
     path: &std::path::Path,
     pixels: u32,
 ) -> Result<(image::RgbImage, Option<image::GrayImage>)> {
-    use crate::synthesis::wei_levoy::{resize_alpha, shrink_exemplar};
+    use crate::synthesis::exemplar::{resize_alpha, shrink_exemplar};
     let (tex, alpha) = crate::mesh::io::load_texture_with_alpha(path)?;
     let img = shrink_exemplar(tex.image, pixels);
     let alpha = alpha.map(|a| resize_alpha(a, img.width(), img.height()));
@@ -599,13 +599,13 @@ pub fn exemplar_job(
     }
     let mut job = ToolJob::spawn("paint with exemplar", wake, move |sink, cancel| {
         let (img, alpha) = load_exemplar(&path, pixels)?;
-        let input = wei_levoy::Input {
+        let input = exemplar::Input {
             exemplar: &img,
             target: &mesh,
             mask: mask.as_deref(),
             alpha: alpha.as_ref(),
         };
-        let r = wei_levoy::run(&input, &params, sink, cancel)?;
+        let r = exemplar::run(&input, &params, sink, cancel)?;
         let colors = r
             .mesh
             .colors
@@ -642,23 +642,23 @@ fn texture_job(
         let (tex, alpha) = crate::mesh::io::load_texture_with_alpha(&path)?;
         let mut target = mesh;
         target.colors = None;
-        let input = wei_levoy::TextureInput {
+        let input = exemplar::TextureInput {
             exemplar: &tex.image,
             alpha: alpha.as_ref(),
             target: &target,
             field: None,
         };
-        let p = wei_levoy::TextureParams {
+        let p = exemplar::TextureParams {
             synth: params,
             texture_size: TEXTURE_SIDE,
             ..Default::default()
         };
         let name = path.file_name().unwrap_or_default().to_string_lossy();
         if patches {
-            let r = wei_levoy::patch_pasting::paste_patches(
+            let r = exemplar::patch_pasting::paste_patches(
                 &input,
                 &p,
-                &wei_levoy::patch_pasting::PatchParams::default(),
+                &exemplar::patch_pasting::PatchParams::default(),
                 sink,
                 cancel,
             )?;
@@ -676,7 +676,7 @@ fn texture_job(
                 ),
             ));
         }
-        let r = wei_levoy::synthesize_texture(&input, &p, sink, cancel)?;
+        let r = exemplar::synthesize_texture(&input, &p, sink, cancel)?;
         let atlas = match &r.atlas_reason {
             Some(why) => format!("; a UV atlas was generated: {why}"),
             None => String::new(),
@@ -883,7 +883,7 @@ impl ExemplarDialog {
                 ui.label(format!(
                     "up to {} texels synthesized, magnified to {TEXTURE_SIDE}x{TEXTURE_SIDE} from \
                      the full image",
-                    wei_levoy::DEFAULT_TEXEL_BUDGET
+                    exemplar::DEFAULT_TEXEL_BUDGET
                 ));
             }
             Some(m) => {

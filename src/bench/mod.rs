@@ -2,24 +2,24 @@
 //! inputs built from the shared data (Spot textured as source, the horse as target), and the
 //! rows of each synthesis system (`--system`), one file per system.
 
-mod features;
+mod exemplar;
+mod feature_aligned;
 mod map;
 mod quilting;
-mod synth;
 mod texture;
 mod transfer;
-mod weather;
+mod weathering;
 
-pub use features::features_row;
+use exemplar::every_shared_pair;
+pub use exemplar::{synth_character_rows, synth_row, synth_texture_row};
+pub use feature_aligned::features_row;
 pub use map::{map_row, structure_row};
 pub use quilting::{quilt_finite_row, quilt_row, quilt_row_of};
-use synth::every_shared_pair;
-pub use synth::{synth_character_rows, synth_row, synth_texture_row};
 pub use texture::texture_rows;
 pub use transfer::{
     BenchRow, CancelProbe, EXACT_SAMPLES, MAX_SOURCE_VERTICES, bench_size, cancel_probes, run,
 };
-pub use weather::{feature_map_rows, weather_recipe_rows, weather_row};
+pub use weathering::{feature_map_rows, weather_recipe_rows, weather_row};
 
 use crate::error::Result;
 
@@ -99,7 +99,7 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
             rows
         }
         "synth-character" => {
-            synth::synth_character_rows(json)?;
+            exemplar::synth_character_rows(json)?;
             Vec::new()
         }
         "synth-texture" => {
@@ -107,7 +107,7 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
             Vec::new()
         }
         "weather" => {
-            use crate::synthesis::mertens::Method;
+            use crate::synthesis::weathering::Method;
             let mut rows = Vec::new();
             for &n in sizes {
                 for m in [Method::Parametric, Method::NonParametric] {

@@ -8,8 +8,8 @@ use std::path::PathBuf;
 use super::common::*;
 use crate::error::{Error, Result};
 use crate::mesh::io;
-use crate::synthesis::mertens::feature_maps::{self, MapParams};
-use crate::synthesis::mertens::{self, Params, Up};
+use crate::synthesis::weathering::feature_maps::{self, MapParams};
+use crate::synthesis::weathering::{self, Params, Up};
 use crate::work::CancelToken;
 
 /// Arguments of `meshmatch features`.
@@ -76,7 +76,7 @@ impl FeaturesArgs {
         if ext == "png" || (matches!(ext.as_str(), "glb" | "gltf" | "obj") && is_map) {
             return self.bake(up, ext == "png");
         }
-        if ext == "ply" && is_map && mertens::check_feature_name(&self.feature, 4).is_err() {
+        if ext == "ply" && is_map && weathering::check_feature_name(&self.feature, 4).is_err() {
             return self.vertex_maps(up);
         }
         check_outputs(&[&self.mesh], &[("--out", &self.out, OutKind::Mesh)])?;
@@ -87,7 +87,7 @@ impl FeaturesArgs {
             seed: self.seed,
             ..Params::default()
         };
-        mertens::check_feature_name(&self.feature, params.curvature_radii.len())?;
+        weathering::check_feature_name(&self.feature, params.curvature_radii.len())?;
         let t = std::time::Instant::now();
         let field = feature_values(&mesh, &self.feature, &params, &CancelToken::new())?;
         let (lo, hi) = field
@@ -262,7 +262,7 @@ pub fn feature_values(
     cancel: &CancelToken,
 ) -> Result<Vec<f32>> {
     check_rays(params.rays)?;
-    mertens::check_feature_name(feature, params.curvature_radii.len())?;
-    let fs = mertens::features(&mesh.positions, &mesh.faces, params, cancel)?;
-    mertens::feature_field(&fs, feature)
+    weathering::check_feature_name(feature, params.curvature_radii.len())?;
+    let fs = weathering::features(&mesh.positions, &mesh.faces, params, cancel)?;
+    weathering::feature_field(&fs, feature)
 }

@@ -9,19 +9,19 @@ mod bench;
 pub mod common;
 pub mod complete;
 mod convert;
-pub mod curves;
 mod demo;
 pub mod detail;
+pub mod exemplar;
+pub mod feature_aligned;
 pub mod features;
 mod info;
 mod map;
-pub mod quilt;
+pub mod quilting;
 #[cfg(feature = "gui")]
 mod render;
-pub mod synth;
 pub mod transfer;
 pub mod update;
-pub mod weather;
+pub mod weathering;
 
 use std::io::Write;
 
@@ -81,7 +81,7 @@ commands! {
     /// target vertex -> source vertex; the correspondences are landmarks.
     Map(map::MapArgs),
     /// Synthesize a texture over a mesh from a 2D exemplar image (Wei and Levoy 2001).
-    Synth(synth::SynthArgs),
+    Synth(exemplar::SynthArgs),
     /// Complete a partly painted mesh by example: the painted (or unmasked) vertices are the
     /// example, the rest is synthesised; painted vertices keep their colours exactly.
     Complete(complete::CompleteArgs),
@@ -92,16 +92,16 @@ commands! {
     Detail(detail::DetailArgs),
     /// Geometry-correlated transfer (Mertens et al. 2006): weathering, dirt, moss learned from a
     /// textured model and applied to any shape by its geometry, without correspondences.
-    Weather(weather::WeatherArgs),
+    Weather(weathering::WeatherArgs),
     /// Bake one geometric feature as vertex colours: ambient occlusion, curvature, height...
     Features(features::FeaturesArgs),
     /// Mesh quilting (Zhou et al. 2006): cover a surface with 3D elements from a swatch (chain
     /// mail, weaves, nuts, studs, scales), every element whole.
-    Quilt(quilt::QuiltArgs),
+    Quilt(quilting::QuiltArgs),
     /// Write a built-in procedural swatch for `quilt`.
-    Swatch(quilt::SwatchArgs),
+    Swatch(quilting::SwatchArgs),
     /// Salient curves (crest lines and sharp creases) of a mesh as OBJ polylines (Xu et al. 2009).
-    Curves(curves::CurvesArgs),
+    Curves(feature_aligned::CurvesArgs),
     /// Time the transfer's stages at several working resolutions (Spot -> horse from the shared data).
     Bench(bench::BenchArgs),
     /// Run many subcommands from a job file (TOML or JSON), N at a time, each as a child process,

@@ -12,11 +12,11 @@
 //! right side +Z. The zebra is about 1.75 units long (tail tuft to muzzle).
 
 mod animals;
-mod features;
+mod feature_aligned;
 pub mod sdf;
 mod vase;
 
-pub use features::{crease_cube, crest_block, line_exemplar};
+pub use feature_aligned::{crease_cube, crest_block, line_exemplar};
 
 use crate::correspondence::{Correspondence, CorrespondenceFile};
 use crate::mesh::TriMesh;

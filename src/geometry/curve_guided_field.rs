@@ -317,9 +317,9 @@ fn prepare(
             "a curve refers to a missing vertex".into(),
         ));
     }
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let solver = HarmonicFieldSolver::new(positions, faces, params.alpha)?;
-    let setup_secs = sw.secs();
+    let setup_secs = clock.secs();
     let normals = solver.normals().to_vec();
     let tangents: Vec<Vec<DVec3>> = curves
         .iter()
@@ -373,11 +373,11 @@ pub fn oriented_curve_field(
         oriented.push((first, true));
         loop {
             cancel.check()?;
-            let sw = Stopwatch::start();
+            let clock = Stopwatch::start();
             let cons = constraints(&tangents, curves, &oriented, params.junction_release, n);
             raw = solver.solve(&cons)?;
             if remaining.is_empty() {
-                step_secs.push(sw.secs());
+                step_secs.push(clock.secs());
                 break;
             }
             // Score every remaining curve against the field; orient the best one (or the best
@@ -419,7 +419,7 @@ pub fn oriented_curve_field(
             }
             let done: Vec<usize> = chosen.iter().map(|x| x.1).collect();
             remaining.retain(|r| !done.contains(r));
-            step_secs.push(sw.secs());
+            step_secs.push(clock.secs());
         }
     }
     let constrained: Vec<u32> =
@@ -528,21 +528,21 @@ pub fn curve_field_completing_orientations(
         .map(|c| (c, forward[c]))
         .collect();
     if !pending.is_empty() && !decided_set.is_empty() {
-        let sw = Stopwatch::start();
+        let clock = Stopwatch::start();
         let (raw, _) = solve(&decided_set)?;
         for &c in &pending {
             let (g0, g1) = curve_scores(&raw, &normals, &tangents[c], &curves[c].vertices);
             forward[c] = g0 >= g1;
         }
-        steps.push(sw.secs());
+        steps.push(clock.secs());
     }
     let oriented: Vec<(usize, bool)> = (0..curves.len())
         .filter(|&c| usable(c))
         .map(|c| (c, forward[c]))
         .collect();
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let (raw, constrained) = solve(&oriented)?;
-    steps.push(sw.secs());
+    steps.push(clock.secs());
     Ok(finish(
         &raw,
         &normals,

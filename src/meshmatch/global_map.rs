@@ -328,7 +328,7 @@ pub(super) fn global_map(
     nl: usize,
     cancel: &CancelToken,
 ) -> Result<Arc<GlobalMap>> {
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let (hs, ht) = (&source.hierarchy, &target.hierarchy);
     let (ls, lt) = (map_level(hs, nl), map_level(ht, nl));
     let (ms, mt) = (&hs.levels[ls], &ht.levels[lt]);
@@ -348,10 +348,10 @@ pub(super) fn global_map(
     let key = Arc::as_ptr(source.map_cache) as usize;
     let k = spectrum_size(&params);
     let (ss, st) = spectra(source, target, (ls, lt), k, cancel)?;
-    let eigen_s = sw.secs();
+    let eigen_s = clock.secs();
     cancel.check()?;
     let m = functional_map(&ss, &st, &landmarks, &params, cancel)?;
-    let fit_s = sw.secs();
+    let fit_s = clock.secs();
     // mapped source positions on the map level, then every target level
     let base: Vec<[f32; 3]> = m
         .target_to_source
@@ -419,12 +419,12 @@ pub(super) fn global_map(
         top_init,
         centre: c.map(|x| x as f32),
         scale,
-        seconds: sw.secs(),
+        seconds: clock.secs(),
         stages: vec![
             ("map eigen", eigen_s),
             ("map fit", m.timings.first().map_or(0.0, |t| t.1)),
             ("map zoomout", m.timings.get(1).map_or(0.0, |t| t.1)),
-            ("map levels", sw.secs() - fit_s),
+            ("map levels", clock.secs() - fit_s),
         ],
         score: m.quality.score(),
     });
@@ -533,7 +533,7 @@ pub fn map_meshes(
     use crate::hierarchy::HierarchyOptions;
     crate::correspondence::check_limits(corr)?;
     let mut timings = Vec::new();
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let side = |m: &crate::mesh::TriMesh, what: &str| -> Result<(Hierarchy, Vec<u32>, usize)> {
         if m.positions.is_empty() || m.faces.is_empty() {
             return Err(Error::InvalidMesh(format!(
@@ -563,7 +563,7 @@ pub fn map_meshes(
     };
     let (s, t) = rayon::join(|| side(source, "source"), || side(target, "target"));
     let ((hs, s_in, ls), (ht, t_in, lt)) = (s?, t?);
-    timings.push(("simplify".to_string(), sw.secs()));
+    timings.push(("simplify".to_string(), clock.secs()));
     cancel.check()?;
     // file vertex -> welded vertex (first input vertex of each file vertex)
     let file_to_welded = |m: &crate::mesh::TriMesh, input_to_welded: &[u32]| -> Vec<u32> {
@@ -624,7 +624,7 @@ pub fn map_meshes(
         cancel,
     )?;
     timings.extend(m.timings.iter().cloned());
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     // welded target vertex -> welded source vertex
     let mapped: Vec<[f32; 3]> = m
         .target_to_source
@@ -679,7 +679,7 @@ pub fn map_meshes(
             }
         })
         .collect();
-    timings.push(("interpolate".to_string(), sw.secs()));
+    timings.push(("interpolate".to_string(), clock.secs()));
     Ok(PointMap {
         target_to_source,
         score: m.quality.score(),

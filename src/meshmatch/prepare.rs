@@ -164,9 +164,9 @@ fn beside_tables<T: Send + 'static>(
 ) -> Result<crate::work::Detached<(T, f64)>> {
     let (p, f) = (level.positions.clone(), level.faces.clone());
     let job = crate::work::spawn_detached(move || {
-        let sw = Stopwatch::start();
+        let clock = Stopwatch::start();
         let out = work(&p, &f);
-        (out, sw.secs())
+        (out, clock.secs())
     })?;
     Ok(if rayon::current_num_threads() == 1 {
         crate::work::Detached::done(job.wait(cancel)?)
@@ -222,7 +222,7 @@ pub fn prepare(
         timings.push((name.to_string(), t));
     };
     sink(Event::Progress(progress("refine", &watch, 0.0)));
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let (welded, map) = crate::geometry::weld(mesh);
     if welded.faces.is_empty() {
         return Err(Error::InvalidMesh(
@@ -399,10 +399,10 @@ pub fn prepare(
         working.uvs = Some(wuv);
         working.texture = mesh.texture.clone();
     }
-    stage("refine", sw.secs(), &mut timings);
+    stage("refine", clock.secs(), &mut timings);
 
     sink(Event::Progress(progress("hierarchy", &watch, 0.2)));
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     // Ties between equally long edges are broken by the refinement's numbering, so the
     // hierarchy is the one the mesh had before its Morton renumbering (on a regular grid most
     // edges tie, and the tie order shapes every level).
@@ -427,7 +427,7 @@ pub fn prepare(
         .zip(&frames)
         .map(|(l, f)| edge_transport_angles(l, f))
         .collect();
-    stage("hierarchy", sw.secs(), &mut timings);
+    stage("hierarchy", clock.secs(), &mut timings);
     cancel.check()?;
 
     // Shape features on a thread of their own while the fan tables are built: the HKS
@@ -455,7 +455,7 @@ pub fn prepare(
     // only re-runs the solve; very large targets rebuild them level by level in the solve
     // instead of holding about 1 KB per vertex (u32 indices and 16-bit weights, 162 taps).
     sink(Event::Progress(progress("fans", &watch, 0.6)));
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let table = |l: usize| {
         let lev = &hierarchy.levels[l];
         FanSampler::in_vertex_order(lev, &frames[l], params.fan_radius * lev.mean_edge, cancel)
@@ -492,7 +492,7 @@ pub fn prepare(
         }
         (None, None)
     };
-    stage("fans", sw.secs(), &mut timings);
+    stage("fans", clock.secs(), &mut timings);
     let (hks, secs) = hks.wait(cancel)?;
     let shape = features::shape_features_from(&hierarchy, lc, hks?);
     stage("features", secs, &mut timings);

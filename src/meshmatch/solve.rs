@@ -82,11 +82,11 @@ pub fn solve_constrained(
     }
 
     // Correspondences and constraints per level (they do not depend on the global map).
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let mut affinities = level_affinities(source, target, &pairs);
     let mut locked = locked_per_level(hs, ht, &pairs, nl);
     let mut fixed = fixed_per_level(ht, constraints, nt0, nl);
-    let affinities_s = sw.secs();
+    let affinities_s = clock.secs();
 
     // After a correspondence edit the map is computed anew (about half a second at any size);
     // the first preview does not wait for it: the coarsest level is solved once with the map
@@ -540,7 +540,7 @@ impl<'a> Levels<'a> {
         let (source, target) = (self.source, self.target);
         let lt = &target.hierarchy.levels[l];
         let fan_r = source.fan_radius * lt.mean_edge;
-        let sw = Stopwatch::start();
+        let clock = Stopwatch::start();
         let built;
         let sampler_t = if target.fan_radius == source.fan_radius && target.samplers.len() > l {
             &target.samplers[l]
@@ -548,11 +548,11 @@ impl<'a> Levels<'a> {
             built = FanSampler::in_vertex_order(lt, &target.frames[l], fan_r, self.cancel)?;
             &built
         };
-        self.t.fans += sw.secs();
+        self.t.fans += clock.secs();
         let mut dist = vec![0.0f32; lt.len()];
-        let sw = Stopwatch::start();
+        let clock = Stopwatch::start();
         em::ring_summaries_into(&self.fans_s[l], &mut self.rings_s);
-        self.t.fans += sw.secs();
+        self.t.fans += clock.secs();
         self.start_level(l, &mut dist)?;
         self.iterate(l, sampler_t, &mut dist)
     }
@@ -583,10 +583,10 @@ impl<'a> Levels<'a> {
                 }
             }
             if self.exhaustive_top {
-                let sw = Stopwatch::start();
+                let clock = Stopwatch::start();
                 let ctx = self.ctx(l, None, 0.0);
                 em::exhaustive(&ctx, &mut nnf, dist, &self.locked[l], self.cancel)?;
-                self.t.search += sw.secs();
+                self.t.search += clock.secs();
             }
             if let Some(g) = &self.gmap {
                 // Rotations from the map's transport of the local frame: the shape-only search
@@ -639,7 +639,7 @@ impl<'a> Levels<'a> {
         let mut prev_energy = f64::INFINITY;
         for it in 0..=iterations {
             self.cancel.check()?;
-            let sw = Stopwatch::start();
+            let clock = Stopwatch::start();
             let mut signal = em::vote(
                 &self.source_side(l),
                 &self.target_side(l),
@@ -649,13 +649,13 @@ impl<'a> Levels<'a> {
             );
             self.apply_fixed(&mut signal, l);
             self.signal = signal;
-            self.t.vote += sw.secs();
+            self.t.vote += clock.secs();
             if l == 0 && it > 0 {
-                self.t.vote0 += sw.secs();
+                self.t.vote0 += clock.secs();
             }
-            let sw = Stopwatch::start();
+            let clock = Stopwatch::start();
             self.signal_t = crate::features::smooth(lt, self.signal.as_flattened(), C);
-            self.t.fans += sw.secs();
+            self.t.fans += clock.secs();
             let mut nnf = std::mem::take(&mut self.nnf);
             let ctx = self.ctx(l, Some(sampler_t), wc);
             *dist = em::all_distances(&ctx, &nnf);
@@ -701,7 +701,7 @@ impl<'a> Levels<'a> {
                     ));
                 }
             } else {
-                let sw = Stopwatch::start();
+                let clock = Stopwatch::start();
                 if top && self.exhaustive_top {
                     em::exhaustive(&ctx, &mut nnf, dist, &self.locked[l], self.cancel)?;
                 } else {
@@ -719,7 +719,7 @@ impl<'a> Levels<'a> {
                         self.cancel,
                     )?;
                 }
-                t_search = sw.secs();
+                t_search = clock.secs();
             }
             self.nnf = nnf;
             self.energy = energy;
@@ -761,7 +761,7 @@ impl<'a> Levels<'a> {
             }
             self.apply_fixed(&mut signal, 0);
         }
-        let sw = Stopwatch::start();
+        let clock = Stopwatch::start();
         let file_signal: Vec<[f32; 3]> = target
             .file_to_working
             .iter()
@@ -778,7 +778,7 @@ impl<'a> Levels<'a> {
                 )
             })
             .collect();
-        self.stage("deliver", sw.secs());
+        self.stage("deliver", clock.secs());
         let prog = Progress {
             stage: "solve",
             level: 0,
@@ -819,9 +819,9 @@ fn exact_check(
     let free: Vec<usize> = (0..n).filter(|&v| locked[v].is_none()).collect();
     let k = params.exact_samples.min(free.len());
     let sample: Vec<usize> = (0..k).map(|i| free[i * free.len() / k.max(1)]).collect();
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let exact = em::exact_distances(ctx, &sample);
-    let secs = sw.secs();
+    let secs = clock.secs();
     fn side<'a>(x: &em::Side<'a>) -> em::Side<'a> {
         em::Side {
             level: x.level,
@@ -842,7 +842,7 @@ fn exact_check(
         tf: ctx.tf,
     };
     let coherence = em::exact_distances(&colour_only, &sample);
-    let check_seconds = sw.secs();
+    let check_seconds = clock.secs();
     let mean = |x: &mut dyn Iterator<Item = f64>| x.sum::<f64>() / k.max(1) as f64;
     ExactCheck {
         samples: k,

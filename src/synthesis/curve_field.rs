@@ -34,14 +34,14 @@ pub fn curves_and_field(
     cancel: &CancelToken,
 ) -> Result<(Vec<Curve>, CurveField, (f64, f64))> {
     let mut t = (0.0, 0.0);
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let curves = match curves {
         Some(c) => c.to_vec(),
         None => salient_curves(&target.positions, &target.faces, params.curves)?,
     };
-    t.0 = sw.secs();
+    t.0 = clock.secs();
     cancel.check()?;
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let fc: Vec<FieldCurve> = curves.iter().map(FieldCurve::from).collect();
     let above = params.coarse_greedy_above.unwrap_or(COARSE_GREEDY);
     let field = if target.num_vertices() > above {
@@ -54,7 +54,7 @@ pub fn curves_and_field(
     } else {
         oriented_curve_field(&target.positions, &target.faces, &fc, params.field, cancel)?
     };
-    t.1 = sw.secs();
+    t.1 = clock.secs();
     Ok((curves, field, t))
 }
 

@@ -11,22 +11,22 @@
 //!
 //! - [`feature_aligned`]: feature-aligned shape texturing (Xu et al. 2009): salient curves, a
 //!   curve-guided field, field-driven synthesis.
-//! - [`mertens`]: geometry-correlated texture transfer (Mertens et al. 2006).
+//! - [`weathering`]: geometry-correlated texture transfer (Mertens et al. 2006).
 //! - [`quilting`]: geometric texture synthesis by mesh quilting (Zhou et al. 2006).
 //! - [`texture_optimization`]: surface texture optimisation (Kwatra et al. 2005) with the
 //!   feature-to-feature constraint (Xu et al. 2009 §5), a stage `synth` and feature-aligned
 //!   texturing run after the Wei-Levoy synthesis.
-//! - [`wei_levoy`]: image-exemplar texture synthesis over arbitrary surfaces (Wei & Levoy 2001).
+//! - [`exemplar`]: image-exemplar texture synthesis over arbitrary surfaces (Wei & Levoy 2001).
 
 pub mod curve_field;
+pub mod exemplar;
 pub mod feature_aligned;
-pub mod mertens;
 pub mod quilting;
 pub mod texture_optimization;
-pub mod wei_levoy;
+pub mod weathering;
 
-pub use texture_optimization::Method;
-pub use wei_levoy::{
+pub use exemplar::{
     Orientation, Search, SynthParams, SynthResult, SynthTimings, synthesize, synthesize_with_alpha,
     synthesize_with_field,
 };
+pub use texture_optimization::Method;

@@ -6,7 +6,7 @@
 //! with the score of eq. (1) -> constrained harmonic vector diffusion `(L + P) x = P b`, eq. (2),
 //! projected on the tangent planes ([`crate::geometry::oriented_curve_field`]) -> texture
 //! synthesis driven by that field: the Wei-Levoy system
-//! ([`super::wei_levoy::synthesize_with_field`]) with the field as texture "right" direction (the
+//! ([`super::exemplar::synthesize_with_field`]) with the field as texture "right" direction (the
 //! exemplar's x axis runs along the curves), then with [`Method::Optimize`] the surface texture
 //! optimisation of §5.1 (eq. 3; [`super::texture_optimization`]) and, with
 //! [`Params::align_features`], the feature-to-feature constraint of §5.2 (eq. 4): the exemplar's
@@ -20,8 +20,8 @@ use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
 use super::curve_field::FieldStage;
 pub use super::curve_field::{COARSE_GREEDY, GREEDY_VERTICES};
+use super::exemplar::{self, Orientation, SynthParams, SynthResult};
 use super::texture_optimization::{self as opt, ExemplarLines, Method};
-use super::wei_levoy::{self, Orientation, SynthParams, SynthResult};
 
 /// Parameters (paper defaults: α = 1e8; curve thresholds are the guide's proposals).
 #[derive(Clone, Debug, Default, serde::Serialize, serde::Deserialize)]
@@ -204,12 +204,12 @@ pub fn run(
     }
     let exemplar = ex_own.as_ref().unwrap_or(input.exemplar);
     let alpha = alpha_own.as_ref().or(input.alpha);
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let sp = SynthParams {
         orientation: Orientation::Features,
         ..params.synth.clone()
     };
-    let mut synth = wei_levoy::synthesize_with_alpha(
+    let mut synth = exemplar::synthesize_with_alpha(
         exemplar,
         alpha,
         input.target,
@@ -219,10 +219,10 @@ pub fn run(
         sink,
         cancel,
     )?;
-    timings.synthesis = sw.secs();
+    timings.synthesis = clock.secs();
     let mut optimization = None;
     if optimise {
-        let sw = Stopwatch::start();
+        let clock = Stopwatch::start();
         let report = opt::optimize_result(
             &mut synth,
             input.target,
@@ -233,7 +233,7 @@ pub fn run(
             sink,
             cancel,
         )?;
-        timings.optimization = sw.secs();
+        timings.optimization = clock.secs();
         optimization = Some(report);
     }
     Ok(Output {

@@ -23,11 +23,7 @@ impl Exemplar {
                 .pixels()
                 .map(|p| p.0.map(|c| c as f32 / 255.0))
                 .collect(),
-            Some(a) => {
-                crate::synthesis::wei_levoy::transparent_filled(img, a)?
-                    .0
-                    .px
-            }
+            Some(a) => crate::synthesis::exemplar::transparent_filled(img, a)?.0.px,
         };
         let mut sat = [
             vec![0.0f64; (w + 1) * (h + 1)],

@@ -164,7 +164,7 @@ pub fn optimize(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<Report> {
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     validate(surface, colors, exemplar, constraint.as_ref(), params)?;
     let n = surface.positions.len();
     let ex = Exemplar::new(exemplar, alpha)?;
@@ -278,7 +278,7 @@ pub fn optimize(
                 levels: scales.len(),
                 iteration: it + 1,
                 energy: energy / ns.max(1) as f64,
-                elapsed: sw.secs(),
+                elapsed: clock.secs(),
                 fraction: (iter_done as f32 / total_iters).min(1.0),
             };
             let signal: Arc<[[f32; 3]]> = colors.to_vec().into();
@@ -290,7 +290,7 @@ pub fn optimize(
         report.scales.push(sr);
     }
     report.source = source;
-    report.seconds = sw.secs();
+    report.seconds = clock.secs();
     sink(Event::StageTime("optimize", report.seconds));
     Ok(report)
 }

@@ -17,7 +17,7 @@ pub fn features_row(n: usize) -> Result<SystemRow> {
     let h = (4.5 * 6.0 / n as f64).sqrt() as f32;
     let params = feature_aligned::Params {
         align_features: true,
-        synth: crate::synthesis::wei_levoy::SynthParams {
+        synth: crate::synthesis::exemplar::SynthParams {
             scale: Some(h * exemplar.width() as f32),
             max_vertices: (n * 2).max(200_000),
             ..Default::default()

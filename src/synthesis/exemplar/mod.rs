@@ -542,7 +542,7 @@ pub fn synthesize_with_alpha(
     let nlev = params.levels;
 
     // ---- prepare: finest level (uniform density), mesh pyramid, image pyramid
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     sink(Event::Progress(Progress {
         stage: "refine",
         levels: nlev,
@@ -650,7 +650,7 @@ pub fn synthesize_with_alpha(
         }
     };
     let mesh_d = (2.0 * levels[0].mean_face_area()).sqrt() as f32;
-    timings.prepare = sw.secs();
+    timings.prepare = clock.secs();
     sink(Event::StageTime("prepare", timings.prepare));
     cancel.check()?;
 
@@ -861,7 +861,7 @@ pub(crate) fn synthesize_levels(
     let nlev = levels.len();
     let passes = params.passes.max(1);
     // ---- orientation, coarse to fine
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let mut dirs: Vec<Vec<[f32; 3]>> = vec![Vec::new(); nlev];
     // an explicit field: fine to coarse (children averaged), projected on each level
     let mut field_dirs: Vec<Vec<[f32; 3]>> = Vec::new();
@@ -905,7 +905,7 @@ pub(crate) fn synthesize_levels(
         };
         cancel.check()?;
     }
-    let orientation_secs = sw.secs();
+    let orientation_secs = clock.secs();
     sink(Event::StageTime("orientation", orientation_secs));
 
     // ancestor of every finest vertex on each level (for partial results on the finest mesh)
@@ -928,7 +928,7 @@ pub(crate) fn synthesize_levels(
     let mut neigh_secs = 0.0;
     for k in (0..nlev).rev() {
         let (size, psize) = sizes(k, nlev);
-        let sw = Stopwatch::start();
+        let clock = Stopwatch::start();
         let lev = &levels[k];
         let n = lev.num_vertices();
         let h = h0 * (1u32 << k) as f32;
@@ -941,8 +941,8 @@ pub(crate) fn synthesize_levels(
         cancel.check()?;
         let par_st: Option<Stencils> =
             has_parent.then(|| stencils(k, &dirs[k], 2.0 * h, psize, true));
-        neigh_secs += sw.secs();
-        let sw = Stopwatch::start();
+        neigh_secs += clock.secs();
+        let clock = Stopwatch::start();
         // random initialisation from this level's exemplar (equalises histograms, §3.1)
         let mut src = vec![u32::MAX; n];
         let mut col = vec![[0.0f32; 3]; n];
@@ -1038,7 +1038,7 @@ pub(crate) fn synthesize_levels(
         colors[k] = col;
         srcs[k] = src;
         exemplars[k] = Some(ex);
-        search_secs += sw.secs();
+        search_secs += clock.secs();
         // free what the next (finer) level no longer needs
         if k + 2 < nlev {
             colors[k + 2] = Vec::new();

@@ -229,7 +229,7 @@ fn features_unit(
     if n == 0 || faces.is_empty() {
         return Err(Error::InvalidInput("mesh has no faces".into()));
     }
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
     for p in positions {
         lo = lo.min(Vec3::from(*p));
@@ -263,7 +263,7 @@ fn features_unit(
     };
     let normals = crate::geometry::vertex_normals(positions, faces);
     let height = normalised_height(positions, params.up);
-    let t0 = sw.secs();
+    let t0 = clock.secs();
     cancel.check()?;
     let radii: Vec<f32> = params.curvature_radii.iter().map(|r| r * diag).collect();
     let nr = radii.len();
@@ -278,7 +278,7 @@ fn features_unit(
     // r × CELL_PER_RADIUS over level 0, interpolated back onto level 0; then one pass carries
     // everything from level 0 to every vertex. A level 0 holding more than half the vertices
     // is not worth it: every vertex is evaluated then.
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let s0 = sparse_samples_if_worth_it(positions, &normals, r_min * LEVEL0_CELL_PER_RADIUS);
     let (p0, n0): (Vec<[f32; 3]>, Vec<[f32; 3]>) = s0
         .vertices
@@ -307,8 +307,8 @@ fn features_unit(
         }
     }
     drop(sac);
-    let t1 = sw.secs();
-    let sw = Stopwatch::start();
+    let t1 = clock.secs();
+    let clock = Stopwatch::start();
     let bvh = OcclusionBvh::new(surf_pos, surf_faces);
     let occ0 = directional_occlusion_with(&bvh, &p0, &n0, params.rays, params.seed, cancel)?;
     drop(bvh);
@@ -316,7 +316,7 @@ fn features_unit(
         level0[i * dim0 + nr..(i + 1) * dim0].copy_from_slice(o);
     }
     let all = s0.interpolate(positions, &normals, &level0, dim0);
-    let t2 = sw.secs();
+    let t2 = clock.secs();
     let dim = 8 + nr;
     let mut values = Vec::with_capacity(n * dim);
     for v in 0..n {

@@ -497,7 +497,7 @@ pub fn run(
 
     // ---- refine
     progress("refine", 0.0);
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let (rs, rt) = rayon::join(
         || refine_to_density(src, params.working_vertices),
         || refine_to_density(tgt, params.working_vertices),
@@ -508,8 +508,8 @@ pub fn run(
             Error::InvalidInput("source mesh has no colours or texture to transfer".into())
         })?,
     };
-    timings.push(("refine", sw.secs()));
-    sink(Event::StageTime("refine", sw.secs()));
+    timings.push(("refine", clock.secs()));
+    sink(Event::StageTime("refine", clock.secs()));
     cancel.check()?;
 
     // ---- training vertices (mask)
@@ -545,7 +545,7 @@ pub fn run(
 
     // ---- features
     progress("features", 0.05);
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     // the working meshes are bisections of the inputs: the inputs' triangles carry the same
     // surface for the curvature tree and the occlusion rays
     // both meshes at once: the trees' builds and the sampling passes are serial
@@ -570,13 +570,13 @@ pub fn run(
         },
     );
     let (fs, ft) = (fs?, ft?);
-    timings.push(("features", sw.secs()));
-    sink(Event::StageTime("features", sw.secs()));
+    timings.push(("features", clock.secs()));
+    sink(Event::StageTime("features", clock.secs()));
     cancel.check()?;
 
     // ---- colour basis and CCA
     progress("cca", 0.65);
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let p = fs.dim;
     let train_cols: Vec<[f32; 3]> = train.iter().map(|&v| src_colors[v as usize]).collect();
     let (cmean, cb) = colour_basis(&train_cols)?;
@@ -634,13 +634,13 @@ pub fn run(
     let d = model.d;
     let gs_train = model.project_x(&xs_train);
     let mut gt = model.project_x(&ft.values);
-    timings.push(("cca", sw.secs()));
-    sink(Event::StageTime("cca", sw.secs()));
+    timings.push(("cca", clock.secs()));
+    sink(Event::StageTime("cca", clock.secs()));
     cancel.check()?;
 
     // ---- feature matching (PDF transfer of the target guidance onto the source's)
     progress("match", 0.68);
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let pdf = PdfTransferParams {
         iterations: params.pdf_iterations,
         tolerance: 0.01,
@@ -670,13 +670,13 @@ pub fn run(
             }
         }
     }
-    timings.push(("match", sw.secs()));
-    sink(Event::StageTime("match", sw.secs()));
+    timings.push(("match", clock.secs()));
+    sink(Event::StageTime("match", clock.secs()));
     cancel.check()?;
 
     // ---- parametric synthesis
     progress("synthesis", 0.72);
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let src_adj = rs.mesh.adjacency();
     let levels = params.levels.max(1);
     let tgt_adj = rt.mesh.adjacency();
@@ -762,8 +762,8 @@ pub fn run(
         )?
     };
     let colors = to_srgb(&y);
-    timings.push(("synthesis", sw.secs()));
-    sink(Event::StageTime("synthesis", sw.secs()));
+    timings.push(("synthesis", clock.secs()));
+    sink(Event::StageTime("synthesis", clock.secs()));
     let nv = tgt.num_vertices();
     let file_colors = tgt.to_file_order(&colors[..nv], [0.5; 3]);
     timings.push(("total", total.secs()));

@@ -13,7 +13,7 @@ use super::system_tool::{FilePrompt, SystemTool, ToolAction, Wake};
 use super::tools::{ToolJob, ToolOutcome};
 use crate::correspondence::Side;
 use crate::error::{Error, Result};
-use crate::synthesis::mertens::{self, CcaReport, Method, Params, Up, feature_maps};
+use crate::synthesis::weathering::{self, CcaReport, Method, Params, Up, feature_maps};
 use crate::work::Event;
 
 /// Working vertices of an app run (responsive; the CLI's default is the paper's density).
@@ -198,12 +198,12 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
         let n = target.num_vertices();
         let report = self.report.clone();
         let mut job = ToolJob::spawn("weather", wake, move |sink, cancel| {
-            let input = mertens::Input {
+            let input = weathering::Input {
                 source: &source,
                 target: &target,
                 source_mask: None,
             };
-            let out = mertens::run(&input, &params, sink, cancel)?;
+            let out = weathering::run(&input, &params, sink, cancel)?;
             let top = top_features(&out.report);
             if let Ok(mut r) = report.lock() {
                 *r = Some(out.report.clone());
@@ -432,8 +432,8 @@ impl<P: AppParams> SystemTool<P> for FeatureDialog {
         };
         let feature = self.feature.clone();
         Ok(ToolJob::spawn("feature", wake, move |_sink, cancel| {
-            let fs = mertens::features(&mesh.positions, &mesh.faces, &params, cancel)?;
-            let f = mertens::feature_field(&fs, &feature)?;
+            let fs = weathering::features(&mesh.positions, &mesh.faces, &params, cancel)?;
+            let f = weathering::feature_field(&fs, &feature)?;
             let (lo, hi) = f
                 .iter()
                 .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &x| {

@@ -4,7 +4,7 @@ use meshmatch::TriMesh;
 use meshmatch::color::srgb_to_lab;
 use meshmatch::geometry::{directional_occlusion, vertex_normals};
 use meshmatch::stats::pearson;
-use meshmatch::synthesis::mertens::{Input, Params, Up, feature_field, features, run};
+use meshmatch::synthesis::weathering::{Input, Params, Up, feature_field, features, run};
 use meshmatch::work::{CancelToken, Event, no_events};
 
 /// A height field over `[0, 1]²` (Z up) sampled on an `m × m` grid: rolling hills plus sharp
@@ -160,12 +160,12 @@ fn features_have_names_and_sane_values() {
     // a closed mesh wound inwards is detected and evaluated outward
     let horse =
         meshmatch::mesh::io::load(&meshmatch::testdata::data_path("horse/horse.ply")).unwrap();
-    assert!(meshmatch::synthesis::mertens::wound_inwards(
+    assert!(meshmatch::synthesis::weathering::wound_inwards(
         &horse.positions,
         &horse.faces
     ));
     let out: Vec<[u32; 3]> = horse.faces.iter().map(|f| [f[0], f[2], f[1]]).collect();
-    assert!(!meshmatch::synthesis::mertens::wound_inwards(
+    assert!(!meshmatch::synthesis::weathering::wound_inwards(
         &horse.positions,
         &out
     ));
@@ -511,7 +511,7 @@ fn textured_source_spot_to_bunny() {
 
 #[test]
 fn nonparametric_copies_source_colours_where_the_geometry_asks_for_them() {
-    use meshmatch::synthesis::mertens::Method;
+    use meshmatch::synthesis::weathering::Method;
     let mut src = terrain(110, 0);
     let truth = truth_colours(&src);
     // The grain: a per-vertex noise on top of the geometric rule, which only a method that
@@ -573,7 +573,7 @@ fn nonparametric_copies_source_colours_where_the_geometry_asks_for_them() {
 #[test]
 fn sparse_features_agree_with_every_vertex_evaluated() {
     use meshmatch::geometry::{SolidAngleCurvature, refine_to_density};
-    use meshmatch::synthesis::mertens::{features_on_surface, opening_for_radius};
+    use meshmatch::synthesis::weathering::{features_on_surface, opening_for_radius};
     use meshmatch::testdata::data_path;
     let mut bunny = meshmatch::mesh::io::load(&data_path("bunny/bunny.obj")).expect("bunny");
     bunny.repair().expect("repair");

@@ -9,7 +9,7 @@ use std::time::Instant;
 /// `synth` with its defaults (vertex budget, auto orientation, alpha) of one shared texture on
 /// one shared mesh: what a user gets from `meshmatch synth --exemplar T --target M --out o.ply`.
 pub fn synth_row(mesh: &std::path::Path, texture: &std::path::Path) -> Result<SystemRow> {
-    use crate::synthesis::wei_levoy::{self, DEFAULT_VERTEX_BUDGET, SynthParams};
+    use crate::synthesis::exemplar::{self, DEFAULT_VERTEX_BUDGET, SynthParams};
     let t = Instant::now();
     let mut target = crate::mesh::io::load(mesh)?;
     target.repair()?;
@@ -17,15 +17,15 @@ pub fn synth_row(mesh: &std::path::Path, texture: &std::path::Path) -> Result<Sy
     let params = SynthParams::default();
     let min = (4u32 << (params.levels.clamp(1, 8) - 1)).max(8);
     let (ex, _) =
-        wei_levoy::fit_exemplar_to_budget(tex.image, &target, None, DEFAULT_VERTEX_BUDGET, min);
-    let alpha = alpha.map(|a| wei_levoy::resize_alpha(a, ex.width(), ex.height()));
-    let input = wei_levoy::Input {
+        exemplar::fit_exemplar_to_budget(tex.image, &target, None, DEFAULT_VERTEX_BUDGET, min);
+    let alpha = alpha.map(|a| exemplar::resize_alpha(a, ex.width(), ex.height()));
+    let input = exemplar::Input {
         exemplar: &ex,
         target: &target,
         mask: None,
         alpha: alpha.as_ref(),
     };
-    let r = wei_levoy::run(&input, &params, &|_| {}, &CancelToken::new())?;
+    let r = exemplar::run(&input, &params, &|_| {}, &CancelToken::new())?;
     let name = |p: &std::path::Path| {
         p.file_name()
             .map(|s| s.to_string_lossy().into_owned())
@@ -56,7 +56,7 @@ pub fn synth_row(mesh: &std::path::Path, texture: &std::path::Path) -> Result<Sy
 /// `synth` into a texture with its defaults (texel budget, auto orientation, alpha, a
 /// 2048² texture): what a user gets from `meshmatch synth --exemplar T --target M --out o.glb`.
 pub fn synth_texture_row(mesh: &std::path::Path, texture: &std::path::Path) -> Result<SystemRow> {
-    use crate::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
+    use crate::synthesis::exemplar::{TextureInput, TextureParams, synthesize_texture};
     let t = Instant::now();
     let mut target = crate::mesh::io::load(mesh)?;
     target.repair()?;
@@ -159,12 +159,12 @@ pub(super) fn every_shared_pair(
 /// `MESHMATCH_PAIRS`, `mesh.obj:image.png,...` by file name), what `synth` gives with its
 /// defaults for a textured output (patch pasting), with `--method neighbourhood` (Wei-Levoy in
 /// texture space), and triplanar projection at the same scale, all in the same layout, measured
-/// texel by texel ([`crate::synthesis::wei_levoy::character`]); `MESHMATCH_METHODS` picks
+/// texel by texel ([`crate::synthesis::exemplar::character`]); `MESHMATCH_METHODS` picks
 /// among `patches,neighbourhood,triplanar`.
 pub fn synth_character_rows(json: bool) -> Result<()> {
-    use crate::synthesis::wei_levoy::character::{Exemplar, measure, triplanar_texture};
-    use crate::synthesis::wei_levoy::patch_pasting::{PatchParams, paste_patches};
-    use crate::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
+    use crate::synthesis::exemplar::character::{Exemplar, measure, triplanar_texture};
+    use crate::synthesis::exemplar::patch_pasting::{PatchParams, paste_patches};
+    use crate::synthesis::exemplar::{TextureInput, TextureParams, synthesize_texture};
     let (meshes, textures) = shared_meshes_and_textures();
     let wanted: Option<Vec<(String, String)>> = std::env::var("MESHMATCH_PAIRS").ok().map(|v| {
         v.split(',')
@@ -258,7 +258,7 @@ fn print_character(
     mesh: &str,
     image: &str,
     method: &str,
-    c: &crate::synthesis::wei_levoy::character::Character,
+    c: &crate::synthesis::exemplar::character::Character,
     secs: f64,
 ) {
     if json {

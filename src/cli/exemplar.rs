@@ -37,7 +37,7 @@ pub struct SynthArgs {
     pub exemplar_width: Option<u32>,
     /// Most vertices to synthesize: without --exemplar-width, a larger exemplar is shrunk until
     /// the texel spacing fits this budget (stderr says what was chosen); 1,000 to 2,000,000.
-    #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_VERTEX_BUDGET, allow_negative_numbers = true,
+    #[arg(long, default_value_t = crate::synthesis::exemplar::DEFAULT_VERTEX_BUDGET, allow_negative_numbers = true,
           value_parser = whole(MIN_VERTEX_BUDGET, MAX_BUDGET).unit("vertices"))]
     pub vertex_budget: usize,
     /// Texture orientation field: auto (from the exemplar's anisotropy: random, relax2 or
@@ -89,7 +89,7 @@ pub struct SynthArgs {
     pub space: String,
     /// Most texels synthesized in texture space (1,000 to 2,000,000); the output texture is
     /// magnified from them.
-    #[arg(long, default_value_t = crate::synthesis::wei_levoy::DEFAULT_TEXEL_BUDGET, allow_negative_numbers = true,
+    #[arg(long, default_value_t = crate::synthesis::exemplar::DEFAULT_TEXEL_BUDGET, allow_negative_numbers = true,
           value_parser = whole(MIN_VERTEX_BUDGET, MAX_BUDGET).unit("texels"))]
     pub texel_budget: usize,
 }
@@ -127,7 +127,7 @@ pub struct Plan {
     pub texture_space: bool,
     /// The output carries a texture (`--out` ends in .glb, .gltf or .obj).
     pub textured_out: bool,
-    /// Paste patches of the image ([`crate::synthesis::wei_levoy::patch_pasting`]).
+    /// Paste patches of the image ([`crate::synthesis::exemplar::patch_pasting`]).
     pub patches: bool,
 }
 
@@ -383,7 +383,7 @@ pub fn prepare_exemplar(
                 "--exemplar-width {w}: use {MIN_EXEMPLAR_WIDTH} or more pixels"
             )));
         }
-        exemplar = crate::synthesis::wei_levoy::shrink_exemplar(exemplar, w);
+        exemplar = crate::synthesis::exemplar::shrink_exemplar(exemplar, w);
     }
     Ok((exemplar, alpha))
 }
@@ -442,7 +442,7 @@ pub fn synthesize(
     let mut exemplar = exemplar.clone();
     if a.exemplar_width.is_none() {
         let min = (4u32 << (a.levels.clamp(1, 8) - 1)).max(8);
-        let (fitted, note) = crate::synthesis::wei_levoy::fit_exemplar_to_budget(
+        let (fitted, note) = crate::synthesis::exemplar::fit_exemplar_to_budget(
             exemplar,
             target,
             a.scale,
@@ -455,7 +455,7 @@ pub fn synthesize(
         }
     }
     let alpha = alpha.map(|al| {
-        crate::synthesis::wei_levoy::resize_alpha(al.clone(), exemplar.width(), exemplar.height())
+        crate::synthesis::exemplar::resize_alpha(al.clone(), exemplar.width(), exemplar.height())
     });
     // The mask file numbers vertices as the file does; the synthesis takes one flag per vertex
     // of the loaded mesh (repair may have dropped unreferenced file vertices).
@@ -488,8 +488,8 @@ pub fn synthesize(
         };
         if let Some(m) = mask.as_deref() {
             // a mask keeps colours: the plain field-driven synthesis honours it
-            let field = crate::synthesis::wei_levoy::feature_field(target, cancel)?;
-            crate::synthesis::wei_levoy::synthesize_with_alpha(
+            let field = crate::synthesis::exemplar::feature_field(target, cancel)?;
+            crate::synthesis::exemplar::synthesize_with_alpha(
                 &exemplar,
                 alpha.as_ref(),
                 target,
@@ -531,13 +531,13 @@ pub fn synthesize(
             out.synth
         }
     } else {
-        let input = crate::synthesis::wei_levoy::Input {
+        let input = crate::synthesis::exemplar::Input {
             exemplar: &exemplar,
             target,
             mask: mask.as_deref(),
             alpha: alpha.as_ref(),
         };
-        let mut r = crate::synthesis::wei_levoy::run(&input, &params, sink, cancel)?;
+        let mut r = crate::synthesis::exemplar::run(&input, &params, sink, cancel)?;
         if optimise {
             let rep = crate::synthesis::texture_optimization::optimize_result(
                 &mut r,
@@ -618,7 +618,7 @@ fn synth_texture(
     sink: &dyn Fn(crate::work::Event),
     cancel: &CancelToken,
 ) -> Result<crate::mesh::TriMesh> {
-    use crate::synthesis::wei_levoy::{TextureInput, TextureParams, synthesize_texture};
+    use crate::synthesis::exemplar::{TextureInput, TextureParams, synthesize_texture};
     let params = TextureParams {
         synth: crate::synthesis::SynthParams {
             scale: a.scale,
@@ -685,8 +685,8 @@ fn synth_patches(
     sink: &dyn Fn(crate::work::Event),
     cancel: &CancelToken,
 ) -> Result<crate::mesh::TriMesh> {
-    use crate::synthesis::wei_levoy::patch_pasting::{PatchParams, paste_patches};
-    use crate::synthesis::wei_levoy::{TextureInput, TextureParams};
+    use crate::synthesis::exemplar::patch_pasting::{PatchParams, paste_patches};
+    use crate::synthesis::exemplar::{TextureInput, TextureParams};
     let params = TextureParams {
         synth: crate::synthesis::SynthParams {
             scale: a.scale,
@@ -733,7 +733,7 @@ fn print_atlas(atlas: Option<&crate::geometry::UvAtlas>, why: Option<&str>) {
 
 /// What `auto` measured and chose, on stderr.
 fn print_anisotropy(
-    anisotropy: Option<crate::synthesis::wei_levoy::Anisotropy>,
+    anisotropy: Option<crate::synthesis::exemplar::Anisotropy>,
     used: crate::synthesis::Orientation,
 ) {
     if let Some(an) = anisotropy {
@@ -743,7 +743,7 @@ fn print_anisotropy(
             used.as_str(),
             an.twofold,
             an.fourfold,
-            crate::synthesis::wei_levoy::anisotropy::ORIENTED,
+            crate::synthesis::exemplar::anisotropy::ORIENTED,
         );
     }
 }

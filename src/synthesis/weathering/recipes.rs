@@ -428,7 +428,7 @@ pub fn evaluate(
         up: pair.up,
         ..params.clone()
     };
-    let sw = crate::work::Stopwatch::start();
+    let clock = crate::work::Stopwatch::start();
     let out = super::run(
         &super::Input {
             source: &source,
@@ -439,7 +439,7 @@ pub fn evaluate(
         &|_| {},
         cancel,
     )?;
-    let seconds = sw.secs();
+    let seconds = clock.secs();
     if out.target.mesh.num_vertices() != pair.target_refined.num_vertices() {
         return Err(Error::InvalidInput(
             "the transfer refined the target differently".into(),

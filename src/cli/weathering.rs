@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use super::common::*;
 use crate::error::{Error, Result};
 use crate::mesh::io;
-use crate::synthesis::mertens::{self, Method, Params, Up};
+use crate::synthesis::weathering::{self, Method, Params, Up};
 use crate::work::CancelToken;
 
 /// Most `--clusters`.
@@ -73,8 +73,8 @@ impl WeatherArgs {
         check_weather(a.vertices, a.rays, a.clusters, a.texture_size)?;
         let components = match &a.components {
             Some(c) => {
-                let keep = mertens::parse_components(c)?;
-                mertens::check_components(&keep, Params::default().cca_dims)?;
+                let keep = weathering::parse_components(c)?;
+                weathering::check_components(&keep, Params::default().cca_dims)?;
                 Some(keep)
             }
             None => None,
@@ -175,7 +175,7 @@ pub fn check_weather(
 /// A weathering computed in memory ([`weather_meshes`]).
 pub struct Weathered {
     /// The system's output (dense target, colours, report, timings).
-    pub output: mertens::Output,
+    pub output: weathering::Output,
     /// The target with the result, as `--out` writes it.
     pub delivered: crate::meshmatch::Delivered,
 }
@@ -214,12 +214,12 @@ pub fn weather_meshes(
             source.file_vertex_count
         )));
     }
-    let input = mertens::Input {
+    let input = weathering::Input {
         source,
         target,
         source_mask,
     };
-    let output = mertens::run(&input, params, sink, cancel)?;
+    let output = weathering::run(&input, params, sink, cancel)?;
     let layout = crate::meshmatch::BakeLayout::of_refined(target, &output.target);
     let delivered = crate::meshmatch::deliver(
         target,

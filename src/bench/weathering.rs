@@ -7,24 +7,24 @@ use std::time::Instant;
 
 /// Geometry-correlated transfer, Spot (textured) -> the horse, both at `n` surface points:
 /// features, CCA, matching and synthesis by `method`.
-pub fn weather_row(n: usize, method: crate::synthesis::mertens::Method) -> Result<SystemRow> {
-    use crate::synthesis::mertens;
+pub fn weather_row(n: usize, method: crate::synthesis::weathering::Method) -> Result<SystemRow> {
+    use crate::synthesis::weathering;
     let mut source = crate::mesh::io::load(&crate::testdata::data_path("spot/spot.obj"))?;
     source.repair()?;
     let mut target = crate::mesh::io::load(&crate::testdata::data_path("horse/horse.ply"))?;
     target.repair()?;
-    let params = mertens::Params {
+    let params = weathering::Params {
         working_vertices: n,
         method,
-        ..mertens::Params::default()
+        ..weathering::Params::default()
     };
     let t = Instant::now();
-    let input = mertens::Input {
+    let input = weathering::Input {
         source: &source,
         target: &target,
         source_mask: None,
     };
-    let out = mertens::run(&input, &params, &|_| {}, &CancelToken::new())?;
+    let out = weathering::run(&input, &params, &|_| {}, &CancelToken::new())?;
     Ok(SystemRow {
         case: format!("weather spot -> horse, {method:?}").to_lowercase(),
         vertices: out.target.mesh.num_vertices(),
@@ -39,12 +39,12 @@ pub fn weather_row(n: usize, method: crate::synthesis::mertens::Method) -> Resul
     })
 }
 
-/// Multi-rule weathering recipes (`synthesis::mertens::recipes`) transferred cow -> cat and
+/// Multi-rule weathering recipes (`synthesis::weathering::recipes`) transferred cow -> cat and
 /// igea -> bunny at `n` points with the default parameters: per recipe, the correlation of L*,
 /// a*, b* with the recipe applied to the target, the Lab W1 distance and the grain kept, and the
 /// k-nearest-neighbour floor beside (`meshmatch bench --system weather-recipes`).
 pub fn weather_recipe_rows(n: usize, json: bool) -> Result<()> {
-    use crate::synthesis::mertens::{self, recipes};
+    use crate::synthesis::weathering::{self, recipes};
     let cancel = CancelToken::new();
     for (s, t) in [
         ("cow/cow.ply", "cat/cat.obj"),
@@ -55,9 +55,9 @@ pub fn weather_recipe_rows(n: usize, json: bool) -> Result<()> {
             m.repair()?;
             Ok(m)
         };
-        let pair = recipes::prepare(&load(s)?, &load(t)?, n, mertens::Up::Y, &cancel)?;
+        let pair = recipes::prepare(&load(s)?, &load(t)?, n, weathering::Up::Y, &cancel)?;
         for r in recipes::recipes() {
-            let e = recipes::evaluate(&pair, &r, &mertens::Params::default(), &cancel)?;
+            let e = recipes::evaluate(&pair, &r, &weathering::Params::default(), &cancel)?;
             if json {
                 println!(
                     "{}",
@@ -87,7 +87,7 @@ pub fn weather_recipe_rows(n: usize, json: bool) -> Result<()> {
 /// Every feature map (`features MESH --out X.png --feature all`) of a shared mesh baked at
 /// `size²`: Spot through its own UVs, the bunny through a generated atlas.
 pub fn feature_map_rows(size: u32) -> Result<Vec<SystemRow>> {
-    use crate::synthesis::mertens::feature_maps::{MAP_NAMES, MapParams, bake_feature_maps};
+    use crate::synthesis::weathering::feature_maps::{MAP_NAMES, MapParams, bake_feature_maps};
     let mut rows = Vec::new();
     for (name, rel) in [
         ("Spot (own UVs)", "spot/spot.obj"),

@@ -862,7 +862,7 @@ pub fn synthesize_texture(
     let min_side = ((4u32 << (sp.levels - 1)).max(8)) as f64;
 
     // ---- the UV layout
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let (mut mesh, atlas, atlas_reason) = texture_layout(target, params, cancel)?;
     let uvs = mesh.uvs.clone().expect("UVs set above");
     let surface = Surface::new(&mesh, &uvs);
@@ -972,7 +972,7 @@ pub fn synthesize_texture(
             })
             .collect()
     });
-    timings.prepare = sw.secs();
+    timings.prepare = clock.secs();
     sink(Event::StageTime("prepare", timings.prepare));
     cancel.check()?;
 
@@ -1009,7 +1009,7 @@ pub fn synthesize_texture(
     timings.search = out.search_secs;
 
     // ---- magnify into the output texture from the full-resolution exemplar
-    let sw = Stopwatch::start();
+    let clock = Stopwatch::start();
     let size = params.texture_size as usize;
     let out_texels = crate::geometry::uv_texels(&uvs, surface.faces.len(), size, size);
     let (sx, sy) = (
@@ -1063,7 +1063,7 @@ pub fn synthesize_texture(
     let covered: Vec<bool> = out_texels.iter().map(|t| t.is_some()).collect();
     drop(out_texels);
     set_texture(&mut mesh, size, pixels, covered);
-    timings.magnify = sw.secs();
+    timings.magnify = clock.secs();
     sink(Event::StageTime("magnify", timings.magnify));
     timings.total = total.secs();
     Ok(TextureOutput {
