@@ -163,7 +163,7 @@ pub(super) fn every_shared_pair(
 /// among `patches,neighbourhood,triplanar`.
 pub fn synth_character_rows(json: bool) -> Result<()> {
     use crate::synthesis::exemplar::character::{Exemplar, measure, triplanar_texture};
-    use crate::synthesis::exemplar::patch_pasting::{PatchParams, paste_patches};
+    use crate::synthesis::exemplar::patch_pasting::paste_patches;
     use crate::synthesis::exemplar::{TextureInput, TextureParams, synthesize_texture};
     let (meshes, textures) = shared_meshes_and_textures();
     let wanted: Option<Vec<(String, String)>> = std::env::var("MESHMATCH_PAIRS").ok().map(|v| {
@@ -213,8 +213,7 @@ pub fn synth_character_rows(json: bool) -> Result<()> {
             // patch pasting lays the texture out (the target's UVs or an atlas); the others
             // go into the same layout
             let t0 = Instant::now();
-            let patches =
-                paste_patches(&input, &params, &PatchParams::default(), &|_| {}, &cancel)?;
+            let patches = paste_patches(&input, &params, &patch_params()?, &|_| {}, &cancel)?;
             let secs = t0.elapsed().as_secs_f64();
             let laid = &patches.mesh;
             let texture = |m: &crate::mesh::TriMesh| m.texture.as_ref().map(|x| x.image.clone());
@@ -251,6 +250,16 @@ pub fn synth_character_rows(json: bool) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The patch parameters: the defaults, or `MESHMATCH_PATCH_PARAMS` (JSON, e.g.
+/// `{"radius":0.35,"feather":0.05}`; fields left out keep their defaults) to compare settings.
+fn patch_params() -> Result<crate::synthesis::exemplar::patch_pasting::PatchParams> {
+    match std::env::var("MESHMATCH_PATCH_PARAMS") {
+        Err(_) => Ok(Default::default()),
+        Ok(v) => serde_json::from_str(&v)
+            .map_err(|e| crate::error::Error::InvalidInput(format!("MESHMATCH_PATCH_PARAMS: {e}"))),
+    }
 }
 
 fn print_character(

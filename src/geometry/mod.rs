@@ -42,6 +42,7 @@ mod curvature;
 mod curve_distance;
 mod curve_guided_field;
 mod direction_fields;
+mod distance_transform;
 mod eigen;
 mod expmap;
 mod frames;
@@ -77,6 +78,7 @@ pub use curve_guided_field::{
     curve_tangents, field_roughness, oriented_curve_field, score_terms,
 };
 pub use direction_fields::smooth_direction_field;
+pub use distance_transform::distance_transform;
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
 pub use frames::{parallel_transport_angle, tangent_frames};

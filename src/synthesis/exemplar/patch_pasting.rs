@@ -57,6 +57,9 @@ pub struct PatchParams {
     pub wobble: f32,
     /// Image positions (and rotations) tried per patch before refining the best.
     pub candidates: usize,
+    /// How strongly a placement's score grows with the use of its part of the image, relative
+    /// to the mean use, so that all of the image reaches the surface.
+    pub usage_weight: f32,
 }
 
 impl Default for PatchParams {
@@ -65,7 +68,8 @@ impl Default for PatchParams {
             radius: 0.3,
             feather: 0.08,
             wobble: 0.18,
-            candidates: 96,
+            candidates: 192,
+            usage_weight: 0.5,
         }
     }
 }
@@ -159,9 +163,9 @@ pub fn paste_patches(
         None => Img::from_rgb(input.exemplar),
         Some(a) => transparent_filled(input.exemplar, a)?.0,
     };
-    let opacity: Option<Vec<f32>> = input
-        .alpha
-        .map(|a| a.pixels().map(|p| p.0[0] as f32 / 255.0).collect());
+    // fades over the image's border and its holes alike
+    let border_fade = (pp.feather * radius / pixel).max(1.0);
+    let opacity: Option<Vec<f32>> = input.alpha.map(|a| hole_fade(a, border_fade));
     let anis = (sp.orientation == Orientation::Auto).then(|| {
         let probe = super::shrink_exemplar(input.exemplar.clone(), ew.min(256));
         let pa = input
@@ -192,7 +196,7 @@ pub fn paste_patches(
         pixel,
         radius,
         reach: radius * (1.0 + pp.wobble) * 1.1 + longest_edge(&surface),
-        border_fade: (pp.feather * radius / pixel).max(1.0),
+        border_fade,
         pp,
     };
     let mut canvas = Canvas {
@@ -310,13 +314,16 @@ fn check_inputs(input: &TextureInput, params: &TextureParams, pp: &PatchParams) 
         )));
     }
     let ok = |x: f32, lo: f32, hi: f32| x.is_finite() && x >= lo && x <= hi;
-    if !(ok(pp.radius, 0.05, 0.5) && ok(pp.feather, 0.01, 0.5) && ok(pp.wobble, 0.0, 0.5))
+    if !(ok(pp.radius, 0.05, 0.5)
+        && ok(pp.feather, 0.01, 0.5)
+        && ok(pp.wobble, 0.0, 0.5)
+        && ok(pp.usage_weight, 0.0, 10.0))
         || pp.candidates == 0
     {
         return Err(Error::InvalidInput(format!(
             "patch parameters out of range: radius {} (0.05-0.5), feather {} (0.01-0.5), wobble \
-             {} (0-0.5), candidates {} (1 or more)",
-            pp.radius, pp.feather, pp.wobble, pp.candidates
+             {} (0-0.5), usage weight {} (0-10), candidates {} (1 or more)",
+            pp.radius, pp.feather, pp.wobble, pp.usage_weight, pp.candidates
         )));
     }
     Ok(())
@@ -737,7 +744,7 @@ impl Context<'_> {
                 pl.centre,
                 core_px,
             );
-            s * (1.0 + USAGE_WEIGHT * u / mean_usage)
+            s * (1.0 + self.pp.usage_weight * u / mean_usage)
         };
         let mut best = draw(rng);
         let mut best_score = score(&best);
@@ -827,9 +834,22 @@ impl Context<'_> {
     }
 }
 
-/// How strongly a placement's score grows with the use of its part of the image, relative to
-/// the mean use.
-const USAGE_WEIGHT: f32 = 0.5;
+/// Opaque pixels as wide as a transparent region's antialiased fringe: they take the colour of
+/// what was cut away (a halo) and are not pasted.
+const FRINGE: f32 = 1.5;
+
+/// How much of each image pixel a patch shows: nothing over a transparent pixel (alpha under
+/// one half) or its fringe, then a ramp over `fade` pixels, as a patch fades at its rim and at
+/// the image's border, so a hole's edge is feathered like the rest of the patch's border and
+/// the texture under it shows through instead of meeting it at a hard edge.
+fn hole_fade(alpha: &image::GrayImage, fade: f32) -> Vec<f32> {
+    let (w, h) = (alpha.width() as usize, alpha.height() as usize);
+    let hole: Vec<bool> = alpha.pixels().map(|p| p.0[0] < 128).collect();
+    crate::geometry::distance_transform(&hole, w, h)
+        .into_iter()
+        .map(|d| ((d - FRINGE) / fade).clamp(0.0, 1.0))
+        .collect()
+}
 
 /// The mean use of the usage grid's cells within `r` pixels of `c` (the nearest cell's when none
 /// is).
