@@ -83,6 +83,76 @@ pub fn complete(
         ..params.clone()
     };
     mesh.check_finite()?;
+    let (base, painted_in) = painted_vertices(mesh, synthesize)?;
+    let n = mesh.positions.len();
+    if painted_in.iter().all(|&p| p) {
+        return Ok(CompletionResult {
+            colors: mesh.to_file_order(&base, [0.0; 3]),
+            working: {
+                let mut w = TriMesh::new(mesh.positions.clone(), mesh.faces.clone());
+                w.colors = Some(base.clone());
+                w
+            },
+            synthesized: vec![false; n],
+            energy: 0.0,
+            timings: Vec::new(),
+            full: None,
+        });
+    }
+    let w = painted_working_mesh(mesh, &base, &painted_in, params);
+    let nw = w.mesh.positions.len();
+    let source = example_mesh(mesh, &w)?;
+    let target = TriMesh::new(w.mesh.positions.clone(), w.mesh.faces.clone());
+    let (ps, pt) = prepare_pair(
+        &source,
+        &TransferParams {
+            vertices: source.positions.len(),
+            ..params.clone()
+        },
+        &target,
+        &TransferParams {
+            vertices: nw,
+            ..params.clone()
+        },
+        sink,
+        cancel,
+    )?;
+    let fixed: Vec<(u32, [f32; 3])> = pt
+        .working_to_file()
+        .iter()
+        .enumerate()
+        .filter(|&(_, &v)| w.painted[v as usize])
+        .map(|(wv, &v)| (wv as u32, w.colors[v as usize]))
+        .collect();
+    let r = solve_constrained(&ps, &pt, &[], &Constraints { fixed }, params, sink, cancel)?;
+    let full = Resampler::in_place(&ps, &pt, &r.nnf, cancel)?.map(|res| {
+        let layout = BakeLayout::of(&pt).through(&w.source_face, &w.source_bary, mesh.faces.len());
+        (Arc::new(res), Arc::new(layout))
+    });
+    let (out_w, out_in) = completed_colours(
+        &w,
+        &r.working_signal,
+        pt.file_to_working(),
+        &base,
+        &painted_in,
+    );
+    let w_painted = w.painted;
+    let mut working = w.mesh;
+    working.colors = Some(out_w);
+    let timings = stage_timings(&ps, &pt, &r.timings);
+    Ok(CompletionResult {
+        colors: mesh.to_file_order(&out_in, [0.0; 3]),
+        working,
+        synthesized: w_painted.iter().map(|&p| !p).collect(),
+        energy: r.energy,
+        timings,
+        full,
+    })
+}
+
+/// The mesh's colour per vertex and, per vertex, whether it is painted (the example); refuses a
+/// mask of the wrong length, a mesh without colours and a mesh with nothing painted.
+fn painted_vertices(mesh: &TriMesh, synthesize: &[bool]) -> Result<(Vec<[f32; 3]>, Vec<bool>)> {
     let nfile = mesh.file_vertex_count;
     if synthesize.len() != nfile {
         return Err(Error::InvalidInput(format!(
@@ -108,24 +178,35 @@ pub fn complete(
             "nothing is painted: completion needs an example region".into(),
         ));
     }
-    if !synth_in.iter().any(|&s| s) {
-        return Ok(CompletionResult {
-            colors: mesh.to_file_order(&base, [0.0; 3]),
-            working: {
-                let mut w = TriMesh::new(mesh.positions.clone(), mesh.faces.clone());
-                w.colors = Some(base.clone());
-                w
-            },
-            synthesized: vec![false; n],
-            energy: 0.0,
-            timings: Vec::new(),
-            full: None,
-        });
-    }
-    // Working mesh: unpainted colours pre-filled from the nearest painted vertex so that
-    // interpolation at the border does not mix in the clay colour.
+    Ok((base, painted_in))
+}
+
+/// The working mesh of a completion and what it knows.
+struct PaintedWorking {
+    mesh: TriMesh,
+    /// Input face and corner barycentrics of every working face.
+    source_face: Vec<u32>,
+    source_bary: Vec<[[f32; 3]; 3]>,
+    /// Per working vertex: painted (both ends of its edge painted, for a new vertex).
+    painted: Vec<bool>,
+    /// Per working vertex: its colour (the texture's, on a textured mesh).
+    colors: Vec<[f32; 3]>,
+    /// Per working face corner: its UV in the input's texture (textured meshes only).
+    corner_uvs: Vec<[f32; 2]>,
+    textured: bool,
+}
+
+/// The mesh refined to the working density, unpainted colours pre-filled from the nearest
+/// painted vertex so that interpolation at the border does not mix in the clay colour.
+fn painted_working_mesh(
+    mesh: &TriMesh,
+    base: &[[f32; 3]],
+    painted_in: &[bool],
+    params: &TransferParams,
+) -> PaintedWorking {
+    let n = mesh.positions.len();
     let mut plain = TriMesh::new(mesh.positions.clone(), mesh.faces.clone());
-    plain.colors = Some(fill_from_known(&plain.adjacency(), &base, &painted_in));
+    plain.colors = Some(fill_from_known(&plain.adjacency(), base, painted_in));
     let refined = refine_to_density(&plain, params.vertices);
     let textured = mesh.signal_kind() == SignalKind::Texture;
     let sources = if textured {
@@ -147,10 +228,8 @@ pub fn complete(
     let mut wcols = wmesh.colors.clone().unwrap_or_else(|| vec![[0.0; 3]; nw]);
     // A textured mesh: the example carries the texture itself (per-corner UVs through the
     // refinement), and the fixed colours are the texture's at the working vertices.
-    let corner_uv = |wf: usize, c: usize| -> [f32; 2] {
-        let uvs = mesh.uvs.as_deref().unwrap_or(&[]);
-        let f = refined.source_face[wf] as usize;
-        let b = refined.source_bary[wf][c];
+    let uvs = mesh.uvs.as_deref().unwrap_or(&[]);
+    let uv_at = |f: usize, b: [f32; 3]| -> [f32; 2] {
         (0..3).fold([0.0f32; 2], |a, k| {
             let u = uvs.get(3 * f + k).copied().unwrap_or([0.0; 2]);
             [a[0] + b[k] * u[0], a[1] + b[k] * u[1]]
@@ -161,31 +240,50 @@ pub fn complete(
             if f == u32::MAX {
                 continue;
             }
-            let uvs = mesh.uvs.as_deref().unwrap_or(&[]);
-            let f = f as usize;
-            let uv = (0..3).fold([0.0f32; 2], |a, k| {
-                let u = uvs.get(3 * f + k).copied().unwrap_or([0.0; 2]);
-                [a[0] + b[k] * u[0], a[1] + b[k] * u[1]]
-            });
-            wcols[v] = crate::mesh::sample_texture(tex, uv);
+            wcols[v] = crate::mesh::sample_texture(tex, uv_at(f as usize, b));
         }
     }
-    // Example: the fully painted working faces, compacted.
+    let corner_uvs = if textured {
+        (0..refined.source_face.len())
+            .flat_map(|wf| {
+                let f = refined.source_face[wf] as usize;
+                refined.source_bary[wf].map(|b| uv_at(f, b))
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    PaintedWorking {
+        mesh: wmesh,
+        source_face: refined.source_face,
+        source_bary: refined.source_bary,
+        painted: painted_w,
+        colors: wcols,
+        corner_uvs,
+        textured,
+    }
+}
+
+/// The example: the fully painted working faces, compacted, with their colours (or, textured,
+/// their UVs and the texture).
+fn example_mesh(mesh: &TriMesh, w: &PaintedWorking) -> Result<TriMesh> {
+    let wmesh = &w.mesh;
+    let nw = wmesh.positions.len();
     let mut remap = vec![u32::MAX; nw];
     let mut spos = Vec::new();
     let mut scol = Vec::new();
     let mut sfaces = Vec::new();
     let mut suvs = Vec::new();
     for (wf, f) in wmesh.faces.iter().enumerate() {
-        if f.iter().all(|&v| painted_w[v as usize]) {
-            if textured {
-                suvs.extend((0..3).map(|c| corner_uv(wf, c)));
+        if f.iter().all(|&v| w.painted[v as usize]) {
+            if w.textured {
+                suvs.extend_from_slice(&w.corner_uvs[3 * wf..3 * wf + 3]);
             }
             let g = f.map(|v| {
                 if remap[v as usize] == u32::MAX {
                     remap[v as usize] = spos.len() as u32;
                     spos.push(wmesh.positions[v as usize]);
-                    scol.push(wcols[v as usize]);
+                    scol.push(w.colors[v as usize]);
                 }
                 remap[v as usize]
             });
@@ -198,58 +296,46 @@ pub fn complete(
         ));
     }
     let mut source = TriMesh::new(spos, sfaces);
-    if textured {
+    if w.textured {
         source.uvs = Some(suvs);
         source.texture = mesh.texture.clone();
     } else {
         source.colors = Some(scol);
     }
-    let target = TriMesh::new(wmesh.positions.clone(), wmesh.faces.clone());
-    let (ps, pt) = prepare_pair(
-        &source,
-        &TransferParams {
-            vertices: source.positions.len(),
-            ..params.clone()
-        },
-        &target,
-        &TransferParams {
-            vertices: nw,
-            ..params.clone()
-        },
-        sink,
-        cancel,
-    )?;
-    let fixed: Vec<(u32, [f32; 3])> = pt
-        .working_to_file()
-        .iter()
-        .enumerate()
-        .filter(|&(_, &v)| painted_w[v as usize])
-        .map(|(w, &v)| (w as u32, wcols[v as usize]))
-        .collect();
-    let r = solve_constrained(&ps, &pt, &[], &Constraints { fixed }, params, sink, cancel)?;
-    let full = Resampler::in_place(&ps, &pt, &r.nnf, cancel)?.map(|res| {
-        let layout = BakeLayout::of(&pt).through(
-            &refined.source_face,
-            &refined.source_bary,
-            mesh.faces.len(),
-        );
-        (Arc::new(res), Arc::new(layout))
-    });
-    let f2w = pt.file_to_working();
+    Ok(source)
+}
+
+/// The completed colours: per working vertex its painted colour or the solve's, and per input
+/// vertex its own colour where painted, the working vertex's elsewhere.
+fn completed_colours(
+    w: &PaintedWorking,
+    working_signal: &[[f32; 3]],
+    f2w: &[u32],
+    base: &[[f32; 3]],
+    painted_in: &[bool],
+) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    let nw = w.mesh.positions.len();
     let out_w: Vec<[f32; 3]> = (0..nw)
         .map(|v| {
-            if painted_w[v] {
-                wcols[v]
+            if w.painted[v] {
+                w.colors[v]
             } else {
-                r.working_signal[f2w[v] as usize]
+                working_signal[f2w[v] as usize]
             }
         })
         .collect();
-    let out_in: Vec<[f32; 3]> = (0..n)
+    let out_in: Vec<[f32; 3]> = (0..painted_in.len())
         .map(|i| if painted_in[i] { base[i] } else { out_w[i] })
         .collect();
-    let mut working = wmesh;
-    working.colors = Some(out_w);
+    (out_w, out_in)
+}
+
+/// The example's and the target's preparation timings, named so, then the solve's.
+fn stage_timings(
+    ps: &crate::meshmatch::PreparedMesh,
+    pt: &crate::meshmatch::PreparedMesh,
+    solve: &[(String, f64)],
+) -> Vec<(String, f64)> {
     let mut timings: Vec<(String, f64)> = ps
         .timings()
         .iter()
@@ -260,13 +346,6 @@ pub fn complete(
                 .map(|(k, s)| (format!("target {k}"), *s)),
         )
         .collect();
-    timings.extend(r.timings.iter().cloned());
-    Ok(CompletionResult {
-        colors: mesh.to_file_order(&out_in, [0.0; 3]),
-        working,
-        synthesized: painted_w.iter().map(|&p| !p).collect(),
-        energy: r.energy,
-        timings,
-        full,
-    })
+    timings.extend(solve.iter().cloned());
+    timings
 }

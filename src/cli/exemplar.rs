@@ -135,6 +135,54 @@ pub struct Plan {
 /// Python package checks its keyword arguments through the same function), and decide what
 /// runs.
 pub fn check(a: &SynthArgs) -> Result<Plan> {
+    let (orientation, search, method) = parse_choices(a)?;
+    let optimise = method == crate::synthesis::Method::Optimize;
+    if optimise && a.displace {
+        return Err(Error::InvalidInput(
+            "--method optimize makes colours: it does not combine with --displace".into(),
+        ));
+    }
+    if optimise && a.mask.is_some() {
+        return Err(Error::InvalidInput(
+            "--method optimize rewrites every vertex: it does not combine with --mask".into(),
+        ));
+    }
+    let max_budget = check_ranges(a)?;
+    let textured_out = matches!(
+        a.out
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase())
+            .as_deref(),
+        Some("glb" | "gltf" | "obj")
+    );
+    let texture_space = choose_texture_space(a, textured_out, optimise)?;
+    if !(MIN_VERTEX_BUDGET..=max_budget).contains(&a.texel_budget) {
+        return Err(Error::InvalidInput(format!(
+            "--texel-budget {}: use {MIN_VERTEX_BUDGET} to {max_budget} texels",
+            a.texel_budget
+        )));
+    }
+    let patches = choose_patches(a, textured_out)?;
+    Ok(Plan {
+        orientation,
+        search,
+        method,
+        texture_space: texture_space || patches,
+        textured_out,
+        patches,
+    })
+}
+
+/// The orientation, search and method the flags name (`--align-features` turns `auto` into
+/// `features` and the method into `optimize`).
+fn parse_choices(
+    a: &SynthArgs,
+) -> Result<(
+    crate::synthesis::Orientation,
+    crate::synthesis::Search,
+    crate::synthesis::Method,
+)> {
     use crate::synthesis::{Orientation, Search};
     let orientation: Orientation = a.orientation.parse().map_err(|_| {
         Error::InvalidInput(format!(
@@ -175,17 +223,12 @@ pub fn check(a: &SynthArgs) -> Result<Plan> {
         }
         method = crate::synthesis::Method::Optimize;
     }
-    let optimise = method == crate::synthesis::Method::Optimize;
-    if optimise && a.displace {
-        return Err(Error::InvalidInput(
-            "--method optimize makes colours: it does not combine with --displace".into(),
-        ));
-    }
-    if optimise && a.mask.is_some() {
-        return Err(Error::InvalidInput(
-            "--method optimize rewrites every vertex: it does not combine with --mask".into(),
-        ));
-    }
+    Ok((orientation, search, method))
+}
+
+/// Refuse `--scale`, `--levels`, `--texture-size` and `--vertex-budget` out of range; the
+/// largest budget.
+fn check_ranges(a: &SynthArgs) -> Result<usize> {
     if let Some(s) = a.scale
         && !(s.is_finite() && s > 0.0)
     {
@@ -207,15 +250,14 @@ pub fn check(a: &SynthArgs) -> Result<Plan> {
             a.vertex_budget
         )));
     }
-    let textured_out = matches!(
-        a.out
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase())
-            .as_deref(),
-        Some("glb" | "gltf" | "obj")
-    );
-    let texture_space = match a.space.as_str() {
+    Ok(max_budget)
+}
+
+/// Whether the synthesis runs in texture space: `--space texture` (refused where another flag
+/// needs the surface), `surface`, or `auto` (a textured output with nothing that needs the
+/// surface).
+fn choose_texture_space(a: &SynthArgs, textured_out: bool, optimise: bool) -> Result<bool> {
+    Ok(match a.space.as_str() {
         "surface" => false,
         "texture" => {
             let clash = if !textured_out {
@@ -249,14 +291,13 @@ pub fn check(a: &SynthArgs) -> Result<Plan> {
                 "--space {o}: use auto, texture or surface"
             )));
         }
-    };
-    if !(MIN_VERTEX_BUDGET..=max_budget).contains(&a.texel_budget) {
-        return Err(Error::InvalidInput(format!(
-            "--texel-budget {}: use {MIN_VERTEX_BUDGET} to {max_budget} texels",
-            a.texel_budget
-        )));
-    }
-    let patches = match asked.as_str() {
+    })
+}
+
+/// Whether patches are pasted: `--method patches` (refused where another flag clashes), or
+/// `auto` on a textured output with nothing that needs the surface or the optimisation.
+fn choose_patches(a: &SynthArgs, textured_out: bool) -> Result<bool> {
+    Ok(match a.method.to_ascii_lowercase().as_str() {
         "patches" => {
             let clash = if !textured_out {
                 Some("an output with a texture (.glb, .gltf or .obj)")
@@ -288,14 +329,6 @@ pub fn check(a: &SynthArgs) -> Result<Plan> {
                 && a.space != "surface"
         }
         _ => false,
-    };
-    Ok(Plan {
-        orientation,
-        search,
-        method,
-        texture_space: texture_space || patches,
-        textured_out,
-        patches,
     })
 }
 
@@ -412,7 +445,6 @@ pub fn synthesize(
         textured_out,
         patches,
     } = *plan;
-    let optimise = method == crate::synthesis::Method::Optimize;
     if let Some(m) = file_mask
         && m.len() != target.file_vertex_count
     {
@@ -439,6 +471,65 @@ pub fn synthesize(
         )?;
         return Ok(Synthesized { mesh, dense: None });
     }
+    let (exemplar, alpha) = surface_exemplar(a, exemplar, alpha, target);
+    // The mask file numbers vertices as the file does; the synthesis takes one flag per vertex
+    // of the loaded mesh (repair may have dropped unreferenced file vertices).
+    let mask: Option<Vec<bool>> =
+        file_mask.map(|m| target.file_index.iter().map(|&f| m[f as usize]).collect());
+    let params = SynthParams {
+        scale: a.scale,
+        orientation,
+        levels: a.levels,
+        search,
+        seed: a.seed,
+        displace: a.displace,
+        ..SynthParams::default()
+    };
+    let job = SurfaceJob {
+        exemplar: &exemplar,
+        alpha: alpha.as_ref(),
+        target,
+        mask: mask.as_deref(),
+        params: &params,
+    };
+    let t = std::time::Instant::now();
+    let r = if orientation == Orientation::Features {
+        synth_along_features(a, method, &job, feature_mask, sink, cancel)?
+    } else {
+        synth_surface(a, method, &job, sink, cancel)?
+    };
+    print_anisotropy(r.anisotropy, r.orientation_used);
+    eprintln!(
+        "synthesized {} vertices in {:.2} s (search {:.2} s, {} search, orientation {}, method \
+         {}); finest-level neighbourhood energy {:.5}",
+        r.mesh.num_vertices(),
+        t.elapsed().as_secs_f64(),
+        r.timings.search,
+        search.as_str(),
+        r.orientation_used.as_str(),
+        method.as_str(),
+        r.level_energy.first().copied().unwrap_or(0.0)
+    );
+    // A texture on the target, unless the geometry is the result (displacement).
+    let mesh = if !a.displace && textured_out {
+        bake_result(a, target, &r.mesh, cancel)?
+    } else {
+        r.mesh.clone()
+    };
+    Ok(Synthesized {
+        mesh,
+        dense: Some(r.mesh),
+    })
+}
+
+/// The exemplar (and alpha) the surface synthesis runs on: shrunk to fit `--vertex-budget`
+/// unless `--exemplar-width` set its width.
+fn surface_exemplar(
+    a: &SynthArgs,
+    exemplar: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+    target: &crate::mesh::TriMesh,
+) -> (image::RgbImage, Option<image::GrayImage>) {
     let mut exemplar = exemplar.clone();
     if a.exemplar_width.is_none() {
         let min = (4u32 << (a.levels.clamp(1, 8) - 1)).max(8);
@@ -457,153 +548,156 @@ pub fn synthesize(
     let alpha = alpha.map(|al| {
         crate::synthesis::exemplar::resize_alpha(al.clone(), exemplar.width(), exemplar.height())
     });
-    // The mask file numbers vertices as the file does; the synthesis takes one flag per vertex
-    // of the loaded mesh (repair may have dropped unreferenced file vertices).
-    let mask: Option<Vec<bool>> =
-        file_mask.map(|m| target.file_index.iter().map(|&f| m[f as usize]).collect());
-    let params = SynthParams {
-        scale: a.scale,
-        orientation,
-        levels: a.levels,
-        search,
-        seed: a.seed,
-        displace: a.displace,
-        ..SynthParams::default()
+    (exemplar, alpha)
+}
+
+/// What a surface synthesis runs on.
+struct SurfaceJob<'a> {
+    exemplar: &'a image::RgbImage,
+    alpha: Option<&'a image::GrayImage>,
+    target: &'a crate::mesh::TriMesh,
+    /// One flag per vertex of the loaded target (`true` = synthesise).
+    mask: Option<&'a [bool]>,
+    params: &'a crate::synthesis::SynthParams,
+}
+
+/// `--orientation features`: through feature-aligned texturing (the curves are needed to align
+/// features), or, with a mask, the plain field-driven synthesis (it honours a mask).
+fn synth_along_features(
+    a: &SynthArgs,
+    method: crate::synthesis::Method,
+    job: &SurfaceJob,
+    feature_mask: Option<&image::GrayImage>,
+    sink: &dyn Fn(crate::work::Event),
+    cancel: &CancelToken,
+) -> Result<crate::synthesis::SynthResult> {
+    let (exemplar, target) = (job.exemplar, job.target);
+    let fa = crate::synthesis::feature_aligned::Params {
+        synth: job.params.clone(),
+        method,
+        align_features: a.align_features,
+        ..Default::default()
     };
-    let t = std::time::Instant::now();
-    let r = if orientation == Orientation::Features {
-        // Through feature-aligned texturing: the curves are needed to align features.
-        let fa = crate::synthesis::feature_aligned::Params {
-            synth: params.clone(),
-            method,
-            align_features: a.align_features,
-            ..Default::default()
-        };
-        let input = crate::synthesis::feature_aligned::Input {
-            target,
-            exemplar: &exemplar,
-            curves: None,
-            alpha: alpha.as_ref(),
-            feature_mask,
-        };
-        if let Some(m) = mask.as_deref() {
-            // a mask keeps colours: the plain field-driven synthesis honours it
-            let field = crate::synthesis::exemplar::feature_field(target, cancel)?;
-            crate::synthesis::exemplar::synthesize_with_alpha(
-                &exemplar,
-                alpha.as_ref(),
-                target,
-                Some(m),
-                Some(&field),
-                &params,
-                sink,
-                cancel,
-            )?
-        } else {
-            let out = crate::synthesis::feature_aligned::run(&input, &fa, sink, cancel)?;
-            eprintln!(
-                "{} salient curves (curves {:.2} s, field {:.2} s)",
-                out.curves.len(),
-                out.timings.curves,
-                out.timings.field
-            );
-            if out.exemplar_turned {
-                eprintln!(
-                    "the exemplar's lines are vertical: turned it a quarter turn to run along the curves"
-                );
-            }
-            if out.exemplar_rolled > 0 {
-                eprintln!(
-                    "the exemplar's line lies on its border: rolled it down {} rows (wrapping) so \
-                     whole patches centre on it",
-                    out.exemplar_rolled
-                );
-            }
-            if let Some(l) = &out.lines {
-                eprintln!(
-                    "the exemplar's principal lines: {} centre-line pixels",
-                    l.centre.iter().filter(|&&c| c).count()
-                );
-            }
-            if let Some(rep) = &out.optimization {
-                print_optimization(rep);
-            }
-            out.synth
-        }
-    } else {
-        let input = crate::synthesis::exemplar::Input {
-            exemplar: &exemplar,
-            target,
-            mask: mask.as_deref(),
-            alpha: alpha.as_ref(),
-        };
-        let mut r = crate::synthesis::exemplar::run(&input, &params, sink, cancel)?;
-        if optimise {
-            let rep = crate::synthesis::texture_optimization::optimize_result(
-                &mut r,
-                target,
-                &exemplar,
-                alpha.as_ref(),
-                None,
-                &crate::synthesis::texture_optimization::Params {
-                    seed: a.seed,
-                    ..Default::default()
-                },
-                sink,
-                cancel,
-            )?;
-            print_optimization(&rep);
-        }
-        r
+    let input = crate::synthesis::feature_aligned::Input {
+        target,
+        exemplar,
+        curves: None,
+        alpha: job.alpha,
+        feature_mask,
     };
-    print_anisotropy(r.anisotropy, r.orientation_used);
+    if let Some(m) = job.mask {
+        // a mask keeps colours: the plain field-driven synthesis honours it
+        let field = crate::synthesis::exemplar::feature_field(target, cancel)?;
+        return crate::synthesis::exemplar::synthesize_with_alpha(
+            exemplar,
+            job.alpha,
+            target,
+            Some(m),
+            Some(&field),
+            job.params,
+            sink,
+            cancel,
+        );
+    }
+    let out = crate::synthesis::feature_aligned::run(&input, &fa, sink, cancel)?;
     eprintln!(
-        "synthesized {} vertices in {:.2} s (search {:.2} s, {} search, orientation {}, method \
-         {}); finest-level neighbourhood energy {:.5}",
-        r.mesh.num_vertices(),
-        t.elapsed().as_secs_f64(),
-        r.timings.search,
-        search.as_str(),
-        r.orientation_used.as_str(),
-        method.as_str(),
-        r.level_energy.first().copied().unwrap_or(0.0)
+        "{} salient curves (curves {:.2} s, field {:.2} s)",
+        out.curves.len(),
+        out.timings.curves,
+        out.timings.field
     );
-    // A texture on the target, unless the geometry is the result (displacement).
-    let mesh = if !a.displace && textured_out {
-        let colors = r
-            .mesh
-            .colors
-            .as_ref()
-            .ok_or_else(|| Error::InvalidInput("synthesis gave no colours".into()))?;
-        let (baked, atlas) = crate::geometry::bake_onto(
-            target,
-            &r.mesh,
-            colors,
-            a.texture_size,
-            false,
-            &|_| {},
+    if out.exemplar_turned {
+        eprintln!(
+            "the exemplar's lines are vertical: turned it a quarter turn to run along the curves"
+        );
+    }
+    if out.exemplar_rolled > 0 {
+        eprintln!(
+            "the exemplar's line lies on its border: rolled it down {} rows (wrapping) so \
+             whole patches centre on it",
+            out.exemplar_rolled
+        );
+    }
+    if let Some(l) = &out.lines {
+        eprintln!(
+            "the exemplar's principal lines: {} centre-line pixels",
+            l.centre.iter().filter(|&&c| c).count()
+        );
+    }
+    if let Some(rep) = &out.optimization {
+        print_optimization(rep);
+    }
+    Ok(out.synth)
+}
+
+/// The surface synthesis, followed by the texture optimisation for `--method optimize`.
+fn synth_surface(
+    a: &SynthArgs,
+    method: crate::synthesis::Method,
+    job: &SurfaceJob,
+    sink: &dyn Fn(crate::work::Event),
+    cancel: &CancelToken,
+) -> Result<crate::synthesis::SynthResult> {
+    let input = crate::synthesis::exemplar::Input {
+        exemplar: job.exemplar,
+        target: job.target,
+        mask: job.mask,
+        alpha: job.alpha,
+    };
+    let mut r = crate::synthesis::exemplar::run(&input, job.params, sink, cancel)?;
+    if method == crate::synthesis::Method::Optimize {
+        let rep = crate::synthesis::texture_optimization::optimize_result(
+            &mut r,
+            job.target,
+            job.exemplar,
+            job.alpha,
+            None,
+            &crate::synthesis::texture_optimization::Params {
+                seed: a.seed,
+                ..Default::default()
+            },
+            sink,
             cancel,
         )?;
-        if let Some(at) = atlas {
-            eprintln!(
-                "generated a UV atlas for the target: {} charts, {:.0}% of the texture",
-                at.charts,
-                100.0 * at.utilization
-            );
-        }
+        print_optimization(&rep);
+    }
+    Ok(r)
+}
+
+/// The synthesized colours baked into a `--texture-size` texture on the target (through an atlas
+/// generated for it if its UVs are unusable).
+fn bake_result(
+    a: &SynthArgs,
+    target: &crate::mesh::TriMesh,
+    dense: &crate::mesh::TriMesh,
+    cancel: &CancelToken,
+) -> Result<crate::mesh::TriMesh> {
+    let colors = dense
+        .colors
+        .as_ref()
+        .ok_or_else(|| Error::InvalidInput("synthesis gave no colours".into()))?;
+    let (baked, atlas) = crate::geometry::bake_onto(
+        target,
+        dense,
+        colors,
+        a.texture_size,
+        false,
+        &|_| {},
+        cancel,
+    )?;
+    if let Some(at) = atlas {
         eprintln!(
-            "baked the result into a {0}x{0} texture on the target's {1} vertices",
-            a.texture_size,
-            baked.num_vertices()
+            "generated a UV atlas for the target: {} charts, {:.0}% of the texture",
+            at.charts,
+            100.0 * at.utilization
         );
-        baked
-    } else {
-        r.mesh.clone()
-    };
-    Ok(Synthesized {
-        mesh,
-        dense: Some(r.mesh),
-    })
+    }
+    eprintln!(
+        "baked the result into a {0}x{0} texture on the target's {1} vertices",
+        a.texture_size,
+        baked.num_vertices()
+    );
+    Ok(baked)
 }
 
 /// `synth --space texture`: the synthesis on the texels of the target's UV layout.

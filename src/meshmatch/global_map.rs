@@ -529,82 +529,20 @@ pub fn map_meshes(
     corr: &[crate::correspondence::Correspondence],
     cancel: &CancelToken,
 ) -> Result<PointMap> {
-    use crate::geometry::{TriangleBvh, weld};
-    use crate::hierarchy::HierarchyOptions;
     crate::correspondence::check_limits(corr)?;
     let mut timings = Vec::new();
     let clock = Stopwatch::start();
-    let side = |m: &crate::mesh::TriMesh, what: &str| -> Result<(Hierarchy, Vec<u32>, usize)> {
-        if m.positions.is_empty() || m.faces.is_empty() {
-            return Err(Error::InvalidMesh(format!(
-                "the {what} mesh has no vertices or no faces"
-            )));
-        }
-        m.check_finite()?;
-        let (w, input_to_welded) = weld(m);
-        if w.faces.is_empty() {
-            return Err(Error::InvalidMesh(format!(
-                "the {what} mesh has no faces of non-zero size"
-            )));
-        }
-        let h = Hierarchy::build_cancellable(
-            &w.positions,
-            &w.faces,
-            HierarchyOptions {
-                min_vertices: POINT_MAP_VERTICES,
-                max_levels: None,
-            },
-            cancel,
-        )?;
-        let l = (0..h.num_levels())
-            .find(|&l| h.levels[l].len() <= POINT_MAP_VERTICES)
-            .unwrap_or(h.num_levels() - 1);
-        Ok((h, input_to_welded, l))
-    };
-    let (s, t) = rayon::join(|| side(source, "source"), || side(target, "target"));
-    let ((hs, s_in, ls), (ht, t_in, lt)) = (s?, t?);
+    let (s, t) = rayon::join(
+        || simplified(source, "source", cancel),
+        || simplified(target, "target", cancel),
+    );
+    let (s, t) = (s?, t?);
     timings.push(("simplify".to_string(), clock.secs()));
     cancel.check()?;
-    // file vertex -> welded vertex (first input vertex of each file vertex)
-    let file_to_welded = |m: &crate::mesh::TriMesh, input_to_welded: &[u32]| -> Vec<u32> {
-        let nf = m.file_vertex_count.max(m.positions.len());
-        let mut out = vec![u32::MAX; nf];
-        for (i, &w) in input_to_welded.iter().enumerate() {
-            let f = m.file_index.get(i).copied().unwrap_or(i as u32) as usize;
-            if f < nf && out[f] == u32::MAX {
-                out[f] = w;
-            }
-        }
-        out
-    };
-    let sf = file_to_welded(source, &s_in);
-    let tf = file_to_welded(target, &t_in);
-    let mut landmarks = Vec::new();
-    for c in corr {
-        let s = sf
-            .get(c.source_vertex as usize)
-            .copied()
-            .filter(|&v| v != u32::MAX);
-        let Some(s) = s else {
-            return Err(Error::InvalidInput(format!(
-                "correspondence source vertex {} is out of range (source has {} vertices)",
-                c.source_vertex,
-                sf.len()
-            )));
-        };
-        for &t in &c.target_vertices {
-            let Some(t) = tf.get(t as usize).copied().filter(|&v| v != u32::MAX) else {
-                return Err(Error::InvalidInput(format!(
-                    "correspondence target vertex {t} is out of range (target has {} vertices)",
-                    tf.len()
-                )));
-            };
-            landmarks.push((hs.ancestor(0, s, ls), ht.ancestor(0, t, lt)));
-        }
-    }
-    landmarks.sort_unstable();
-    landmarks.dedup_by_key(|p| p.1);
-    let (ms, mt) = (&hs.levels[ls], &ht.levels[lt]);
+    let sf = file_to_welded(source, &s.input_to_welded);
+    let tf = file_to_welded(target, &t.input_to_welded);
+    let landmarks = map_landmarks(corr, (&sf, &s), (&tf, &t))?;
+    let (ms, mt) = (&s.hierarchy.levels[s.level], &t.hierarchy.levels[t.level]);
     let nmin = ms.len().min(mt.len());
     let params = FmapParams {
         k_final: 100.min(nmin / 4),
@@ -625,60 +563,15 @@ pub fn map_meshes(
     )?;
     timings.extend(m.timings.iter().cloned());
     let clock = Stopwatch::start();
-    // welded target vertex -> welded source vertex
-    let mapped: Vec<[f32; 3]> = m
-        .target_to_source
-        .iter()
-        .map(|&s| ms.positions[s as usize])
-        .collect();
-    let fine_s = &hs.levels[0].positions;
-    let fine_t = &ht.levels[0].positions;
-    let welded_map: Vec<u32> = if lt == 0 && ls == 0 {
-        m.target_to_source.clone()
-    } else {
-        use rayon::prelude::*;
-        let bvh = TriangleBvh::new(&mt.positions, &mt.faces);
-        let flat: Vec<f32> = fine_s.iter().flatten().copied().collect();
-        let tree = crate::stats::kdtree::KdTree::new(&flat, 3);
-        fine_t
-            .par_iter()
-            .enumerate()
-            .map_init(Vec::new, |buf, (v, &p)| {
-                let q = blend_at(&bvh, &mt.faces, &mapped, p)
-                    .unwrap_or_else(|| mapped[ht.ancestor(0, v as u32, lt) as usize]);
-                tree.knn(&q, 1, buf);
-                buf.first().map_or(0, |x| x.1)
-            })
-            .collect()
-    };
+    let mut welded_map = welded_point_map(&s, &t, &m.target_to_source);
     // the landmarks' own target vertices keep their source vertex
-    let mut welded_map = welded_map;
     for c in corr {
         let s = sf[c.source_vertex as usize];
         for &t in &c.target_vertices {
             welded_map[tf[t as usize] as usize] = s;
         }
     }
-    let s_first: Vec<u32> = {
-        let mut first = vec![u32::MAX; hs.levels[0].len()];
-        for (f, &w) in sf.iter().enumerate() {
-            if w != u32::MAX && first[w as usize] == u32::MAX {
-                first[w as usize] = f as u32;
-            }
-        }
-        first
-    };
-    let target_to_source = tf
-        .iter()
-        .map(|&w| {
-            if w == u32::MAX {
-                0
-            } else {
-                let s = s_first[welded_map[w as usize] as usize];
-                if s == u32::MAX { 0 } else { s }
-            }
-        })
-        .collect();
+    let target_to_source = file_point_map(&sf, &tf, &welded_map, s.hierarchy.levels[0].len());
     timings.push(("interpolate".to_string(), clock.secs()));
     Ok(PointMap {
         target_to_source,
@@ -687,6 +580,154 @@ pub fn map_meshes(
         map_vertices: (ms.len(), mt.len()),
         timings,
     })
+}
+
+/// One mesh of a point map, welded and simplified.
+struct Simplified {
+    /// The welded mesh's hierarchy.
+    hierarchy: Hierarchy,
+    /// Welded vertex of every input vertex.
+    input_to_welded: Vec<u32>,
+    /// The level the shape map runs on: the finest of at most `POINT_MAP_VERTICES`.
+    level: usize,
+}
+
+/// Weld a mesh (refusing one without faces or with non-finite coordinates) and build its
+/// hierarchy down to the shape map's level.
+fn simplified(m: &crate::mesh::TriMesh, what: &str, cancel: &CancelToken) -> Result<Simplified> {
+    use crate::hierarchy::HierarchyOptions;
+    if m.positions.is_empty() || m.faces.is_empty() {
+        return Err(Error::InvalidMesh(format!(
+            "the {what} mesh has no vertices or no faces"
+        )));
+    }
+    m.check_finite()?;
+    let (w, input_to_welded) = crate::geometry::weld(m);
+    if w.faces.is_empty() {
+        return Err(Error::InvalidMesh(format!(
+            "the {what} mesh has no faces of non-zero size"
+        )));
+    }
+    let h = Hierarchy::build_cancellable(
+        &w.positions,
+        &w.faces,
+        HierarchyOptions {
+            min_vertices: POINT_MAP_VERTICES,
+            max_levels: None,
+        },
+        cancel,
+    )?;
+    let l = (0..h.num_levels())
+        .find(|&l| h.levels[l].len() <= POINT_MAP_VERTICES)
+        .unwrap_or(h.num_levels() - 1);
+    Ok(Simplified {
+        hierarchy: h,
+        input_to_welded,
+        level: l,
+    })
+}
+
+/// File vertex -> welded vertex (through the first input vertex of each file vertex;
+/// `u32::MAX` for a file vertex the mesh dropped).
+fn file_to_welded(m: &crate::mesh::TriMesh, input_to_welded: &[u32]) -> Vec<u32> {
+    let nf = m.file_vertex_count.max(m.positions.len());
+    let mut out = vec![u32::MAX; nf];
+    for (i, &w) in input_to_welded.iter().enumerate() {
+        let f = m.file_index.get(i).copied().unwrap_or(i as u32) as usize;
+        if f < nf && out[f] == u32::MAX {
+            out[f] = w;
+        }
+    }
+    out
+}
+
+/// The correspondences as landmark pairs of the shape map's levels (sorted, one per target
+/// vertex); refuses a file vertex out of range.
+fn map_landmarks(
+    corr: &[crate::correspondence::Correspondence],
+    (sf, s): (&[u32], &Simplified),
+    (tf, t): (&[u32], &Simplified),
+) -> Result<Vec<(u32, u32)>> {
+    let mut landmarks = Vec::new();
+    for c in corr {
+        let sv = sf
+            .get(c.source_vertex as usize)
+            .copied()
+            .filter(|&v| v != u32::MAX);
+        let Some(sv) = sv else {
+            return Err(Error::InvalidInput(format!(
+                "correspondence source vertex {} is out of range (source has {} vertices)",
+                c.source_vertex,
+                sf.len()
+            )));
+        };
+        for &tv in &c.target_vertices {
+            let Some(tv) = tf.get(tv as usize).copied().filter(|&v| v != u32::MAX) else {
+                return Err(Error::InvalidInput(format!(
+                    "correspondence target vertex {tv} is out of range (target has {} vertices)",
+                    tf.len()
+                )));
+            };
+            landmarks.push((
+                s.hierarchy.ancestor(0, sv, s.level),
+                t.hierarchy.ancestor(0, tv, t.level),
+            ));
+        }
+    }
+    landmarks.sort_unstable();
+    landmarks.dedup_by_key(|p| p.1);
+    Ok(landmarks)
+}
+
+/// Welded target vertex -> welded source vertex: the coarse map's source positions blended at
+/// each fine target vertex's closest point on the coarse target, then the nearest fine source
+/// vertex (the coarse map itself where both levels are the finest).
+fn welded_point_map(s: &Simplified, t: &Simplified, coarse_map: &[u32]) -> Vec<u32> {
+    let (hs, ht, lt) = (&s.hierarchy, &t.hierarchy, t.level);
+    let (ms, mt) = (&hs.levels[s.level], &ht.levels[lt]);
+    let mapped: Vec<[f32; 3]> = coarse_map
+        .iter()
+        .map(|&s| ms.positions[s as usize])
+        .collect();
+    let fine_s = &hs.levels[0].positions;
+    let fine_t = &ht.levels[0].positions;
+    if lt == 0 && s.level == 0 {
+        return coarse_map.to_vec();
+    }
+    let bvh = crate::geometry::TriangleBvh::new(&mt.positions, &mt.faces);
+    let flat: Vec<f32> = fine_s.iter().flatten().copied().collect();
+    let tree = crate::stats::kdtree::KdTree::new(&flat, 3);
+    fine_t
+        .par_iter()
+        .enumerate()
+        .map_init(Vec::new, |buf, (v, &p)| {
+            let q = blend_at(&bvh, &mt.faces, &mapped, p)
+                .unwrap_or_else(|| mapped[ht.ancestor(0, v as u32, lt) as usize]);
+            tree.knn(&q, 1, buf);
+            buf.first().map_or(0, |x| x.1)
+        })
+        .collect()
+}
+
+/// Target file vertex -> source file vertex, through the welded map (the first file vertex of
+/// each welded source vertex; 0 where there is none).
+fn file_point_map(sf: &[u32], tf: &[u32], welded_map: &[u32], source_welded: usize) -> Vec<u32> {
+    let mut s_first = vec![u32::MAX; source_welded];
+    for (f, &w) in sf.iter().enumerate() {
+        if w != u32::MAX && s_first[w as usize] == u32::MAX {
+            s_first[w as usize] = f as u32;
+        }
+    }
+    tf.iter()
+        .map(|&w| {
+            if w == u32::MAX {
+                0
+            } else {
+                let s = s_first[welded_map[w as usize] as usize];
+                if s == u32::MAX { 0 } else { s }
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -24,6 +24,7 @@ mod patch_map;
 mod prepare;
 mod resample;
 mod solve;
+mod working;
 
 use crate::error::{Error, Result};
 use crate::mesh::{SignalKind, TriMesh};
@@ -31,9 +32,10 @@ use crate::work::{CancelToken, Event};
 
 pub use deliver::{BakeLayout, Delivered, bake_texture, deliver, deliver_dense};
 pub use global_map::{POINT_MAP_VERTICES, PointMap, map_meshes};
-pub use prepare::{PreparedMesh, WORKING_VERTEX_BYTES, prepare, prepare_pair};
+pub use prepare::{PreparedMesh, prepare, prepare_pair};
 pub use resample::Resampler;
 pub use solve::{solve, solve_constrained};
+pub use working::WORKING_VERTEX_BYTES;
 
 /// Parameters of a MeshMatch transfer.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

@@ -8,15 +8,13 @@ use super::TransferParams;
 use super::deliver::BakeLayout;
 use super::em::C;
 use super::global_map;
+use super::working;
 use crate::error::{Error, Result};
 use crate::features::{self, FanSampler, Frames, edge_transport_angles, tangent_frames};
 use crate::geometry::Spectrum;
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
-use crate::mesh::{SignalKind, TriMesh, sample_texture};
+use crate::mesh::TriMesh;
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
-
-/// Memory assumed per working vertex when checking a preparation against the process's limit.
-pub const WORKING_VERTEX_BYTES: u64 = 6 << 10;
 
 /// Working vertex count up to which a target keeps its fan sampling tables between solves.
 const KEEP_SAMPLERS_UP_TO: usize = 300_000;
@@ -223,210 +221,13 @@ pub fn prepare(
     };
     sink(Event::Progress(progress("refine", &watch, 0.0)));
     let clock = Stopwatch::start();
-    let (welded, map) = crate::geometry::weld(mesh);
-    if welded.faces.is_empty() {
-        return Err(Error::InvalidMesh(
-            "mesh has no non-degenerate faces".into(),
-        ));
-    }
-    // A tangle of faces is not a surface: refuse it rather than build a hierarchy over vertices
-    // shared by thousands of faces (a PLY of thousands of overlapping 255-gons, say).
-    let (edges, non_manifold) = crate::mesh::edge_counts(&welded.faces);
-    if non_manifold * 10 > edges {
-        return Err(Error::InvalidMesh(format!(
-            "{}{non_manifold} of {edges} edges are shared by more than two faces: this is not a \
-             surface MeshMatch can work on; clean the mesh (remove overlapping faces) first",
-            mesh.path
-                .as_ref()
-                .map(|p| format!("{}: ", p.display()))
-                .unwrap_or_default(),
-        )));
-    }
-    // A mesh denser than the working budget is used as it is: refuse it rather than run the
-    // solver for hours on it.
-    let max_v = crate::mesh::MAX_WORKING_VERTICES;
-    if welded.positions.len() > max_v {
-        return Err(Error::InvalidMesh(format!(
-            "{}{} vertices, more than the working budget of {max_v}; decimate the mesh first",
-            mesh.path
-                .as_ref()
-                .map(|p| format!("{}: ", p.display()))
-                .unwrap_or_default(),
-            welded.positions.len()
-        )));
-    }
-    // Input face of every welded face (weld drops out-of-range and degenerate faces in order).
-    let nin = mesh.positions.len();
-    let welded_to_input: Vec<u32> = mesh
-        .faces
-        .iter()
-        .enumerate()
-        .filter(|(_, f)| {
-            if f.iter().any(|&v| v as usize >= nin) {
-                return false;
-            }
-            let w = f.map(|v| map[v as usize]);
-            w[0] != w[1] && w[1] != w[2] && w[0] != w[2]
-        })
-        .map(|(i, _)| i as u32)
-        .collect();
-    // Refuse up front what cannot fit: about 6 KB per working vertex at peak (hierarchy, frames,
-    // fan tables and fans; measured peak RSS is 2.4-4 KB per vertex, plus room for the address
-    // space's overheads), rather than abort halfway on a failed allocation.
-    let working = welded.positions.len().max(params.vertices) as u64;
-    crate::work::check_memory(
-        working.saturating_mul(WORKING_VERTEX_BYTES),
-        &format!("{working} working vertices"),
-        "use fewer --vertices",
-    )?;
-    // Refine the bare welded surface (the signal is sampled below from the input itself).
-    let bare = TriMesh::new(welded.positions.clone(), welded.faces.clone());
-    let r = crate::geometry::refine_to_density(&bare, params.vertices);
-    drop(bare);
-    let vert_src: Vec<(u32, [f32; 3])> = r
-        .vertex_sources()
-        .into_iter()
-        .map(|(f, b)| if f == u32::MAX { (0, b) } else { (f, b) })
-        .collect();
-    cancel.check()?;
-    let nw = welded.positions.len();
-    // Per working vertex signal.
-    let signal0: Option<Vec<[f32; 3]>> = match mesh.signal_kind() {
-        SignalKind::None => None,
-        kind => {
-            let base = mesh.vertex_signal();
-            let mut sig = vec![[0.0f32; 3]; r.mesh.positions.len()];
-            if let Some(base) = base {
-                for (i, &w) in map.iter().enumerate() {
-                    sig[w as usize] = base[i];
-                }
-            }
-            for (v, slot) in sig.iter_mut().enumerate().skip(nw) {
-                let (wf, b) = vert_src[v];
-                let f = welded_to_input[wf as usize] as usize;
-                *slot = match kind {
-                    SignalKind::Texture => {
-                        let (tex, uvs) = (
-                            mesh.texture.as_ref().expect("texture"),
-                            mesh.uvs.as_ref().expect("uvs"),
-                        );
-                        let uv = (0..3).fold([0.0f32; 2], |a, k| {
-                            let u = uvs[3 * f + k];
-                            [a[0] + b[k] * u[0], a[1] + b[k] * u[1]]
-                        });
-                        sample_texture(tex, uv)
-                    }
-                    _ => {
-                        let cols = mesh.colors.as_ref().expect("colours");
-                        let fc = mesh.faces[f];
-                        (0..3).fold([0.0f32; 3], |a, k| {
-                            let c = cols[fc[k] as usize];
-                            [a[0] + b[k] * c[0], a[1] + b[k] * c[1], a[2] + b[k] * c[2]]
-                        })
-                    }
-                };
-            }
-            Some(sig)
-        }
-    };
-    // File maps. Welded vertex -> one input vertex; working vertex -> nearest input corner.
-    let mut welded_first = vec![u32::MAX; nw];
-    for (i, &w) in map.iter().enumerate() {
-        if welded_first[w as usize] == u32::MAX {
-            welded_first[w as usize] = i as u32;
-        }
-    }
-    let file_of_input = |i: u32| mesh.file_index.get(i as usize).copied().unwrap_or(i);
-    let mut working_to_file: Vec<u32> = (0..r.mesh.positions.len())
-        .map(|v| {
-            let wv = if v < nw {
-                v as u32
-            } else {
-                let (wf, b) = vert_src[v];
-                let k = (0..3).max_by(|&a, &c| b[a].total_cmp(&b[c])).unwrap_or(0);
-                welded.faces[wf as usize][k]
-            };
-            file_of_input(welded_first[wv as usize])
-        })
-        .collect();
-    // The working mesh renumbered along the Morton curve of its positions: refinement appends
-    // its vertices in split order, scattered over the surface, and every later stage (hierarchy,
-    // fan tables and gathers, the EM's neighbourhood reads) reads a vertex's neighbours, which
-    // this order keeps close in memory. `order[new] = old` (kept for the hierarchy's ties).
-    let order = crate::geometry::morton_order(&r.mesh.positions);
-    let renumber = crate::geometry::inverse_order(&order);
-    let permute = |v: &mut Vec<[f32; 3]>| *v = order.iter().map(|&o| v[o as usize]).collect();
-    working_to_file = order.iter().map(|&o| working_to_file[o as usize]).collect();
-    let signal0 = signal0.map(|mut s| {
-        permute(&mut s);
-        s
-    });
-    let mut file_to_working = vec![0u32; mesh.file_vertex_count.max(mesh.positions.len())];
-    file_to_working.truncate(mesh.file_vertex_count.max(1));
-    for (i, &w) in map.iter().enumerate() {
-        if let Some(slot) = file_to_working.get_mut(file_of_input(i as u32) as usize) {
-            *slot = renumber[w as usize];
-        }
-    }
-    let face_input: Vec<u32> = r
-        .source_face
-        .iter()
-        .map(|&f| welded_to_input[f as usize])
-        .collect();
-    let mut positions = r.mesh.positions;
-    permute(&mut positions);
-    let faces: Vec<[u32; 3]> = r
-        .mesh
-        .faces
-        .iter()
-        .map(|f| f.map(|v| renumber[v as usize]))
-        .collect();
-    drop(renumber);
-    let mut working = TriMesh::new(positions, faces);
-    working.colors = signal0.clone();
-    let layout = Arc::new(BakeLayout {
-        working_faces: working.faces.clone(),
-        working_vertices: working.positions.len(),
-        face_input,
-        face_bary: r.source_bary,
-        input_faces: mesh.faces.len(),
-    });
-    // A textured input keeps its texture on the working mesh (UVs interpolated into every working
-    // corner), so views draw it per pixel rather than through the vertex colours.
-    if mesh.signal_kind() == SignalKind::Texture
-        && let Some(wuv) = layout.working_uvs(mesh)
-    {
-        working.uvs = Some(wuv);
-        working.texture = mesh.texture.clone();
-    }
+    let working = working::working_mesh(mesh, params, cancel)?;
     stage("refine", clock.secs(), &mut timings);
 
     sink(Event::Progress(progress("hierarchy", &watch, 0.2)));
     let clock = Stopwatch::start();
-    // Ties between equally long edges are broken by the refinement's numbering, so the
-    // hierarchy is the one the mesh had before its Morton renumbering (on a regular grid most
-    // edges tie, and the tie order shapes every level).
-    let hierarchy = Hierarchy::build_keyed(
-        &working.positions,
-        &working.faces,
-        Some(&order),
-        HierarchyOptions {
-            min_vertices: crate::mesh::MIN_WORKING_VERTICES,
-            max_levels: params.levels,
-        },
-        cancel,
-    )?;
-    let frames: Vec<Frames> = hierarchy
-        .levels
-        .iter()
-        .map(|l| tangent_frames(&l.normals))
-        .collect();
-    let edge_angles: Vec<Vec<f32>> = hierarchy
-        .levels
-        .iter()
-        .zip(&frames)
-        .map(|(l, f)| edge_transport_angles(l, f))
-        .collect();
+    let (hierarchy, frames, edge_angles) =
+        hierarchy_and_frames(&working.mesh, &working.order, params, cancel)?;
     stage("hierarchy", clock.secs(), &mut timings);
     cancel.check()?;
 
@@ -437,61 +238,12 @@ pub fn prepare(
     let hks = beside_tables(&hierarchy.levels[lc], cancel, |p, f| {
         features::hks_scaled(p, f, features::HKS_EIGENPAIRS)
     })?;
-    // The spectrum the solve's global map will want, beside the tables too: the eigen-solve
-    // scales less well than the tables, and after the preparation it would run alone.
-    let spectrum = match global_map::expected_spectrum(&hierarchy) {
-        Some((l, k)) if params.structure != Some(0.0) => Some((
-            l,
-            k,
-            beside_tables(&hierarchy.levels[l], cancel, move |p, f| {
-                Spectrum::new(p, f, k)
-            })?,
-        )),
-        _ => None,
-    };
+    let spectrum = start_map_spectrum(&hierarchy, params, cancel)?;
 
-    // Fan sampling tables of every level. A mesh with a signal builds each level's table, takes
-    // its fans and drops it. A mesh without one (a target) keeps them, so a correspondence edit
-    // only re-runs the solve; very large targets rebuild them level by level in the solve
-    // instead of holding about 1 KB per vertex (u32 indices and 16-bit weights, 162 taps).
     sink(Event::Progress(progress("fans", &watch, 0.6)));
     let clock = Stopwatch::start();
-    let table = |l: usize| {
-        let lev = &hierarchy.levels[l];
-        FanSampler::in_vertex_order(lev, &frames[l], params.fan_radius * lev.mean_edge, cancel)
-    };
-    let mut samplers = Vec::new();
-    let (signal, fans) = if let Some(s0) = signal0 {
-        let mut sig = vec![s0];
-        for l in 1..hierarchy.num_levels() {
-            let prev = &sig[l - 1];
-            let cur: Vec<[f32; 3]> = (0..hierarchy.levels[l].len())
-                .map(|p| {
-                    let ch = hierarchy.children(l, p as u32);
-                    let mut a = Vec3::ZERO;
-                    for &c in ch {
-                        a += Vec3::from(prev[c as usize]);
-                    }
-                    (a / ch.len().max(1) as f32).to_array()
-                })
-                .collect();
-            sig.push(cur);
-        }
-        let mut fans = Vec::with_capacity(sig.len());
-        for (l, s) in sig.iter().enumerate() {
-            cancel.check()?;
-            fans.push(table(l)?.fans(&hierarchy.levels[l], s.as_flattened(), C));
-        }
-        (Some(sig), Some(fans))
-    } else {
-        if working.num_vertices() <= KEEP_SAMPLERS_UP_TO {
-            for l in 0..hierarchy.num_levels() {
-                cancel.check()?;
-                samplers.push(table(l)?);
-            }
-        }
-        (None, None)
-    };
+    let nv = working.mesh.num_vertices();
+    let fans = level_fans(&hierarchy, &frames, working.signal, nv, params, cancel)?;
     stage("fans", clock.secs(), &mut timings);
     let (hks, secs) = hks.wait(cancel)?;
     let shape = features::shape_features_from(&hierarchy, lc, hks?);
@@ -511,19 +263,145 @@ pub fn prepare(
     cancel.check()?;
     sink(Event::Progress(progress("prepare", &watch, 1.0)));
     Ok(PreparedMesh {
-        working,
-        working_to_file,
-        file_to_working,
-        layout,
+        working: working.mesh,
+        working_to_file: working.working_to_file,
+        file_to_working: working.file_to_working,
+        layout: working.layout,
         hierarchy,
         frames,
         edge_angles,
         shape,
-        signal,
-        fans,
-        samplers,
+        signal: fans.signal,
+        fans: fans.fans,
+        samplers: fans.samplers,
         fan_radius: params.fan_radius,
         timings,
         map_cache: Arc::new(map_cache),
     })
+}
+
+/// The hierarchy (§3) of the working mesh, and per level its tangent frames and edge transport
+/// angles.
+fn hierarchy_and_frames(
+    working: &TriMesh,
+    order: &[u32],
+    params: &TransferParams,
+    cancel: &CancelToken,
+) -> Result<(Hierarchy, Vec<Frames>, Vec<Vec<f32>>)> {
+    // Ties between equally long edges are broken by the refinement's numbering, so the
+    // hierarchy is the one the mesh had before its Morton renumbering (on a regular grid most
+    // edges tie, and the tie order shapes every level).
+    let hierarchy = Hierarchy::build_keyed(
+        &working.positions,
+        &working.faces,
+        Some(order),
+        HierarchyOptions {
+            min_vertices: crate::mesh::MIN_WORKING_VERTICES,
+            max_levels: params.levels,
+        },
+        cancel,
+    )?;
+    let frames: Vec<Frames> = hierarchy
+        .levels
+        .iter()
+        .map(|l| tangent_frames(&l.normals))
+        .collect();
+    let edge_angles: Vec<Vec<f32>> = hierarchy
+        .levels
+        .iter()
+        .zip(&frames)
+        .map(|(l, f)| edge_transport_angles(l, f))
+        .collect();
+    Ok((hierarchy, frames, edge_angles))
+}
+
+/// A spectrum job running beside the fan tables: its level, its eigenpair count and the job.
+type SpectrumJob = (usize, usize, crate::work::Detached<(Result<Spectrum>, f64)>);
+
+/// Start the spectrum the solve's global map will want (unless the map is off), beside the
+/// tables: the eigen-solve scales less well than the tables, and after the preparation it would
+/// run alone.
+fn start_map_spectrum(
+    hierarchy: &Hierarchy,
+    params: &TransferParams,
+    cancel: &CancelToken,
+) -> Result<Option<SpectrumJob>> {
+    Ok(match global_map::expected_spectrum(hierarchy) {
+        Some((l, k)) if params.structure != Some(0.0) => Some((
+            l,
+            k,
+            beside_tables(&hierarchy.levels[l], cancel, move |p, f| {
+                Spectrum::new(p, f, k)
+            })?,
+        )),
+        _ => None,
+    })
+}
+
+/// Per-level signals and colour fans, or the fan sampling tables a target keeps.
+struct LevelFans {
+    signal: Option<Vec<Vec<[f32; 3]>>>,
+    fans: Option<Vec<Vec<f32>>>,
+    samplers: Vec<FanSampler>,
+}
+
+/// Fan sampling tables of every level. A mesh with a signal builds each level's table, takes
+/// its fans and drops it. A mesh without one (a target) keeps them, so a correspondence edit
+/// only re-runs the solve; very large targets rebuild them level by level in the solve
+/// instead of holding about 1 KB per vertex (u32 indices and 16-bit weights, 162 taps).
+fn level_fans(
+    hierarchy: &Hierarchy,
+    frames: &[Frames],
+    signal0: Option<Vec<[f32; 3]>>,
+    working_vertices: usize,
+    params: &TransferParams,
+    cancel: &CancelToken,
+) -> Result<LevelFans> {
+    let table = |l: usize| {
+        let lev = &hierarchy.levels[l];
+        FanSampler::in_vertex_order(lev, &frames[l], params.fan_radius * lev.mean_edge, cancel)
+    };
+    let mut samplers = Vec::new();
+    let (signal, fans) = if let Some(s0) = signal0 {
+        let sig = level_signals(hierarchy, s0);
+        let mut fans = Vec::with_capacity(sig.len());
+        for (l, s) in sig.iter().enumerate() {
+            cancel.check()?;
+            fans.push(table(l)?.fans(&hierarchy.levels[l], s.as_flattened(), C));
+        }
+        (Some(sig), Some(fans))
+    } else {
+        if working_vertices <= KEEP_SAMPLERS_UP_TO {
+            for l in 0..hierarchy.num_levels() {
+                cancel.check()?;
+                samplers.push(table(l)?);
+            }
+        }
+        (None, None)
+    };
+    Ok(LevelFans {
+        signal,
+        fans,
+        samplers,
+    })
+}
+
+/// The signal on every level: level 0's, then each coarser vertex the mean of its children.
+fn level_signals(hierarchy: &Hierarchy, s0: Vec<[f32; 3]>) -> Vec<Vec<[f32; 3]>> {
+    let mut sig = vec![s0];
+    for l in 1..hierarchy.num_levels() {
+        let prev = &sig[l - 1];
+        let cur: Vec<[f32; 3]> = (0..hierarchy.levels[l].len())
+            .map(|p| {
+                let ch = hierarchy.children(l, p as u32);
+                let mut a = Vec3::ZERO;
+                for &c in ch {
+                    a += Vec3::from(prev[c as usize]);
+                }
+                (a / ch.len().max(1) as f32).to_array()
+            })
+            .collect();
+        sig.push(cur);
+    }
+    sig
 }

@@ -12,6 +12,7 @@
 
 pub mod anisotropy;
 pub mod character;
+mod levels;
 mod metrics;
 mod neigh;
 mod orient;
@@ -20,10 +21,7 @@ mod pyramid;
 mod search;
 pub mod texture_space;
 
-use std::sync::Arc;
-
 use glam::Vec3;
-use rand::seq::SliceRandom;
 
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
@@ -41,7 +39,8 @@ pub use texture_space::{
 use crate::geometry::vertex_normals;
 use crate::hierarchy::{Hierarchy, HierarchyOptions};
 pub use anisotropy::{Anisotropy, choose_orientation, exemplar_anisotropy};
-use neigh::{ExemplarLevel, Stencils, build_stencils};
+use levels::{LevelsOut, synthesize_levels};
+use neigh::build_stencils;
 use pyramid::{Img, Level, aggregate_fixed, coarsen, image_pyramid, refine_edges, stage_rng};
 
 /// How the local texture orientation (texture "right" `s`) is assigned per vertex.
@@ -396,16 +395,6 @@ pub(crate) fn transparent_filled(
     ))
 }
 
-/// Neighbourhood sizes of level `k` (0 = finest) in an `l`-level pyramid: current `NxN` and parent
-/// size (0 = no parent). Wei & Levoy §4: `{1x1,1}, {3x3,2}, {5x5,2}, {7x7,2}` coarse to fine.
-fn sizes(k: usize, l: usize) -> (usize, usize) {
-    if k + 1 == l {
-        return (if l == 1 { 7 } else { 1 }, 0);
-    }
-    let s = [7, 5, 3].get(k).copied().unwrap_or(3);
-    (s, (s / 2) | 1)
-}
-
 /// Synthesize the exemplar's texture over `target` (Wei & Levoy 2001). `mask` (one flag per
 /// target vertex, `true` = synthesize) keeps the target's own colours elsewhere and uses them as
 /// constraints. Emits `Event::Partial` (colours on the finest synthesized mesh) after every pass
@@ -473,22 +462,132 @@ pub fn synthesize_with_alpha(
     cancel: &CancelToken,
 ) -> Result<SynthResult> {
     // `Auto`: the field the exemplar's anisotropy asks for.
-    let (resolved, anisotropy);
-    let params = if params.orientation == Orientation::Auto {
+    let (resolved, anisotropy) = resolve_auto(params, exemplar, alpha);
+    let params = &resolved;
+    let total = Stopwatch::start();
+    let mut timings = SynthTimings::default();
+    let (scale, h0) = check_surface_input(exemplar, target, mask, params)?;
+    let nlev = params.levels;
+
+    // ---- prepare: finest level (uniform density), mesh pyramid, image pyramid
+    let clock = Stopwatch::start();
+    sink(Event::Progress(Progress {
+        stage: "refine",
+        levels: nlev,
+        elapsed: total.secs(),
+        ..Default::default()
+    }));
+    let fixed0 = kept_colours(target, mask)?;
+    let nv = target.num_vertices();
+    if let Some(f) = field
+        && f.len() != nv
+    {
+        return Err(Error::InvalidInput(format!(
+            "orientation field has {} entries, the target has {nv} vertices",
+            f.len()
+        )));
+    }
+    let computed = match (field, params.orientation) {
+        (None, Orientation::Features) => Some(feature_field(target, cancel)?),
+        _ => None,
+    };
+    let field: Option<&[[f32; 3]]> = field.or(computed.as_deref());
+    let (levels, carried) = surface_levels(target, fixed0, field, h0, params, cancel)?;
+    let (imgs, alphas) = exemplar_pyramids(exemplar, alpha, nlev)?;
+    let mesh_d = (2.0 * levels[0].mean_face_area()).sqrt() as f32;
+    timings.prepare = clock.secs();
+    sink(Event::StageTime("prepare", timings.prepare));
+    cancel.check()?;
+
+    let out = synthesize_levels(
+        &levels,
+        field.is_some().then_some(&carried[..]),
+        &imgs,
+        alphas.as_deref(),
+        h0,
+        params,
+        &total,
+        &|k, dirs, h, size, parent| mesh_stencils(&levels, k, dirs, h, size, parent),
+        sink,
+        cancel,
+    )?;
+    timings.orientation = out.orientation_secs;
+    timings.neighbourhoods = out.neighbourhood_secs;
+    timings.search = out.search_secs;
+    drop(imgs);
+
+    // ---- deliver
+    let level_vertices: Vec<usize> = levels.iter().map(|l| l.num_vertices()).collect();
+    let fine = levels.into_iter().next().expect("finest level");
+    let delivered = deliver_surface(target, fine, out, params, scale);
+    timings.total = total.secs();
+    Ok(SynthResult {
+        mesh: delivered.mesh,
+        file_colors: delivered.file_colors,
+        orientation: delivered.dirs,
+        source: delivered.source,
+        spacing: h0,
+        mesh_d,
+        level_vertices,
+        level_energy: delivered.level_energy,
+        displacement: delivered.displacement,
+        timings,
+        orientation_used: params.orientation,
+        anisotropy,
+    })
+}
+
+/// The resampling stencils of mesh level `k` (a stencil builder): on the level itself, or on its
+/// parent level.
+fn mesh_stencils(
+    levels: &[Level],
+    k: usize,
+    dirs: &[[f32; 3]],
+    h: f32,
+    size: usize,
+    parent: bool,
+) -> neigh::Stencils {
+    if parent {
+        build_stencils(
+            &levels[k],
+            dirs,
+            &levels[k + 1],
+            Some(&levels[k].parent),
+            h,
+            size,
+        )
+    } else {
+        build_stencils(&levels[k], dirs, &levels[k], None, h, size)
+    }
+}
+
+/// The parameters with `Auto` orientation resolved from the exemplar's anisotropy (and that
+/// anisotropy); other orientations as they are.
+fn resolve_auto(
+    params: &SynthParams,
+    exemplar: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+) -> (SynthParams, Option<Anisotropy>) {
+    if params.orientation == Orientation::Auto {
         let a = anisotropy::exemplar_anisotropy(exemplar, alpha);
-        anisotropy = Some(a);
-        resolved = SynthParams {
+        let resolved = SynthParams {
             orientation: anisotropy::choose_orientation(a),
             ..params.clone()
         };
-        &resolved
+        (resolved, Some(a))
     } else {
-        anisotropy = None;
-        params
-    };
-    let total = Stopwatch::start();
-    let mut timings = SynthTimings::default();
-    // ---- validate
+        (params.clone(), None)
+    }
+}
+
+/// Refuse a target, exemplar, scale or mask the surface synthesis cannot use, or a refined mesh
+/// over the vertex limit or the memory; the scale and the texel spacing `h0` it gives.
+fn check_surface_input(
+    exemplar: &image::RgbImage,
+    target: &TriMesh,
+    mask: Option<&[bool]>,
+    params: &SynthParams,
+) -> Result<(f32, f32)> {
     validate(target, exemplar.dimensions(), params.levels)?;
     let nv = target.num_vertices();
     let (lo, hi) = target
@@ -539,18 +638,13 @@ pub fn synthesize_with_alpha(
         &format!("{working} synthesized vertices"),
         "use a larger --scale or a smaller --vertex-budget",
     )?;
-    let nlev = params.levels;
+    Ok((scale, h0))
+}
 
-    // ---- prepare: finest level (uniform density), mesh pyramid, image pyramid
-    let clock = Stopwatch::start();
-    sink(Event::Progress(Progress {
-        stage: "refine",
-        levels: nlev,
-        elapsed: total.secs(),
-        ..Default::default()
-    }));
-    let fixed0: Vec<Option<[f32; 3]>> = match mask {
-        None => vec![None; nv],
+/// Per target vertex, the colour a mask keeps (`Some`) or `None` where it is synthesized.
+fn kept_colours(target: &TriMesh, mask: Option<&[bool]>) -> Result<Vec<Option<[f32; 3]>>> {
+    Ok(match mask {
+        None => vec![None; target.num_vertices()],
         Some(m) => {
             let signal = target.vertex_signal().ok_or_else(|| {
                 Error::InvalidInput(
@@ -562,24 +656,20 @@ pub fn synthesize_with_alpha(
                 .map(|(&syn, c)| if syn { None } else { Some(c) })
                 .collect()
         }
-    };
-    if let Some(f) = field
-        && f.len() != nv
-    {
-        return Err(Error::InvalidInput(format!(
-            "orientation field has {} entries, the target has {nv} vertices",
-            f.len()
-        )));
-    }
-    let computed;
-    let field: Option<&[[f32; 3]]> = match (field, params.orientation) {
-        (Some(f), _) => Some(f),
-        (None, Orientation::Features) => {
-            computed = feature_field(target, cancel)?;
-            Some(&computed)
-        }
-        (None, _) => None,
-    };
+    })
+}
+
+/// The sample levels on the surface: the target refined to the texel spacing `h0` (kept colours
+/// and the field carried along), then the mesh pyramid; the field per finest vertex.
+fn surface_levels(
+    target: &TriMesh,
+    fixed0: Vec<Option<[f32; 3]>>,
+    field: Option<&[[f32; 3]]>,
+    h0: f32,
+    params: &SynthParams,
+    cancel: &CancelToken,
+) -> Result<(Vec<Level>, Vec<[f32; 3]>)> {
+    let nlev = params.levels;
     let mut positions = target.positions.clone();
     let mut faces = target.faces.clone();
     let mut fixed: Vec<(Option<[f32; 3]>, [f32; 3])> = match field {
@@ -605,19 +695,30 @@ pub fn synthesize_with_alpha(
     let (fixed, carried): (Vec<_>, Vec<_>) = fixed.into_iter().unzip();
     cancel.check()?;
     let normals = vertex_normals(&positions, &faces);
-    // Mesh pyramid: the shared MeshMatch hierarchy (shortest-edge-first midpoint collapses, about
-    // half the vertices per level), every second level, so each level keeps about a quarter.
+    let levels = mesh_pyramid(
+        Level::new(positions, faces, normals, fixed),
+        nlev,
+        params.seed,
+        cancel,
+    )?;
+    Ok((levels, carried))
+}
+
+/// Mesh pyramid: the shared MeshMatch hierarchy (shortest-edge-first midpoint collapses, about
+/// half the vertices per level), every second level, so each level keeps about a quarter; grid
+/// clustering where the hierarchy stops early.
+fn mesh_pyramid(finest: Level, nlev: usize, seed: u64, cancel: &CancelToken) -> Result<Vec<Level>> {
     let hier = Hierarchy::build(
-        &positions,
-        &faces,
+        &finest.positions,
+        &finest.faces,
         HierarchyOptions {
             min_vertices: 16,
             max_levels: Some(2 * (nlev - 1) + 1),
         },
     )?;
     cancel.check()?;
-    let mut levels = vec![Level::new(positions, faces, normals, fixed)];
-    let mut rng = stage_rng(params.seed, 1);
+    let mut levels = vec![finest];
+    let mut rng = stage_rng(seed, 1);
     let mut hl = 0usize; // hierarchy level of levels.last()
     while levels.len() < nlev {
         let fine = levels.last_mut().expect("non-empty");
@@ -641,48 +742,44 @@ pub fn synthesize_with_alpha(
             hl = usize::MAX / 2;
         }
     }
-    drop(hier);
-    let (imgs, alphas) = match alpha {
+    Ok(levels)
+}
+
+/// The exemplar's image pyramid (transparent pixels filled from the opaque ones) and, with an
+/// alpha, the alpha's pyramid.
+pub(crate) fn exemplar_pyramids(
+    exemplar: &image::RgbImage,
+    alpha: Option<&image::GrayImage>,
+    nlev: usize,
+) -> Result<(Vec<Img>, Option<Vec<Img>>)> {
+    Ok(match alpha {
         None => (image_pyramid(Img::from_rgb(exemplar), nlev), None),
         Some(a) => {
             let (img, a) = transparent_filled(exemplar, a)?;
             (image_pyramid(img, nlev), Some(image_pyramid(a, nlev)))
         }
-    };
-    let mesh_d = (2.0 * levels[0].mean_face_area()).sqrt() as f32;
-    timings.prepare = clock.secs();
-    sink(Event::StageTime("prepare", timings.prepare));
-    cancel.check()?;
+    })
+}
 
-    let out = synthesize_levels(
-        &levels,
-        field.is_some().then_some(&carried[..]),
-        &imgs,
-        alphas.as_deref(),
-        h0,
-        params,
-        &total,
-        &|k, dirs, h, size, parent| {
-            if parent {
-                build_stencils(
-                    &levels[k],
-                    dirs,
-                    &levels[k + 1],
-                    Some(&levels[k].parent),
-                    h,
-                    size,
-                )
-            } else {
-                build_stencils(&levels[k], dirs, &levels[k], None, h, size)
-            }
-        },
-        sink,
-        cancel,
-    )?;
-    timings.orientation = out.orientation_secs;
-    timings.neighbourhoods = out.neighbourhood_secs;
-    timings.search = out.search_secs;
-    drop(imgs);
+/// What the surface synthesis delivers from its finest level.
+struct Delivered {
+    mesh: TriMesh,
+    file_colors: Vec<[f32; 3]>,
+    dirs: Vec<[f32; 3]>,
+    source: Vec<[u32; 2]>,
+    level_energy: Vec<f64>,
+    displacement: Option<Vec<f32>>,
+}
+
+/// The synthesized mesh (displaced along its normals by the colour's luminance when asked),
+/// its colours in the target's file order, and each vertex's exemplar pixel.
+fn deliver_surface(
+    target: &TriMesh,
+    fine: Level,
+    out: LevelsOut,
+    params: &SynthParams,
+    scale: f32,
+) -> Delivered {
     let LevelsOut {
         colors: col,
         sources,
@@ -691,10 +788,6 @@ pub fn synthesize_with_alpha(
         exemplar: ex0,
         ..
     } = out;
-
-    // ---- deliver
-    let level_vertices: Vec<usize> = levels.iter().map(|l| l.num_vertices()).collect();
-    let fine = levels.into_iter().next().expect("finest level");
     let source: Vec<[u32; 2]> = sources
         .iter()
         .map(|&c| {
@@ -723,22 +816,16 @@ pub fn synthesize_with_alpha(
     mesh.normals = Some(vertex_normals(&mesh.positions, &mesh.faces));
     mesh.colors = Some(col.clone());
     mesh.path = None;
+    let nv = target.num_vertices();
     let file_colors = target.to_file_order(&col[..nv], [0.5; 3]);
-    timings.total = total.secs();
-    Ok(SynthResult {
+    Delivered {
         mesh,
         file_colors,
-        orientation: dirs,
+        dirs,
         source,
-        spacing: h0,
-        mesh_d,
-        level_vertices,
         level_energy,
         displacement,
-        timings,
-        orientation_used: params.orientation,
-        anisotropy,
-    })
+    }
 }
 
 /// The checks every synthesis entry makes on its target, exemplar and level count, as one-line
@@ -772,290 +859,4 @@ pub(crate) fn validate(target: &TriMesh, exemplar: (u32, u32), levels: usize) ->
         )));
     }
     Ok(())
-}
-
-/// Coherence candidates for vertex `v` (Ashikhmin 2001 on a surface): its current source, each
-/// neighbour q's source shifted by `p - q` expressed in q's texture frame, and the parent's source
-/// (doubled, shifted by `p - parent` in p's frame).
-#[allow(clippy::too_many_arguments)]
-fn collect_candidates(
-    cands: &mut Vec<u32>,
-    v: usize,
-    lev: &Level,
-    dirs: &[[f32; 3]],
-    src: &[u32],
-    ex: &ExemplarLevel,
-    h: f32,
-    parent: Option<(&Level, &[u32], &ExemplarLevel)>,
-) {
-    let pv = Vec3::from(lev.positions[v]);
-    if src[v] != u32::MAX {
-        cands.push(src[v]);
-    }
-    for &q in lev.adj.row(v) {
-        let q = q as usize;
-        if src[q] == u32::MAX {
-            continue;
-        }
-        let nq = Vec3::from(lev.normals[q]);
-        let sq = Vec3::from(dirs[q]);
-        let tq = nq.cross(sq);
-        let d = pv - Vec3::from(lev.positions[q]);
-        let (x, y) = ex.pixel(src[q]);
-        let nx = x as f32 + d.dot(sq) / h;
-        let ny = y as f32 - d.dot(tq) / h;
-        cands.push(ex.cand_at(nx.round() as i64, ny.round() as i64));
-    }
-    if let Some((plev, psrc, pex)) = parent {
-        let a = lev.parent[v] as usize;
-        if psrc[a] != u32::MAX {
-            let nv = Vec3::from(lev.normals[v]);
-            let sv = Vec3::from(dirs[v]);
-            let tv = nv.cross(sv);
-            let d = pv - Vec3::from(plev.positions[a]);
-            let (x, y) = pex.pixel(psrc[a]);
-            let px = x as f32 + d.dot(sv) / (2.0 * h);
-            let py = y as f32 - d.dot(tv) / (2.0 * h);
-            let fx = 2.0 * px + 0.5;
-            let fy = 2.0 * py + 0.5;
-            cands.push(ex.cand_at(fx.round() as i64, fy.round() as i64));
-        }
-    }
-}
-
-/// What [`synthesize_levels`] gives back: the finest level's colours, exemplar candidates
-/// (`u32::MAX` for fixed samples), texture directions, and the numbers.
-pub(crate) struct LevelsOut {
-    pub colors: Vec<[f32; 3]>,
-    pub sources: Vec<u32>,
-    pub dirs: Vec<[f32; 3]>,
-    pub level_energy: Vec<f64>,
-    pub exemplar: ExemplarLevel,
-    pub orientation_secs: f64,
-    pub neighbourhood_secs: f64,
-    pub search_secs: f64,
-}
-
-/// Resampling stencils of level `k` in its samples' frames `dirs` at spacing `h` and template
-/// `size`: on the level itself, or (`parent = true`) on level `k + 1`.
-pub(crate) type StencilBuilder<'a> =
-    dyn Fn(usize, &[[f32; 3]], f32, usize, bool) -> Stencils + Sync + 'a;
-
-/// The coarse-to-fine synthesis on a pyramid of sample levels (mesh vertices, or texels of an
-/// atlas): orientation (an explicit field `carried` on the finest level, or the params'), then
-/// per level and pass the best-match search over the neighbourhoods `stencils` builds. Partial
-/// results are colours per finest-level sample.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn synthesize_levels(
-    levels: &[Level],
-    carried: Option<&[[f32; 3]]>,
-    imgs: &[Img],
-    alphas: Option<&[Img]>,
-    h0: f32,
-    params: &SynthParams,
-    total: &Stopwatch,
-    stencils: &StencilBuilder,
-    sink: &dyn Fn(Event),
-    cancel: &CancelToken,
-) -> Result<LevelsOut> {
-    let nlev = levels.len();
-    let passes = params.passes.max(1);
-    // ---- orientation, coarse to fine
-    let clock = Stopwatch::start();
-    let mut dirs: Vec<Vec<[f32; 3]>> = vec![Vec::new(); nlev];
-    // an explicit field: fine to coarse (children averaged), projected on each level
-    let mut field_dirs: Vec<Vec<[f32; 3]>> = Vec::new();
-    if let Some(carried) = carried
-        && !matches!(params.orientation, Orientation::Random | Orientation::Up)
-    {
-        field_dirs.push(orient::project_all(&levels[0], carried));
-        for k in 1..nlev {
-            let d = orient::from_children(&levels[k], &levels[k - 1].parent, &field_dirs[k - 1]);
-            field_dirs.push(d);
-        }
-    }
-    let mut rng = stage_rng(params.seed, 2);
-    for k in (0..nlev).rev() {
-        let lev = &levels[k];
-        dirs[k] = match params.orientation {
-            Orientation::Random => orient::random_dirs(lev, &mut rng),
-            Orientation::Up => orient::up_dirs(lev),
-            _ if !field_dirs.is_empty() => std::mem::take(&mut field_dirs[k]),
-            Orientation::Features | Orientation::Auto => {
-                unreachable!("the feature field is computed and auto resolved above")
-            }
-            Orientation::Relax2 | Orientation::Relax4 => {
-                let nsym = if params.orientation == Orientation::Relax2 {
-                    2
-                } else {
-                    4
-                };
-                if k + 1 == nlev {
-                    let mut d = orient::random_dirs(lev, &mut rng);
-                    orient::relax(lev, &mut d, None, nsym, params.relax_sweeps, &mut rng);
-                    d
-                } else {
-                    let pd = &dirs[k + 1];
-                    let mut d = orient::from_parent(lev, pd);
-                    let sweeps = (params.relax_sweeps / 4).max(2);
-                    orient::relax(lev, &mut d, Some((&lev.parent, pd)), nsym, sweeps, &mut rng);
-                    d
-                }
-            }
-        };
-        cancel.check()?;
-    }
-    let orientation_secs = clock.secs();
-    sink(Event::StageTime("orientation", orientation_secs));
-
-    // ancestor of every finest vertex on each level (for partial results on the finest mesh)
-    let mut up: Vec<Vec<u32>> = vec![(0..levels[0].num_vertices() as u32).collect()];
-    for k in 1..nlev {
-        let prev = &up[k - 1];
-        let map = &levels[k - 1].parent;
-        up.push(prev.iter().map(|&v| map[v as usize]).collect());
-    }
-
-    // ---- synthesis, coarse to fine
-    let work: f64 = levels.iter().map(|l| l.num_vertices() as f64).sum::<f64>() * passes as f64;
-    let mut done = 0.0f64;
-    let mut colors: Vec<Vec<[f32; 3]>> = vec![Vec::new(); nlev];
-    let mut srcs: Vec<Vec<u32>> = vec![Vec::new(); nlev];
-    let mut exemplars: Vec<Option<ExemplarLevel>> = vec![None; nlev];
-    let mut level_energy = vec![0.0f64; nlev];
-    let mut rng = stage_rng(params.seed, 3);
-    let mut search_secs = 0.0;
-    let mut neigh_secs = 0.0;
-    for k in (0..nlev).rev() {
-        let (size, psize) = sizes(k, nlev);
-        let clock = Stopwatch::start();
-        let lev = &levels[k];
-        let n = lev.num_vertices();
-        let h = h0 * (1u32 << k) as f32;
-        let has_parent = psize > 0;
-        let mut ex = ExemplarLevel::new(&imgs[k], has_parent.then(|| &imgs[k + 1]), size, psize);
-        if let Some(a) = alphas {
-            ex.restrict_to_opaque(&a[k]);
-        }
-        let cur_st = stencils(k, &dirs[k], h, size, false);
-        cancel.check()?;
-        let par_st: Option<Stencils> =
-            has_parent.then(|| stencils(k, &dirs[k], 2.0 * h, psize, true));
-        neigh_secs += clock.secs();
-        let clock = Stopwatch::start();
-        // random initialisation from this level's exemplar (equalises histograms, §3.1)
-        let mut src = vec![u32::MAX; n];
-        let mut col = vec![[0.0f32; 3]; n];
-        for v in 0..n {
-            if let Some(c) = lev.fixed[v] {
-                col[v] = c;
-            } else {
-                let c = ex.random_candidate(&mut rng);
-                src[v] = c;
-                col[v] = ex.color(c);
-            }
-        }
-        let run_passes: Vec<(bool, bool)> = if has_parent {
-            (0..passes).map(|p| (p > 0, true)).collect()
-        } else if size > 1 {
-            (0..passes).map(|_| (true, false)).collect()
-        } else {
-            Vec::new() // coarsest {1x1,1}: the random copy is the result
-        };
-        let pcol: &[[f32; 3]] = if has_parent { &colors[k + 1] } else { &[] };
-        let psrc: &[u32] = if has_parent { &srcs[k + 1] } else { &[] };
-        let pex = if has_parent {
-            exemplars[k + 1].as_ref()
-        } else {
-            None
-        };
-        let pdefault = pex.map_or(ex.mean, |e| e.mean);
-        let mut qc = vec![0.0f32; ex.dim_cur()];
-        let mut qp = vec![0.0f32; ex.dim_par()];
-        let mut cands: Vec<u32> = Vec::with_capacity(64);
-        let mut order: Vec<u32> = (0..n as u32)
-            .filter(|&v| lev.fixed[v as usize].is_none())
-            .collect();
-        for (pass, &(use_cur, use_par)) in run_passes.iter().enumerate() {
-            order.shuffle(&mut rng);
-            let mut energy = 0.0f64;
-            for (i, &v) in order.iter().enumerate() {
-                if i % 256 == 0 {
-                    cancel.check()?;
-                }
-                let v = v as usize;
-                if use_cur {
-                    cur_st.gather(v, &col, ex.mean, &mut qc);
-                }
-                if let (true, Some(ps)) = (use_par, &par_st) {
-                    ps.gather(v, pcol, pdefault, &mut qp);
-                }
-                let q_cur = use_cur.then_some(&qc[..]);
-                let q_par = use_par.then_some(&qp[..]);
-                let (best, d) = match params.search {
-                    Search::Exhaustive => search::exhaustive(&ex, q_cur, q_par),
-                    Search::Fast => {
-                        cands.clear();
-                        collect_candidates(
-                            &mut cands,
-                            v,
-                            lev,
-                            &dirs[k],
-                            &src,
-                            &ex,
-                            h,
-                            has_parent.then(|| (&levels[k + 1], psrc, pex.expect("parent"))),
-                        );
-                        for _ in 0..params.random_candidates {
-                            cands.push(ex.random_candidate(&mut rng));
-                        }
-                        search::fast(&ex, &mut cands, q_cur, q_par, &mut rng)
-                    }
-                };
-                if best != u32::MAX {
-                    src[v] = best;
-                    col[v] = ex.color(best);
-                    energy += d as f64;
-                }
-            }
-            let dim =
-                (if use_cur { ex.dim_cur() } else { 0 }) + (if use_par { ex.dim_par() } else { 0 });
-            level_energy[k] = energy / (order.len().max(1) * dim.max(1)) as f64;
-            done += n as f64;
-            let progress = Progress {
-                stage: "synth",
-                level: k,
-                levels: nlev,
-                iteration: pass + 1,
-                energy: level_energy[k],
-                elapsed: total.secs(),
-                fraction: (done / work) as f32,
-            };
-            let signal: Arc<[[f32; 3]]> = up[k].iter().map(|&a| col[a as usize]).collect();
-            sink(Event::Partial { progress, signal });
-        }
-        done += n as f64 * (passes - run_passes.len()) as f64;
-        colors[k] = col;
-        srcs[k] = src;
-        exemplars[k] = Some(ex);
-        search_secs += clock.secs();
-        // free what the next (finer) level no longer needs
-        if k + 2 < nlev {
-            colors[k + 2] = Vec::new();
-            srcs[k + 2] = Vec::new();
-            exemplars[k + 2] = None;
-        }
-    }
-    sink(Event::StageTime("neighbourhoods", neigh_secs));
-    sink(Event::StageTime("search", search_secs));
-    Ok(LevelsOut {
-        colors: std::mem::take(&mut colors[0]),
-        sources: std::mem::take(&mut srcs[0]),
-        dirs: std::mem::take(&mut dirs[0]),
-        level_energy,
-        exemplar: exemplars[0].take().expect("finest level synthesized"),
-        orientation_secs,
-        neighbourhood_secs: neigh_secs,
-        search_secs,
-    })
 }

@@ -29,7 +29,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::neigh::{Frame, Stencils, Tap, UNCOVERED, splat_template};
-use super::pyramid::{Img, Level, image_pyramid};
+use super::pyramid::{Img, Level};
 use super::{
     Anisotropy, LevelsOut, Orientation, SynthParams, anisotropy, feature_field, synthesize_levels,
     transparent_filled, validate,
@@ -809,6 +809,91 @@ pub fn synthesize_texture(
 ) -> Result<TextureOutput> {
     let total = Stopwatch::start();
     let mut timings = TextureTimings::default();
+    let target = input.target;
+    let scale = check_texture_input(input, params)?;
+
+    // ---- the UV layout, the working density and exemplar, the texel levels
+    let clock = Stopwatch::start();
+    let (mut mesh, atlas, atlas_reason) = texture_layout(target, params, cancel)?;
+    let uvs = mesh.uvs.clone().expect("UVs set above");
+    let surface = Surface::new(&mesh, &uvs);
+    let density = working_density(&surface, &mesh, input, params, scale)?;
+    let (side, spacing) = (density.side, density.spacing);
+    let ex = working_exemplar(input, &params.synth, density.exemplar_width)?;
+    let sp = &ex.params;
+    let (grids, levels) = texel_levels(&surface, side, sp.levels, cancel)?;
+    let carried = carried_field(input, sp.orientation, &grids[0], cancel)?;
+    timings.prepare = clock.secs();
+    sink(Event::StageTime("prepare", timings.prepare));
+    cancel.check()?;
+
+    // ---- synthesis: partial results are texels, passed on as progress
+    let relay = |e: Event| match e {
+        Event::Partial { progress, .. } => sink(Event::Progress(progress)),
+        e => sink(e),
+    };
+    let out: LevelsOut = synthesize_levels(
+        &levels,
+        carried.as_deref(),
+        &ex.imgs,
+        ex.alphas.as_deref(),
+        spacing,
+        sp,
+        &total,
+        &|k, dirs, h, size, parent| {
+            let read = if parent { k + 1 } else { k };
+            texel_stencils(
+                &surface,
+                &grids[k],
+                &levels[k],
+                dirs,
+                (&grids[read], &levels[read]),
+                h,
+                size,
+            )
+        },
+        &relay,
+        cancel,
+    )?;
+    timings.orientation = out.orientation_secs;
+    timings.neighbourhoods = out.neighbourhood_secs;
+    timings.search = out.search_secs;
+
+    // ---- magnify into the output texture from the full-resolution exemplar
+    let clock = Stopwatch::start();
+    let size = params.texture_size as usize;
+    let (pixels, covered) = magnify(
+        &surface,
+        &uvs,
+        (&grids[0], &levels[0]),
+        &out,
+        &ex,
+        spacing,
+        size,
+    );
+    set_texture(&mut mesh, size, pixels, covered);
+    timings.magnify = clock.secs();
+    sink(Event::StageTime("magnify", timings.magnify));
+    timings.total = total.secs();
+    Ok(TextureOutput {
+        mesh,
+        atlas,
+        atlas_reason,
+        working_size: side as u32,
+        level_texels: levels.iter().map(|l| l.num_vertices()).collect(),
+        level_energy: out.level_energy,
+        working_exemplar_width: ex.working.width(),
+        spacing,
+        orientation_used: sp.orientation,
+        anisotropy: ex.anisotropy,
+        timings,
+    })
+}
+
+/// Refuse what texture-space synthesis cannot do (a displacement, sizes out of range, a field
+/// of the wrong length, a texture that would not fit in memory, a flat target); the scale the
+/// synthesis runs at (`scale`, or a quarter of the target's diagonal).
+fn check_texture_input(input: &TextureInput, params: &TextureParams) -> Result<f32> {
     let sp = &params.synth;
     let target = input.target;
     if sp.displace {
@@ -858,19 +943,33 @@ pub fn synthesize_texture(
             "scale must be positive, got {scale}"
         )));
     }
-    let (ew, eh) = input.exemplar.dimensions();
-    let min_side = ((4u32 << (sp.levels - 1)).max(8)) as f64;
+    Ok(scale)
+}
 
-    // ---- the UV layout
-    let clock = Stopwatch::start();
-    let (mut mesh, atlas, atlas_reason) = texture_layout(target, params, cancel)?;
-    let uvs = mesh.uvs.clone().expect("UVs set above");
-    let surface = Surface::new(&mesh, &uvs);
+/// The working texture's size and the exemplar's working width.
+struct Density {
+    /// Side of the working (synthesized) texture.
+    side: usize,
+    /// Surface units per working texel.
+    spacing: f32,
+    /// Width the exemplar is shrunk to, one pixel per texel.
+    exemplar_width: u32,
+}
+
+/// Working density: one texel per exemplar pixel, within the budget and the output, and no
+/// coarser than the pyramid needs; refuses a working texture that would not fit in memory.
+fn working_density(
+    surface: &Surface,
+    mesh: &TriMesh,
+    input: &TextureInput,
+    params: &TextureParams,
+    scale: f32,
+) -> Result<Density> {
+    let nlev = params.synth.levels;
+    let (ew, eh) = input.exemplar.dimensions();
+    let min_side = ((4u32 << (nlev - 1)).max(8)) as f64;
     let uv_area = surface.uv_area().clamp(1e-6, 1.0);
     let area = mesh.area().max(1e-30);
-
-    // ---- working density: one texel per exemplar pixel, within the budget and the output
-    let nlev = sp.levels;
     let align = 1usize << (nlev - 1);
     let h_full = scale as f64 / ew as f64;
     let want = area / (h_full * h_full); // samples at the exemplar's own resolution
@@ -900,6 +999,37 @@ pub fn synthesize_texture(
         &format!("{working} synthesized texels"),
         "use a smaller --texel-budget",
     )?;
+    Ok(Density {
+        side,
+        spacing,
+        exemplar_width: work_w,
+    })
+}
+
+/// The exemplar as the synthesis reads it.
+struct WorkingExemplar {
+    /// Shrunk to the working density.
+    working: image::RgbImage,
+    /// Its measured anisotropy, when the orientation is `Auto`.
+    anisotropy: Option<Anisotropy>,
+    /// The synthesis parameters with `Auto` resolved.
+    params: SynthParams,
+    /// Its image pyramid (transparent pixels filled).
+    imgs: Vec<Img>,
+    /// The alpha's pyramid, if it has one.
+    alphas: Option<Vec<Img>>,
+    /// The full-resolution exemplar the output reads, holes filled.
+    full: Img,
+}
+
+/// The exemplar shrunk to `work_w` pixels wide, its pyramids, the orientation `Auto` resolves
+/// to, and the full-resolution image the output is magnified from.
+fn working_exemplar(
+    input: &TextureInput,
+    sp: &SynthParams,
+    work_w: u32,
+) -> Result<WorkingExemplar> {
+    let nlev = sp.levels;
     let work_ex = super::shrink_exemplar(input.exemplar.clone(), work_w);
     let work_alpha = input
         .alpha
@@ -912,36 +1042,46 @@ pub fn synthesize_texture(
         orientation: anis.map_or(sp.orientation, anisotropy::choose_orientation),
         ..sp.clone()
     };
-    let (imgs, alphas) = match &work_alpha {
-        None => (image_pyramid(Img::from_rgb(&work_ex), nlev), None),
-        Some(a) => {
-            let (img, a) = transparent_filled(&work_ex, a)?;
-            (image_pyramid(img, nlev), Some(image_pyramid(a, nlev)))
-        }
-    };
+    let (imgs, alphas) = super::exemplar_pyramids(&work_ex, work_alpha.as_ref(), nlev)?;
     // the full-resolution exemplar the output reads, holes filled
     let full = match input.alpha {
         None => Img::from_rgb(input.exemplar),
         Some(a) => transparent_filled(input.exemplar, a)?.0,
     };
+    Ok(WorkingExemplar {
+        working: work_ex,
+        anisotropy: anis,
+        params: sp,
+        imgs,
+        alphas,
+        full,
+    })
+}
 
-    // ---- texel levels
+/// The texel grids of every level (side halved per level) and their sample levels, each linked
+/// to its parent level.
+fn texel_levels(
+    surface: &Surface,
+    side: usize,
+    nlev: usize,
+    cancel: &CancelToken,
+) -> Result<(Vec<TexelGrid>, Vec<Level>)> {
     let mut grids: Vec<TexelGrid> = Vec::with_capacity(nlev);
     let mut levels: Vec<Level> = Vec::with_capacity(nlev);
     for k in 0..nlev {
-        let g = TexelGrid::new(&surface, (side >> k).max(1));
+        let g = TexelGrid::new(surface, (side >> k).max(1));
         if g.hit.is_empty() {
             return Err(Error::InvalidMesh(
                 "the target's UV layout covers no texel (degenerate UVs)".into(),
             ));
         }
-        levels.push(texel_level(&surface, &g));
+        levels.push(texel_level(surface, &g));
         grids.push(g);
         cancel.check()?;
     }
     for k in 0..nlev - 1 {
         let p = texel_parents(
-            &surface,
+            surface,
             &grids[k],
             &levels[k],
             &grids[k + 1],
@@ -949,8 +1089,20 @@ pub fn synthesize_texture(
         );
         levels[k].parent = p;
     }
+    Ok((grids, levels))
+}
+
+/// The orientation field (the input's, or the curve-guided one `Features` asks for) carried
+/// onto the finest texels; `None` where the orientation needs none.
+fn carried_field(
+    input: &TextureInput,
+    orientation: Orientation,
+    grid: &TexelGrid,
+    cancel: &CancelToken,
+) -> Result<Option<Vec<[f32; 3]>>> {
+    let target = input.target;
     let field_computed;
-    let field = match (input.field, sp.orientation) {
+    let field = match (input.field, orientation) {
         (Some(f), _) => Some(f),
         (None, Orientation::Features) => {
             field_computed = feature_field(target, cancel)?;
@@ -958,9 +1110,8 @@ pub fn synthesize_texture(
         }
         _ => None,
     };
-    let carried: Option<Vec<[f32; 3]>> = field.map(|f| {
-        grids[0]
-            .hit
+    Ok(field.map(|f| {
+        grid.hit
             .iter()
             .map(|&(fi, b)| {
                 let face = target.faces[fi as usize];
@@ -971,53 +1122,27 @@ pub fn synthesize_texture(
                     .to_array()
             })
             .collect()
-    });
-    timings.prepare = clock.secs();
-    sink(Event::StageTime("prepare", timings.prepare));
-    cancel.check()?;
+    }))
+}
 
-    // ---- synthesis: partial results are texels, passed on as progress
-    let relay = |e: Event| match e {
-        Event::Partial { progress, .. } => sink(Event::Progress(progress)),
-        e => sink(e),
-    };
-    let out: LevelsOut = synthesize_levels(
-        &levels,
-        carried.as_deref(),
-        &imgs,
-        alphas.as_deref(),
-        spacing,
-        &sp,
-        &total,
-        &|k, dirs, h, size, parent| {
-            let read = if parent { k + 1 } else { k };
-            texel_stencils(
-                &surface,
-                &grids[k],
-                &levels[k],
-                dirs,
-                (&grids[read], &levels[read]),
-                h,
-                size,
-            )
-        },
-        &relay,
-        cancel,
-    )?;
-    timings.orientation = out.orientation_secs;
-    timings.neighbourhoods = out.neighbourhood_secs;
-    timings.search = out.search_secs;
-
-    // ---- magnify into the output texture from the full-resolution exemplar
-    let clock = Stopwatch::start();
-    let size = params.texture_size as usize;
-    let out_texels = crate::geometry::uv_texels(&uvs, surface.faces.len(), size, size);
+/// The output texture (`size²`) magnified from the full-resolution exemplar: every covered
+/// texel reads the exemplar at its finest texels' synthesized coordinates, offset by its
+/// distance from them; the colours and the coverage.
+fn magnify(
+    surface: &Surface,
+    uvs: &[[f32; 2]],
+    (g0, l0): (&TexelGrid, &Level),
+    out: &LevelsOut,
+    ex: &WorkingExemplar,
+    spacing: f32,
+    size: usize,
+) -> (Vec<[f32; 3]>, Vec<bool>) {
+    let full = &ex.full;
+    let out_texels = crate::geometry::uv_texels(uvs, surface.faces.len(), size, size);
     let (sx, sy) = (
-        full.w as f32 / work_ex.width() as f32,
-        full.h as f32 / work_ex.height() as f32,
+        full.w as f32 / ex.working.width() as f32,
+        full.h as f32 / ex.working.height() as f32,
     );
-    let g0 = &grids[0];
-    let l0 = &levels[0];
     let ex0 = &out.exemplar;
     let pixels: Vec<[f32; 3]> = out_texels
         .par_iter()
@@ -1061,22 +1186,5 @@ pub fn synthesize_texture(
         })
         .collect();
     let covered: Vec<bool> = out_texels.iter().map(|t| t.is_some()).collect();
-    drop(out_texels);
-    set_texture(&mut mesh, size, pixels, covered);
-    timings.magnify = clock.secs();
-    sink(Event::StageTime("magnify", timings.magnify));
-    timings.total = total.secs();
-    Ok(TextureOutput {
-        mesh,
-        atlas,
-        atlas_reason,
-        working_size: side as u32,
-        level_texels: levels.iter().map(|l| l.num_vertices()).collect(),
-        level_energy: out.level_energy,
-        working_exemplar_width: work_ex.width(),
-        spacing,
-        orientation_used: sp.orientation,
-        anisotropy: anis,
-        timings,
-    })
+    (pixels, covered)
 }

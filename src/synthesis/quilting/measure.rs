@@ -191,7 +191,49 @@ pub fn quilt_measures(
     } else {
         0.0
     };
-    // element ranges
+    let ranges = element_ranges(out);
+    let links = element_links(out, &ranges);
+    let links_per_element = 2.0 * links as f32 / ne.max(1) as f32;
+    let link_share = (sw.links_per_element > 0.0).then(|| links_per_element / sw.links_per_element);
+    let sign = curvature_signs(base, l);
+    let home = element_homes(out, base, &ranges);
+    let by_sign = |want: i8| -> Option<f32> {
+        let a: f64 = (0..nf).filter(|&f| sign[f] == want).map(|f| area[f]).sum();
+        if a < 0.02 * total || expected <= 0.0 {
+            return None;
+        }
+        let n = home
+            .iter()
+            .flatten()
+            .filter(|&&f| sign[f as usize] == want)
+            .count();
+        Some((n as f64 / a / expected) as f32)
+    };
+    // coverage: face centroids within the swatch's largest gap of an output vertex
+    let covered = covered_area(out, base, &area, (sw.largest_gap * s).max(1e-9));
+    QuiltMeasures {
+        density_ratio,
+        density_ratio_convex: by_sign(1),
+        density_ratio_saddle: by_sign(-1),
+        link_share,
+        links_per_element,
+        coverage: if total > 0.0 {
+            (covered / total) as f32
+        } else {
+            0.0
+        },
+    }
+}
+
+/// Per element, its vertex range and its face range in the output (`(u32::MAX, 0)` if empty).
+struct ElementRanges {
+    vertices: Vec<(u32, u32)>,
+    faces: Vec<(u32, u32)>,
+}
+
+/// The vertex and face ranges of every output element.
+fn element_ranges(out: &super::QuiltOutput) -> ElementRanges {
+    let ne = out.num_elements();
     let mut ranges = vec![(u32::MAX, 0u32); ne];
     for (v, &e) in out.element_id.iter().enumerate() {
         let r = &mut ranges[e as usize];
@@ -205,11 +247,19 @@ pub fn quilt_measures(
         r.0 = r.0.min(f as u32);
         r.1 = r.1.max(f as u32 + 1);
     }
-    let curves: Vec<Option<Vec<Vec3>>> = (0..ne)
+    ElementRanges {
+        vertices: ranges,
+        faces: face_ranges,
+    }
+}
+
+/// The number of linked pairs of output elements (by the linking number of their centre curves).
+fn element_links(out: &super::QuiltOutput, ranges: &ElementRanges) -> usize {
+    let curves: Vec<Option<Vec<Vec3>>> = (0..out.num_elements())
         .into_par_iter()
         .map(|e| {
-            let (v0, v1) = ranges[e];
-            let (f0, f1) = face_ranges[e];
+            let (v0, v1) = ranges.vertices[e];
+            let (f0, f1) = ranges.faces[e];
             if v0 >= v1 || f0 >= f1 {
                 return None;
             }
@@ -221,10 +271,21 @@ pub fn quilt_measures(
             centre_curve(ps, &fs)
         })
         .collect();
-    let links = linked_pairs(&curves).len();
-    let links_per_element = 2.0 * links as f32 / ne.max(1) as f32;
-    let link_share = (sw.links_per_element > 0.0).then(|| links_per_element / sw.links_per_element);
-    // curvature classes: angle defects summed over a ball of l / 2 around each face centroid
+    linked_pairs(&curves).len()
+}
+
+/// The centroid of face `f`.
+fn face_centroid(base: &TriMesh, f: usize) -> Vec3 {
+    base.faces[f]
+        .iter()
+        .map(|&v| Vec3::from(base.positions[v as usize]))
+        .sum::<Vec3>()
+        / 3.0
+}
+
+/// Curvature class of every base face: angle defects summed over a ball of `l / 2` around its
+/// centroid; 1 convex, -1 saddle, 0 neither (below a twentieth of a flat disc's turning).
+fn curvature_signs(base: &TriMesh, l: f32) -> Vec<i8> {
     let defect = angle_defects(base);
     let radius = 0.5 * l;
     let key = |p: Vec3| (p / radius).floor().as_ivec3();
@@ -232,17 +293,10 @@ pub fn quilt_measures(
     for (v, p) in base.positions.iter().enumerate() {
         grid.entry(key(Vec3::from(*p))).or_default().push(v as u32);
     }
-    let centroid = |f: usize| {
-        base.faces[f]
-            .iter()
-            .map(|&v| Vec3::from(base.positions[v as usize]))
-            .sum::<Vec3>()
-            / 3.0
-    };
-    let sign: Vec<i8> = (0..nf)
+    (0..base.num_faces())
         .into_par_iter()
         .map(|f| {
-            let c = centroid(f);
+            let c = face_centroid(base, f);
             let k = key(c);
             let mut k_sum = 0.0f32;
             for dz in -1..=1 {
@@ -267,12 +321,20 @@ pub fn quilt_measures(
                 0
             }
         })
-        .collect();
+        .collect()
+}
+
+/// The base face nearest each element's vertex centroid (`None` for an empty element).
+fn element_homes(
+    out: &super::QuiltOutput,
+    base: &TriMesh,
+    ranges: &ElementRanges,
+) -> Vec<Option<u32>> {
     let bvh = TriangleBvh::new(&base.positions, &base.faces);
-    let home: Vec<Option<u32>> = (0..ne)
+    (0..out.num_elements())
         .into_par_iter()
         .map(|e| {
-            let (v0, v1) = ranges[e];
+            let (v0, v1) = ranges.vertices[e];
             if v0 >= v1 {
                 return None;
             }
@@ -280,21 +342,11 @@ pub fn quilt_measures(
             let c = ps.iter().map(|p| Vec3::from(*p)).sum::<Vec3>() / ps.len() as f32;
             bvh.closest_point(c.to_array()).map(|x| x.0)
         })
-        .collect();
-    let by_sign = |want: i8| -> Option<f32> {
-        let a: f64 = (0..nf).filter(|&f| sign[f] == want).map(|f| area[f]).sum();
-        if a < 0.02 * total || expected <= 0.0 {
-            return None;
-        }
-        let n = home
-            .iter()
-            .flatten()
-            .filter(|&&f| sign[f as usize] == want)
-            .count();
-        Some((n as f64 / a / expected) as f32)
-    };
-    // coverage: face centroids within the swatch's largest gap of an output vertex
-    let reach = (sw.largest_gap * s).max(1e-9);
+        .collect()
+}
+
+/// The area of the base faces whose centroid lies within `reach` of an output vertex.
+fn covered_area(out: &super::QuiltOutput, base: &TriMesh, area: &[f64], reach: f32) -> f64 {
     let vkey = |p: Vec3| (p / reach).floor().as_ivec3();
     let mut vgrid: HashMap<IVec3, Vec<u32>> = HashMap::new();
     for (v, p) in out.elements.positions.iter().enumerate() {
@@ -303,10 +355,10 @@ pub fn quilt_measures(
             .or_default()
             .push(v as u32);
     }
-    let covered: f64 = (0..nf)
+    (0..base.num_faces())
         .into_par_iter()
         .filter(|&f| {
-            let c = centroid(f);
+            let c = face_centroid(base, f);
             let k = vkey(c);
             for dz in -1..=1 {
                 for dy in -1..=1 {
@@ -324,17 +376,5 @@ pub fn quilt_measures(
             false
         })
         .map(|f| area[f])
-        .sum();
-    QuiltMeasures {
-        density_ratio,
-        density_ratio_convex: by_sign(1),
-        density_ratio_saddle: by_sign(-1),
-        link_share,
-        links_per_element,
-        coverage: if total > 0.0 {
-            (covered / total) as f32
-        } else {
-            0.0
-        },
-    }
+        .sum()
 }

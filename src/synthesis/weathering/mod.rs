@@ -22,6 +22,8 @@
 
 pub mod feature_maps;
 mod features;
+mod guidance;
+mod matching;
 pub mod nonparametric;
 pub mod parametric;
 pub mod pyramid;
@@ -29,13 +31,11 @@ pub mod recipes;
 
 use std::sync::Arc;
 
-use faer::{Mat, Side};
-
 use crate::error::{Error, Result};
 use crate::geometry::{Refined, refine_to_density};
 use crate::mesh::TriMesh;
-use crate::stats::{Cca, PdfTransferParams, cca, pdf_transfer};
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
+use guidance::{ColourBasis, Guidance};
 
 pub use features::{
     CELL_PER_RADIUS, FeatureSet, LEVEL0_CELL_PER_RADIUS, check_feature_name, feature_field,
@@ -320,112 +320,6 @@ fn validate(m: &TriMesh, what: &str) -> Result<()> {
     Ok(())
 }
 
-/// PCA basis of colours (rows of `c`): mean and orthonormal axes (columns of a 3×3, row-major
-/// `b[i * 3 + k]` = component `i` of axis `k`), largest variance first.
-fn colour_basis(c: &[[f32; 3]]) -> Result<([f64; 3], [f64; 9])> {
-    let n = c.len().max(1) as f64;
-    let mut m = [0.0f64; 3];
-    for x in c {
-        for k in 0..3 {
-            m[k] += x[k] as f64 / n;
-        }
-    }
-    let mut cov = Mat::<f64>::zeros(3, 3);
-    for x in c {
-        for i in 0..3 {
-            for j in 0..3 {
-                cov[(i, j)] += (x[i] as f64 - m[i]) * (x[j] as f64 - m[j]) / n;
-            }
-        }
-    }
-    let evd = cov
-        .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| Error::InvalidInput(format!("colour PCA failed: {e:?}")))?;
-    let u = evd.U();
-    let mut b = [0.0f64; 9];
-    for k in 0..3 {
-        // eigenvalues ascend: axis k = eigenvector 2 - k; sign: positive sum (towards white)
-        let col = 2 - k;
-        let s: f64 = (0..3).map(|i| u[(i, col)]).sum();
-        let sgn = if s < 0.0 { -1.0 } else { 1.0 };
-        for i in 0..3 {
-            b[i * 3 + k] = sgn * u[(i, col)];
-        }
-    }
-    Ok((m, b))
-}
-
-/// Laplacian pyramid (3 levels) of a `n × d` field, per component: `levels[l]` is `n × d`.
-fn field_pyramid(adj: &crate::mesh::Csr, f: &[f32], d: usize, levels: usize) -> Vec<Vec<f32>> {
-    let n = f.len() / d;
-    let mut out = vec![vec![0.0f32; n * d]; levels];
-    for c in 0..d {
-        let comp: Vec<f32> = f.iter().skip(c).step_by(d).copied().collect();
-        for (l, band) in pyramid::decompose(adj, &comp, levels)
-            .into_iter()
-            .enumerate()
-        {
-            for (i, v) in band.into_iter().enumerate() {
-                out[l][i * d + c] = v;
-            }
-        }
-    }
-    out
-}
-
-/// Multi-scale feature matching (Mertens et al. §4.1, after Heeger & Bergen): 3 passes of
-/// {PDF-transfer every Laplacian band of the target guidance onto the source's band (3-D),
-/// collapse, PDF-transfer the values}. Source statistics use the training vertices only.
-#[allow(clippy::too_many_arguments)]
-fn match_multiscale(
-    gt: &mut Vec<f32>,
-    tgt_adj: &crate::mesh::Csr,
-    gs_all: &[f32],
-    src_adj: &crate::mesh::Csr,
-    train: &[u32],
-    d: usize,
-    pdf: &PdfTransferParams,
-    cancel: &CancelToken,
-) -> Result<()> {
-    const LEVELS: usize = 3;
-    const PASSES: usize = 3;
-    let pick = |f: &[f32]| -> Vec<f32> {
-        train
-            .iter()
-            .flat_map(|&v| f[v as usize * d..(v as usize + 1) * d].iter().copied())
-            .collect()
-    };
-    let src_levels: Vec<Vec<f32>> = field_pyramid(src_adj, gs_all, d, LEVELS)
-        .iter()
-        .map(|l| pick(l))
-        .collect();
-    let src_values = pick(gs_all);
-    for pass in 0..PASSES {
-        cancel.check()?;
-        let mut lv = field_pyramid(tgt_adj, gt, d, LEVELS);
-        for b in 0..LEVELS - 1 {
-            let p = PdfTransferParams {
-                seed: pdf.seed ^ ((pass * 16 + b + 1) as u64),
-                ..*pdf
-            };
-            pdf_transfer(&mut lv[b], &src_levels[b], d, &p);
-        }
-        let mut g = lv.pop().unwrap_or_default();
-        for band in &lv {
-            for (x, y) in g.iter_mut().zip(band) {
-                *x += y;
-            }
-        }
-        let p = PdfTransferParams {
-            seed: pdf.seed ^ ((pass * 16) as u64),
-            ..*pdf
-        };
-        pdf_transfer(&mut g, &src_values, d, &p);
-        *gt = g;
-    }
-    Ok(())
-}
-
 /// Transfer the source's colour onto the target (see the module doc). Emits `Event::Progress`
 /// per stage, `Event::StageTime`, and `Event::Partial` (colours on the refined target) after the
 /// initialisation and every Heeger-Bergen iteration; checks `cancel` between stages and batches.
@@ -435,16 +329,114 @@ pub fn run(
     sink: &dyn Fn(Event),
     cancel: &CancelToken,
 ) -> Result<Output> {
-    let total = Stopwatch::start();
-    let mut timings: Vec<(&'static str, f64)> = Vec::new();
-    let progress = |stage: &'static str, fraction: f32| {
-        sink(Event::Progress(Progress {
+    let mut stages = Stages::new(sink);
+    let (src, tgt) = (input.source, input.target);
+    check_input(input, params)?;
+
+    let clock = stages.begin("refine", 0.0);
+    let (rs, rt, src_colors) = refine_pair(src, tgt, params)?;
+    stages.end("refine", clock);
+    cancel.check()?;
+
+    let train = training_vertices(&rs, src, input.source_mask)?;
+
+    let clock = stages.begin("features", 0.05);
+    let (fs, ft) = features_pair(input, &rs, &rt, params, cancel)?;
+    stages.end("features", clock);
+    cancel.check()?;
+
+    let clock = stages.begin("cca", 0.65);
+    let train_cols: Vec<[f32; 3]> = train.iter().map(|&v| src_colors[v as usize]).collect();
+    let basis = ColourBasis::fit(&train_cols)?;
+    let src_dec: Vec<[f32; 3]> = src_colors.iter().map(|&c| basis.decorrelated(c)).collect();
+    let mut guidance = guidance::fit_guidance(&fs, &ft, &train, &src_dec, params)?;
+    stages.end("cca", clock);
+    cancel.check()?;
+
+    let clock = stages.begin("match", 0.68);
+    matching::match_features(
+        &mut guidance,
+        &fs,
+        &rs.mesh,
+        &rt.mesh,
+        &train,
+        params,
+        cancel,
+    )?;
+    stages.end("match", clock);
+    cancel.check()?;
+
+    let clock = stages.begin("synthesis", 0.72);
+    let colours = ColourSource {
+        basis: &basis,
+        decorrelated: &src_dec,
+        train: &train,
+        features: &fs,
+    };
+    let colors = synthesize_colours(
+        &guidance, &colours, &rs.mesh, &rt.mesh, params, &stages, cancel,
+    )?;
+    stages.end("synthesis", clock);
+    let nv = tgt.num_vertices();
+    let file_colors = tgt.to_file_order(&colors[..nv], [0.5; 3]);
+    stages.timings.push(("total", stages.total.secs()));
+    stages.progress("done", 1.0);
+    Ok(Output {
+        target: rt,
+        colors,
+        file_colors,
+        report: guidance.report,
+        target_features: ft,
+        target_guidance: guidance.target,
+        guidance_dim: guidance.dim,
+        source_vertices: rs.mesh.num_vertices(),
+        timings: stages.timings,
+    })
+}
+
+/// The run's clock, its stage timings and its progress events.
+struct Stages<'a> {
+    total: Stopwatch,
+    timings: Vec<(&'static str, f64)>,
+    sink: &'a dyn Fn(Event),
+}
+
+impl<'a> Stages<'a> {
+    /// Start the run's clock.
+    fn new(sink: &'a dyn Fn(Event)) -> Self {
+        Stages {
+            total: Stopwatch::start(),
+            timings: Vec::new(),
+            sink,
+        }
+    }
+
+    /// Report progress at `fraction` of the run, in `stage`.
+    fn progress(&self, stage: &'static str, fraction: f32) {
+        (self.sink)(Event::Progress(Progress {
             stage,
-            elapsed: total.secs(),
+            elapsed: self.total.secs(),
             fraction,
             ..Default::default()
         }))
-    };
+    }
+
+    /// Report the start of a stage and start its clock.
+    fn begin(&self, stage: &'static str, fraction: f32) -> Stopwatch {
+        self.progress(stage, fraction);
+        Stopwatch::start()
+    }
+
+    /// Record a stage's time and report it.
+    fn end(&mut self, stage: &'static str, clock: Stopwatch) {
+        self.timings.push((stage, clock.secs()));
+        (self.sink)(Event::StageTime(stage, clock.secs()));
+    }
+}
+
+/// Refuse meshes, masks and parameters the transfer cannot use, and working sizes that would
+/// not fit in memory.
+fn check_input(input: &Input, params: &Params) -> Result<()> {
     let (src, tgt) = (input.source, input.target);
     validate(src, "source")?;
     validate(tgt, "target")?;
@@ -494,10 +486,15 @@ pub fn run(
             "clusters and cca_dims must be at least 1".into(),
         ));
     }
+    Ok(())
+}
 
-    // ---- refine
-    progress("refine", 0.0);
-    let clock = Stopwatch::start();
+/// Both meshes refined to the working density, and the source's colour per working vertex.
+fn refine_pair(
+    src: &TriMesh,
+    tgt: &TriMesh,
+    params: &Params,
+) -> Result<(Refined, Refined, Vec<[f32; 3]>)> {
     let (rs, rt) = rayon::join(
         || refine_to_density(src, params.working_vertices),
         || refine_to_density(tgt, params.working_vertices),
@@ -508,13 +505,14 @@ pub fn run(
             Error::InvalidInput("source mesh has no colours or texture to transfer".into())
         })?,
     };
-    timings.push(("refine", clock.secs()));
-    sink(Event::StageTime("refine", clock.secs()));
-    cancel.check()?;
+    Ok((rs, rt, src_colors))
+}
 
-    // ---- training vertices (mask)
+/// The working source vertices to learn from: every one, or those whose nearest file vertex
+/// the mask leaves in; at least 16.
+fn training_vertices(rs: &Refined, src: &TriMesh, mask: Option<&[bool]>) -> Result<Vec<u32>> {
     let ns_all = rs.mesh.num_vertices();
-    let train: Vec<u32> = match input.source_mask {
+    let train: Vec<u32> = match mask {
         None => (0..ns_all as u32).collect(),
         Some(mask) => rs
             .vertex_sources()
@@ -542,10 +540,18 @@ pub fn run(
             train.len()
         )));
     }
+    Ok(train)
+}
 
-    // ---- features
-    progress("features", 0.05);
-    let clock = Stopwatch::start();
+/// The features (§3.1) of both working meshes, at once.
+fn features_pair(
+    input: &Input,
+    rs: &Refined,
+    rt: &Refined,
+    params: &Params,
+    cancel: &CancelToken,
+) -> Result<(FeatureSet, FeatureSet)> {
+    let (src, tgt) = (input.source, input.target);
     // the working meshes are bisections of the inputs: the inputs' triangles carry the same
     // surface for the curvature tree and the occlusion rays
     // both meshes at once: the trees' builds and the sampling passes are serial
@@ -569,117 +575,33 @@ pub fn run(
             )
         },
     );
-    let (fs, ft) = (fs?, ft?);
-    timings.push(("features", clock.secs()));
-    sink(Event::StageTime("features", clock.secs()));
-    cancel.check()?;
+    Ok((fs?, ft?))
+}
 
-    // ---- colour basis and CCA
-    progress("cca", 0.65);
-    let clock = Stopwatch::start();
-    let p = fs.dim;
-    let train_cols: Vec<[f32; 3]> = train.iter().map(|&v| src_colors[v as usize]).collect();
-    let (cmean, cb) = colour_basis(&train_cols)?;
-    let to_dec = |c: [f32; 3]| -> [f32; 3] {
-        let d = [0, 1, 2].map(|i| c[i] as f64 - cmean[i]);
-        [0, 1, 2].map(|k| (0..3).map(|i| cb[i * 3 + k] * d[i]).sum::<f64>() as f32)
-    };
-    let from_dec = |y: [f32; 3]| -> [f32; 3] {
-        [0, 1, 2].map(|i| {
-            let v = cmean[i] + (0..3).map(|k| cb[i * 3 + k] * y[k] as f64).sum::<f64>();
-            (v as f32).clamp(0.0, 1.0)
-        })
-    };
-    let src_dec: Vec<[f32; 3]> = src_colors.iter().map(|&c| to_dec(c)).collect();
-    let xs_train: Vec<f32> = train
-        .iter()
-        .flat_map(|&v| fs.row(v as usize).iter().copied())
-        .collect();
-    let ys_train: Vec<f32> = train.iter().flat_map(|&v| src_dec[v as usize]).collect();
-    let model: Cca =
-        cca(&xs_train, p, &ys_train, 3, params.cca_dims, 1e-6).map_err(|e| match e {
-            Error::InvalidInput(m) if m.contains("colour is constant") => Error::InvalidInput(
-                "source colour is constant: there is no texture to transfer".into(),
-            ),
-            other => other,
-        })?;
-    let d = model.d;
-    let sw_std = model.standardised_wx();
-    let enabled: Vec<bool> = match &params.components {
-        None => vec![true; d],
-        Some(keep) => (0..d).map(|k| keep.contains(&k)).collect(),
-    };
-    let report = CcaReport {
-        feature_names: fs.names.clone(),
-        weights: (0..p)
-            .map(|i| sw_std[i * d..(i + 1) * d].to_vec())
-            .collect(),
-        correlations: model.correlations.clone(),
-        training_vertices: train.len(),
-        enabled: enabled.clone(),
-    };
-    // the components switched off leave the guidance (none off: the model as the paper has it)
-    let model = if enabled.iter().all(|&e| e) {
-        model
-    } else {
-        let keep: Vec<usize> = (0..d).filter(|&k| enabled[k]).collect();
-        if keep.is_empty() {
-            return Err(Error::InvalidInput(format!(
-                "every canonical component is switched off (the CCA found {d}: 0 to {}); keep at least one",
-                d - 1
-            )));
-        }
-        model.keep(&keep)
-    };
-    let d = model.d;
-    let gs_train = model.project_x(&xs_train);
-    let mut gt = model.project_x(&ft.values);
-    timings.push(("cca", clock.secs()));
-    sink(Event::StageTime("cca", clock.secs()));
-    cancel.check()?;
+/// What the synthesis reads of the source's colour.
+struct ColourSource<'a> {
+    basis: &'a ColourBasis,
+    /// Colour per working source vertex, in the decorrelated basis.
+    decorrelated: &'a [[f32; 3]],
+    train: &'a [u32],
+    features: &'a FeatureSet,
+}
 
-    // ---- feature matching (PDF transfer of the target guidance onto the source's)
-    progress("match", 0.68);
-    let clock = Stopwatch::start();
-    let pdf = PdfTransferParams {
-        iterations: params.pdf_iterations,
-        tolerance: 0.01,
-        seed: params.seed ^ 0x0070_6466,
-    };
-    let strength = params.match_strength.clamp(0.0, 1.0);
-    if strength > 0.0 {
-        let raw = (strength < 1.0).then(|| gt.clone());
-        if params.multiscale_matching {
-            let gs_all = model.project_x(&fs.values);
-            match_multiscale(
-                &mut gt,
-                &rt.mesh.adjacency(),
-                &gs_all,
-                &rs.mesh.adjacency(),
-                &train,
-                d,
-                &pdf,
-                cancel,
-            )?;
-        } else {
-            pdf_transfer(&mut gt, &gs_train, d, &pdf);
-        }
-        if let Some(raw) = raw {
-            for (g, r) in gt.iter_mut().zip(raw) {
-                *g = r + strength * (*g - r);
-            }
-        }
-    }
-    timings.push(("match", clock.secs()));
-    sink(Event::StageTime("match", clock.secs()));
-    cancel.check()?;
-
-    // ---- parametric synthesis
-    progress("synthesis", 0.72);
-    let clock = Stopwatch::start();
-    let src_adj = rs.mesh.adjacency();
+/// Synthesize the target's colour (§4) from the matched guidance, by the parametric or the
+/// non-parametric method, emitting `Event::Partial` per iteration; sRGB per target vertex.
+fn synthesize_colours(
+    g: &Guidance,
+    colours: &ColourSource,
+    src: &TriMesh,
+    tgt: &TriMesh,
+    params: &Params,
+    stages: &Stages,
+    cancel: &CancelToken,
+) -> Result<Vec<[f32; 3]>> {
+    let (train, src_dec, d) = (colours.train, colours.decorrelated, g.dim);
+    let src_adj = src.adjacency();
     let levels = params.levels.max(1);
-    let tgt_adj = rt.mesh.adjacency();
+    let tgt_adj = tgt.adjacency();
     let knobs = parametric::SynthKnobs {
         clusters: params.clusters,
         neighbours: params.neighbours,
@@ -690,7 +612,7 @@ pub fn run(
     };
     let to_srgb = |y: &[Vec<f32>; 3]| -> Vec<[f32; 3]> {
         (0..y[0].len())
-            .map(|i| from_dec([y[0][i], y[1][i], y[2][i]]))
+            .map(|i| colours.basis.srgb([y[0][i], y[1][i], y[2][i]]))
             .collect()
     };
     let iters = params.hb_iterations;
@@ -702,18 +624,18 @@ pub fn run(
             levels: 1,
             iteration: it,
             energy: 0.0,
-            elapsed: total.secs(),
+            elapsed: stages.total.secs(),
             fraction: 0.72 + 0.28 * it as f32 / (iters + 1) as f32,
         };
         let signal: Arc<[[f32; 3]]> = to_srgb(y).into();
-        sink(Event::Partial {
+        (stages.sink)(Event::Partial {
             progress: prog,
             signal,
         });
         Ok(())
     };
     let y = if params.method == Method::NonParametric {
-        let gs_all = model.project_x(&fs.values);
+        let gs_all = g.model.project_x(&colours.features.values);
         let mut partial_np = |it: usize, c: &[[f32; 3]]| -> Result<()> {
             let y: [Vec<f32>; 3] = [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect());
             partial(it, &y)
@@ -724,10 +646,10 @@ pub fn run(
         };
         let c = nonparametric::synthesize(
             &gs_all,
-            &train,
-            &src_dec,
+            train,
+            src_dec,
             &src_adj,
-            &gt,
+            &g.target,
             &tgt_adj,
             d,
             &knobs,
@@ -750,33 +672,16 @@ pub fn run(
         drop(src_adj);
         parametric::synthesize(
             &parametric::SourceData {
-                guidance: &gs_train,
+                guidance: &g.source_train,
                 colour: &src_channels,
                 levels: &src_levels,
             },
-            &gt,
+            &g.target,
             &tgt_adj,
             d,
             &knobs,
             &mut partial,
         )?
     };
-    let colors = to_srgb(&y);
-    timings.push(("synthesis", clock.secs()));
-    sink(Event::StageTime("synthesis", clock.secs()));
-    let nv = tgt.num_vertices();
-    let file_colors = tgt.to_file_order(&colors[..nv], [0.5; 3]);
-    timings.push(("total", total.secs()));
-    progress("done", 1.0);
-    Ok(Output {
-        target: rt,
-        colors,
-        file_colors,
-        report,
-        target_features: ft,
-        target_guidance: gt,
-        guidance_dim: d,
-        source_vertices: ns_all,
-        timings,
-    })
+    Ok(to_srgb(&y))
 }

@@ -251,10 +251,33 @@ pub fn synthesize(
     // ---- 2. feathering
     let fs = feather(src.guidance, dim, &ks);
     let ft = feather(tgt_guidance, dim, &kt);
-    // ---- 3. source model: per cluster, per channel: value quantiles + band quantiles; affine map
+    // ---- 3. source model, 4. target model
+    let src_models = source_models(src, dim, &fs, levels);
+    let sigma = residual_sigma(src, dim, &fs, &src_models);
+    let tgt_models = target_models(&ks, &kt, knobs.neighbours, &src_models, dim, levels);
+    // ---- 5. initialisation
+    let mut y = initialise(tgt_guidance, dim, &ft, &tgt_models, sigma, knobs);
+    partial(0, &y)?;
+    // ---- 6. Heeger-Bergen iterations
+    for it in 0..knobs.iterations {
+        heeger_bergen_iteration(&mut y, adj, levels, &ft, &tgt_models);
+        partial(it + 1, &y)?;
+    }
+    Ok(y)
+}
+
+/// A cluster's colour model: per channel, the quantiles of its values then of each of its
+/// Laplacian bands (`3 × levels` lists), and the affine map from guidance to colour.
+struct ClusterModel {
+    quantiles: Vec<Vec<f32>>,
+    affine: Vec<f64>,
+}
+
+/// The source model: per source cluster, per channel, the value and band quantiles under the
+/// cluster's feathered weights, and its affine map.
+fn source_models(src: &SourceData, dim: usize, fs: &Feather, levels: usize) -> Vec<ClusterModel> {
     let nq = levels; // value + (levels - 1) bands per channel
-    let src_models: Vec<(Vec<Vec<f32>>, Vec<f64>)> = fs
-        .support
+    fs.support
         .par_iter()
         .map(|sup| {
             let idx: Vec<u32> = sup.iter().map(|s| s.0).collect();
@@ -276,14 +299,21 @@ pub fn synthesize(
                 }
             }
             let aff = fit_affine(src.guidance, dim, src.colour, sup);
-            (qs, aff)
+            ClusterModel {
+                quantiles: qs,
+                affine: aff,
+            }
         })
-        .collect();
-    // pooled residual standard deviation per channel
+        .collect()
+}
+
+/// The pooled standard deviation per channel of the source colour about its clusters' affine
+/// maps (feathered weights).
+fn residual_sigma(src: &SourceData, dim: usize, fs: &Feather, models: &[ClusterModel]) -> [f32; 3] {
     let mut res = [0.0f64; 3];
     let mut wsum = 0.0f64;
     for (k, sup) in fs.support.iter().enumerate() {
-        let aff = &src_models[k].1;
+        let aff = &models[k].affine;
         for &(i, w) in sup {
             let x = &src.guidance[i as usize * dim..(i as usize + 1) * dim];
             for (c, r) in res.iter_mut().enumerate() {
@@ -293,11 +323,23 @@ pub fn synthesize(
             wsum += w as f64;
         }
     }
-    let sigma: [f32; 3] = res.map(|r| (r / wsum.max(1e-300)).sqrt() as f32);
-    // ---- 4. target model: Shepard interpolation of the k nearest source clusters
+    res.map(|r| (r / wsum.max(1e-300)).sqrt() as f32)
+}
+
+/// The target model: per target cluster, Shepard interpolation (inverse squared distance) of
+/// the `neighbours` nearest source clusters' quantiles and affine maps.
+fn target_models(
+    ks: &KMeans,
+    kt: &KMeans,
+    neighbours: usize,
+    src_models: &[ClusterModel],
+    dim: usize,
+    levels: usize,
+) -> Vec<ClusterModel> {
+    let nq = levels;
     let kk = ks.k();
-    let nb = knobs.neighbours.clamp(1, kk);
-    let tgt_models: Vec<(Vec<Vec<f32>>, Vec<f64>)> = (0..kt.k())
+    let nb = neighbours.clamp(1, kk);
+    (0..kt.k())
         .into_par_iter()
         .map(|j| {
             let f = kt.center(j);
@@ -320,22 +362,39 @@ pub fn synthesize(
             let wts: Vec<f32> = near.iter().map(|n| n.0).collect();
             let qs: Vec<Vec<f32>> = (0..3 * nq)
                 .map(|q| {
-                    let list: Vec<&[f32]> =
-                        near.iter().map(|n| &src_models[n.1].0[q][..]).collect();
+                    let list: Vec<&[f32]> = near
+                        .iter()
+                        .map(|n| &src_models[n.1].quantiles[q][..])
+                        .collect();
                     blend_quantiles(&list, &wts)
                 })
                 .collect();
             let total: f32 = wts.iter().sum();
             let mut aff = vec![0.0f64; 3 * (dim + 1)];
             for (w, k) in &near {
-                for (a, s) in aff.iter_mut().zip(&src_models[*k].1) {
+                for (a, s) in aff.iter_mut().zip(&src_models[*k].affine) {
                     *a += (*w / total) as f64 * s;
                 }
             }
-            (qs, aff)
+            ClusterModel {
+                quantiles: qs,
+                affine: aff,
+            }
         })
-        .collect();
-    // ---- 5. initialisation
+        .collect()
+}
+
+/// The initial colour: per target point, its clusters' affine maps blended by the feathered
+/// weights, plus Gaussian noise of `noise × sigma` per channel.
+fn initialise(
+    tgt_guidance: &[f32],
+    dim: usize,
+    ft: &Feather,
+    tgt_models: &[ClusterModel],
+    sigma: [f32; 3],
+    knobs: &SynthKnobs,
+) -> [Vec<f32>; 3] {
+    let nt = tgt_guidance.len() / dim;
     let mut wrow: Vec<Vec<(u32, f32)>> = vec![Vec::new(); nt];
     for (j, sup) in ft.support.iter().enumerate() {
         for &(i, w) in sup {
@@ -349,48 +408,57 @@ pub fn synthesize(
         for c in 0..3 {
             let mut v = 0.0f32;
             for &(j, w) in &wrow[i] {
-                v += w * apply_affine(&tgt_models[j as usize].1, dim, x, c);
+                v += w * apply_affine(&tgt_models[j as usize].affine, dim, x, c);
             }
             y[c][i] = v + knobs.noise * sigma[c] * gaussian(&mut rng) as f32;
         }
     }
-    drop(wrow);
-    partial(0, &y)?;
-    // ---- 6. Heeger-Bergen iterations
-    let match_blend = |vals: &[f32], q: usize| -> Vec<f32> {
-        let pieces: Vec<(usize, Vec<f32>)> = ft
-            .support
-            .par_iter()
-            .enumerate()
-            .map(|(j, sup)| {
-                let mut v: Vec<f32> = sup.iter().map(|s| vals[s.0 as usize]).collect();
-                let w: Vec<f32> = sup.iter().map(|s| s.1).collect();
-                match_to_quantiles(&mut v, Some(&w), &tgt_models[j].0[q]);
-                (j, v)
-            })
-            .collect();
-        let mut out = vec![0.0f32; vals.len()];
-        for (j, v) in pieces {
-            for (&(i, w), m) in ft.support[j].iter().zip(v) {
-                out[i as usize] += w * m;
+    y
+}
+
+/// One Heeger-Bergen iteration: per channel, each Laplacian band and then the collapsed values
+/// matched, cluster by cluster, to the target model's quantiles and feathered back together.
+fn heeger_bergen_iteration(
+    y: &mut [Vec<f32>; 3],
+    adj: &Csr,
+    levels: usize,
+    ft: &Feather,
+    tgt_models: &[ClusterModel],
+) {
+    let nq = levels;
+    for (c, yc) in y.iter_mut().enumerate() {
+        if levels > 1 {
+            let mut lv = decompose(adj, yc, levels);
+            for (b, band) in lv.iter_mut().take(levels - 1).enumerate() {
+                *band = match_blend(ft, tgt_models, band, c * nq + 1 + b);
             }
+            *yc = collapse(&lv);
         }
-        out
-    };
-    for it in 0..knobs.iterations {
-        for (c, yc) in y.iter_mut().enumerate() {
-            if levels > 1 {
-                let mut lv = decompose(adj, yc, levels);
-                for (b, band) in lv.iter_mut().take(levels - 1).enumerate() {
-                    *band = match_blend(band, c * nq + 1 + b);
-                }
-                *yc = collapse(&lv);
-            }
-            *yc = match_blend(yc, c * nq);
-        }
-        partial(it + 1, &y)?;
+        *yc = match_blend(ft, tgt_models, yc, c * nq);
     }
-    Ok(y)
+}
+
+/// `vals` matched, per target cluster, to its model's quantile list `q` under the feathered
+/// weights, and blended back by those weights.
+fn match_blend(ft: &Feather, tgt_models: &[ClusterModel], vals: &[f32], q: usize) -> Vec<f32> {
+    let pieces: Vec<(usize, Vec<f32>)> = ft
+        .support
+        .par_iter()
+        .enumerate()
+        .map(|(j, sup)| {
+            let mut v: Vec<f32> = sup.iter().map(|s| vals[s.0 as usize]).collect();
+            let w: Vec<f32> = sup.iter().map(|s| s.1).collect();
+            match_to_quantiles(&mut v, Some(&w), &tgt_models[j].quantiles[q]);
+            (j, v)
+        })
+        .collect();
+    let mut out = vec![0.0f32; vals.len()];
+    for (j, v) in pieces {
+        for (&(i, w), m) in ft.support[j].iter().zip(v) {
+            out[i as usize] += w * m;
+        }
+    }
+    out
 }
 
 #[cfg(test)]
