@@ -741,13 +741,16 @@ pub struct ExemplarDialog {
 
 impl ExemplarDialog {
     /// Draw the settings with tooltips; returns what the user clicked. `busy`: a tool is running.
+    ///
+    /// The rows, each a function: [`image_size_row`], [`side_row`], [`region_row`],
+    /// [`scale_rows`], [`orientation_combo`], [`search_row`], [`estimate_row`] and
+    /// [`run_close_row`].
     pub fn ui<P: super::AppParams>(
         &mut self,
         ui: &mut eframe::egui::Ui,
         state: &super::AppState<P>,
         busy: bool,
     ) -> ExemplarAction {
-        use eframe::egui;
         let s = &mut self.settings;
         let mut action = ExemplarAction::None;
         if image_chooser(
@@ -757,162 +760,219 @@ impl ExemplarDialog {
         ) {
             action = ExemplarAction::ChooseImage;
         }
-        if let Some(p) = &s.image
-            && self.size_of.as_ref().is_none_or(|(q, _)| q != p)
-        {
-            let size = image::image_dimensions(p).map_err(|e| e.to_string());
-            self.size_of = Some((p.clone(), size));
-        }
-        let mut width = s.pixels;
-        match self
-            .size_of
-            .as_ref()
-            .filter(|(q, _)| Some(q) == s.image.as_ref())
-        {
-            Some((_, Ok((w, h)))) => {
-                width = (*w).min(s.pixels);
-                ui.label(format!("{w} x {h} pixels, used {width} wide"));
-            }
-            Some((_, Err(e))) => {
-                ui.colored_label(egui::Color32::from_rgb(255, 120, 120), e);
-            }
-            None => {}
-        }
+        let width = image_size_row(ui, &mut self.size_of, s);
         ui.separator();
-        ui.horizontal(|ui| {
-            ui.label("Mesh:");
-            for side in [Side::Source, Side::Target] {
-                ui.selectable_value(&mut s.side, side, format!("{side:?}"))
-                    .on_hover_text(format!("Texture the {side:?} mesh (left view = source)"));
-            }
-        });
+        side_row(ui, s);
         let painted = state
             .region_coverage(s.side)
             .map_or(0, |c| c.iter().filter(|&&c| c >= 0.5).count());
-        ui.horizontal(|ui| {
-            ui.label("Apply to:");
-            ui.selectable_value(&mut s.region, Region::Whole, "Whole mesh")
-                .on_hover_text("Replace the colours of every vertex");
-            ui.selectable_value(
-                &mut s.region,
-                Region::Painted,
-                format!("Painted region ({painted} vertices)"),
-            )
-            .on_hover_text(
-                "Only the vertices painted with the Paint tool (the mask layer's when it has \
-                 any paint, else the paint layer's); the rest keep their colours and guide the \
-                 border",
-            );
-            ui.selectable_value(&mut s.region, Region::Texture, "Into a texture")
-                .on_hover_text(format!(
-                    "Synthesize texel by texel into a {TEXTURE_SIDE}x{TEXTURE_SIDE} texture \
-                     through the mesh's UVs (or a generated atlas), from the full-resolution \
-                     image; the mesh becomes textured"
-                ));
-        });
-        ui.add(
-            egui::Slider::new(&mut s.scale, 0.02..=2.0)
-                .logarithmic(true)
-                .text("scale"),
-        )
-        .on_hover_text(
-            "How wide the exemplar appears on the surface, as a fraction of the mesh's \
-             bounding-box diagonal: smaller = more repetitions, finer texture",
-        );
-        if s.region == Region::Texture {
-            ui.checkbox(&mut s.patches, "Paste whole patches")
-                .on_hover_text(
-                    "Paste large discs of the image onto the surface, each placed where it matches \
-                 its neighbours (lapped textures): keeps the image's contrast, large structures \
-                 and sharpness. Off: Wei-Levoy synthesis texel by texel (finer mixing, softer)",
-                );
-        }
-        if s.region != Region::Texture {
-            ui.add(egui::Slider::new(&mut s.pixels, 32..=256).text("exemplar width (px)"))
-                .on_hover_text(
-                    "The image is shrunk to this width before synthesis: more pixels = finer \
-                     detail, but more surface vertices and a slower run (the count grows with \
-                     its square)",
-                );
-        }
-        egui::ComboBox::from_label("orientation")
-            .selected_text(s.orientation.as_str())
-            .show_ui(ui, |ui| {
-                for (o, tip) in [
-                    (
-                        Orientation::Auto,
-                        "Chosen from the image: random for isotropic textures, a smooth 2-way \
-                         field for stripes, a 4-way one for grids and bricks",
-                    ),
-                    (
-                        Orientation::Random,
-                        "Random direction per vertex: for isotropic textures (noise, gravel, fur)",
-                    ),
-                    (
-                        Orientation::Up,
-                        "The texture's up follows the mesh's +Y axis: for textures with a \
-                         natural up (grass, drips)",
-                    ),
-                    (
-                        Orientation::Relax2,
-                        "A smooth field with 2-way symmetry: for stripes",
-                    ),
-                    (
-                        Orientation::Relax4,
-                        "A smooth field with 4-way symmetry: for grids (bricks, tiles, weaves)",
-                    ),
-                ] {
-                    ui.selectable_value(&mut s.orientation, o, o.as_str())
-                        .on_hover_text(tip);
-                }
-            })
-            .response
-            .on_hover_text("How the texture is turned at each point of the surface");
-        ui.horizontal(|ui| {
-            ui.label("Search:");
-            ui.selectable_value(&mut s.search, Search::Fast, "fast")
-                .on_hover_text("Coherence candidates + random search: nearly the same quality");
-            ui.selectable_value(&mut s.search, Search::Exhaustive, "exhaustive")
-                .on_hover_text("Every exemplar neighbourhood: the reference, many times slower");
-            ui.add(egui::DragValue::new(&mut s.seed).prefix("seed "))
-                .on_hover_text("Runs with the same seed and settings are identical");
-        });
+        region_row(ui, s, painted);
+        scale_rows(ui, s);
+        orientation_combo(ui, s);
+        search_row(ui, s);
         let mesh = state.slot(s.side).map(|m| m.displayed());
-        match mesh {
-            Some(_) if s.region == Region::Texture => {
-                ui.label(format!(
-                    "up to {} texels synthesized, magnified to {TEXTURE_SIDE}x{TEXTURE_SIDE} from \
-                     the full image",
-                    exemplar::DEFAULT_TEXEL_BUDGET
-                ));
-            }
-            Some(m) => {
-                let n = s.estimated_vertices(m, width);
-                ui.label(format!(
-                    "about {n} surface vertices to synthesize (the view shows {})",
-                    m.num_vertices()
-                ));
-            }
-            None => {
-                ui.label(format!("open a {:?} mesh first", s.side));
-            }
+        estimate_row(ui, s, mesh, width);
+        let ready = s.image.is_some()
+            && mesh.is_some()
+            && !busy
+            && (s.region != Region::Painted || painted > 0);
+        let clicked = run_close_row(ui, ready);
+        if clicked != ExemplarAction::None {
+            action = clicked;
         }
-        ui.horizontal(|ui| {
-            let ready = s.image.is_some()
-                && mesh.is_some()
-                && !busy
-                && (s.region != Region::Painted || painted > 0);
-            if ui
-                .add_enabled(ready, egui::Button::new("Run"))
-                .on_hover_text("Synthesize on its own thread; the view updates after every pass")
-                .clicked()
-            {
-                action = ExemplarAction::Run;
-            }
-            if ui.button("Close").clicked() {
-                action = ExemplarAction::Close;
-            }
-        });
         action
     }
+}
+
+/// The chosen image's size (read from its header once per path) or why it cannot be read;
+/// returns the width the run uses (the image's, at most the settings' width).
+fn image_size_row(
+    ui: &mut eframe::egui::Ui,
+    size_of: &mut Option<ImageSize>,
+    s: &ExemplarSettings,
+) -> u32 {
+    if let Some(p) = &s.image
+        && size_of.as_ref().is_none_or(|(q, _)| q != p)
+    {
+        let size = image::image_dimensions(p).map_err(|e| e.to_string());
+        *size_of = Some((p.clone(), size));
+    }
+    let mut width = s.pixels;
+    match size_of
+        .as_ref()
+        .filter(|(q, _)| Some(q) == s.image.as_ref())
+    {
+        Some((_, Ok((w, h)))) => {
+            width = (*w).min(s.pixels);
+            ui.label(format!("{w} x {h} pixels, used {width} wide"));
+        }
+        Some((_, Err(e))) => {
+            ui.colored_label(eframe::egui::Color32::from_rgb(255, 120, 120), e);
+        }
+        None => {}
+    }
+    width
+}
+
+/// "Mesh:" which side to texture.
+fn side_row(ui: &mut eframe::egui::Ui, s: &mut ExemplarSettings) {
+    ui.horizontal(|ui| {
+        ui.label("Mesh:");
+        for side in [Side::Source, Side::Target] {
+            ui.selectable_value(&mut s.side, side, format!("{side:?}"))
+                .on_hover_text(format!("Texture the {side:?} mesh (left view = source)"));
+        }
+    });
+}
+
+/// "Apply to:" the whole mesh, the painted region (`painted` vertices) or a texture.
+fn region_row(ui: &mut eframe::egui::Ui, s: &mut ExemplarSettings, painted: usize) {
+    ui.horizontal(|ui| {
+        ui.label("Apply to:");
+        ui.selectable_value(&mut s.region, Region::Whole, "Whole mesh")
+            .on_hover_text("Replace the colours of every vertex");
+        ui.selectable_value(
+            &mut s.region,
+            Region::Painted,
+            format!("Painted region ({painted} vertices)"),
+        )
+        .on_hover_text(
+            "Only the vertices painted with the Paint tool (the mask layer's when it has \
+             any paint, else the paint layer's); the rest keep their colours and guide the \
+             border",
+        );
+        ui.selectable_value(&mut s.region, Region::Texture, "Into a texture")
+            .on_hover_text(format!(
+                "Synthesize texel by texel into a {TEXTURE_SIDE}x{TEXTURE_SIDE} texture \
+                 through the mesh's UVs (or a generated atlas), from the full-resolution \
+                 image; the mesh becomes textured"
+            ));
+    });
+}
+
+/// The scale slider, then whole patches (into a texture) or the exemplar's width (otherwise).
+fn scale_rows(ui: &mut eframe::egui::Ui, s: &mut ExemplarSettings) {
+    use eframe::egui;
+    ui.add(
+        egui::Slider::new(&mut s.scale, 0.02..=2.0)
+            .logarithmic(true)
+            .text("scale"),
+    )
+    .on_hover_text(
+        "How wide the exemplar appears on the surface, as a fraction of the mesh's \
+         bounding-box diagonal: smaller = more repetitions, finer texture",
+    );
+    if s.region == Region::Texture {
+        ui.checkbox(&mut s.patches, "Paste whole patches")
+            .on_hover_text(
+                "Paste large discs of the image onto the surface, each placed where it matches \
+                 its neighbours (lapped textures): keeps the image's contrast, large structures \
+                 and sharpness. Off: Wei-Levoy synthesis texel by texel (finer mixing, softer)",
+            );
+    }
+    if s.region != Region::Texture {
+        ui.add(egui::Slider::new(&mut s.pixels, 32..=256).text("exemplar width (px)"))
+            .on_hover_text(
+                "The image is shrunk to this width before synthesis: more pixels = finer \
+                 detail, but more surface vertices and a slower run (the count grows with \
+                 its square)",
+            );
+    }
+}
+
+/// The orientation field's choice, each with what it suits.
+fn orientation_combo(ui: &mut eframe::egui::Ui, s: &mut ExemplarSettings) {
+    eframe::egui::ComboBox::from_label("orientation")
+        .selected_text(s.orientation.as_str())
+        .show_ui(ui, |ui| {
+            for (o, tip) in [
+                (
+                    Orientation::Auto,
+                    "Chosen from the image: random for isotropic textures, a smooth 2-way \
+                     field for stripes, a 4-way one for grids and bricks",
+                ),
+                (
+                    Orientation::Random,
+                    "Random direction per vertex: for isotropic textures (noise, gravel, fur)",
+                ),
+                (
+                    Orientation::Up,
+                    "The texture's up follows the mesh's +Y axis: for textures with a \
+                     natural up (grass, drips)",
+                ),
+                (
+                    Orientation::Relax2,
+                    "A smooth field with 2-way symmetry: for stripes",
+                ),
+                (
+                    Orientation::Relax4,
+                    "A smooth field with 4-way symmetry: for grids (bricks, tiles, weaves)",
+                ),
+            ] {
+                ui.selectable_value(&mut s.orientation, o, o.as_str())
+                    .on_hover_text(tip);
+            }
+        })
+        .response
+        .on_hover_text("How the texture is turned at each point of the surface");
+}
+
+/// "Search:" fast or exhaustive, and the seed.
+fn search_row(ui: &mut eframe::egui::Ui, s: &mut ExemplarSettings) {
+    ui.horizontal(|ui| {
+        ui.label("Search:");
+        ui.selectable_value(&mut s.search, Search::Fast, "fast")
+            .on_hover_text("Coherence candidates + random search: nearly the same quality");
+        ui.selectable_value(&mut s.search, Search::Exhaustive, "exhaustive")
+            .on_hover_text("Every exemplar neighbourhood: the reference, many times slower");
+        ui.add(eframe::egui::DragValue::new(&mut s.seed).prefix("seed "))
+            .on_hover_text("Runs with the same seed and settings are identical");
+    });
+}
+
+/// How much the run will synthesize on `mesh` (texels, or surface vertices at `width`), or that
+/// a mesh is needed first.
+fn estimate_row(
+    ui: &mut eframe::egui::Ui,
+    s: &ExemplarSettings,
+    mesh: Option<&TriMesh>,
+    width: u32,
+) {
+    match mesh {
+        Some(_) if s.region == Region::Texture => {
+            ui.label(format!(
+                "up to {} texels synthesized, magnified to {TEXTURE_SIDE}x{TEXTURE_SIDE} from \
+                 the full image",
+                exemplar::DEFAULT_TEXEL_BUDGET
+            ));
+        }
+        Some(m) => {
+            let n = s.estimated_vertices(m, width);
+            ui.label(format!(
+                "about {n} surface vertices to synthesize (the view shows {})",
+                m.num_vertices()
+            ));
+        }
+        None => {
+            ui.label(format!("open a {:?} mesh first", s.side));
+        }
+    }
+}
+
+/// The Run (enabled when `ready`) and Close buttons: which was clicked, if any.
+fn run_close_row(ui: &mut eframe::egui::Ui, ready: bool) -> ExemplarAction {
+    let mut action = ExemplarAction::None;
+    ui.horizontal(|ui| {
+        if ui
+            .add_enabled(ready, eframe::egui::Button::new("Run"))
+            .on_hover_text("Synthesize on its own thread; the view updates after every pass")
+            .clicked()
+        {
+            action = ExemplarAction::Run;
+        }
+        if ui.button("Close").clicked() {
+            action = ExemplarAction::Close;
+        }
+    });
+    action
 }

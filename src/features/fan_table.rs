@@ -446,174 +446,236 @@ impl TableJob<'_, '_> {
 
     /// # Safety
     /// As [`TableJob::chunk`].
+    ///
+    /// Per vertex: [`TableJob::walk_taps`] (the nearest taps of every bin, by a breadth-first
+    /// walk), [`gaussian_weights`], [`bin_taps`] (three taps per bin, weights summing to one) and
+    /// [`write_row`] (the vertex's distinct taps and its table row). Every step is inlined, so
+    /// each compiles for the same processor features as [`TableJob::chunk_avx2`].
     #[inline(always)]
     unsafe fn chunk_body(&self, vs: std::ops::Range<usize>) -> (Vec<u32>, Vec<u8>) {
-        let TableJob {
-            walk,
-            order,
-            frames,
-            n,
-            nb,
-            cut,
-            cut2,
-            reach,
-            inv2s2,
-            dirs,
-            rks,
-            tap_rows,
-            w_rows,
-            cancel,
-        } = *self;
         let mut verts: Vec<u32> = Vec::new();
         let mut counts: Vec<u8> = Vec::new();
-        if cancel.is_cancelled() {
+        if self.cancel.is_cancelled() {
             return (verts, counts);
         }
-        let mut stamp = vec![u32::MAX; n];
-        let mut local = vec![u8::MAX; n];
-        // the walk's queue; its last slot takes the writes of rejected neighbours
-        let mut queue = [0u32; MAX_FAN_VERTICES + 1];
-        let mut qlen;
-        // Top taps per bin as (squared distance, vertex), nearest first: ranking by
-        // distance is ranking by Gaussian weight, so exp runs only on the kept taps.
-        let mut top = vec![(f32::INFINITY, 0u32); nb * FAN_TAPS];
-        // per bin, the squared distance a vertex must beat to enter its top list: the
-        // last kept tap's, capped at the Gaussian cut-off
-        let mut worst = [cut2; FAN_RADII * FAN_ANGLES];
-        // final (vertex, weight) per tap
-        let mut fin = vec![(0u32, 0u16); nb * FAN_TAPS];
+        let mut s = ChunkScratch::new(self.n, self.nb, self.cut2);
         verts.reserve(vs.len() * 48);
         counts.reserve(vs.len());
         // `v`, `u` and the taps below are walk vertices; `vl` is `v` on the level
         for v in vs {
-            let vl = order[v] as usize;
+            let vl = self.order[v] as usize;
             // SAFETY: `order` is a permutation and the ranges of the calls are disjoint
             // (`chunk`'s contract), so row `vl` is taken here and nowhere else.
-            let (fi, fw) = unsafe { (tap_rows.row(vl), w_rows.row(vl)) };
-            let pv = Vec3::from(walk.positions[v]);
-            let t1 = Vec3::from(frames.t1[vl]);
-            let t2 = Vec3::from(frames.t2[vl]);
-            top.iter_mut().for_each(|x| *x = (f32::INFINITY, v as u32));
-            worst.fill(cut2);
-            queue[0] = v as u32;
-            qlen = 1;
-            stamp[v] = v as u32;
-            let mut head = 0;
-            while head < qlen {
-                let u = queue[head] as usize;
-                head += 1;
-                let d = Vec3::from(walk.positions[u]) - pv;
-                let len = d.length();
-                let (x, y) = (d.dot(t1), d.dot(t2));
-                let pl = (x * x + y * y).sqrt();
-                let (x, y) = if pl > 1e-12 {
-                    (x * len / pl, y * len / pl)
-                } else {
-                    (0.0, 0.0)
-                };
-                let rho = len;
-                // |x - bin|² = ρ² + r_k² - 2 r_k (x cos θ_a + y sin θ_a): the 18
-                // projections are shared by the three rings, so each ring costs one
-                // multiply-add per bin (cheaper than locating the angular window with
-                // atan2/acos).
-                let mut any = false;
-                for &rk in rks.iter() {
-                    any |= (rho - rk).abs() < cut;
-                }
-                if !any {
-                    continue_walk(walk, &mut queue, &mut qlen, &mut stamp, u, v, pv, reach);
-                    continue;
-                }
-                let mut proj = [0.0f32; FAN_ANGLES];
-                for (a, p) in proj.iter_mut().enumerate() {
-                    *p = x * dirs[a][0] + y * dirs[a][1];
-                }
-                let rho2 = x * x + y * y;
-                for (r, &rk) in rks.iter().enumerate() {
-                    if (rho - rk).abs() >= cut {
-                        continue;
-                    }
-                    let base = rho2 + rk * rk;
-                    let two_rk = 2.0 * rk;
-                    // The ring's 18 distances and which of them enter a top list, in a
-                    // branch-free pass; only those then take the (rare) sorted insert.
-                    let wr = &worst[r * FAN_ANGLES..(r + 1) * FAN_ANGLES];
-                    let mut d2s = [0.0f32; FAN_ANGLES];
-                    let mut enter = 0u32;
-                    for a in 0..FAN_ANGLES {
-                        let d2 = (base - two_rk * proj[a]).max(0.0);
-                        d2s[a] = d2;
-                        enter |= ((d2 < wr[a]) as u32) << a;
-                    }
-                    while enter != 0 {
-                        let a = enter.trailing_zeros() as usize;
-                        enter &= enter - 1;
-                        let d2 = d2s[a];
-                        let b = r * FAN_ANGLES + a;
-                        let t = &mut top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
-                        // Insert into the sorted (ascending) top list.
-                        let mut j = FAN_TAPS - 1;
-                        while j > 0 && t[j - 1].0 > d2 {
-                            t[j] = t[j - 1];
-                            j -= 1;
-                        }
-                        t[j] = (d2, u as u32);
-                        worst[b] = t[FAN_TAPS - 1].0.min(cut2);
-                    }
-                }
-                continue_walk(walk, &mut queue, &mut qlen, &mut stamp, u, v, pv, reach);
-            }
-            for e in top.iter_mut() {
-                e.0 = if e.0.is_finite() {
-                    exp_neg(e.0 * inv2s2)
-                } else {
-                    0.0
-                };
-            }
-            for b in 0..nb {
-                let t = &top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
-                let sum: f32 = t.iter().map(|x| x.0).sum();
-                let o = b * FAN_TAPS;
-                if sum > 1e-3 {
-                    // the first two rounded, the last what is left, so they sum to 1
-                    let w0 = (t[0].0 / sum * WEIGHT_ONE).round() as u16;
-                    let w1 = ((t[1].0 / sum * WEIGHT_ONE).round() as u16).min(u16::MAX - w0);
-                    fin[o] = (t[0].1, w0);
-                    fin[o + 1] = (t[1].1, w1);
-                    fin[o + 2] = (t[2].1, u16::MAX - w0 - w1);
-                } else if b < FAN_ANGLES {
-                    fin[o] = (v as u32, u16::MAX);
-                    fin[o + 1] = (v as u32, 0);
-                    fin[o + 2] = (v as u32, 0);
-                } else {
-                    let inner = (b - FAN_ANGLES) * FAN_TAPS;
-                    for j in 0..FAN_TAPS {
-                        fin[o + j] = fin[inner + j];
-                    }
-                }
-            }
-            // the vertex's distinct taps, in order of first use
-            for &(u, _) in &fin {
-                local[u as usize] = u8::MAX;
-            }
-            let first = verts.len();
-            for (j, &(u, w)) in fin.iter().enumerate() {
-                let l = &mut local[u as usize];
-                if *l == u8::MAX {
-                    *l = (verts.len() - first) as u8;
-                    verts.push(order[u as usize]);
-                }
-                fi[j] = *l;
-                let (b, k) = (j / FAN_TAPS, j % FAN_TAPS);
-                if k < 2 {
-                    fw[b * 2 + k] = w;
-                }
-            }
-            counts.push((verts.len() - first) as u8);
+            let (fi, fw) = unsafe { (self.tap_rows.row(vl), self.w_rows.row(vl)) };
+            self.walk_taps(v, vl, &mut s);
+            gaussian_weights(&mut s.top, self.inv2s2);
+            bin_taps(&s.top, &mut s.fin, self.nb, v as u32);
+            let count = write_row(&s.fin, &mut s.local, self.order, &mut verts, (fi, fw));
+            counts.push(count);
         }
         verts.shrink_to_fit();
         (verts, counts)
     }
+
+    /// The breadth-first walk around walk vertex `v` (level vertex `vl`): every vertex reached
+    /// within `reach`, in `v`'s tangent frame at its true distance, enters the top lists of the
+    /// bins it is near.
+    #[inline(always)]
+    fn walk_taps(&self, v: usize, vl: usize, s: &mut ChunkScratch) {
+        let walk = self.walk;
+        let pv = Vec3::from(walk.positions[v]);
+        let t1 = Vec3::from(self.frames.t1[vl]);
+        let t2 = Vec3::from(self.frames.t2[vl]);
+        s.top
+            .iter_mut()
+            .for_each(|x| *x = (f32::INFINITY, v as u32));
+        s.worst.fill(self.cut2);
+        s.queue[0] = v as u32;
+        let mut qlen = 1;
+        s.stamp[v] = v as u32;
+        let mut head = 0;
+        while head < qlen {
+            let u = s.queue[head] as usize;
+            head += 1;
+            let d = Vec3::from(walk.positions[u]) - pv;
+            let len = d.length();
+            let (x, y) = (d.dot(t1), d.dot(t2));
+            let pl = (x * x + y * y).sqrt();
+            let (x, y) = if pl > 1e-12 {
+                (x * len / pl, y * len / pl)
+            } else {
+                (0.0, 0.0)
+            };
+            self.enter_top_lists(u, (x, y), len, s);
+            continue_walk(
+                walk,
+                &mut s.queue,
+                &mut qlen,
+                &mut s.stamp,
+                u,
+                v,
+                pv,
+                self.reach,
+            );
+        }
+    }
+
+    /// Tap `u` at tangent-plane position `(x, y)`, distance `rho`: into the sorted top list of
+    /// every bin of a ring within the cut-off where it beats the list's last entry.
+    #[inline(always)]
+    fn enter_top_lists(&self, u: usize, (x, y): (f32, f32), rho: f32, s: &mut ChunkScratch) {
+        let (rks, dirs, cut, cut2) = (&self.rks, &self.dirs, self.cut, self.cut2);
+        // |x - bin|² = ρ² + r_k² - 2 r_k (x cos θ_a + y sin θ_a): the 18
+        // projections are shared by the three rings, so each ring costs one
+        // multiply-add per bin (cheaper than locating the angular window with
+        // atan2/acos).
+        let mut any = false;
+        for &rk in rks.iter() {
+            any |= (rho - rk).abs() < cut;
+        }
+        if !any {
+            return;
+        }
+        let mut proj = [0.0f32; FAN_ANGLES];
+        for (a, p) in proj.iter_mut().enumerate() {
+            *p = x * dirs[a][0] + y * dirs[a][1];
+        }
+        let rho2 = x * x + y * y;
+        for (r, &rk) in rks.iter().enumerate() {
+            if (rho - rk).abs() >= cut {
+                continue;
+            }
+            let base = rho2 + rk * rk;
+            let two_rk = 2.0 * rk;
+            // The ring's 18 distances and which of them enter a top list, in a
+            // branch-free pass; only those then take the (rare) sorted insert.
+            let wr = &s.worst[r * FAN_ANGLES..(r + 1) * FAN_ANGLES];
+            let mut d2s = [0.0f32; FAN_ANGLES];
+            let mut enter = 0u32;
+            for a in 0..FAN_ANGLES {
+                let d2 = (base - two_rk * proj[a]).max(0.0);
+                d2s[a] = d2;
+                enter |= ((d2 < wr[a]) as u32) << a;
+            }
+            while enter != 0 {
+                let a = enter.trailing_zeros() as usize;
+                enter &= enter - 1;
+                let d2 = d2s[a];
+                let b = r * FAN_ANGLES + a;
+                let t = &mut s.top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
+                // Insert into the sorted (ascending) top list.
+                let mut j = FAN_TAPS - 1;
+                while j > 0 && t[j - 1].0 > d2 {
+                    t[j] = t[j - 1];
+                    j -= 1;
+                }
+                t[j] = (d2, u as u32);
+                s.worst[b] = t[FAN_TAPS - 1].0.min(cut2);
+            }
+        }
+    }
+}
+
+/// One chunk's working buffers, reused from vertex to vertex.
+struct ChunkScratch {
+    /// The walk vertex whose walk last saw each vertex.
+    stamp: Vec<u32>,
+    /// Per vertex, its index among the current vertex's distinct taps (`u8::MAX`: none).
+    local: Vec<u8>,
+    /// The walk's queue; its last slot takes the writes of rejected neighbours.
+    queue: [u32; MAX_FAN_VERTICES + 1],
+    /// Top taps per bin as (squared distance, vertex), nearest first: ranking by distance is
+    /// ranking by Gaussian weight, so exp runs only on the kept taps. Then (weight, vertex).
+    top: Vec<(f32, u32)>,
+    /// Per bin, the squared distance a vertex must beat to enter its top list: the last kept
+    /// tap's, capped at the Gaussian cut-off.
+    worst: [f32; FAN_RADII * FAN_ANGLES],
+    /// Final (vertex, weight) per tap.
+    fin: Vec<(u32, u16)>,
+}
+
+impl ChunkScratch {
+    /// Buffers for a level of `n` vertices, `nb` bins and the squared cut-off `cut2`.
+    fn new(n: usize, nb: usize, cut2: f32) -> ChunkScratch {
+        ChunkScratch {
+            stamp: vec![u32::MAX; n],
+            local: vec![u8::MAX; n],
+            queue: [0u32; MAX_FAN_VERTICES + 1],
+            top: vec![(f32::INFINITY, 0u32); nb * FAN_TAPS],
+            worst: [cut2; FAN_RADII * FAN_ANGLES],
+            fin: vec![(0u32, 0u16); nb * FAN_TAPS],
+        }
+    }
+}
+
+/// The top lists' squared distances turned into Gaussian weights (0 for an empty slot).
+#[inline(always)]
+fn gaussian_weights(top: &mut [(f32, u32)], inv2s2: f32) {
+    for e in top.iter_mut() {
+        e.0 = if e.0.is_finite() {
+            exp_neg(e.0 * inv2s2)
+        } else {
+            0.0
+        };
+    }
+}
+
+/// Per bin its three taps with 16-bit weights summing to one: the top list normalised where it
+/// has weight, else the centre `v` for an inner-ring bin, or the bin of the ring inside it.
+#[inline(always)]
+fn bin_taps(top: &[(f32, u32)], fin: &mut [(u32, u16)], nb: usize, v: u32) {
+    for b in 0..nb {
+        let t = &top[b * FAN_TAPS..(b + 1) * FAN_TAPS];
+        let sum: f32 = t.iter().map(|x| x.0).sum();
+        let o = b * FAN_TAPS;
+        if sum > 1e-3 {
+            // the first two rounded, the last what is left, so they sum to 1
+            let w0 = (t[0].0 / sum * WEIGHT_ONE).round() as u16;
+            let w1 = ((t[1].0 / sum * WEIGHT_ONE).round() as u16).min(u16::MAX - w0);
+            fin[o] = (t[0].1, w0);
+            fin[o + 1] = (t[1].1, w1);
+            fin[o + 2] = (t[2].1, u16::MAX - w0 - w1);
+        } else if b < FAN_ANGLES {
+            fin[o] = (v, u16::MAX);
+            fin[o + 1] = (v, 0);
+            fin[o + 2] = (v, 0);
+        } else {
+            let inner = (b - FAN_ANGLES) * FAN_TAPS;
+            for j in 0..FAN_TAPS {
+                fin[o + j] = fin[inner + j];
+            }
+        }
+    }
+}
+
+/// The vertex's distinct taps, in order of first use, appended to `verts` as level vertices;
+/// its tap row `fi` (indices into them) and weight row `fw` (the first two of each bin).
+/// Returns how many distinct taps it has.
+#[inline(always)]
+fn write_row(
+    fin: &[(u32, u16)],
+    local: &mut [u8],
+    order: &[u32],
+    verts: &mut Vec<u32>,
+    (fi, fw): (&mut [u8], &mut [u16]),
+) -> u8 {
+    for &(u, _) in fin {
+        local[u as usize] = u8::MAX;
+    }
+    let first = verts.len();
+    for (j, &(u, w)) in fin.iter().enumerate() {
+        let l = &mut local[u as usize];
+        if *l == u8::MAX {
+            *l = (verts.len() - first) as u8;
+            verts.push(order[u as usize]);
+        }
+        fi[j] = *l;
+        let (b, k) = (j / FAN_TAPS, j % FAN_TAPS);
+        if k < 2 {
+            fw[b * 2 + k] = w;
+        }
+    }
+    (verts.len() - first) as u8
 }
 
 /// One step of [`FanSampler::new`]'s breadth-first walk around `v`: queue the unvisited

@@ -295,6 +295,11 @@ fn chain_creases(positions: &[[f32; 3]], cedges: &[(u32, u32, f32)], h: f32) -> 
 }
 
 /// Ridges (`kind = Ridge`) or ravines of the mesh as polylines of edge crossings.
+///
+/// The steps: [`crest_field`] (the crest's curvature, direction, plateau centrality and
+/// extremality per vertex), [`crest_segments`] (per face, the segment between the zero crossings
+/// of the extremality on two of its edges, [`edge_crossing`]), and [`chain_segments`] (the
+/// segments joined into polylines with their strength).
 fn crest_lines(
     positions: &[[f32; 3]],
     faces: &[[u32; 3]],
@@ -304,6 +309,45 @@ fn crest_lines(
     adj: &crate::mesh::Csr,
     min_prominence: f32,
 ) -> Vec<Curve> {
+    let field = crest_field(positions, faces, pc, kind, adj, min_prominence);
+    let mut found = CrestPoints::default();
+    let segs = crest_segments(
+        positions,
+        faces,
+        blocked,
+        adj,
+        &field,
+        min_prominence,
+        &mut found,
+    );
+    chain_segments(&found, &segs, kind)
+}
+
+/// Per-vertex inputs of crest tracing for one kind of crest.
+struct CrestField {
+    /// The crest's curvature (`k_max` for ridges, `-k_min` for ravines).
+    k: Vec<f32>,
+    /// Its principal direction.
+    t: Vec<Vec3>,
+    /// Whether a crest may pass here (`k > |other curvature|` and `k > 0`).
+    valid: Vec<bool>,
+    /// Smallest `k` over the closed one-ring.
+    kmin1: Vec<f32>,
+    /// Centrality inside a constant-curvature band, where there is one.
+    band: Vec<Option<f32>>,
+    /// Extremality `e = ∇k_c · t` of the crest function, in curvature per length.
+    e: Vec<f32>,
+}
+
+/// The crest's curvature and direction, where crests may lie, the bands and the extremality.
+fn crest_field(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    pc: &PrincipalCurvatures,
+    kind: CurveKind,
+    adj: &crate::mesh::Csr,
+    min_prominence: f32,
+) -> CrestField {
     let n = positions.len();
     let ridge = kind == CurveKind::Ridge;
     let k: Vec<f32> = (0..n)
@@ -318,28 +362,6 @@ fn crest_lines(
     let valid: Vec<bool> = (0..n)
         .map(|i| k[i] > other[i].abs() && k[i] > 0.0)
         .collect();
-    // per-vertex gradient of k, area-weighted average of the face gradients
-    let grad_of = |vals: &[f32]| -> Vec<Vec3> {
-        let mut g = vec![Vec3::ZERO; n];
-        for f in faces {
-            let p = f.map(|i| Vec3::from(positions[i as usize]));
-            let nrm = (p[1] - p[0]).cross(p[2] - p[0]);
-            let a2 = nrm.length();
-            if a2.is_nan() || a2 <= 0.0 {
-                continue;
-            }
-            let nu = nrm / a2;
-            let mut gf = Vec3::ZERO;
-            for c in 0..3 {
-                let e = p[(c + 2) % 3] - p[(c + 1) % 3];
-                gf += nu.cross(e) / a2 * vals[f[c] as usize];
-            }
-            for &v in f {
-                g[v as usize] += gf * a2;
-            }
-        }
-        g
-    };
     // smallest k over each closed one-ring (plateaus and crossings compare with the two-ring)
     let kmin1: Vec<f32> = (0..n)
         .map(|i| {
@@ -369,14 +391,58 @@ fn crest_lines(
             None => k[i],
         })
         .collect();
-    let gk = grad_of(&kc);
-    let normals = &pc.normals;
+    let e = extremality(positions, faces, &pc.normals, &kc, &t);
+    CrestField {
+        k,
+        t,
+        valid,
+        kmin1,
+        band,
+        e,
+    }
+}
+
+/// Per-vertex area-weighted sum of the linear per-face gradients of `vals` (weights: twice the
+/// face areas).
+fn vertex_gradient(positions: &[[f32; 3]], faces: &[[u32; 3]], vals: &[f32]) -> Vec<Vec3> {
+    let mut g = vec![Vec3::ZERO; positions.len()];
+    for f in faces {
+        let p = f.map(|i| Vec3::from(positions[i as usize]));
+        let nrm = (p[1] - p[0]).cross(p[2] - p[0]);
+        let a2 = nrm.length();
+        if a2.is_nan() || a2 <= 0.0 {
+            continue;
+        }
+        let nu = nrm / a2;
+        let mut gf = Vec3::ZERO;
+        for c in 0..3 {
+            let e = p[(c + 2) % 3] - p[(c + 1) % 3];
+            gf += nu.cross(e) / a2 * vals[f[c] as usize];
+        }
+        for &v in f {
+            g[v as usize] += gf * a2;
+        }
+    }
+    g
+}
+
+/// Extremality `e = ∇kc · t` per vertex: the tangential gradient of the crest function along its
+/// direction, normalised by the gradient's weights so it stays in curvature per length.
+fn extremality(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    normals: &[[f32; 3]],
+    kc: &[f32],
+    t: &[Vec3],
+) -> Vec<f32> {
+    let n = positions.len();
+    let gk = vertex_gradient(positions, faces, kc);
     let e: Vec<f32> = (0..n)
         .map(|i| {
             let nv = Vec3::from(normals[i]);
             let g = gk[i] - gk[i].dot(nv) * nv;
-            // grad_of sums a2-weighted gradients; the scale does not change signs, normalise by
-            // the weight so magnitudes stay in curvature per length
+            // vertex_gradient sums a2-weighted gradients; the scale does not change signs,
+            // normalise by the weight so magnitudes stay in curvature per length
             g.dot(t[i])
         })
         .collect();
@@ -391,61 +457,37 @@ fn crest_lines(
         }
         w
     };
-    let e: Vec<f32> = e
-        .iter()
+    e.iter()
         .zip(&wsum)
         .map(|(&x, &w)| if w > 0.0 { x / w } else { 0.0 })
-        .collect();
-    // crossings per edge
-    let mut points: Vec<[f32; 3]> = Vec::new();
-    let mut pedges: Vec<[u32; 2]> = Vec::new();
-    let mut pk: Vec<f32> = Vec::new();
-    let mut index: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut crossing = |a: u32, b: u32| -> Option<u32> {
-        let key = (a.min(b), a.max(b));
-        if let Some(&i) = index.get(&key) {
-            return Some(i);
-        }
-        let (ai, bi) = (key.0 as usize, key.1 as usize);
-        if !(valid[ai] && valid[bi]) {
-            return None;
-        }
-        let s = if t[ai].dot(t[bi]) >= 0.0 { 1.0 } else { -1.0 };
-        let (ea, eb) = (e[ai], s * e[bi]);
-        if ea * eb >= 0.0 {
-            return None;
-        }
-        let w = ea / (ea - eb);
-        // no prominence (constant curvature, e.g. a cylinder's side): no crest
-        let kk = k[ai] * (1.0 - w) + k[bi] * w;
-        let kring = adj
-            .row(ai)
-            .iter()
-            .chain(adj.row(bi))
-            .map(|&v| kmin1[v as usize])
-            .fold(f32::INFINITY, f32::min);
-        // inside a band the centrality makes the crest: no prominence asked, but only its
-        // middle part holds crests (off it, the maxima are the estimate's overshoot at the
-        // band's borders, one each side of the true crest)
-        let centre = match (band[ai], band[bi]) {
-            (Some(ca), Some(cb)) => Some(ca * (1.0 - w) + cb * w),
-            _ => None,
-        };
-        match centre {
-            Some(c) if c < BAND_MIDDLE => return None,
-            Some(_) => {}
-            None if kk - kring < min_prominence * kk => return None,
-            None => {}
-        }
-        let pa = Vec3::from(positions[ai]);
-        let pb = Vec3::from(positions[bi]);
-        let i = points.len() as u32;
-        points.push(pa.lerp(pb, w).to_array());
-        pedges.push([key.0, key.1]);
-        pk.push(k[ai] * (1.0 - w) + k[bi] * w);
-        index.insert(key, i);
-        Some(i)
-    };
+        .collect()
+}
+
+/// Crest points found so far: one per crossed mesh edge, in the order they were found.
+#[derive(Default)]
+struct CrestPoints {
+    /// Position of each crest point.
+    points: Vec<[f32; 3]>,
+    /// The mesh edge each lies on.
+    edges: Vec<[u32; 2]>,
+    /// The crest's curvature there.
+    k: Vec<f32>,
+    /// Edge (smaller vertex first) -> crest point.
+    index: HashMap<(u32, u32), u32>,
+}
+
+/// Per face whose extremality decreases along the crest direction (a maximum), the segment
+/// between the crest points on two of its edges.
+fn crest_segments(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    blocked: &[bool],
+    adj: &crate::mesh::Csr,
+    field: &CrestField,
+    min_prominence: f32,
+    found: &mut CrestPoints,
+) -> Vec<(u32, u32)> {
+    let (t, e, valid) = (&field.t, &field.e, &field.valid);
     let mut segs: Vec<(u32, u32)> = Vec::new();
     for (fi, f) in faces.iter().enumerate() {
         if blocked[fi] || !f.iter().all(|&v| valid[v as usize]) {
@@ -478,13 +520,91 @@ fn crest_lines(
             continue;
         }
         let xs: Vec<u32> = (0..3)
-            .filter_map(|c| crossing(f[c], f[(c + 1) % 3]))
+            .filter_map(|c| {
+                edge_crossing(
+                    positions,
+                    adj,
+                    field,
+                    min_prominence,
+                    found,
+                    (f[c], f[(c + 1) % 3]),
+                )
+            })
             .collect();
         if xs.len() == 2 {
             segs.push((xs[0], xs[1]));
         }
     }
-    // chain segments through shared points
+    segs
+}
+
+/// The crest point on edge `ab` (found once, then shared): the zero crossing of the extremality,
+/// kept where the crest is prominent or, inside a band, near its middle.
+fn edge_crossing(
+    positions: &[[f32; 3]],
+    adj: &crate::mesh::Csr,
+    field: &CrestField,
+    min_prominence: f32,
+    found: &mut CrestPoints,
+    (a, b): (u32, u32),
+) -> Option<u32> {
+    let CrestField {
+        k,
+        t,
+        valid,
+        kmin1,
+        band,
+        e,
+    } = field;
+    let key = (a.min(b), a.max(b));
+    if let Some(&i) = found.index.get(&key) {
+        return Some(i);
+    }
+    let (ai, bi) = (key.0 as usize, key.1 as usize);
+    if !(valid[ai] && valid[bi]) {
+        return None;
+    }
+    let s = if t[ai].dot(t[bi]) >= 0.0 { 1.0 } else { -1.0 };
+    let (ea, eb) = (e[ai], s * e[bi]);
+    if ea * eb >= 0.0 {
+        return None;
+    }
+    let w = ea / (ea - eb);
+    // no prominence (constant curvature, e.g. a cylinder's side): no crest
+    let kk = k[ai] * (1.0 - w) + k[bi] * w;
+    let kring = adj
+        .row(ai)
+        .iter()
+        .chain(adj.row(bi))
+        .map(|&v| kmin1[v as usize])
+        .fold(f32::INFINITY, f32::min);
+    // inside a band the centrality makes the crest: no prominence asked, but only its
+    // middle part holds crests (off it, the maxima are the estimate's overshoot at the
+    // band's borders, one each side of the true crest)
+    let centre = match (band[ai], band[bi]) {
+        (Some(ca), Some(cb)) => Some(ca * (1.0 - w) + cb * w),
+        _ => None,
+    };
+    match centre {
+        Some(c) if c < BAND_MIDDLE => return None,
+        Some(_) => {}
+        None if kk - kring < min_prominence * kk => return None,
+        None => {}
+    }
+    let pa = Vec3::from(positions[ai]);
+    let pb = Vec3::from(positions[bi]);
+    let i = found.points.len() as u32;
+    found.points.push(pa.lerp(pb, w).to_array());
+    found.edges.push([key.0, key.1]);
+    found.k.push(k[ai] * (1.0 - w) + k[bi] * w);
+    found.index.insert(key, i);
+    Some(i)
+}
+
+/// Segments joined through shared crest points into polylines (open chains from points of
+/// degree other than two first, then the remaining cycles), each with its strength `∫ |k| ds`.
+fn chain_segments(found: &CrestPoints, segs: &[(u32, u32)], kind: CurveKind) -> Vec<Curve> {
+    let (points, pedges, pk) = (&found.points, &found.edges, &found.k);
     let np = points.len();
     let mut nb: Vec<Vec<(u32, usize)>> = vec![Vec::new(); np];
     for (si, &(a, b)) in segs.iter().enumerate() {
@@ -503,29 +623,7 @@ fn crest_lines(
                 if used[s0] {
                     continue;
                 }
-                let mut path = vec![start as u32];
-                let mut cur = start as u32;
-                let mut s = s0;
-                let mut closed = false;
-                loop {
-                    used[s] = true;
-                    let (a, b) = segs[s];
-                    let next = if a == cur { b } else { a };
-                    if next as usize == start {
-                        closed = true;
-                        break;
-                    }
-                    path.push(next);
-                    cur = next;
-                    let row = &nb[cur as usize];
-                    if row.len() != 2 {
-                        break;
-                    }
-                    match row.iter().find(|&&(_, si)| !used[si]) {
-                        Some(&(_, si)) => s = si,
-                        None => break,
-                    }
-                }
+                let (path, closed) = walk_segments(segs, &nb, &mut used, start as u32, s0);
                 let mut strength = 0.0f32;
                 let m = path.len();
                 let nseg = if closed { m } else { m - 1 };
@@ -546,6 +644,38 @@ fn crest_lines(
         }
     }
     out
+}
+
+/// Walk from crest point `start` along segment `s0` through points of degree two, marking the
+/// segments used: the points passed and whether the walk came back to `start`.
+fn walk_segments(
+    segs: &[(u32, u32)],
+    nb: &[Vec<(u32, usize)>],
+    used: &mut [bool],
+    start: u32,
+    s0: usize,
+) -> (Vec<u32>, bool) {
+    let mut path = vec![start];
+    let mut cur = start;
+    let mut s = s0;
+    loop {
+        used[s] = true;
+        let (a, b) = segs[s];
+        let next = if a == cur { b } else { a };
+        if next == start {
+            return (path, true);
+        }
+        path.push(next);
+        cur = next;
+        let row = &nb[cur as usize];
+        if row.len() != 2 {
+            return (path, false);
+        }
+        match row.iter().find(|&&(_, si)| !used[si]) {
+            Some(&(_, si)) => s = si,
+            None => return (path, false),
+        }
+    }
 }
 
 /// Weight of the band centrality in the crest function: `k (1 + BAND_GAIN c)`, `c` in `[0, 1]`.

@@ -122,72 +122,110 @@ impl Refined {
 /// bilinearly at each vertex's corner UVs, averaged in linear light (`TriMesh::vertex_signal`),
 /// so the image's detail survives at the working resolution. Faces with out-of-range indices
 /// are dropped; faces with a repeated vertex are kept but never split.
+///
+/// The steps: [`Refining::start`] (the valid faces and their records),
+/// [`Refining::bisect_longest_edges`] (through [`Refining::add_midpoint`] and
+/// [`Refining::split_face`]) and [`Refining::finish`].
 pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
-    let n0 = mesh.positions.len();
-    let mut positions = mesh.positions.clone();
-    let mut faces = Vec::with_capacity(mesh.faces.len());
-    let has_uv = mesh
-        .uvs
-        .as_ref()
-        .is_some_and(|u| u.len() == 3 * mesh.faces.len());
-    let mut uvs: Vec<[f32; 2]> = Vec::new();
-    let mut source_face: Vec<u32> = Vec::with_capacity(mesh.faces.len());
-    for (f, face) in mesh.faces.iter().enumerate() {
-        if face.iter().all(|&v| (v as usize) < n0) {
-            faces.push(*face);
-            source_face.push(f as u32);
-            if has_uv {
-                uvs.extend_from_slice(&mesh.uvs.as_ref().unwrap()[3 * f..3 * f + 3]);
-            }
-        }
-    }
-    let signal = mesh.signal_kind();
-    let mut colors: Option<Vec<[f32; 3]>> = match signal {
-        SignalKind::VertexColors => mesh
-            .colors
-            .as_ref()
-            .filter(|c| c.len() == n0)
-            .map(|c| c.iter().map(|x| x.map(srgb_to_linear)).collect()),
-        _ => None,
-    };
-    let mut normals = mesh.normals.clone().filter(|n| n.len() == n0);
-    let mut parent_map: Vec<[u32; 2]> = (0..n0 as u32).map(|i| [i, i]).collect();
-    const UNIT: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-    let mut source_bary: Vec<[[f32; 3]; 3]> = vec![UNIT; faces.len()];
-
+    let mut r = Refining::start(mesh);
     // A hard cap tied to the memory budget: never grow past the working-vertex budget, whatever
     // is asked (a caller's runaway target, e.g. from a zero or NaN area ratio, stops here).
     let target_vertices = target_vertices.min(crate::mesh::MAX_WORKING_VERTICES);
-    if target_vertices > n0 && !faces.is_empty() {
-        let extra = (target_vertices - n0).min(1 << 24);
-        positions.reserve(extra);
-        parent_map.reserve(extra);
-        faces.reserve(2 * extra + 16);
-        source_face.reserve(2 * extra + 16);
-        source_bary.reserve(2 * extra + 16);
-        let mut edges: IntMap<EdgeFaces> = IntMap::default();
-        edges.reserve(faces.len() * 3 / 2 + 3 * extra);
-        for (fi, f) in faces.iter().enumerate() {
-            if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
-                continue;
-            }
-            for k in 0..3 {
-                edges
-                    .entry(edge_key(f[k], f[(k + 1) % 3]))
-                    .or_default()
-                    .push(fi as u32);
+    if target_vertices > r.n0 && !r.faces.is_empty() {
+        r.bisect_longest_edges(target_vertices);
+    }
+    r.finish(mesh)
+}
+
+/// A mesh being refined, with the records of where its vertices and faces came from.
+struct Refining {
+    /// The input's vertex count.
+    n0: usize,
+    positions: Vec<[f32; 3]>,
+    faces: Vec<[u32; 3]>,
+    /// Whether the input has one UV per corner (then `uvs` has one per corner of `faces`).
+    has_uv: bool,
+    uvs: Vec<[f32; 2]>,
+    /// Vertex colours in linear light, where the signal is vertex colours.
+    colors: Option<Vec<[f32; 3]>>,
+    normals: Option<Vec<[f32; 3]>>,
+    parent_map: Vec<[u32; 2]>,
+    source_face: Vec<u32>,
+    source_bary: Vec<[[f32; 3]; 3]>,
+    signal: SignalKind,
+}
+
+impl Refining {
+    /// The input's valid faces (indices in range) with their UVs, colours in linear light,
+    /// normals, and every vertex and face its own source.
+    fn start(mesh: &TriMesh) -> Refining {
+        let n0 = mesh.positions.len();
+        let positions = mesh.positions.clone();
+        let mut faces = Vec::with_capacity(mesh.faces.len());
+        let has_uv = mesh
+            .uvs
+            .as_ref()
+            .is_some_and(|u| u.len() == 3 * mesh.faces.len());
+        let mut uvs: Vec<[f32; 2]> = Vec::new();
+        let mut source_face: Vec<u32> = Vec::with_capacity(mesh.faces.len());
+        for (f, face) in mesh.faces.iter().enumerate() {
+            if face.iter().all(|&v| (v as usize) < n0) {
+                faces.push(*face);
+                source_face.push(f as u32);
+                if has_uv {
+                    uvs.extend_from_slice(&mesh.uvs.as_ref().unwrap()[3 * f..3 * f + 3]);
+                }
             }
         }
-        let len2 = |p: &[[f32; 3]], a: u32, b: u32| -> u64 {
-            let d = Vec3::from(p[a as usize]).distance_squared(Vec3::from(p[b as usize]));
-            (d as f64).to_bits()
+        let signal = mesh.signal_kind();
+        let colors: Option<Vec<[f32; 3]>> = match signal {
+            SignalKind::VertexColors => mesh
+                .colors
+                .as_ref()
+                .filter(|c| c.len() == n0)
+                .map(|c| c.iter().map(|x| x.map(srgb_to_linear)).collect()),
+            _ => None,
         };
+        let normals = mesh.normals.clone().filter(|n| n.len() == n0);
+        let parent_map: Vec<[u32; 2]> = (0..n0 as u32).map(|i| [i, i]).collect();
+        const UNIT: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let source_bary: Vec<[[f32; 3]; 3]> = vec![UNIT; faces.len()];
+        Refining {
+            n0,
+            positions,
+            faces,
+            has_uv,
+            uvs,
+            colors,
+            normals,
+            parent_map,
+            source_face,
+            source_bary,
+            signal,
+        }
+    }
+
+    /// Split the longest edge (a max-priority queue on squared length) until the mesh has
+    /// `target_vertices` vertices or no edge is left.
+    fn bisect_longest_edges(&mut self, target_vertices: usize) {
+        let extra = (target_vertices - self.n0).min(1 << 24);
+        self.positions.reserve(extra);
+        self.parent_map.reserve(extra);
+        self.faces.reserve(2 * extra + 16);
+        self.source_face.reserve(2 * extra + 16);
+        self.source_bary.reserve(2 * extra + 16);
+        let mut edges = edge_faces(&self.faces, extra);
         let mut heap: BinaryHeap<(u64, Reverse<u64>)> = edges
             .keys()
-            .map(|&k| (len2(&positions, (k >> 32) as u32, k as u32), Reverse(k)))
+            .map(|&k| {
+                (
+                    length_key(&self.positions, (k >> 32) as u32, k as u32),
+                    Reverse(k),
+                )
+            })
             .collect();
         let mut flist: Vec<u32> = Vec::with_capacity(4);
-        while positions.len() < target_vertices {
+        while self.positions.len() < target_vertices {
             let Some((_, Reverse(key))) = heap.pop() else {
                 break;
             };
@@ -195,93 +233,146 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
                 continue; // already split
             };
             let (a, b) = ((key >> 32) as u32, key as u32);
-            let m = positions.len() as u32;
-            let (pa, pb) = (
-                Vec3::from(positions[a as usize]),
-                Vec3::from(positions[b as usize]),
-            );
-            positions.push(((pa + pb) * 0.5).to_array());
-            parent_map.push([a, b]);
-            if let Some(c) = colors.as_mut() {
-                let (ca, cb) = (c[a as usize], c[b as usize]);
-                c.push([0, 1, 2].map(|k| 0.5 * (ca[k] + cb[k])));
-            }
-            if let Some(nr) = normals.as_mut() {
-                let s = Vec3::from(nr[a as usize]) + Vec3::from(nr[b as usize]);
-                nr.push(s.normalize_or(Vec3::from(nr[a as usize])).to_array());
-            }
+            let m = self.add_midpoint(a, b);
             flist.clear();
             flist.extend(ef.list());
             for &fi in &flist {
-                let face = faces[fi as usize];
-                let Some(k) = (0..3).find(|&k| {
-                    let (x, y) = (face[k], face[(k + 1) % 3]);
-                    (x == a && y == b) || (x == b && y == a)
-                }) else {
-                    continue;
-                };
-                let (p0, p1, p2) = (face[k], face[(k + 1) % 3], face[(k + 2) % 3]);
-                let g = faces.len() as u32;
-                faces[fi as usize] = [p0, m, p2];
-                faces.push([m, p1, p2]);
-                let fb = source_bary[fi as usize];
-                let (b0, b1, b2) = (fb[k], fb[(k + 1) % 3], fb[(k + 2) % 3]);
-                let bm = [0, 1, 2].map(|c| 0.5 * (b0[c] + b1[c]));
-                source_bary[fi as usize] = [b0, bm, b2];
-                source_bary.push([bm, b1, b2]);
-                source_face.push(source_face[fi as usize]);
-                if has_uv {
-                    let base = 3 * fi as usize;
-                    let (u0, u1, u2) = (
-                        uvs[base + k],
-                        uvs[base + (k + 1) % 3],
-                        uvs[base + (k + 2) % 3],
-                    );
-                    let um = [0.5 * (u0[0] + u1[0]), 0.5 * (u0[1] + u1[1])];
-                    uvs[base] = u0;
-                    uvs[base + 1] = um;
-                    uvs[base + 2] = u2;
-                    uvs.extend_from_slice(&[um, u1, u2]);
+                if let Some(p2) = self.split_face(fi, (a, b), m, &mut edges) {
+                    heap.push((length_key(&self.positions, m, p2), Reverse(edge_key(m, p2))));
                 }
-                edges.entry(edge_key(p0, m)).or_default().push(fi);
-                edges.entry(edge_key(m, p1)).or_default().push(g);
-                let e = edges.entry(edge_key(m, p2)).or_default();
-                e.push(fi);
-                e.push(g);
-                if let Some(e) = edges.get_mut(&edge_key(p1, p2)) {
-                    e.replace(fi, g);
-                }
-                heap.push((len2(&positions, m, p2), Reverse(edge_key(m, p2))));
             }
-            heap.push((len2(&positions, a, m), Reverse(edge_key(a, m))));
-            heap.push((len2(&positions, m, b), Reverse(edge_key(m, b))));
+            heap.push((length_key(&self.positions, a, m), Reverse(edge_key(a, m))));
+            heap.push((length_key(&self.positions, m, b), Reverse(edge_key(m, b))));
         }
     }
 
-    let n = positions.len();
-    let mut file_index = mesh.file_index.clone();
-    file_index.resize(n0, u32::MAX);
-    file_index.resize(n, u32::MAX);
-    let mut out = TriMesh {
-        positions,
-        faces,
-        normals,
-        uvs: has_uv.then_some(uvs),
-        colors: colors.map(|c| c.iter().map(|x| x.map(linear_to_srgb)).collect()),
-        texture: mesh.texture.clone(),
-        file_index,
-        file_vertex_count: mesh.file_vertex_count,
-        path: mesh.path.clone(),
-    };
-    if signal == SignalKind::Texture && has_uv {
-        out.colors = out.vertex_signal();
+    /// A new vertex at the midpoint of edge `ab`, its colour and normal interpolated; returns
+    /// its index.
+    fn add_midpoint(&mut self, a: u32, b: u32) -> u32 {
+        let positions = &mut self.positions;
+        let m = positions.len() as u32;
+        let (pa, pb) = (
+            Vec3::from(positions[a as usize]),
+            Vec3::from(positions[b as usize]),
+        );
+        positions.push(((pa + pb) * 0.5).to_array());
+        self.parent_map.push([a, b]);
+        if let Some(c) = self.colors.as_mut() {
+            let (ca, cb) = (c[a as usize], c[b as usize]);
+            c.push([0, 1, 2].map(|k| 0.5 * (ca[k] + cb[k])));
+        }
+        if let Some(nr) = self.normals.as_mut() {
+            let s = Vec3::from(nr[a as usize]) + Vec3::from(nr[b as usize]);
+            nr.push(s.normalize_or(Vec3::from(nr[a as usize])).to_array());
+        }
+        m
     }
-    Refined {
-        mesh: out,
-        parent_map,
-        source_face,
-        source_bary,
+
+    /// Split face `fi` on edge `ab` at its midpoint `m` into two (the new one appended), with
+    /// their source barycentrics, UVs and edge records; returns the opposite corner (the new
+    /// edge `m p2` is a candidate), or `None` if the face no longer has edge `ab`.
+    fn split_face(
+        &mut self,
+        fi: u32,
+        (a, b): (u32, u32),
+        m: u32,
+        edges: &mut IntMap<EdgeFaces>,
+    ) -> Option<u32> {
+        let face = self.faces[fi as usize];
+        let k = (0..3).find(|&k| {
+            let (x, y) = (face[k], face[(k + 1) % 3]);
+            (x == a && y == b) || (x == b && y == a)
+        })?;
+        let (p0, p1, p2) = (face[k], face[(k + 1) % 3], face[(k + 2) % 3]);
+        let g = self.faces.len() as u32;
+        self.faces[fi as usize] = [p0, m, p2];
+        self.faces.push([m, p1, p2]);
+        let fb = self.source_bary[fi as usize];
+        let (b0, b1, b2) = (fb[k], fb[(k + 1) % 3], fb[(k + 2) % 3]);
+        let bm = [0, 1, 2].map(|c| 0.5 * (b0[c] + b1[c]));
+        self.source_bary[fi as usize] = [b0, bm, b2];
+        self.source_bary.push([bm, b1, b2]);
+        self.source_face.push(self.source_face[fi as usize]);
+        if self.has_uv {
+            let uvs = &mut self.uvs;
+            let base = 3 * fi as usize;
+            let (u0, u1, u2) = (
+                uvs[base + k],
+                uvs[base + (k + 1) % 3],
+                uvs[base + (k + 2) % 3],
+            );
+            let um = [0.5 * (u0[0] + u1[0]), 0.5 * (u0[1] + u1[1])];
+            uvs[base] = u0;
+            uvs[base + 1] = um;
+            uvs[base + 2] = u2;
+            uvs.extend_from_slice(&[um, u1, u2]);
+        }
+        edges.entry(edge_key(p0, m)).or_default().push(fi);
+        edges.entry(edge_key(m, p1)).or_default().push(g);
+        let e = edges.entry(edge_key(m, p2)).or_default();
+        e.push(fi);
+        e.push(g);
+        if let Some(e) = edges.get_mut(&edge_key(p1, p2)) {
+            e.replace(fi, g);
+        }
+        Some(p2)
     }
+
+    /// The refined mesh (colours back in sRGB, the input's `file_index` for its vertices,
+    /// per-vertex colours sampled from a texture signal) and its source records.
+    fn finish(self, mesh: &TriMesh) -> Refined {
+        let n = self.positions.len();
+        let mut file_index = mesh.file_index.clone();
+        file_index.resize(self.n0, u32::MAX);
+        file_index.resize(n, u32::MAX);
+        let mut out = TriMesh {
+            positions: self.positions,
+            faces: self.faces,
+            normals: self.normals,
+            uvs: self.has_uv.then_some(self.uvs),
+            colors: self
+                .colors
+                .map(|c| c.iter().map(|x| x.map(linear_to_srgb)).collect()),
+            texture: mesh.texture.clone(),
+            file_index,
+            file_vertex_count: mesh.file_vertex_count,
+            path: mesh.path.clone(),
+        };
+        if self.signal == SignalKind::Texture && self.has_uv {
+            out.colors = out.vertex_signal();
+        }
+        Refined {
+            mesh: out,
+            parent_map: self.parent_map,
+            source_face: self.source_face,
+            source_bary: self.source_bary,
+        }
+    }
+}
+
+/// Edge -> the faces on it, for every face without a repeated vertex (room for `extra` more
+/// vertices' edges).
+fn edge_faces(faces: &[[u32; 3]], extra: usize) -> IntMap<EdgeFaces> {
+    let mut edges: IntMap<EdgeFaces> = IntMap::default();
+    edges.reserve(faces.len() * 3 / 2 + 3 * extra);
+    for (fi, f) in faces.iter().enumerate() {
+        if f[0] == f[1] || f[1] == f[2] || f[0] == f[2] {
+            continue;
+        }
+        for k in 0..3 {
+            edges
+                .entry(edge_key(f[k], f[(k + 1) % 3]))
+                .or_default()
+                .push(fi as u32);
+        }
+    }
+    edges
+}
+
+/// The priority of edge `ab`: its squared length's bits (as f64, which order as the lengths).
+fn length_key(p: &[[f32; 3]], a: u32, b: u32) -> u64 {
+    let d = Vec3::from(p[a as usize]).distance_squared(Vec3::from(p[b as usize]));
+    (d as f64).to_bits()
 }
 
 /// For every vertex of `refined`, the nearest of its first `n_orig` vertices (the original

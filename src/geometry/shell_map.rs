@@ -363,6 +363,11 @@ pub struct StretchReport {
 /// vertex, stopping early when a sweep gains less than 1e-4 relative. Never raises L2, never
 /// makes a tetrahedron's volume ratio fall below half of what it was before the first sweep
 /// (nor below the inversion threshold).
+///
+/// The steps: [`boundary_vertices`] (held fixed), [`ratio_floors`] (the lowest volume ratio each
+/// tetrahedron may reach), then per sweep and vertex, a random tangent direction,
+/// [`line_terms`] (the incident tetrahedra's energy and volume along it), [`feasible_range`],
+/// and [`golden_section`] on the shell's L2, taking the step where it lowers L2.
 pub fn minimize_shell_stretch(
     p: &[[f32; 3]],
     faces: &[[u32; 3]],
@@ -387,35 +392,10 @@ pub fn minimize_shell_stretch(
         return report;
     }
     let vf = vertex_faces(n, faces);
-    let mut fixed = vec![false; n];
-    for lp in boundary_loops(faces) {
-        for v in lp {
-            fixed[v as usize] = true;
-        }
-    }
-    // each tetrahedron's volume ratio at the start: no step takes one below half of it
-    let floor: Vec<f32> = volume_ratios(p, top, faces, &tex)
-        .into_iter()
-        .map(|r| {
-            if r > MIN_RATIO {
-                (0.5 * r).max(2.0 * MIN_RATIO).min(r)
-            } else {
-                r
-            }
-        })
-        .collect();
+    let fixed = boundary_vertices(n, faces);
+    let floor = ratio_floors(p, top, faces, &tex);
     let mut rng = SmallRng::seed_from_u64(seed);
-    // per-tet terms along the line, reused
-    struct Line {
-        e0: f32,
-        e1: f32,
-        e2: f32,
-        r0: f32,
-        r1: f32,
-        floor: f32,
-        w: f32,
-    }
-    let mut lines: Vec<Line> = Vec::new();
+    let mut lines: Vec<LineTerm> = Vec::new();
     for _ in 0..sweeps {
         report.sweeps += 1;
         let start = total.l2();
@@ -430,80 +410,24 @@ pub fn minimize_shell_stretch(
             let (u, v) = ni.any_orthonormal_pair();
             let a: f32 = rng.random_range(0.0..std::f32::consts::TAU);
             let d = u * a.cos() + v * a.sin();
-            // step bound: half the mean distance from the vertex to its faces' corners
-            let mut reach = 0.0f32;
-            let mut count = 0;
-            lines.clear();
-            for &f in vf.row(i) {
-                let fi = f as usize;
-                let so = prism_order(faces[fi]);
-                let slot = so.iter().position(|&x| x as usize == i).unwrap_or(0) + 3;
-                let c = corners(p, top, so);
-                for k in 0..3 {
-                    reach += (c[k] - c[slot - 3]).length();
-                    count += 1;
-                }
-                let mut c1 = c;
-                c1[slot] += d;
-                for (k, t) in TETS.iter().enumerate() {
-                    if !t.contains(&slot) {
-                        continue;
-                    }
-                    let ti = 3 * fi + k;
-                    if tex.det[ti] == 0.0 {
-                        continue;
-                    }
-                    let inv = tex.inv[ti];
-                    let j0 = edge_matrix(&c, *t) * inv;
-                    let j1 = edge_matrix(&c1, *t) * inv - j0;
-                    let dot = |a: &Mat3, b: &Mat3| {
-                        a.x_axis.dot(b.x_axis) + a.y_axis.dot(b.y_axis) + a.z_axis.dot(b.z_axis)
-                    };
-                    let r0 = edge_matrix(&c, *t).determinant() / tex.det[ti];
-                    let r1 = edge_matrix(&c1, *t).determinant() / tex.det[ti] - r0;
-                    lines.push(Line {
-                        e0: dot(&j0, &j0) / 3.0,
-                        e1: 2.0 * dot(&j0, &j1) / 3.0,
-                        e2: dot(&j1, &j1) / 3.0,
-                        r0,
-                        r1,
-                        floor: floor[ti].min(r0),
-                        w: tex.vol(ti),
-                    });
-                }
-            }
-            if lines.is_empty() || count == 0 {
+            let shell = ShellView {
+                p,
+                top,
+                faces,
+                tex: &tex,
+                floor: &floor,
+            };
+            let Some(reach) = line_terms(&shell, vf.row(i), i, d, &mut lines) else {
                 continue;
-            }
-            let reach = 0.5 * reach / count as f32;
-            // feasible range: every ratio stays above half its value before the first sweep
-            // (compression pays in the texture -> shell stretch, so without a floor the
-            // search would flatten tetrahedra), or, if already below, does not fall
-            let (mut lo, mut hi) = (-reach, reach);
-            for l in &lines {
-                // r0 + t r1 >= floor
-                if l.r1 > 0.0 {
-                    lo = lo.max((l.floor - l.r0) / l.r1);
-                } else if l.r1 < 0.0 {
-                    hi = hi.min((l.floor - l.r0) / l.r1);
-                }
-            }
-            if lo >= 0.0 || hi <= 0.0 || lo.is_nan() || hi.is_nan() {
-                lo = lo.min(0.0);
-                hi = hi.max(0.0);
-                if hi <= lo || hi.is_nan() || lo.is_nan() {
-                    continue;
-                }
-            }
+            };
+            let Some((lo, hi)) = feasible_range(&lines, reach) else {
+                continue;
+            };
             let (e_loc0, v_loc0) = lines.iter().fold((0.0f64, 0.0f64), |(e, v), l| {
                 (e + (l.e0 * l.w) as f64, v + (l.r0 * l.w) as f64)
             });
             let objective = |t: f32| -> f64 {
-                let (mut e, mut v) = (0.0f64, 0.0f64);
-                for l in &lines {
-                    e += ((l.e0 + t * (l.e1 + t * l.e2)) * l.w) as f64;
-                    v += ((l.r0 + t * l.r1) * l.w) as f64;
-                }
+                let (e, v) = local_sums(&lines, t);
                 Sums {
                     energy: total.energy - e_loc0 + e,
                     tex: total.tex,
@@ -511,35 +435,10 @@ pub fn minimize_shell_stretch(
                 }
                 .l2()
             };
-            // golden section on [lo, hi]
-            let g = 0.618_034f32;
-            let (mut a0, mut b0) = (lo, hi);
-            let mut x1 = b0 - g * (b0 - a0);
-            let mut x2 = a0 + g * (b0 - a0);
-            let (mut f1, mut f2) = (objective(x1), objective(x2));
-            for _ in 0..30 {
-                if f1 < f2 {
-                    b0 = x2;
-                    x2 = x1;
-                    f2 = f1;
-                    x1 = b0 - g * (b0 - a0);
-                    f1 = objective(x1);
-                } else {
-                    a0 = x1;
-                    x1 = x2;
-                    f1 = f2;
-                    x2 = a0 + g * (b0 - a0);
-                    f2 = objective(x2);
-                }
-            }
-            let (t, ft) = if f1 < f2 { (x1, f1) } else { (x2, f2) };
+            let (t, ft) = golden_section(lo, hi, objective);
             let f0 = total.l2();
             if ft < f0 * (1.0 - 1e-9) && t != 0.0 {
-                let (mut e, mut v) = (0.0f64, 0.0f64);
-                for l in &lines {
-                    e += ((l.e0 + t * (l.e1 + t * l.e2)) * l.w) as f64;
-                    v += ((l.r0 + t * l.r1) * l.w) as f64;
-                }
+                let (e, v) = local_sums(&lines, t);
                 total.energy += e - e_loc0;
                 total.shell += v - v_loc0;
                 top[i] = (Vec3::from(top[i]) + d * t).to_array();
@@ -555,6 +454,176 @@ pub fn minimize_shell_stretch(
     }
     report.after = total.l2();
     report
+}
+
+/// Vertices on the base's boundary loops (the paper's fixed lateral boundary).
+fn boundary_vertices(n: usize, faces: &[[u32; 3]]) -> Vec<bool> {
+    let mut fixed = vec![false; n];
+    for lp in boundary_loops(faces) {
+        for v in lp {
+            fixed[v as usize] = true;
+        }
+    }
+    fixed
+}
+
+/// Each tetrahedron's lowest allowed volume ratio: half its ratio at the start (at least twice
+/// the inversion threshold, at most the ratio), or the ratio itself where already inverted.
+fn ratio_floors(
+    p: &[[f32; 3]],
+    top: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    tex: &TextureTets,
+) -> Vec<f32> {
+    volume_ratios(p, top, faces, tex)
+        .into_iter()
+        .map(|r| {
+            if r > MIN_RATIO {
+                (0.5 * r).max(2.0 * MIN_RATIO).min(r)
+            } else {
+                r
+            }
+        })
+        .collect()
+}
+
+/// The shell as the line search reads it.
+struct ShellView<'a> {
+    p: &'a [[f32; 3]],
+    top: &'a [[f32; 3]],
+    faces: &'a [[u32; 3]],
+    tex: &'a TextureTets,
+    /// Per tetrahedron, its lowest allowed volume ratio.
+    floor: &'a [f32],
+}
+
+/// One incident tetrahedron along a line `top[i] + t d`: energy `e0 + t e1 + t^2 e2`, volume
+/// ratio `r0 + t r1` with its floor, and its texture volume `w`.
+struct LineTerm {
+    e0: f32,
+    e1: f32,
+    e2: f32,
+    r0: f32,
+    r1: f32,
+    floor: f32,
+    w: f32,
+}
+
+/// The terms of the tetrahedra incident to offset vertex `i` (faces `incident`) along direction
+/// `d`, into `lines`; returns the step bound (half the mean distance from the vertex to its
+/// faces' corners), or `None` where there is nothing to move.
+fn line_terms(
+    shell: &ShellView,
+    incident: &[u32],
+    i: usize,
+    d: Vec3,
+    lines: &mut Vec<LineTerm>,
+) -> Option<f32> {
+    let (p, top, faces, tex) = (shell.p, shell.top, shell.faces, shell.tex);
+    let mut reach = 0.0f32;
+    let mut count = 0;
+    lines.clear();
+    for &f in incident {
+        let fi = f as usize;
+        let so = prism_order(faces[fi]);
+        let slot = so.iter().position(|&x| x as usize == i).unwrap_or(0) + 3;
+        let c = corners(p, top, so);
+        for k in 0..3 {
+            reach += (c[k] - c[slot - 3]).length();
+            count += 1;
+        }
+        let mut c1 = c;
+        c1[slot] += d;
+        for (k, t) in TETS.iter().enumerate() {
+            if !t.contains(&slot) {
+                continue;
+            }
+            let ti = 3 * fi + k;
+            if tex.det[ti] == 0.0 {
+                continue;
+            }
+            let inv = tex.inv[ti];
+            let j0 = edge_matrix(&c, *t) * inv;
+            let j1 = edge_matrix(&c1, *t) * inv - j0;
+            let dot = |a: &Mat3, b: &Mat3| {
+                a.x_axis.dot(b.x_axis) + a.y_axis.dot(b.y_axis) + a.z_axis.dot(b.z_axis)
+            };
+            let r0 = edge_matrix(&c, *t).determinant() / tex.det[ti];
+            let r1 = edge_matrix(&c1, *t).determinant() / tex.det[ti] - r0;
+            lines.push(LineTerm {
+                e0: dot(&j0, &j0) / 3.0,
+                e1: 2.0 * dot(&j0, &j1) / 3.0,
+                e2: dot(&j1, &j1) / 3.0,
+                r0,
+                r1,
+                floor: shell.floor[ti].min(r0),
+                w: tex.vol(ti),
+            });
+        }
+    }
+    if lines.is_empty() || count == 0 {
+        return None;
+    }
+    Some(0.5 * reach / count as f32)
+}
+
+/// The steps `[lo, hi]` within `±reach` that keep every ratio above its floor (compression pays
+/// in the texture -> shell stretch, so without a floor the search would flatten tetrahedra), or,
+/// if already below, do not lower it; `None` where no step is allowed.
+fn feasible_range(lines: &[LineTerm], reach: f32) -> Option<(f32, f32)> {
+    let (mut lo, mut hi) = (-reach, reach);
+    for l in lines {
+        // r0 + t r1 >= floor
+        if l.r1 > 0.0 {
+            lo = lo.max((l.floor - l.r0) / l.r1);
+        } else if l.r1 < 0.0 {
+            hi = hi.min((l.floor - l.r0) / l.r1);
+        }
+    }
+    if lo >= 0.0 || hi <= 0.0 || lo.is_nan() || hi.is_nan() {
+        lo = lo.min(0.0);
+        hi = hi.max(0.0);
+        if hi <= lo || hi.is_nan() || lo.is_nan() {
+            return None;
+        }
+    }
+    Some((lo, hi))
+}
+
+/// The incident tetrahedra's weighted energy and shell volume at step `t`.
+fn local_sums(lines: &[LineTerm], t: f32) -> (f64, f64) {
+    let (mut e, mut v) = (0.0f64, 0.0f64);
+    for l in lines {
+        e += ((l.e0 + t * (l.e1 + t * l.e2)) * l.w) as f64;
+        v += ((l.r0 + t * l.r1) * l.w) as f64;
+    }
+    (e, v)
+}
+
+/// Golden-section search (30 steps) for the minimum of `objective` on `[lo, hi]`: the step and
+/// its value.
+fn golden_section(lo: f32, hi: f32, objective: impl Fn(f32) -> f64) -> (f32, f64) {
+    let g = 0.618_034f32;
+    let (mut a0, mut b0) = (lo, hi);
+    let mut x1 = b0 - g * (b0 - a0);
+    let mut x2 = a0 + g * (b0 - a0);
+    let (mut f1, mut f2) = (objective(x1), objective(x2));
+    for _ in 0..30 {
+        if f1 < f2 {
+            b0 = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b0 - g * (b0 - a0);
+            f1 = objective(x1);
+        } else {
+            a0 = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a0 + g * (b0 - a0);
+            f2 = objective(x2);
+        }
+    }
+    if f1 < f2 { (x1, f1) } else { (x2, f2) }
 }
 
 #[cfg(test)]

@@ -274,11 +274,6 @@ impl Hierarchy {
     }
 }
 
-/// One level of collapses: a greedy shortest-first matching of edges, each accepted collapse
-/// merging its two (so far untouched) ends into their midpoint. Equally long edges are taken in
-/// the order of their ends' `keys` (lower, then higher), and the end with the lower key
-/// survives. Returns the coarse level, the parent of every fine vertex and the coarse vertices'
-/// keys (their survivors').
 /// Collapse-order bins per octave of edge length: lengths within about 0.3% of each other (the
 /// same bin) count as ties, broken by the vertices' keys.
 const BINS_PER_OCTAVE: f64 = 256.0;
@@ -302,35 +297,110 @@ fn length_bins(mean: f64) -> impl Fn(f32) -> u32 {
     }
 }
 
+/// One level of collapses: a greedy shortest-first matching of edges, each accepted collapse
+/// merging its two (so far untouched) ends into their midpoint. Equally long edges are taken in
+/// the order of their ends' `keys` (lower, then higher), and the end with the lower key
+/// survives. Returns the coarse level, the parent of every fine vertex and the coarse vertices'
+/// keys (their survivors').
+///
+/// The steps: [`VertexFaces::new`] (incident faces), [`collapse_order`] (edges shortest first),
+/// then per edge [`passes_link_condition`] and [`flips_a_face`], and [`compact`] (the coarse
+/// level from the surviving vertices).
 fn collapse_level(fine: &Level, target: usize, keys: &[u32]) -> (Level, Vec<u32>, Vec<u32>) {
     let n = fine.len();
+    let vf = VertexFaces::new(n, &fine.faces);
+    let edges = collapse_order(fine, keys);
+    let mut state = Collapsing {
+        rep: (0..n as u32).collect(),
+        touched: vec![false; n],
+        cur: fine.positions.iter().map(|p| Vec3::from(*p)).collect(),
+        remaining: n,
+    };
+    let mut na: Vec<u32> = Vec::with_capacity(32);
+    let mut nb: Vec<u32> = Vec::with_capacity(32);
+    for &(_, _, _, a, b) in &edges {
+        if state.remaining <= target {
+            break;
+        }
+        if state.touched[a as usize] || state.touched[b as usize] {
+            continue;
+        }
+        if !passes_link_condition(&fine.faces, &vf, &state.rep, a, b, (&mut na, &mut nb)) {
+            continue;
+        }
+        let mid = 0.5 * (state.cur[a as usize] + state.cur[b as usize]);
+        if flips_a_face(fine, &vf, &state, (a, b), mid) {
+            continue;
+        }
+        state.touched[a as usize] = true;
+        state.touched[b as usize] = true;
+        state.rep[b as usize] = a;
+        state.cur[a as usize] = mid;
+        state.remaining -= 1;
+    }
+    compact(&fine.faces, keys, &state)
+}
+
+/// Vertex -> incident faces (CSR).
+struct VertexFaces {
+    off: Vec<u32>,
+    faces: Vec<u32>,
+}
+
+impl VertexFaces {
+    /// The faces incident to each of the `n` vertices.
+    fn new(n: usize, faces: &[[u32; 3]]) -> VertexFaces {
+        let mut vf_off = vec![0u32; n + 1];
+        for f in faces {
+            for &i in f {
+                vf_off[i as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            vf_off[i + 1] += vf_off[i];
+        }
+        let mut fill = vf_off.clone();
+        let mut vf = vec![0u32; vf_off[n] as usize];
+        for (fi, f) in faces.iter().enumerate() {
+            for &i in f {
+                vf[fill[i as usize] as usize] = fi as u32;
+                fill[i as usize] += 1;
+            }
+        }
+        VertexFaces {
+            off: vf_off,
+            faces: vf,
+        }
+    }
+
+    /// The faces incident to vertex `v`.
+    fn row(&self, v: u32) -> &[u32] {
+        &self.faces[self.off[v as usize] as usize..self.off[v as usize + 1] as usize]
+    }
+}
+
+/// The state of a level's collapses.
+struct Collapsing {
+    /// Per fine vertex, the vertex it has merged into (itself while it survives).
+    rep: Vec<u32>,
+    /// Vertices that took part in a collapse of this level.
+    touched: Vec<bool>,
+    /// Current positions (a survivor at its collapse's midpoint).
+    cur: Vec<Vec3>,
+    /// Vertices left.
+    remaining: usize,
+}
+
+/// The candidate edges `(length bin, lower key, higher key, end with the lower key, other end)`
+/// shortest first (lengths of untouched vertices never change in a level), lengths compared in
+/// bins (not to their last bits) so the order is the same for the mesh in any units, ties by
+/// the ends' keys.
+fn collapse_order(fine: &Level, keys: &[u32]) -> Vec<(u32, u32, u32, u32, u32)> {
+    let n = fine.len();
     let pos = &fine.positions;
-    let faces = &fine.faces;
-    // Vertex -> incident faces (CSR).
-    let mut vf_off = vec![0u32; n + 1];
-    for f in faces {
-        for &i in f {
-            vf_off[i as usize + 1] += 1;
-        }
-    }
-    for i in 0..n {
-        vf_off[i + 1] += vf_off[i];
-    }
-    let mut fill = vf_off.clone();
-    let mut vf = vec![0u32; vf_off[n] as usize];
-    for (fi, f) in faces.iter().enumerate() {
-        for &i in f {
-            vf[fill[i as usize] as usize] = fi as u32;
-            fill[i as usize] += 1;
-        }
-    }
-    // Candidate edges sorted by length (lengths of untouched vertices never change in a level).
     let adj = &fine.adjacency;
-    // (length bin, lower key, higher key, end with the lower key, the other end)
     let mut edges: Vec<(u32, u32, u32, u32, u32)> = Vec::with_capacity(adj.indices.len() / 2);
     let squared = |a: usize, b: usize| (Vec3::from(pos[a]) - Vec3::from(pos[b])).length_squared();
-    // Shortest first, lengths compared in bins (not to their last bits): the same order for
-    // the mesh in any units.
     let bin = {
         let (mut sum, mut count) = (0.0f64, 0usize);
         for a in 0..n {
@@ -361,117 +431,118 @@ fn collapse_level(fine: &Level, target: usize, keys: &[u32]) -> (Level, Vec<u32>
             .then(x.2.cmp(&y.2))
             .then(x.3.cmp(&y.3))
     });
+    edges
+}
 
-    let mut rep: Vec<u32> = (0..n as u32).collect();
-    let mut touched = vec![false; n];
-    let mut cur: Vec<Vec3> = pos.iter().map(|p| Vec3::from(*p)).collect();
-    let mut remaining = n;
-    let mut na: Vec<u32> = Vec::with_capacity(32);
-    let mut nb: Vec<u32> = Vec::with_capacity(32);
-    let r = |rep: &[u32], i: u32| rep[i as usize];
-    for &(_, _, _, a, b) in &edges {
-        if remaining <= target {
-            break;
-        }
-        if touched[a as usize] || touched[b as usize] {
+/// Whether collapsing edge `ab` keeps the mesh manifold: its ends' common neighbours (through
+/// the representatives) are exactly the apexes of its live faces, and the merged vertex keeps a
+/// valence of at least 3. `na`, `nb` are scratch buffers.
+fn passes_link_condition(
+    faces: &[[u32; 3]],
+    vf: &VertexFaces,
+    rep: &[u32],
+    a: u32,
+    b: u32,
+    (na, nb): (&mut Vec<u32>, &mut Vec<u32>),
+) -> bool {
+    let r = |i: u32| rep[i as usize];
+    let live = |f: &[u32; 3]| {
+        let q = f.map(r);
+        q[0] != q[1] && q[1] != q[2] && q[0] != q[2]
+    };
+    // Current neighbour sets (through representatives) and the live faces on edge (a, b).
+    na.clear();
+    nb.clear();
+    let mut shared_faces = 0usize;
+    for &fi in vf.row(a) {
+        let f = &faces[fi as usize];
+        if !live(f) {
             continue;
         }
-        let fa = &vf[vf_off[a as usize] as usize..vf_off[a as usize + 1] as usize];
-        let fb = &vf[vf_off[b as usize] as usize..vf_off[b as usize + 1] as usize];
-        // Current neighbour sets (through representatives) and the live faces on edge (a, b).
-        na.clear();
-        nb.clear();
-        let mut shared_faces = 0usize;
-        let live = |f: &[u32; 3]| {
-            let q = f.map(|i| r(&rep, i));
-            q[0] != q[1] && q[1] != q[2] && q[0] != q[2]
-        };
-        for &fi in fa {
-            let f = &faces[fi as usize];
-            if !live(f) {
-                continue;
-            }
-            let q = f.map(|i| r(&rep, i));
-            if q.contains(&b) {
-                shared_faces += 1;
-            }
-            for &x in &q {
-                if x != a {
-                    na.push(x);
-                }
+        let q = f.map(r);
+        if q.contains(&b) {
+            shared_faces += 1;
+        }
+        for &x in &q {
+            if x != a {
+                na.push(x);
             }
         }
-        for &fi in fb {
-            let f = &faces[fi as usize];
-            if !live(f) {
-                continue;
-            }
-            let q = f.map(|i| r(&rep, i));
-            for &x in &q {
-                if x != b {
-                    nb.push(x);
-                }
-            }
-        }
-        na.sort_unstable();
-        na.dedup();
-        nb.sort_unstable();
-        nb.dedup();
-        let common = na
-            .iter()
-            .filter(|x| **x != b && nb.binary_search(x).is_ok())
-            .count();
-        if shared_faces == 0 || common != shared_faces {
-            continue;
-        }
-        // Keep a vertex valence of at least 3 around the merged vertex.
-        if na.len() + nb.len() < common + 2 + 3 + 2 {
-            continue;
-        }
-        // Reject collapses that flip (or nearly flip) a surviving face.
-        let mid = 0.5 * (cur[a as usize] + cur[b as usize]);
-        let mut ok = true;
-        for &fi in fa.iter().chain(fb.iter()) {
-            let f = &faces[fi as usize];
-            let q = f.map(|i| r(&rep, i));
-            if q[0] == q[1] || q[1] == q[2] || q[0] == q[2] {
-                continue;
-            }
-            if q.contains(&a) && q.contains(&b) {
-                continue;
-            }
-            // Compare with the face's normal at the start of the level, so that several
-            // collapses around one face cannot add up to a flip.
-            let p = f.map(|i| Vec3::from(pos[i as usize]));
-            let n0 = (p[1] - p[0]).cross(p[2] - p[0]);
-            let moved = q.map(|i| {
-                if i == a || i == b {
-                    mid
-                } else {
-                    cur[i as usize]
-                }
-            });
-            let n1 = (moved[1] - moved[0]).cross(moved[2] - moved[0]);
-            let l0 = n0.length();
-            let l1 = n1.length();
-            if l1 <= 1e-12 * l0 || n0.dot(n1) < 0.5 * l0 * l1 {
-                ok = false;
-                break;
-            }
-        }
-        if !ok {
-            continue;
-        }
-        touched[a as usize] = true;
-        touched[b as usize] = true;
-        rep[b as usize] = a;
-        cur[a as usize] = mid;
-        remaining -= 1;
     }
-    // Compact the surviving representatives.
+    for &fi in vf.row(b) {
+        let f = &faces[fi as usize];
+        if !live(f) {
+            continue;
+        }
+        let q = f.map(r);
+        for &x in &q {
+            if x != b {
+                nb.push(x);
+            }
+        }
+    }
+    na.sort_unstable();
+    na.dedup();
+    nb.sort_unstable();
+    nb.dedup();
+    let common = na
+        .iter()
+        .filter(|x| **x != b && nb.binary_search(x).is_ok())
+        .count();
+    if shared_faces == 0 || common != shared_faces {
+        return false;
+    }
+    // Keep a vertex valence of at least 3 around the merged vertex.
+    na.len() + nb.len() >= common + 2 + 3 + 2
+}
+
+/// Whether moving `a` and `b` to `mid` flips (or nearly flips) a surviving face, compared with
+/// the face's normal at the start of the level, so that several collapses around one face
+/// cannot add up to a flip.
+fn flips_a_face(
+    fine: &Level,
+    vf: &VertexFaces,
+    state: &Collapsing,
+    (a, b): (u32, u32),
+    mid: Vec3,
+) -> bool {
+    let (faces, pos, cur) = (&fine.faces, &fine.positions, &state.cur);
+    for &fi in vf.row(a).iter().chain(vf.row(b).iter()) {
+        let f = &faces[fi as usize];
+        let q = f.map(|i| state.rep[i as usize]);
+        if q[0] == q[1] || q[1] == q[2] || q[0] == q[2] {
+            continue;
+        }
+        if q.contains(&a) && q.contains(&b) {
+            continue;
+        }
+        let p = f.map(|i| Vec3::from(pos[i as usize]));
+        let n0 = (p[1] - p[0]).cross(p[2] - p[0]);
+        let moved = q.map(|i| {
+            if i == a || i == b {
+                mid
+            } else {
+                cur[i as usize]
+            }
+        });
+        let n1 = (moved[1] - moved[0]).cross(moved[2] - moved[0]);
+        let l0 = n0.length();
+        let l1 = n1.length();
+        if l1 <= 1e-12 * l0 || n0.dot(n1) < 0.5 * l0 * l1 {
+            return true;
+        }
+    }
+    false
+}
+
+/// The coarse level from the surviving representatives (in fine order), the parent of every
+/// fine vertex and the survivors' keys; faces collapsed to an edge or a point are dropped.
+fn compact(faces: &[[u32; 3]], keys: &[u32], state: &Collapsing) -> (Level, Vec<u32>, Vec<u32>) {
+    let (rep, cur) = (&state.rep, &state.cur);
+    let n = rep.len();
     let mut new_index = vec![u32::MAX; n];
-    let mut positions = Vec::with_capacity(remaining);
-    let mut coarse_keys = Vec::with_capacity(remaining);
+    let mut positions = Vec::with_capacity(state.remaining);
+    let mut coarse_keys = Vec::with_capacity(state.remaining);
     for v in 0..n {
         if rep[v] == v as u32 {
             new_index[v] = positions.len() as u32;

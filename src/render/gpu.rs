@@ -88,183 +88,68 @@ pub struct MeshRenderer {
 
 impl MeshRenderer {
     /// Build the pipelines; `samples` is the MSAA count (1 or 4; falls back to 1 if unsupported).
+    ///
+    /// The parts: [`supported_samples`], the shader, [`uniform_layout`], [`texture_layout`],
+    /// [`base_sampler`], the four pipelines through [`PipelineParts::pipeline`] (shaded
+    /// triangles, blended wireframe, markers in front and hidden), and [`marker_sphere`].
     pub fn new(device: &wgpu::Device, adapter: Option<&wgpu::Adapter>, samples: u32) -> Self {
-        let samples = match adapter {
-            Some(a) => {
-                let c = a.get_texture_format_features(DRAW_FORMAT).flags;
-                let d = a.get_texture_format_features(DEPTH_FORMAT).flags;
-                if samples > 1
-                    && c.sample_count_supported(samples)
-                    && d.sample_count_supported(samples)
-                {
-                    samples
-                } else {
-                    1
-                }
-            }
-            None => 1,
-        };
+        let samples = supported_samples(adapter, samples);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("meshmatch mesh shader"),
             source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/mesh.wgsl").into()),
         });
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("meshmatch uniforms"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
-        });
-        let texture_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("meshmatch base texture"),
-            entries: &[
-                fragment_texture(0),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
-                // Paint over the base, through the same UVs (read texel by texel).
-                fragment_texture(2),
-                // The mask over the paint, the same way.
-                fragment_texture(3),
-            ],
-        });
-        // Trilinear, repeating (UVs outside [0, 1] tile, as OBJ and glTF expect).
-        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
-            label: Some("meshmatch base sampler"),
-            address_mode_u: wgpu::AddressMode::Repeat,
-            address_mode_v: wgpu::AddressMode::Repeat,
-            mag_filter: wgpu::FilterMode::Linear,
-            min_filter: wgpu::FilterMode::Linear,
-            mipmap_filter: wgpu::MipmapFilterMode::Linear,
-            ..Default::default()
-        });
+        let layout = uniform_layout(device);
+        let texture_layout = texture_layout(device);
+        let sampler = base_sampler(device);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("meshmatch pipeline layout"),
             bind_group_layouts: &[Some(&layout), Some(&texture_layout)],
             immediate_size: 0,
         });
-        let buffers = [
-            Some(wgpu::VertexBufferLayout {
-                array_stride: std::mem::size_of::<Vertex>() as u64,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 3 => Float32x2],
-            }),
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 12,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![2 => Float32x3],
-            }),
-        ];
-        let marker_buffers = [
-            Some(wgpu::VertexBufferLayout {
-                array_stride: 12,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &wgpu::vertex_attr_array![0 => Float32x3],
-            }),
-            Some(wgpu::VertexBufferLayout {
-                array_stride: std::mem::size_of::<MarkerInstance>() as u64,
-                step_mode: wgpu::VertexStepMode::Instance,
-                attributes: &wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4],
-            }),
-        ];
-        let opaque = (true, wgpu::CompareFunction::LessEqual, None);
-        let make = |vs: &str,
-                    fs: &str,
-                    topology: wgpu::PrimitiveTopology,
-                    buffers: &[Option<wgpu::VertexBufferLayout>],
-                    (depth_write, compare, blend): (
-            bool,
-            wgpu::CompareFunction,
-            Option<wgpu::BlendState>,
-        )| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some(fs),
-                layout: Some(&pipeline_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some(vs),
-                    buffers,
-                    compilation_options: Default::default(),
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology,
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(depth_write),
-                    depth_compare: Some(compare),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
-                multisample: wgpu::MultisampleState {
-                    count: samples,
-                    mask: !0,
-                    alpha_to_coverage_enabled: false,
-                },
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some(fs),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: DRAW_FORMAT,
-                        blend,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                    compilation_options: Default::default(),
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+        let parts = PipelineParts {
+            device,
+            module: &module,
+            layout: &pipeline_layout,
+            samples,
         };
+        let buffers = mesh_buffers();
+        let marker_buffers = marker_buffers();
+        let opaque = (true, wgpu::CompareFunction::LessEqual, None);
         let tri = wgpu::PrimitiveTopology::TriangleList;
-        let (sphere_positions, sphere_tris) = unit_sphere(12, 20);
+        let fill = parts.pipeline("vs_main", "fs_main", tri, &buffers, opaque);
+        // Blended, so a dense mesh's wireframe darkens its surface instead of hiding it.
+        let wire = parts.pipeline(
+            "vs_wire",
+            "fs_wire",
+            wgpu::PrimitiveTopology::LineList,
+            &buffers,
+            (
+                true,
+                wgpu::CompareFunction::LessEqual,
+                Some(wgpu::BlendState::ALPHA_BLENDING),
+            ),
+        );
+        let marker = parts.pipeline("vs_marker", "fs_marker", tri, &marker_buffers, opaque);
+        let marker_ghost = parts.pipeline(
+            "vs_marker",
+            "fs_marker_ghost",
+            tri,
+            &marker_buffers,
+            (
+                false,
+                wgpu::CompareFunction::Greater,
+                Some(wgpu::BlendState::ALPHA_BLENDING),
+            ),
+        );
+        let (sphere_vertices, sphere_indices, sphere_index_count) = marker_sphere(device);
         MeshRenderer {
-            fill: make("vs_main", "fs_main", tri, &buffers, opaque),
-            // Blended, so a dense mesh's wireframe darkens its surface instead of hiding it.
-            wire: make(
-                "vs_wire",
-                "fs_wire",
-                wgpu::PrimitiveTopology::LineList,
-                &buffers,
-                (
-                    true,
-                    wgpu::CompareFunction::LessEqual,
-                    Some(wgpu::BlendState::ALPHA_BLENDING),
-                ),
-            ),
-            marker: make("vs_marker", "fs_marker", tri, &marker_buffers, opaque),
-            marker_ghost: make(
-                "vs_marker",
-                "fs_marker_ghost",
-                tri,
-                &marker_buffers,
-                (
-                    false,
-                    wgpu::CompareFunction::Greater,
-                    Some(wgpu::BlendState::ALPHA_BLENDING),
-                ),
-            ),
-            sphere_vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("marker sphere vertices"),
-                contents: bytemuck::cast_slice(&sphere_positions),
-                usage: wgpu::BufferUsages::VERTEX,
-            }),
-            sphere_indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("marker sphere triangles"),
-                contents: bytemuck::cast_slice(&sphere_tris),
-                usage: wgpu::BufferUsages::INDEX,
-            }),
-            sphere_index_count: sphere_tris.len() as u32,
+            fill,
+            wire,
+            marker,
+            marker_ghost,
+            sphere_vertices,
+            sphere_indices,
+            sphere_index_count,
             layout,
             texture_layout,
             sampler,
@@ -358,6 +243,195 @@ impl MeshRenderer {
             }
         }
     }
+}
+
+/// `samples` where the adapter supports it for both the colour and the depth format, else 1.
+fn supported_samples(adapter: Option<&wgpu::Adapter>, samples: u32) -> u32 {
+    match adapter {
+        Some(a) => {
+            let c = a.get_texture_format_features(DRAW_FORMAT).flags;
+            let d = a.get_texture_format_features(DEPTH_FORMAT).flags;
+            if samples > 1 && c.sample_count_supported(samples) && d.sample_count_supported(samples)
+            {
+                samples
+            } else {
+                1
+            }
+        }
+        None => 1,
+    }
+}
+
+/// Bind group 0: the frame's uniforms.
+fn uniform_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("meshmatch uniforms"),
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        }],
+    })
+}
+
+/// Bind group 1: the base texture and its sampler, the paint and the mask over it.
+fn texture_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("meshmatch base texture"),
+        entries: &[
+            fragment_texture(0),
+            wgpu::BindGroupLayoutEntry {
+                binding: 1,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                count: None,
+            },
+            // Paint over the base, through the same UVs (read texel by texel).
+            fragment_texture(2),
+            // The mask over the paint, the same way.
+            fragment_texture(3),
+        ],
+    })
+}
+
+/// The base texture's sampler: trilinear, repeating (UVs outside [0, 1] tile, as OBJ and glTF
+/// expect).
+fn base_sampler(device: &wgpu::Device) -> wgpu::Sampler {
+    device.create_sampler(&wgpu::SamplerDescriptor {
+        label: Some("meshmatch base sampler"),
+        address_mode_u: wgpu::AddressMode::Repeat,
+        address_mode_v: wgpu::AddressMode::Repeat,
+        mag_filter: wgpu::FilterMode::Linear,
+        min_filter: wgpu::FilterMode::Linear,
+        mipmap_filter: wgpu::MipmapFilterMode::Linear,
+        ..Default::default()
+    })
+}
+
+/// Mesh vertex attributes: position, normal, UV.
+const MESH_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
+    wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 3 => Float32x2];
+/// Per-vertex colour attribute (its own buffer).
+const COLOR_ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![2 => Float32x3];
+/// Marker sphere vertex attribute: position.
+const SPHERE_ATTRIBUTES: [wgpu::VertexAttribute; 1] = wgpu::vertex_attr_array![0 => Float32x3];
+/// Marker instance attributes: centre and radius, colour and rim.
+const MARKER_ATTRIBUTES: [wgpu::VertexAttribute; 2] =
+    wgpu::vertex_attr_array![1 => Float32x4, 2 => Float32x4];
+
+/// Vertex buffers of a mesh: vertices, and colours in a buffer of their own.
+fn mesh_buffers() -> [Option<wgpu::VertexBufferLayout<'static>>; 2] {
+    [
+        Some(wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<Vertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &MESH_ATTRIBUTES,
+        }),
+        Some(wgpu::VertexBufferLayout {
+            array_stride: 12,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &COLOR_ATTRIBUTES,
+        }),
+    ]
+}
+
+/// Vertex buffers of the markers: the unit sphere's vertices and one instance per marker.
+fn marker_buffers() -> [Option<wgpu::VertexBufferLayout<'static>>; 2] {
+    [
+        Some(wgpu::VertexBufferLayout {
+            array_stride: 12,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &SPHERE_ATTRIBUTES,
+        }),
+        Some(wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<MarkerInstance>() as u64,
+            step_mode: wgpu::VertexStepMode::Instance,
+            attributes: &MARKER_ATTRIBUTES,
+        }),
+    ]
+}
+
+/// What every pipeline of the renderer shares.
+struct PipelineParts<'a> {
+    device: &'a wgpu::Device,
+    module: &'a wgpu::ShaderModule,
+    layout: &'a wgpu::PipelineLayout,
+    samples: u32,
+}
+
+impl PipelineParts<'_> {
+    /// A pipeline from entry points `vs` and `fs` (its label), drawing `topology` from `buffers`
+    /// with depth writes, depth comparison and blending as given.
+    fn pipeline(
+        &self,
+        vs: &str,
+        fs: &str,
+        topology: wgpu::PrimitiveTopology,
+        buffers: &[Option<wgpu::VertexBufferLayout>],
+        (depth_write, compare, blend): (bool, wgpu::CompareFunction, Option<wgpu::BlendState>),
+    ) -> wgpu::RenderPipeline {
+        self.device
+            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(fs),
+                layout: Some(self.layout),
+                vertex: wgpu::VertexState {
+                    module: self.module,
+                    entry_point: Some(vs),
+                    buffers,
+                    compilation_options: Default::default(),
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology,
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(depth_write),
+                    depth_compare: Some(compare),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: wgpu::MultisampleState {
+                    count: self.samples,
+                    mask: !0,
+                    alpha_to_coverage_enabled: false,
+                },
+                fragment: Some(wgpu::FragmentState {
+                    module: self.module,
+                    entry_point: Some(fs),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: DRAW_FORMAT,
+                        blend,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                    compilation_options: Default::default(),
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+    }
+}
+
+/// The marker sphere's vertex and index buffers and its index count.
+fn marker_sphere(device: &wgpu::Device) -> (wgpu::Buffer, wgpu::Buffer, u32) {
+    let (sphere_positions, sphere_tris) = unit_sphere(12, 20);
+    let vertices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("marker sphere vertices"),
+        contents: bytemuck::cast_slice(&sphere_positions),
+        usage: wgpu::BufferUsages::VERTEX,
+    });
+    let indices = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("marker sphere triangles"),
+        contents: bytemuck::cast_slice(&sphere_tris),
+        usage: wgpu::BufferUsages::INDEX,
+    });
+    (vertices, indices, sphere_tris.len() as u32)
 }
 
 /// A unit UV sphere with `rings` latitude bands and `segments` longitude segments: positions

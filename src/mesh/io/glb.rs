@@ -807,16 +807,49 @@ fn f32_bytes(v: impl Iterator<Item = f32>) -> Vec<u8> {
 /// Build the glTF JSON and binary buffer for `mesh`. Vertices whose corners carry different UVs
 /// or normals (smooth normals split at sharp edges, when the mesh has none of its own) are split:
 /// output vertices 0..N are the mesh's vertices in order, the copies follow.
+///
+/// The steps: [`split_vertices`], [`write_attributes`] (positions, normals, colours, UVs and
+/// indices into the buffer), [`write_material`] (the material and its image) and [`root_json`].
 fn build(
     mesh: &TriMesh,
     opts: &GlbOptions,
     path: &Path,
     image_uri: Option<&str>,
 ) -> Result<GlbData> {
-    use serde_json::json;
-    let n = mesh.num_vertices();
     let uvs = mesh.uvs.as_ref().filter(|_| opts.texture);
     let corner_n = super::export_corner_normals(mesh);
+    let split = split_vertices(mesh, uvs.map(|u| u.as_slice()), &corner_n);
+    let mut w = BinWriter::default();
+    let colors = mesh.colors.as_ref().filter(|_| opts.vertex_colors);
+    let (attributes, indices) = write_attributes(&mut w, mesh, colors, uvs.is_some(), &split);
+    let (material, images) = write_material(&mut w, mesh, uvs.is_some(), image_uri, path)?;
+    while !w.bin.len().is_multiple_of(4) {
+        w.bin.push(0);
+    }
+    let root = root_json(&w, attributes, indices, material, images);
+    Ok(GlbData {
+        json: root,
+        bin: w.bin,
+    })
+}
+
+/// The output vertices: per output vertex its source vertex, UV and normal, and the faces on
+/// them.
+struct SplitVertices {
+    src: Vec<u32>,
+    faces: Vec<[u32; 3]>,
+    uv: Vec<[f32; 2]>,
+    normals: Vec<[f32; 3]>,
+}
+
+/// Each vertex takes its first corner's UV and normal; a corner that differs gets a copy of the
+/// vertex (one per distinct UV and normal), numbered after the mesh's vertices.
+fn split_vertices(
+    mesh: &TriMesh,
+    uvs: Option<&[[f32; 2]]>,
+    corner_n: &[[f32; 3]],
+) -> SplitVertices {
+    let n = mesh.num_vertices();
     // source vertex of every output vertex, output UV and normal, and output faces.
     let mut src: Vec<u32> = (0..n as u32).collect();
     let mut out_faces = mesh.faces.clone();
@@ -854,28 +887,45 @@ fn build(
             }
         }
     }
-    let m = src.len();
-    let mut bin = Vec::new();
-    let mut views = Vec::new();
-    let mut accessors = Vec::new();
-    let mut attributes = serde_json::Map::new();
-    let mut add =
-        |bin: &mut Vec<u8>, data: Vec<u8>, target: Option<u32>, acc: serde_json::Value| -> usize {
-            let (off, len) = push_aligned(bin, &data);
-            let mut view = json!({"buffer": 0, "byteOffset": off, "byteLength": len});
-            if let Some(t) = target {
-                view["target"] = json!(t);
-            }
-            views.push(view);
-            let mut acc = acc;
-            acc["bufferView"] = json!(views.len() - 1);
-            accessors.push(acc);
-            accessors.len() - 1
-        };
-    let pos: Vec<[f32; 3]> = src.iter().map(|&s| mesh.positions[s as usize]).collect();
+    SplitVertices {
+        src,
+        faces: out_faces,
+        uv: out_uv,
+        normals: out_n,
+    }
+}
+
+/// The binary buffer with its buffer views and accessors, as they are added.
+#[derive(Default)]
+struct BinWriter {
+    bin: Vec<u8>,
+    views: Vec<serde_json::Value>,
+    accessors: Vec<serde_json::Value>,
+}
+
+impl BinWriter {
+    /// Append `data` as a buffer view (with `target`, if any) read by accessor `acc`; returns
+    /// the accessor's index.
+    fn add(&mut self, data: Vec<u8>, target: Option<u32>, acc: serde_json::Value) -> usize {
+        use serde_json::json;
+        let (off, len) = push_aligned(&mut self.bin, &data);
+        let mut view = json!({"buffer": 0, "byteOffset": off, "byteLength": len});
+        if let Some(t) = target {
+            view["target"] = json!(t);
+        }
+        self.views.push(view);
+        let mut acc = acc;
+        acc["bufferView"] = json!(self.views.len() - 1);
+        self.accessors.push(acc);
+        self.accessors.len() - 1
+    }
+}
+
+/// Per-axis bounds of the finite coordinates (zero where there are none).
+fn position_bounds(pos: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
-    for p in &pos {
+    for p in pos {
         for k in 0..3 {
             if p[k].is_finite() {
                 lo[k] = lo[k].min(p[k]);
@@ -887,23 +937,39 @@ fn build(
         lo = [0.0; 3];
         hi = [0.0; 3];
     }
-    let a = add(
-        &mut bin,
+    (lo, hi)
+}
+
+/// The vertex attributes (POSITION with its bounds, NORMAL, COLOR_0 in linear light where
+/// `colors`, TEXCOORD_0 with V down where `with_uv`) and the indices: the attributes' accessor
+/// map and the indices' accessor.
+fn write_attributes(
+    w: &mut BinWriter,
+    mesh: &TriMesh,
+    colors: Option<&Vec<[f32; 3]>>,
+    with_uv: bool,
+    split: &SplitVertices,
+) -> (serde_json::Map<String, serde_json::Value>, usize) {
+    use serde_json::json;
+    let src = &split.src;
+    let m = src.len();
+    let mut attributes = serde_json::Map::new();
+    let pos: Vec<[f32; 3]> = src.iter().map(|&s| mesh.positions[s as usize]).collect();
+    let (lo, hi) = position_bounds(&pos);
+    let a = w.add(
         f32_bytes(pos.iter().flatten().copied()),
         Some(34962),
         json!({"componentType": 5126, "count": m, "type": "VEC3", "min": lo, "max": hi}),
     );
     attributes.insert("POSITION".into(), json!(a));
-    let a = add(
-        &mut bin,
-        f32_bytes(out_n.iter().flatten().copied()),
+    let a = w.add(
+        f32_bytes(split.normals.iter().flatten().copied()),
         Some(34962),
         json!({"componentType": 5126, "count": m, "type": "VEC3"}),
     );
     attributes.insert("NORMAL".into(), json!(a));
-    if let Some(c) = mesh.colors.as_ref().filter(|_| opts.vertex_colors) {
-        let a = add(
-            &mut bin,
+    if let Some(c) = colors {
+        let a = w.add(
             f32_bytes(src.iter().flat_map(|&s| {
                 c[s as usize].map(|x| crate::color::srgb_to_linear(x.clamp(0.0, 1.0)))
             })),
@@ -912,45 +978,68 @@ fn build(
         );
         attributes.insert("COLOR_0".into(), json!(a));
     }
-    if uvs.is_some() {
-        let a = add(
-            &mut bin,
-            f32_bytes(out_uv.iter().flat_map(|uv| [uv[0], 1.0 - uv[1]])),
+    if with_uv {
+        let a = w.add(
+            f32_bytes(split.uv.iter().flat_map(|uv| [uv[0], 1.0 - uv[1]])),
             Some(34962),
             json!({"componentType": 5126, "count": m, "type": "VEC2"}),
         );
         attributes.insert("TEXCOORD_0".into(), json!(a));
     }
-    let ia = add(
-        &mut bin,
-        out_faces
+    let ia = w.add(
+        split
+            .faces
             .iter()
             .flatten()
             .flat_map(|v| v.to_le_bytes())
             .collect(),
         Some(34963),
-        json!({"componentType": 5125, "count": 3 * out_faces.len(), "type": "SCALAR"}),
+        json!({"componentType": 5125, "count": 3 * split.faces.len(), "type": "SCALAR"}),
     );
+    (attributes, ia)
+}
+
+/// The material, and where the mesh has a texture and UVs its image: referred to by
+/// `image_uri`, or else a PNG embedded in the buffer.
+fn write_material(
+    w: &mut BinWriter,
+    mesh: &TriMesh,
+    with_uv: bool,
+    image_uri: Option<&str>,
+    path: &Path,
+) -> Result<(serde_json::Value, Vec<serde_json::Value>)> {
+    use serde_json::json;
     let mut material = json!({
         "name": "material0",
         "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
         "doubleSided": false
     });
     let mut images = Vec::new();
-    if let (Some(tex), true) = (&mesh.texture, uvs.is_some()) {
+    if let (Some(tex), true) = (&mesh.texture, with_uv) {
         if let Some(uri) = image_uri {
             images.push(json!({"uri": uri, "mimeType": "image/png"}));
         } else {
             let png = super::encode_png(tex, path)?;
-            let (off, len) = push_aligned(&mut bin, &png);
-            views.push(json!({"buffer": 0, "byteOffset": off, "byteLength": len}));
-            images.push(json!({"bufferView": views.len() - 1, "mimeType": "image/png"}));
+            let (off, len) = push_aligned(&mut w.bin, &png);
+            w.views
+                .push(json!({"buffer": 0, "byteOffset": off, "byteLength": len}));
+            images.push(json!({"bufferView": w.views.len() - 1, "mimeType": "image/png"}));
         }
         material["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": 0});
     }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
+    Ok((material, images))
+}
+
+/// The glTF document: one scene, node, mesh and primitive, with the sampler and texture where
+/// there is an image.
+fn root_json(
+    w: &BinWriter,
+    attributes: serde_json::Map<String, serde_json::Value>,
+    ia: usize,
+    material: serde_json::Value,
+    images: Vec<serde_json::Value>,
+) -> serde_json::Value {
+    use serde_json::json;
     let mut root = json!({
         "asset": {"version": "2.0", "generator": "meshmatch"},
         "scene": 0,
@@ -958,9 +1047,9 @@ fn build(
         "nodes": [{"mesh": 0}],
         "meshes": [{"primitives": [{"attributes": attributes, "indices": ia, "material": 0, "mode": 4}]}],
         "materials": [material],
-        "buffers": [{"byteLength": bin.len()}],
-        "bufferViews": views,
-        "accessors": accessors,
+        "buffers": [{"byteLength": w.bin.len()}],
+        "bufferViews": w.views,
+        "accessors": w.accessors,
     });
     if !images.is_empty() {
         root["images"] = json!(images);
@@ -968,7 +1057,7 @@ fn build(
             json!([{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]);
         root["textures"] = json!([{"sampler": 0, "source": 0}]);
     }
-    Ok(GlbData { json: root, bin })
+    root
 }
 
 /// Write a binary glTF (GLB): POSITION, NORMAL (the mesh's own, else smooth normals split at sharp

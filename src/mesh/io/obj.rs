@@ -117,144 +117,188 @@ fn parse_f32(tok: Option<&str>, line: usize, what: &str, path: &Path) -> Result<
 
 /// Parse OBJ bytes; `path` names the file in messages and locates MTL files and textures.
 /// At most [`MAX_VERTICES`] vertices and [`MAX_FACES`] triangles.
+///
+/// The steps: [`read_line`] per line (vertices, texture coordinates, normals, faces through
+/// [`read_face`], material libraries and names), [`check_references`] (forward references
+/// within the file, degenerate faces), then [`assemble`] (colours, UVs, averaged normals,
+/// texture).
 pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     check_content(bytes, super::MeshFormat::Obj, path)?;
-    let mut pos: Vec<[f32; 3]> = Vec::new();
-    let mut cols: Vec<[f32; 3]> = Vec::new();
-    let mut tex: Vec<[f32; 2]> = Vec::new();
-    let mut nrm: Vec<[f32; 3]> = Vec::new();
-    let mut faces: Vec<[u32; 3]> = Vec::new();
-    let mut corner_vt: Vec<u32> = Vec::new();
-    let mut corner_vn: Vec<u32> = Vec::new();
-    let (mut max_v, mut max_vt, mut max_vn) =
-        (MaxRef::default(), MaxRef::default(), MaxRef::default());
-    let mut mtllibs: Vec<String> = Vec::new();
-    // Materials used by faces, in order of first use (the set makes the check O(1)).
-    let mut used_materials: Vec<String> = Vec::new();
-    let mut used_set: HashSet<String> = HashSet::new();
-    let mut current_mtl: Option<String> = None;
-    let mut short_faces = 0usize;
-    let mut poly: Vec<[u32; 3]> = Vec::new();
-
+    let mut data = ObjData::default();
     // Lines end in \n, \r\n or a lone \r (files from classic Mac OS tools).
     for (li, raw) in text_lines(bytes).enumerate() {
-        let line_no = li + 1;
-        let text = String::from_utf8_lossy(raw);
-        let text = text.split('#').next().unwrap_or("");
-        let mut toks = text.split_ascii_whitespace();
-        let Some(key) = toks.next() else { continue };
-        match key {
-            "v" => {
-                let x = parse_f32(toks.next(), line_no, "x coordinate", path)?;
-                let y = parse_f32(toks.next(), line_no, "y coordinate", path)?;
-                let z = parse_f32(toks.next(), line_no, "z coordinate", path)?;
-                let rest: Vec<&str> = toks.collect();
-                // v x y z [w] or v x y z r g b [a]
-                if rest.len() >= 3 {
-                    let mut c = [0.0f32; 3];
-                    for k in 0..3 {
-                        c[k] = parse_f32(Some(rest[k]), line_no, "vertex colour", path)?;
-                    }
-                    if cols.len() == pos.len() {
-                        cols.push(c);
-                    }
-                } else if let Some(w) = rest.first() {
-                    parse_f32(Some(w), line_no, "w coordinate", path)?;
-                }
-                pos.push([x, y, z]);
-                if pos.len() > MAX_VERTICES {
-                    return Err(Error::format(
-                        path,
-                        format!("line {line_no}: more than {MAX_VERTICES} vertices (the budget)"),
-                    ));
-                }
-            }
-            "vt" => {
-                let u = parse_f32(toks.next(), line_no, "u coordinate", path)?;
-                let v = match toks.next() {
-                    Some(t) => parse_f32(Some(t), line_no, "v coordinate", path)?,
-                    None => 0.0,
-                };
-                tex.push([u, v]);
-            }
-            "vn" => {
-                let x = parse_f32(toks.next(), line_no, "normal x", path)?;
-                let y = parse_f32(toks.next(), line_no, "normal y", path)?;
-                let z = parse_f32(toks.next(), line_no, "normal z", path)?;
-                nrm.push([x, y, z]);
-            }
-            "f" | "fo" => {
-                poly.clear();
-                for tok in toks {
-                    let mut parts = tok.split('/');
-                    let v = parts.next().unwrap_or("");
-                    let vi = resolve(v, pos.len(), line_no, "vertex", &mut max_v, path)?;
-                    let vt = match parts.next() {
-                        Some(t) if !t.is_empty() => resolve(
-                            t,
-                            tex.len(),
-                            line_no,
-                            "texture coordinate",
-                            &mut max_vt,
-                            path,
-                        )?,
-                        _ => NONE,
-                    };
-                    let vn = match parts.next() {
-                        Some(t) if !t.is_empty() => {
-                            resolve(t, nrm.len(), line_no, "normal", &mut max_vn, path)?
-                        }
-                        _ => NONE,
-                    };
-                    if parts.next().is_some() {
-                        return Err(Error::format(
-                            path,
-                            format!("line {line_no}: bad face corner '{}'", clip(tok)),
-                        ));
-                    }
-                    poly.push([vi, vt, vn]);
-                }
-                if poly.len() < 3 {
-                    short_faces += 1;
-                    continue;
-                }
-                if let Some(m) = &current_mtl
-                    && used_materials.last() != Some(m)
-                    && used_set.insert(m.clone())
-                {
-                    used_materials.push(m.clone());
-                }
-                if faces.len() + poly.len() > MAX_FACES + 2 {
-                    return Err(Error::format(
-                        path,
-                        format!("line {line_no}: more than {MAX_FACES} triangles (the budget)"),
-                    ));
-                }
-                fan(poly.len(), |a, b, c| {
-                    faces.push([poly[a][0], poly[b][0], poly[c][0]]);
-                    for k in [a, b, c] {
-                        corner_vt.push(poly[k][1]);
-                        corner_vn.push(poly[k][2]);
-                    }
-                });
-            }
-            "mtllib" => {
-                let rest = text.trim_start()[6..].trim();
-                if !rest.is_empty() {
-                    mtllibs.push(rest.to_string());
-                }
-            }
-            "usemtl" => {
-                let rest = text.trim_start()[6..].trim();
-                current_mtl = (!rest.is_empty()).then(|| rest.to_string());
-            }
-            _ => {} // o, g, s, l, p, curves: not part of a triangle mesh
-        }
+        read_line(&mut data, raw, li + 1, path)?;
     }
-    max_v.check(pos.len(), "vertex", path)?;
-    max_vt.check(tex.len(), "texture coordinate", path)?;
-    max_vn.check(nrm.len(), "normal", path)?;
-    if short_faces > 0 && faces.is_empty() {
+    check_references(&data, path)?;
+    let mesh = assemble(data, path);
+    finish(mesh, path)
+}
+
+/// What the lines of an OBJ file have given so far.
+#[derive(Default)]
+struct ObjData {
+    pos: Vec<[f32; 3]>,
+    cols: Vec<[f32; 3]>,
+    tex: Vec<[f32; 2]>,
+    nrm: Vec<[f32; 3]>,
+    faces: Vec<[u32; 3]>,
+    /// Per triangle corner, its texture coordinate (or `NONE`).
+    corner_vt: Vec<u32>,
+    /// Per triangle corner, its normal (or `NONE`).
+    corner_vn: Vec<u32>,
+    max_v: MaxRef,
+    max_vt: MaxRef,
+    max_vn: MaxRef,
+    mtllibs: Vec<String>,
+    /// Materials used by faces, in order of first use (the set makes the check O(1)).
+    used_materials: Vec<String>,
+    used_set: HashSet<String>,
+    current_mtl: Option<String>,
+    /// Faces of fewer than three corners, skipped.
+    short_faces: usize,
+    /// The corners `[v, vt, vn]` of the face being read.
+    poly: Vec<[u32; 3]>,
+}
+
+/// One line of the file (comments stripped): a `v`, `vt`, `vn`, `f`, `mtllib` or `usemtl`
+/// statement; other statements are not part of a triangle mesh.
+fn read_line(d: &mut ObjData, raw: &[u8], line_no: usize, path: &Path) -> Result<()> {
+    let text = String::from_utf8_lossy(raw);
+    let text = text.split('#').next().unwrap_or("");
+    let mut toks = text.split_ascii_whitespace();
+    let Some(key) = toks.next() else {
+        return Ok(());
+    };
+    match key {
+        "v" => {
+            let x = parse_f32(toks.next(), line_no, "x coordinate", path)?;
+            let y = parse_f32(toks.next(), line_no, "y coordinate", path)?;
+            let z = parse_f32(toks.next(), line_no, "z coordinate", path)?;
+            let rest: Vec<&str> = toks.collect();
+            // v x y z [w] or v x y z r g b [a]
+            if rest.len() >= 3 {
+                let mut c = [0.0f32; 3];
+                for k in 0..3 {
+                    c[k] = parse_f32(Some(rest[k]), line_no, "vertex colour", path)?;
+                }
+                if d.cols.len() == d.pos.len() {
+                    d.cols.push(c);
+                }
+            } else if let Some(w) = rest.first() {
+                parse_f32(Some(w), line_no, "w coordinate", path)?;
+            }
+            d.pos.push([x, y, z]);
+            if d.pos.len() > MAX_VERTICES {
+                return Err(Error::format(
+                    path,
+                    format!("line {line_no}: more than {MAX_VERTICES} vertices (the budget)"),
+                ));
+            }
+        }
+        "vt" => {
+            let u = parse_f32(toks.next(), line_no, "u coordinate", path)?;
+            let v = match toks.next() {
+                Some(t) => parse_f32(Some(t), line_no, "v coordinate", path)?,
+                None => 0.0,
+            };
+            d.tex.push([u, v]);
+        }
+        "vn" => {
+            let x = parse_f32(toks.next(), line_no, "normal x", path)?;
+            let y = parse_f32(toks.next(), line_no, "normal y", path)?;
+            let z = parse_f32(toks.next(), line_no, "normal z", path)?;
+            d.nrm.push([x, y, z]);
+        }
+        "f" | "fo" => read_face(d, toks, line_no, path)?,
+        "mtllib" => {
+            let rest = text.trim_start()[6..].trim();
+            if !rest.is_empty() {
+                d.mtllibs.push(rest.to_string());
+            }
+        }
+        "usemtl" => {
+            let rest = text.trim_start()[6..].trim();
+            d.current_mtl = (!rest.is_empty()).then(|| rest.to_string());
+        }
+        _ => {} // o, g, s, l, p, curves: not part of a triangle mesh
+    }
+    Ok(())
+}
+
+/// An `f` statement: its corners `v[/vt[/vn]]` resolved, the polygon fanned into triangles
+/// (a face of fewer than three corners is counted and skipped), its material noted as used.
+fn read_face(
+    d: &mut ObjData,
+    toks: std::str::SplitAsciiWhitespace,
+    line_no: usize,
+    path: &Path,
+) -> Result<()> {
+    d.poly.clear();
+    for tok in toks {
+        let mut parts = tok.split('/');
+        let v = parts.next().unwrap_or("");
+        let vi = resolve(v, d.pos.len(), line_no, "vertex", &mut d.max_v, path)?;
+        let vt = match parts.next() {
+            Some(t) if !t.is_empty() => resolve(
+                t,
+                d.tex.len(),
+                line_no,
+                "texture coordinate",
+                &mut d.max_vt,
+                path,
+            )?,
+            _ => NONE,
+        };
+        let vn = match parts.next() {
+            Some(t) if !t.is_empty() => {
+                resolve(t, d.nrm.len(), line_no, "normal", &mut d.max_vn, path)?
+            }
+            _ => NONE,
+        };
+        if parts.next().is_some() {
+            return Err(Error::format(
+                path,
+                format!("line {line_no}: bad face corner '{}'", clip(tok)),
+            ));
+        }
+        d.poly.push([vi, vt, vn]);
+    }
+    if d.poly.len() < 3 {
+        d.short_faces += 1;
+        return Ok(());
+    }
+    if let Some(m) = &d.current_mtl
+        && d.used_materials.last() != Some(m)
+        && d.used_set.insert(m.clone())
+    {
+        d.used_materials.push(m.clone());
+    }
+    if d.faces.len() + d.poly.len() > MAX_FACES + 2 {
+        return Err(Error::format(
+            path,
+            format!("line {line_no}: more than {MAX_FACES} triangles (the budget)"),
+        ));
+    }
+    let (poly, faces) = (&d.poly, &mut d.faces);
+    let (corner_vt, corner_vn) = (&mut d.corner_vt, &mut d.corner_vn);
+    fan(poly.len(), |a, b, c| {
+        faces.push([poly[a][0], poly[b][0], poly[c][0]]);
+        for k in [a, b, c] {
+            corner_vt.push(poly[k][1]);
+            corner_vn.push(poly[k][2]);
+        }
+    });
+    Ok(())
+}
+
+/// Every forward reference within the file's entries, and some faces unless all were
+/// degenerate (a warning counts the skipped ones).
+fn check_references(d: &ObjData, path: &Path) -> Result<()> {
+    d.max_v.check(d.pos.len(), "vertex", path)?;
+    d.max_vt.check(d.tex.len(), "texture coordinate", path)?;
+    d.max_vn.check(d.nrm.len(), "normal", path)?;
+    let short_faces = d.short_faces;
+    if short_faces > 0 && d.faces.is_empty() {
         return Err(Error::format(
             path,
             format!(
@@ -269,7 +313,24 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
             path.display()
         ));
     }
+    Ok(())
+}
 
+/// The mesh: vertex colours where every vertex has one (0..255 scaled to 0..1), per-corner UVs,
+/// per-vertex normals averaged from the corners', and the texture of the materials used.
+fn assemble(d: ObjData, path: &Path) -> TriMesh {
+    let ObjData {
+        pos,
+        mut cols,
+        tex,
+        nrm,
+        faces,
+        corner_vt,
+        corner_vn,
+        mtllibs,
+        used_materials,
+        ..
+    } = d;
     let mut mesh = TriMesh {
         positions: pos,
         faces,
@@ -296,27 +357,35 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         );
     }
     if !corner_vn.is_empty() && corner_vn.iter().all(|&t| t != NONE) {
-        // OBJ normals are per corner; average the unit corner normals of each vertex.
-        let mut acc = vec![[0.0f32; 3]; n];
-        let mut seen = vec![false; n];
-        for (c, &t) in corner_vn.iter().enumerate() {
-            let v = mesh.faces[c / 3][c % 3] as usize;
-            let nv = glam::Vec3::from(nrm[t as usize]).normalize_or_zero();
-            acc[v] = (glam::Vec3::from(acc[v]) + nv).into();
-            seen[v] = true;
-        }
-        if seen.iter().all(|&s| s) {
-            mesh.normals = Some(
-                acc.into_iter()
-                    .map(|a| glam::Vec3::from(a).normalize_or_zero().into())
-                    .collect(),
-            );
-        }
+        mesh.normals = average_corner_normals(&mesh.faces, n, &corner_vn, &nrm);
     }
     if !used_materials.is_empty() || !mtllibs.is_empty() {
         mesh.texture = find_texture(&mtllibs, &used_materials, path);
     }
-    finish(mesh, path)
+    mesh
+}
+
+/// OBJ normals are per corner: per vertex the average of its unit corner normals, if every
+/// vertex has one.
+fn average_corner_normals(
+    faces: &[[u32; 3]],
+    n: usize,
+    corner_vn: &[u32],
+    nrm: &[[f32; 3]],
+) -> Option<Vec<[f32; 3]>> {
+    let mut acc = vec![[0.0f32; 3]; n];
+    let mut seen = vec![false; n];
+    for (c, &t) in corner_vn.iter().enumerate() {
+        let v = faces[c / 3][c % 3] as usize;
+        let nv = glam::Vec3::from(nrm[t as usize]).normalize_or_zero();
+        acc[v] = (glam::Vec3::from(acc[v]) + nv).into();
+        seen[v] = true;
+    }
+    seen.iter().all(|&s| s).then(|| {
+        acc.into_iter()
+            .map(|a| glam::Vec3::from(a).normalize_or_zero().into())
+            .collect()
+    })
 }
 
 /// Resolve a file name written in an MTL/OBJ file relative to `dir`, trying the whole string,

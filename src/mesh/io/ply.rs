@@ -383,6 +383,11 @@ fn vertex_role(name: &str) -> Role {
 }
 
 /// Parse PLY bytes; `path` names the file in messages and locates `comment TextureFile` images.
+///
+/// The steps: the header and its budget, then per element [`plan_element`] (each property's
+/// role), [`reserve_vertices`], and per item [`read_item`] (its values from the body) and
+/// [`store_item`] (a vertex, a face fanned into triangles or a triangle strip); then
+/// [`check_faces`] and [`assemble`] (the mesh with its normals, colours, UVs and texture).
 pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     check_content(bytes, super::MeshFormat::Ply, path)?;
     let h = parse_header(bytes, path)?;
@@ -394,192 +399,316 @@ pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         pos: h.body_start,
         enc: h.enc,
     };
-    let mut positions: Vec<[f32; 3]> = Vec::new();
-    let mut normals: Vec<[f32; 3]> = Vec::new();
-    let mut colors: Vec<[f32; 3]> = Vec::new();
-    let mut vuv: Vec<[f32; 2]> = Vec::new();
-    let mut faces: Vec<[u32; 3]> = Vec::new();
-    let mut cuv: Vec<[f32; 2]> = Vec::new();
-    let mut has_cuv = false;
-    let mut have_vertices = false;
-    let mut list: Vec<f64> = Vec::new();
-    let mut tc: Vec<f64> = Vec::new();
-    let mut short_faces = 0usize;
-
+    let mut data = PlyData::default();
+    let mut item = Item::default();
     for el in &h.elements {
         let elname: String = el.name.chars().take(40).collect();
-        let truncated = |i: usize| {
-            Error::format(
-                path,
-                format!(
-                    "truncated data in element '{elname}' (item {i} of {})",
-                    el.count
-                ),
-            )
+        let at = ItemPlace {
+            path,
+            element: &elname,
+            count: el.count,
         };
-        let not_number = |i: usize, tok: String| {
-            Error::format(
-                path,
-                format!("element '{elname}' item {i}: '{tok}' is not a number"),
-            )
-        };
-        let is_vertex = el.name == "vertex" && !have_vertices;
-        let is_face = el.name == "face";
-        let is_strip = el.name == "tristrips";
-        let roles: Vec<Role> = el
-            .props
-            .iter()
-            .map(|p| match (&p.kind, is_vertex, is_face || is_strip) {
-                (Kind::Scalar(_), true, _) => vertex_role(&p.name),
-                (Kind::List(..), false, true)
-                    if p.name == "vertex_indices" || p.name == "vertex_index" =>
-                {
-                    Role::Indices
-                }
-                (Kind::List(..), false, true) if is_face && p.name == "texcoord" => Role::TexCoord,
-                _ => Role::Skip,
-            })
-            .collect();
-        let has = |f: &dyn Fn(Role) -> bool| roles.iter().any(|&r| f(r));
-        if is_vertex {
-            have_vertices = true;
-            for k in 0..3 {
-                if !has(&|r| r == Role::Pos(k)) {
-                    return Err(Error::format(
-                        path,
-                        format!("vertex element has no '{}' property", ["x", "y", "z"][k]),
-                    ));
-                }
-            }
-        }
-        let want_n = is_vertex && (0..3).all(|k| has(&|r| r == Role::Normal(k)));
-        let want_c = is_vertex && (0..3).all(|k| has(&|r| r == Role::Color(k)));
-        let want_uv = is_vertex && (0..2).all(|k| has(&|r| r == Role::Uv(k)));
-        if is_vertex {
-            // An allocation failure is an error, not an abort (the count is within budget, but
-            // the process may have less memory than the budget needs).
-            let no_memory =
-                |_| Error::format(path, format!("not enough memory for {} vertices", el.count));
-            positions.try_reserve(el.count).map_err(no_memory)?;
-            if want_n {
-                normals.try_reserve(el.count).map_err(no_memory)?;
-            }
-            if want_c {
-                colors.try_reserve(el.count).map_err(no_memory)?;
-            }
-            if want_uv {
-                vuv.try_reserve(el.count).map_err(no_memory)?;
-            }
+        let plan = plan_element(el, data.have_vertices, path)?;
+        if plan.is_vertex {
+            data.have_vertices = true;
+            reserve_vertices(&mut data, &plan, el.count, path)?;
         }
         if el.props.is_empty() {
             continue;
         }
         for i in 0..el.count {
-            let mut p = [0.0f32; 3];
-            let mut nrm = [0.0f32; 3];
-            let mut col = [0.0f32; 3];
-            let mut uv = [0.0f32; 2];
-            list.clear();
-            tc.clear();
-            for (prop, &role) in el.props.iter().zip(&roles) {
-                match prop.kind {
-                    Kind::Scalar(t) => {
-                        if role == Role::Skip && h.enc != Encoding::Ascii {
-                            if !body.skip(t, 1) {
-                                return Err(truncated(i));
-                            }
-                            continue;
-                        }
-                        let v = body
-                            .read(t)
-                            .map_err(|tok| not_number(i, tok))?
-                            .ok_or_else(|| truncated(i))?;
-                        match role {
-                            Role::Pos(k) => p[k] = v as f32,
-                            Role::Normal(k) => nrm[k] = v as f32,
-                            Role::Color(k) => col[k] = (v * t.color_scale()) as f32,
-                            Role::Uv(k) => uv[k] = v as f32,
-                            _ => {}
-                        }
-                    }
-                    Kind::List(ct, it) => {
-                        let c = body
-                            .read(ct)
-                            .map_err(|tok| not_number(i, tok))?
-                            .ok_or_else(|| truncated(i))?;
-                        if !(c >= 0.0 && c.fract() == 0.0) {
-                            return Err(Error::format(
-                                path,
-                                format!("element '{elname}' item {i}: bad list length {c}"),
-                            ));
-                        }
-                        let c = c as usize;
-                        let room = if h.enc == Encoding::Ascii {
-                            body.remaining() / 2 + 1
-                        } else {
-                            body.remaining() / it.size()
-                        };
-                        if c > room {
-                            return Err(truncated(i));
-                        }
-                        let dest = match role {
-                            Role::Indices => &mut list,
-                            Role::TexCoord => &mut tc,
-                            _ => {
-                                if !body.skip(it, c) {
-                                    return Err(truncated(i));
-                                }
-                                continue;
-                            }
-                        };
-                        for _ in 0..c {
-                            let v = body
-                                .read(it)
-                                .map_err(|tok| not_number(i, tok))?
-                                .ok_or_else(|| truncated(i))?;
-                            dest.push(v);
-                        }
-                    }
-                }
+            read_item(&mut body, el, &plan.roles, &at, i, &mut item)?;
+            store_item(&mut data, &plan, &item, &at, i)?;
+        }
+    }
+    check_faces(&data, path)?;
+    let mesh = assemble(data, h.texture_file.as_deref(), path);
+    finish(mesh, path)
+}
+
+/// What the elements have given so far.
+#[derive(Default)]
+struct PlyData {
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    colors: Vec<[f32; 3]>,
+    /// Per-vertex UVs.
+    vuv: Vec<[f32; 2]>,
+    faces: Vec<[u32; 3]>,
+    /// Per-corner UVs (from face `texcoord` lists, zero where a face has none).
+    cuv: Vec<[f32; 2]>,
+    /// Whether any face had a `texcoord` list.
+    has_cuv: bool,
+    /// Whether the first vertex element has been read.
+    have_vertices: bool,
+    /// Faces of fewer than three vertices, skipped.
+    short_faces: usize,
+}
+
+/// The values of one item of an element.
+#[derive(Default)]
+struct Item {
+    p: [f32; 3],
+    nrm: [f32; 3],
+    col: [f32; 3],
+    uv: [f32; 2],
+    /// Vertex indices (faces and strips).
+    list: Vec<f64>,
+    /// Face texture coordinates.
+    tc: Vec<f64>,
+}
+
+/// An element's name (at most 40 characters), its count and the file, for messages.
+struct ItemPlace<'a> {
+    path: &'a Path,
+    element: &'a str,
+    count: usize,
+}
+
+impl ItemPlace<'_> {
+    /// The body ended inside item `i`.
+    fn truncated(&self, i: usize) -> Error {
+        Error::format(
+            self.path,
+            format!(
+                "truncated data in element '{}' (item {i} of {})",
+                self.element, self.count
+            ),
+        )
+    }
+
+    /// Token `tok` of item `i` is not a number.
+    fn not_number(&self, i: usize, tok: String) -> Error {
+        Error::format(
+            self.path,
+            format!(
+                "element '{}' item {i}: '{tok}' is not a number",
+                self.element
+            ),
+        )
+    }
+}
+
+/// How one element is read: each property's role and which vertex attributes it carries.
+struct ElementPlan {
+    roles: Vec<Role>,
+    /// The first element named `vertex`.
+    is_vertex: bool,
+    is_face: bool,
+    is_strip: bool,
+    want_n: bool,
+    want_c: bool,
+    want_uv: bool,
+}
+
+/// The roles of an element's properties; a vertex element without `x`, `y` or `z` is an error.
+fn plan_element(el: &Element, have_vertices: bool, path: &Path) -> Result<ElementPlan> {
+    let is_vertex = el.name == "vertex" && !have_vertices;
+    let is_face = el.name == "face";
+    let is_strip = el.name == "tristrips";
+    let roles: Vec<Role> = el
+        .props
+        .iter()
+        .map(|p| match (&p.kind, is_vertex, is_face || is_strip) {
+            (Kind::Scalar(_), true, _) => vertex_role(&p.name),
+            (Kind::List(..), false, true)
+                if p.name == "vertex_indices" || p.name == "vertex_index" =>
+            {
+                Role::Indices
             }
-            if is_vertex {
-                positions.push(p);
-                if want_n {
-                    normals.push(nrm);
-                }
-                if want_c {
-                    colors.push(col);
-                }
-                if want_uv {
-                    vuv.push(uv);
-                }
-            } else if is_face {
-                if list.len() < 3 {
-                    short_faces += 1;
-                    continue;
-                }
-                let idx = to_indices(&list, path, &elname, i)?;
-                let with_tc = tc.len() == 2 * idx.len();
-                has_cuv |= with_tc;
-                fan(idx.len(), |a, b, c| {
-                    faces.push([idx[a], idx[b], idx[c]]);
-                    for k in [a, b, c] {
-                        cuv.push(if with_tc {
-                            [tc[2 * k] as f32, tc[2 * k + 1] as f32]
-                        } else {
-                            [0.0; 2]
-                        });
-                    }
-                });
-            } else if is_strip {
-                strips_to_faces(&list, &mut faces, &mut cuv, path, &elname, i)?;
+            (Kind::List(..), false, true) if is_face && p.name == "texcoord" => Role::TexCoord,
+            _ => Role::Skip,
+        })
+        .collect();
+    let has = |f: &dyn Fn(Role) -> bool| roles.iter().any(|&r| f(r));
+    if is_vertex {
+        for k in 0..3 {
+            if !has(&|r| r == Role::Pos(k)) {
+                return Err(Error::format(
+                    path,
+                    format!("vertex element has no '{}' property", ["x", "y", "z"][k]),
+                ));
             }
         }
     }
-    if !have_vertices {
+    let want_n = is_vertex && (0..3).all(|k| has(&|r| r == Role::Normal(k)));
+    let want_c = is_vertex && (0..3).all(|k| has(&|r| r == Role::Color(k)));
+    let want_uv = is_vertex && (0..2).all(|k| has(&|r| r == Role::Uv(k)));
+    Ok(ElementPlan {
+        roles,
+        is_vertex,
+        is_face,
+        is_strip,
+        want_n,
+        want_c,
+        want_uv,
+    })
+}
+
+/// Reserve room for `count` vertices and their attributes; an allocation failure is an error,
+/// not an abort (the count is within budget, but the process may have less memory than the
+/// budget needs).
+fn reserve_vertices(
+    data: &mut PlyData,
+    plan: &ElementPlan,
+    count: usize,
+    path: &Path,
+) -> Result<()> {
+    let no_memory = |_| Error::format(path, format!("not enough memory for {count} vertices"));
+    data.positions.try_reserve(count).map_err(no_memory)?;
+    if plan.want_n {
+        data.normals.try_reserve(count).map_err(no_memory)?;
+    }
+    if plan.want_c {
+        data.colors.try_reserve(count).map_err(no_memory)?;
+    }
+    if plan.want_uv {
+        data.vuv.try_reserve(count).map_err(no_memory)?;
+    }
+    Ok(())
+}
+
+/// Read item `i` of element `el` from the body into `item`, skipping the properties it does not
+/// use.
+fn read_item(
+    body: &mut Body,
+    el: &Element,
+    roles: &[Role],
+    at: &ItemPlace,
+    i: usize,
+    item: &mut Item,
+) -> Result<()> {
+    item.p = [0.0f32; 3];
+    item.nrm = [0.0f32; 3];
+    item.col = [0.0f32; 3];
+    item.uv = [0.0f32; 2];
+    item.list.clear();
+    item.tc.clear();
+    for (prop, &role) in el.props.iter().zip(roles) {
+        match prop.kind {
+            Kind::Scalar(t) => {
+                if role == Role::Skip && body.enc != Encoding::Ascii {
+                    if !body.skip(t, 1) {
+                        return Err(at.truncated(i));
+                    }
+                    continue;
+                }
+                let v = body
+                    .read(t)
+                    .map_err(|tok| at.not_number(i, tok))?
+                    .ok_or_else(|| at.truncated(i))?;
+                match role {
+                    Role::Pos(k) => item.p[k] = v as f32,
+                    Role::Normal(k) => item.nrm[k] = v as f32,
+                    Role::Color(k) => item.col[k] = (v * t.color_scale()) as f32,
+                    Role::Uv(k) => item.uv[k] = v as f32,
+                    _ => {}
+                }
+            }
+            Kind::List(ct, it) => {
+                let c = body
+                    .read(ct)
+                    .map_err(|tok| at.not_number(i, tok))?
+                    .ok_or_else(|| at.truncated(i))?;
+                if !(c >= 0.0 && c.fract() == 0.0) {
+                    return Err(Error::format(
+                        at.path,
+                        format!("element '{}' item {i}: bad list length {c}", at.element),
+                    ));
+                }
+                let c = c as usize;
+                let room = if body.enc == Encoding::Ascii {
+                    body.remaining() / 2 + 1
+                } else {
+                    body.remaining() / it.size()
+                };
+                if c > room {
+                    return Err(at.truncated(i));
+                }
+                let dest = match role {
+                    Role::Indices => &mut item.list,
+                    Role::TexCoord => &mut item.tc,
+                    _ => {
+                        if !body.skip(it, c) {
+                            return Err(at.truncated(i));
+                        }
+                        continue;
+                    }
+                };
+                for _ in 0..c {
+                    let v = body
+                        .read(it)
+                        .map_err(|tok| at.not_number(i, tok))?
+                        .ok_or_else(|| at.truncated(i))?;
+                    dest.push(v);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Add item `i` to the mesh data: a vertex with its attributes, a face fanned into triangles
+/// (with its texture coordinates), or a triangle strip.
+fn store_item(
+    data: &mut PlyData,
+    plan: &ElementPlan,
+    item: &Item,
+    at: &ItemPlace,
+    i: usize,
+) -> Result<()> {
+    if plan.is_vertex {
+        data.positions.push(item.p);
+        if plan.want_n {
+            data.normals.push(item.nrm);
+        }
+        if plan.want_c {
+            data.colors.push(item.col);
+        }
+        if plan.want_uv {
+            data.vuv.push(item.uv);
+        }
+    } else if plan.is_face {
+        let (list, tc) = (&item.list, &item.tc);
+        if list.len() < 3 {
+            data.short_faces += 1;
+            return Ok(());
+        }
+        let idx = to_indices(list, at.path, at.element, i)?;
+        let with_tc = tc.len() == 2 * idx.len();
+        data.has_cuv |= with_tc;
+        let (faces, cuv) = (&mut data.faces, &mut data.cuv);
+        fan(idx.len(), |a, b, c| {
+            faces.push([idx[a], idx[b], idx[c]]);
+            for k in [a, b, c] {
+                cuv.push(if with_tc {
+                    [tc[2 * k] as f32, tc[2 * k + 1] as f32]
+                } else {
+                    [0.0; 2]
+                });
+            }
+        });
+    } else if plan.is_strip {
+        strips_to_faces(
+            &item.list,
+            &mut data.faces,
+            &mut data.cuv,
+            at.path,
+            at.element,
+            i,
+        )?;
+    }
+    Ok(())
+}
+
+/// A vertex element, some faces unless all were degenerate (a warning counts the skipped ones),
+/// and every face index within the vertices.
+fn check_faces(data: &PlyData, path: &Path) -> Result<()> {
+    if !data.have_vertices {
         return Err(Error::format(path, "no vertex element"));
     }
-    if short_faces > 0 && faces.is_empty() {
+    let short_faces = data.short_faces;
+    if short_faces > 0 && data.faces.is_empty() {
         return Err(Error::format(
             path,
             format!(
@@ -594,22 +723,30 @@ pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
             path.display()
         ));
     }
-    let n = positions.len();
-    if let Some(bad) = faces.iter().flatten().find(|&&v| v as usize >= n) {
+    let n = data.positions.len();
+    if let Some(bad) = data.faces.iter().flatten().find(|&&v| v as usize >= n) {
         return Err(Error::format(
             path,
             format!("a face references vertex {bad} but the file has {n} vertices"),
         ));
     }
+    Ok(())
+}
+
+/// The mesh: normals and colours where every vertex has one, per-corner UVs from the faces'
+/// texture coordinates or else the vertices', and the `comment TextureFile` image beside `path`.
+fn assemble(data: PlyData, texture_file: Option<&str>, path: &Path) -> TriMesh {
+    let n = data.positions.len();
     let mut mesh = TriMesh {
-        positions,
-        faces,
+        positions: data.positions,
+        faces: data.faces,
         ..Default::default()
     };
+    let (normals, colors, vuv) = (data.normals, data.colors, data.vuv);
     mesh.normals = (normals.len() == n && n > 0).then_some(normals);
     mesh.colors = (colors.len() == n && n > 0).then_some(colors);
-    if has_cuv {
-        mesh.uvs = Some(cuv);
+    if data.has_cuv {
+        mesh.uvs = Some(data.cuv);
     } else if vuv.len() == n && n > 0 {
         mesh.uvs = Some(
             mesh.faces
@@ -618,11 +755,11 @@ pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
                 .collect(),
         );
     }
-    if let Some(name) = &h.texture_file {
+    if let Some(name) = texture_file {
         let dir = path.parent().unwrap_or(Path::new("."));
         mesh.texture = super::load_texture_or_warn(&dir.join(name), path);
     }
-    finish(mesh, path)
+    mesh
 }
 
 /// Convert a list of numbers to vertex indices (non-negative integers below 2^32).

@@ -543,155 +543,172 @@ pub(super) fn circle_profile(rc: f32, zc: f32, r: f32, m: usize) -> Vec<(f32, f3
 
 /// A procedural swatch, deterministic under `seed` (only `nuts` uses randomness). All are
 /// periodic with the reported extent as period; unit spacing between neighbouring elements.
+///
+/// One function per kind builds its elements on a 4 x 4 grid of cells and returns the extent.
 pub fn swatch(kind: SwatchKind, seed: u64) -> Swatch {
     let mut b = Builder::default();
     let mut rng = SmallRng::seed_from_u64(seed ^ 0x5157_4154_4348);
     let (nx, ny) = (4usize, 4usize);
     let extent = match kind {
-        SwatchKind::Chain => {
-            // flat rings at cell centres, upright rings on the cell edges between them; the
-            // upright circle crosses z = zc at 0.2 from each flat ring's centre (inside its
-            // hole), 0.1 clear of the flat ring's centre line, tubes 0.035 thick.
-            let (rf, rv, tube) = (0.3f32, 0.3f32, 0.035f32);
-            let squash = 0.6f32;
-            let zc = rv * squash + tube + 0.01;
-            let tor = circle_profile(rf, 0.0, tube, 6);
-            for j in 0..ny {
-                for i in 0..nx {
-                    let c = Vec3::new(i as f32 + 0.5, j as f32 + 0.5, zc);
-                    b.revolve(&tor, true, 16, |p| p + c);
-                    // upright ring between (i, j) and (i + 1, j), in the x-z plane
-                    let cx = Vec3::new(i as f32 + 1.0, j as f32 + 0.5, zc);
-                    let ring = circle_profile(rv, 0.0, tube, 6);
-                    let rx = Mat3::from_rotation_x(std::f32::consts::FRAC_PI_2);
-                    b.revolve(&ring, true, 16, |p| {
-                        let q = rx * p;
-                        Vec3::new(q.x, q.y, q.z * squash) + cx
-                    });
-                    // upright ring between (i, j) and (i, j + 1), in the y-z plane
-                    let cy = Vec3::new(i as f32 + 0.5, j as f32 + 1.0, zc);
-                    let ry = Mat3::from_rotation_y(std::f32::consts::FRAC_PI_2);
-                    b.revolve(&ring, true, 16, |p| {
-                        let q = ry * p;
-                        Vec3::new(q.x, q.y, q.z * squash) + cy
-                    });
-                }
-            }
-            [nx as f32, ny as f32]
-        }
-        SwatchKind::Weave => {
-            // strands along x at y = j + 0.25 and along y at x = i + 0.75; x strands go over
-            // at even crossings, y strands at odd; period 2 crossings per strand.
-            let (rw, rh, amp, gap) = (0.18f32, 0.07f32, 0.09f32, 0.06f32);
-            let zc = amp + rh + 0.01;
-            let len = nx as f32;
-            let samples = 32usize;
-            for j in 0..ny {
-                let phase = if j % 2 == 0 {
-                    0.0
-                } else {
-                    std::f32::consts::PI
-                };
-                let path: Vec<Vec3> = (0..=samples)
-                    .map(|s| {
-                        let x = gap / 2.0 + (len - gap) * s as f32 / samples as f32;
-                        let z = zc + amp * (std::f32::consts::PI * (x - 0.75) + phase).cos();
-                        Vec3::new(x, 0.0, z)
-                    })
-                    .collect();
-                let y = j as f32 + 0.25;
-                b.strand(&path, rw, rh, 8, |p| Vec3::new(p.x, y + p.y, p.z));
-            }
-            for i in 0..nx {
-                let phase = if i % 2 == 0 {
-                    std::f32::consts::PI
-                } else {
-                    0.0
-                };
-                let path: Vec<Vec3> = (0..=samples)
-                    .map(|s| {
-                        let t = gap / 2.0 + (len - gap) * s as f32 / samples as f32;
-                        let z = zc + amp * (std::f32::consts::PI * (t - 0.25) + phase).cos();
-                        Vec3::new(t, 0.0, z)
-                    })
-                    .collect();
-                let x = i as f32 + 0.75;
-                // swap x and y: the strand runs along y
-                b.strand(&path, rw, rh, 8, |p| Vec3::new(x - p.y, p.x, p.z));
-            }
-            [nx as f32, ny as f32]
-        }
-        SwatchKind::Nuts => {
-            for j in 0..ny {
-                for i in 0..nx {
-                    let size: f32 = rng.random_range(0.75..1.0);
-                    let (ri, ro, hgt) = (0.14 * size, 0.32 * size, 0.2 * size);
-                    let turn: f32 = rng.random_range(0.0..std::f32::consts::TAU);
-                    let jx: f32 = rng.random_range(-0.1..0.1);
-                    let jy: f32 = rng.random_range(-0.1..0.1);
-                    let c = Vec3::new(i as f32 + 0.5 + jx, j as f32 + 0.5 + jy, 0.0);
-                    let rot = Mat3::from_rotation_z(turn);
-                    // rectangle profile (inner wall, top, outer wall, bottom), closed
-                    let prof = [(ri, 0.0), (ro, 0.0), (ro, hgt), (ri, hgt)];
-                    b.revolve(&prof, true, 6, |p| rot * p + c);
-                }
-            }
-            [nx as f32, ny as f32]
-        }
-        SwatchKind::Studs => {
-            let (r, h, fillet) = (0.3f32, 0.35f32, 0.08f32);
-            let mut prof = vec![(0.0, 0.0), (r, 0.0)];
-            for k in 0..=4 {
-                let a = std::f32::consts::FRAC_PI_2 * k as f32 / 4.0;
-                prof.push((r - fillet + fillet * a.cos(), h - fillet + fillet * a.sin()));
-            }
-            prof.push((0.0, h));
-            // outward normal on the right of the profile direction: reverse for revolve order
-            for j in 0..ny {
-                for i in 0..nx {
-                    let c = Vec3::new(i as f32 + 0.5, j as f32 + 0.5, 0.0);
-                    b.revolve(&prof, false, 16, |p| p + c);
-                }
-            }
-            [nx as f32, ny as f32]
-        }
-        SwatchKind::Scales => {
-            // lattice (i + (j odd) / 2, j / 2); each scale a thin lens (rx 0.65, ry 0.48)
-            // tilted up along +x with slope 0.25 so neighbours lie like shingles.
-            let (rx, ry, t, slope) = (0.65f32, 0.48f32, 0.03f32, 0.25f32);
-            let rows = 2 * ny;
-            let m = 6usize;
-            let mut prof = vec![(0.0f32, -t)];
-            for k in 1..m {
-                let rr = k as f32 / m as f32;
-                prof.push((rr, -t * (1.0 - rr * rr)));
-            }
-            prof.push((1.0, 0.0));
-            for k in (1..m).rev() {
-                let rr = k as f32 / m as f32;
-                prof.push((rr, t * (1.0 - rr * rr)));
-            }
-            prof.push((0.0, t));
-            for j in 0..rows {
-                for i in 0..nx {
-                    let c = Vec3::new(
-                        i as f32 + 0.5 + 0.5 * (j % 2) as f32,
-                        0.5 * j as f32 + 0.25,
-                        0.0,
-                    );
-                    let z0 = slope * rx + t + 0.01;
-                    b.revolve(&prof, false, 16, |p| {
-                        let x = p.x * rx;
-                        let y = p.y * ry;
-                        Vec3::new(c.x + x, c.y + y, z0 + slope * x + p.z)
-                    });
-                }
-            }
-            [nx as f32, 0.5 * rows as f32]
-        }
+        SwatchKind::Chain => chain_rings(&mut b, nx, ny),
+        SwatchKind::Weave => weave_strands(&mut b, nx, ny),
+        SwatchKind::Nuts => scattered_nuts(&mut b, nx, ny, &mut rng),
+        SwatchKind::Studs => studs(&mut b, nx, ny),
+        SwatchKind::Scales => shingled_scales(&mut b, nx, ny),
     };
     let mesh = TriMesh::new(b.positions, b.faces);
     Swatch::from_mesh(&mesh, extent, true).expect("procedural swatches are valid")
+}
+
+/// Chain mail: flat rings at the cell centres, linked by upright rings on the cell edges.
+fn chain_rings(b: &mut Builder, nx: usize, ny: usize) -> [f32; 2] {
+    // flat rings at cell centres, upright rings on the cell edges between them; the
+    // upright circle crosses z = zc at 0.2 from each flat ring's centre (inside its
+    // hole), 0.1 clear of the flat ring's centre line, tubes 0.035 thick.
+    let (rf, rv, tube) = (0.3f32, 0.3f32, 0.035f32);
+    let squash = 0.6f32;
+    let zc = rv * squash + tube + 0.01;
+    let tor = circle_profile(rf, 0.0, tube, 6);
+    for j in 0..ny {
+        for i in 0..nx {
+            let c = Vec3::new(i as f32 + 0.5, j as f32 + 0.5, zc);
+            b.revolve(&tor, true, 16, |p| p + c);
+            // upright ring between (i, j) and (i + 1, j), in the x-z plane
+            let cx = Vec3::new(i as f32 + 1.0, j as f32 + 0.5, zc);
+            let ring = circle_profile(rv, 0.0, tube, 6);
+            let rx = Mat3::from_rotation_x(std::f32::consts::FRAC_PI_2);
+            b.revolve(&ring, true, 16, |p| {
+                let q = rx * p;
+                Vec3::new(q.x, q.y, q.z * squash) + cx
+            });
+            // upright ring between (i, j) and (i, j + 1), in the y-z plane
+            let cy = Vec3::new(i as f32 + 0.5, j as f32 + 1.0, zc);
+            let ry = Mat3::from_rotation_y(std::f32::consts::FRAC_PI_2);
+            b.revolve(&ring, true, 16, |p| {
+                let q = ry * p;
+                Vec3::new(q.x, q.y, q.z * squash) + cy
+            });
+        }
+    }
+    [nx as f32, ny as f32]
+}
+
+/// Over-under strands along x and along y, over at alternate crossings.
+fn weave_strands(b: &mut Builder, nx: usize, ny: usize) -> [f32; 2] {
+    // strands along x at y = j + 0.25 and along y at x = i + 0.75; x strands go over
+    // at even crossings, y strands at odd; period 2 crossings per strand.
+    let (rw, rh, amp, gap) = (0.18f32, 0.07f32, 0.09f32, 0.06f32);
+    let zc = amp + rh + 0.01;
+    let len = nx as f32;
+    let samples = 32usize;
+    for j in 0..ny {
+        let phase = if j % 2 == 0 {
+            0.0
+        } else {
+            std::f32::consts::PI
+        };
+        let path: Vec<Vec3> = (0..=samples)
+            .map(|s| {
+                let x = gap / 2.0 + (len - gap) * s as f32 / samples as f32;
+                let z = zc + amp * (std::f32::consts::PI * (x - 0.75) + phase).cos();
+                Vec3::new(x, 0.0, z)
+            })
+            .collect();
+        let y = j as f32 + 0.25;
+        b.strand(&path, rw, rh, 8, |p| Vec3::new(p.x, y + p.y, p.z));
+    }
+    for i in 0..nx {
+        let phase = if i % 2 == 0 {
+            std::f32::consts::PI
+        } else {
+            0.0
+        };
+        let path: Vec<Vec3> = (0..=samples)
+            .map(|s| {
+                let t = gap / 2.0 + (len - gap) * s as f32 / samples as f32;
+                let z = zc + amp * (std::f32::consts::PI * (t - 0.25) + phase).cos();
+                Vec3::new(t, 0.0, z)
+            })
+            .collect();
+        let x = i as f32 + 0.75;
+        // swap x and y: the strand runs along y
+        b.strand(&path, rw, rh, 8, |p| Vec3::new(x - p.y, p.x, p.z));
+    }
+    [nx as f32, ny as f32]
+}
+
+/// Hexagonal nuts (a rectangle revolved in six steps) on a jittered grid, random turns and sizes.
+fn scattered_nuts(b: &mut Builder, nx: usize, ny: usize, rng: &mut SmallRng) -> [f32; 2] {
+    for j in 0..ny {
+        for i in 0..nx {
+            let size: f32 = rng.random_range(0.75..1.0);
+            let (ri, ro, hgt) = (0.14 * size, 0.32 * size, 0.2 * size);
+            let turn: f32 = rng.random_range(0.0..std::f32::consts::TAU);
+            let jx: f32 = rng.random_range(-0.1..0.1);
+            let jy: f32 = rng.random_range(-0.1..0.1);
+            let c = Vec3::new(i as f32 + 0.5 + jx, j as f32 + 0.5 + jy, 0.0);
+            let rot = Mat3::from_rotation_z(turn);
+            // rectangle profile (inner wall, top, outer wall, bottom), closed
+            let prof = [(ri, 0.0), (ro, 0.0), (ro, hgt), (ri, hgt)];
+            b.revolve(&prof, true, 6, |p| rot * p + c);
+        }
+    }
+    [nx as f32, ny as f32]
+}
+
+/// Rounded cylinders, one per cell.
+fn studs(b: &mut Builder, nx: usize, ny: usize) -> [f32; 2] {
+    let (r, h, fillet) = (0.3f32, 0.35f32, 0.08f32);
+    let mut prof = vec![(0.0, 0.0), (r, 0.0)];
+    for k in 0..=4 {
+        let a = std::f32::consts::FRAC_PI_2 * k as f32 / 4.0;
+        prof.push((r - fillet + fillet * a.cos(), h - fillet + fillet * a.sin()));
+    }
+    prof.push((0.0, h));
+    // outward normal on the right of the profile direction: reverse for revolve order
+    for j in 0..ny {
+        for i in 0..nx {
+            let c = Vec3::new(i as f32 + 0.5, j as f32 + 0.5, 0.0);
+            b.revolve(&prof, false, 16, |p| p + c);
+        }
+    }
+    [nx as f32, ny as f32]
+}
+
+/// Fish scales: thin lenses on a staggered lattice, tilted to overlap like shingles.
+fn shingled_scales(b: &mut Builder, nx: usize, ny: usize) -> [f32; 2] {
+    // lattice (i + (j odd) / 2, j / 2); each scale a thin lens (rx 0.65, ry 0.48)
+    // tilted up along +x with slope 0.25 so neighbours lie like shingles.
+    let (rx, ry, t, slope) = (0.65f32, 0.48f32, 0.03f32, 0.25f32);
+    let rows = 2 * ny;
+    let m = 6usize;
+    let mut prof = vec![(0.0f32, -t)];
+    for k in 1..m {
+        let rr = k as f32 / m as f32;
+        prof.push((rr, -t * (1.0 - rr * rr)));
+    }
+    prof.push((1.0, 0.0));
+    for k in (1..m).rev() {
+        let rr = k as f32 / m as f32;
+        prof.push((rr, t * (1.0 - rr * rr)));
+    }
+    prof.push((0.0, t));
+    for j in 0..rows {
+        for i in 0..nx {
+            let c = Vec3::new(
+                i as f32 + 0.5 + 0.5 * (j % 2) as f32,
+                0.5 * j as f32 + 0.25,
+                0.0,
+            );
+            let z0 = slope * rx + t + 0.01;
+            b.revolve(&prof, false, 16, |p| {
+                let x = p.x * rx;
+                let y = p.y * ry;
+                Vec3::new(c.x + x, c.y + y, z0 + slope * x + p.z)
+            });
+        }
+    }
+    [nx as f32, 0.5 * rows as f32]
 }
 
 #[cfg(test)]
