@@ -8,7 +8,7 @@
 //! - [`laplacian_deform`] (uniform Laplacian coordinates + soft position constraints, Zhou et
 //!   al. 2006 eq. (4)-(5))
 //! - [`HeatGeodesics`] (heat-method distances, factorised once, many source sets)
-//! - [`tangent_frames`], [`parallel_transport_angle`]
+//! - [`tangent_frames`] / [`Frames`] by a [`FrameRule`], [`transport_angle`]
 //! - [`smooth_direction_field`] (Knöppel et al. 2013: the smooth tangent field nearest a guide)
 //! - [`TriangleBvh`] (closest point, ray hit)
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
@@ -79,7 +79,7 @@ pub use curve_guided_field::{
 pub use direction_fields::smooth_direction_field;
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
-pub use frames::{parallel_transport_angle, tangent_frames};
+pub use frames::{FrameRule, Frames, frame_of, tangent_frames, transport_angle};
 pub use functional_map::{FmapParams, MapQuality, ShapeMap, Spectrum, functional_map, shape_map};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
