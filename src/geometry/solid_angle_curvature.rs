@@ -31,6 +31,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::bvh::median_split;
 use crate::error::Result;
 use crate::work::CancelToken;
 
@@ -64,7 +65,8 @@ struct Node {
     count: u32,
 }
 
-/// A triangle tree for solid-angle sums (dipole summaries per node).
+/// A triangle tree for solid-angle sums: the median-split tree of [`super::TriangleBvh`] (leaves
+/// of up to 8 triangles) with a dipole summary per node.
 #[derive(Clone, Debug)]
 pub struct SolidAngleTree {
     nodes: Vec<Node>,
@@ -125,70 +127,23 @@ fn clipped_solid_angle(t: [Vec3; 3], r: f32) -> f32 {
 impl SolidAngleTree {
     /// Build over `faces` (faces with out-of-range indices are left out).
     pub fn new(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Self {
-        let nv = positions.len();
-        let mut tris: Vec<[Vec3; 3]> = faces
+        let (tree, order) = median_split(positions, faces, LEAF);
+        let tris: Vec<[Vec3; 3]> = order
             .iter()
-            .filter(|f| f.iter().all(|&v| (v as usize) < nv))
-            .map(|f| f.map(|v| Vec3::from(positions[v as usize])))
+            .map(|&f| faces[f as usize].map(|v| Vec3::from(positions[v as usize])))
             .collect();
-        let mut nodes: Vec<Node> = Vec::with_capacity(2 * tris.len() / LEAF + 2);
-        if tris.is_empty() {
-            return SolidAngleTree { nodes, tris };
-        }
-        let blank = Node {
-            lo: Vec3::ZERO,
-            hi: Vec3::ZERO,
-            c: Vec3::ZERO,
-            n: Vec3::ZERO,
-            rad: 0.0,
-            start: 0,
-            count: 0,
-        };
-        nodes.push(blank);
-        let mut stack = vec![(0usize, 0usize, tris.len())];
-        while let Some((ni, s, e)) = stack.pop() {
-            let mut lo = Vec3::splat(f32::INFINITY);
-            let mut hi = Vec3::splat(f32::NEG_INFINITY);
-            let mut clo = lo;
-            let mut chi = hi;
-            for t in &tris[s..e] {
-                for x in t {
-                    lo = lo.min(*x);
-                    hi = hi.max(*x);
-                }
-                let c = (t[0] + t[1] + t[2]) / 3.0;
-                clo = clo.min(c);
-                chi = chi.max(c);
-            }
-            nodes[ni].lo = lo;
-            nodes[ni].hi = hi;
-            if e - s <= LEAF {
-                nodes[ni].start = s as u32;
-                nodes[ni].count = (e - s) as u32;
-                continue;
-            }
-            let ext = chi - clo;
-            let axis = if ext.x >= ext.y && ext.x >= ext.z {
-                0
-            } else if ext.y >= ext.z {
-                1
-            } else {
-                2
-            };
-            let mid = (s + e) / 2;
-            tris[s..e].select_nth_unstable_by(mid - s, |a, b| {
-                let ca = a[0][axis] + a[1][axis] + a[2][axis];
-                let cb = b[0][axis] + b[1][axis] + b[2][axis];
-                ca.total_cmp(&cb)
-            });
-            let left = nodes.len();
-            nodes.push(blank);
-            nodes.push(blank);
-            nodes[ni].start = left as u32;
-            nodes[ni].count = 0;
-            stack.push((left, s, mid));
-            stack.push((left + 1, mid, e));
-        }
+        let mut nodes: Vec<Node> = tree
+            .iter()
+            .map(|b| Node {
+                lo: b.lo,
+                hi: b.hi,
+                c: Vec3::ZERO,
+                n: Vec3::ZERO,
+                rad: 0.0,
+                start: b.start,
+                count: b.count,
+            })
+            .collect();
         // dipoles bottom-up (children always have larger indices than their parent): sum of
         // area vectors, area, and area-weighted centroid
         let mut area = vec![0.0f32; nodes.len()];
