@@ -13,6 +13,7 @@
 //! - [`TriangleBvh`] (closest point, ray hit)
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
 //! - [`morton_order`] (a cache-friendly visiting order along the Z-order curve)
+//! - [`value_noise`] (hashed-lattice value noise with a [`Fade`])
 //! - [`taubin_smooth`]
 //! - [`shape_map`] / [`functional_map`] (functional maps + ZoomOut: a global intrinsic map)
 //! - [`solid_angle_curvature`] (Connolly / Mertens multi-scale curvature, Barnes-Hut tree)
@@ -50,6 +51,7 @@ mod heat;
 mod laplacian;
 mod laplacian_editing;
 mod morton_order;
+mod noise;
 mod occlusion;
 mod refine;
 mod shell_map;
@@ -85,6 +87,7 @@ pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
 pub use laplacian_editing::laplacian_deform;
 pub use morton_order::{inverse_order, morton_order};
+pub use noise::{Fade, value_noise};
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
 pub(crate) use refine::IntMap;
 pub use refine::{Refined, nearest_original, refine_to_density};
