@@ -124,20 +124,8 @@ mod tests {
     #[test]
     fn a_smooth_guide_on_a_plane_is_kept_and_a_jump_is_smoothed() {
         let (nx, ny, h) = (30usize, 20usize, 0.1f32);
-        let mut pos = Vec::new();
-        for j in 0..=ny {
-            for i in 0..=nx {
-                pos.push([i as f32 * h, j as f32 * h, 0.0]);
-            }
-        }
+        let (pos, faces) = crate::testdata::grid_cells(nx, ny, h);
         let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
-        let mut faces = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
         let normals = vec![[0.0, 0.0, 1.0]; pos.len()];
         let along = vec![[1.0, 0.0, 0.0]; pos.len()];
         let out = smooth_direction_field(&pos, &faces, &normals, &along, 0.5).unwrap();

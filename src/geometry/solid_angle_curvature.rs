@@ -360,43 +360,6 @@ fn cone_excess(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<f32> {
 mod tests {
     use super::*;
 
-    /// UV sphere of radius `rad` (closed, outward CCW).
-    pub(crate) fn uv_sphere(rad: f32, nu: u32, nv: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let mut pos = vec![[0.0, 0.0, rad]];
-        for i in 1..nv {
-            let th = std::f32::consts::PI * i as f32 / nv as f32;
-            for j in 0..nu {
-                let ph = std::f32::consts::TAU * j as f32 / nu as f32;
-                pos.push([
-                    rad * th.sin() * ph.cos(),
-                    rad * th.sin() * ph.sin(),
-                    rad * th.cos(),
-                ]);
-            }
-        }
-        pos.push([0.0, 0.0, -rad]);
-        let south = pos.len() as u32 - 1;
-        let ring = |i: u32, j: u32| 1 + (i - 1) * nu + (j % nu);
-        let mut f = Vec::new();
-        for j in 0..nu {
-            f.push([0, ring(1, j), ring(1, j + 1)]);
-            f.push([south, ring(nv - 1, j + 1), ring(nv - 1, j)]);
-        }
-        for i in 1..nv - 1 {
-            for j in 0..nu {
-                let (a, b, c, d) = (
-                    ring(i, j),
-                    ring(i, j + 1),
-                    ring(i + 1, j),
-                    ring(i + 1, j + 1),
-                );
-                f.push([a, c, d]);
-                f.push([a, d, b]);
-            }
-        }
-        (pos, f)
-    }
-
     #[test]
     fn plane_sphere_and_cavity() {
         // plane: a 41x41 grid
@@ -424,7 +387,7 @@ mod tests {
         );
 
         // (the poles' triangle fans concentrate curvature at one vertex: skip them)
-        let (pos, faces) = uv_sphere(1.0, 192, 96);
+        let (pos, faces) = crate::testdata::uv_sphere(96, 192);
         let radii = [0.1, 0.3, 0.6];
         let k = solid_angle_curvature(&pos, &faces, &radii);
         for v in (1000..pos.len() - 1000).step_by(997) {
