@@ -145,34 +145,9 @@ impl Engine for TestEngine {
     }
 }
 
-/// A UV sphere with colours red (x > 0) / blue.
+/// A UV sphere (poles on the y axis) with colours red (x > 0) / blue.
 fn sphere(rings: u32, segments: u32) -> TriMesh {
-    let mut positions = vec![[0.0, 1.0, 0.0]];
-    for r in 1..rings {
-        let theta = std::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..segments {
-            let phi = 2.0 * std::f32::consts::PI * s as f32 / segments as f32;
-            positions.push([
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                theta.sin() * phi.sin(),
-            ]);
-        }
-    }
-    positions.push([0.0, -1.0, 0.0]);
-    let south = positions.len() as u32 - 1;
-    let idx = |r: u32, s: u32| 1 + (r - 1) * segments + (s % segments);
-    let mut faces = Vec::new();
-    for s in 0..segments {
-        faces.push([0, idx(1, s + 1), idx(1, s)]);
-        faces.push([south, idx(rings - 1, s), idx(rings - 1, s + 1)]);
-    }
-    for r in 1..rings - 1 {
-        for s in 0..segments {
-            faces.push([idx(r, s), idx(r, s + 1), idx(r + 1, s + 1)]);
-            faces.push([idx(r, s), idx(r + 1, s + 1), idx(r + 1, s)]);
-        }
-    }
+    let (positions, faces) = meshmatch::testdata::uv_sphere_y_up(rings as usize, segments as usize);
     let mut m = TriMesh::new(positions, faces);
     m.colors = Some(
         m.positions

@@ -16,48 +16,13 @@ fn scratch(name: &str) -> Scratch {
 
 /// The unit cube, corner 0 at the origin: 8 vertices, 12 outward triangles, no normals.
 fn cube() -> TriMesh {
-    let p = (0..8)
-        .map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32])
-        .collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let faces = quads
-        .iter()
-        .flat_map(|q: &[u32; 4]| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
-    TriMesh::new(p, faces)
+    let (p, f) = meshmatch::testdata::cuboid(1.0, 1.0, 1.0);
+    TriMesh::new(p, f)
 }
 
 /// A UV sphere of radius 1 about the origin, without normals.
 fn sphere(rings: usize, segs: usize) -> TriMesh {
-    let mut p = vec![[0.0, 0.0, 1.0]];
-    for r in 1..rings {
-        let t = std::f32::consts::PI * r as f32 / rings as f32;
-        for s in 0..segs {
-            let a = std::f32::consts::TAU * s as f32 / segs as f32;
-            p.push([t.sin() * a.cos(), t.sin() * a.sin(), t.cos()]);
-        }
-    }
-    p.push([0.0, 0.0, -1.0]);
-    let south = (p.len() - 1) as u32;
-    let at = |r: usize, s: usize| (1 + (r - 1) * segs + s % segs) as u32;
-    let mut f = Vec::new();
-    for s in 0..segs {
-        f.push([0, at(1, s), at(1, s + 1)]);
-        f.push([south, at(rings - 1, s + 1), at(rings - 1, s)]);
-    }
-    for r in 1..rings - 1 {
-        for s in 0..segs {
-            f.push([at(r, s), at(r + 1, s), at(r + 1, s + 1)]);
-            f.push([at(r, s), at(r + 1, s + 1), at(r, s + 1)]);
-        }
-    }
+    let (p, f) = meshmatch::testdata::uv_sphere(rings, segs);
     TriMesh::new(p, f)
 }
 

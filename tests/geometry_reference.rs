@@ -387,6 +387,6 @@ fn vertex_normals_of_a_sphere_point_outwards() {
         let c = s.positions[f[0] as usize];
         n[0] * c[0] + n[1] * c[1] + n[2] * c[2] > 0.9
     }));
-    let frames = tangent_frames(&nrm);
+    let frames = tangent_frames(&nrm, FrameRule::Duff);
     assert_eq!(frames.len(), nrm.len());
 }

@@ -16,64 +16,11 @@ use meshmatch::work::{CancelToken, no_events};
 
 /// Icosphere of radius `r`, `k` subdivisions.
 fn icosphere(r: f32, k: usize) -> TriMesh {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut p: Vec<Vec3> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|a| Vec3::from(*a).normalize())
-    .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..k {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut nf = Vec::new();
-        let mut m = |a: u32, b: u32, p: &mut Vec<Vec3>| -> u32 {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                p.push(((p[a as usize] + p[b as usize]) * 0.5).normalize());
-                p.len() as u32 - 1
-            })
-        };
-        for [a, b, c] in f {
-            let ab = m(a, b, &mut p);
-            let bc = m(b, c, &mut p);
-            let ca = m(c, a, &mut p);
-            nf.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = nf;
-    }
-    TriMesh::new(p.iter().map(|v| (*v * r).to_array()).collect(), f)
+    let (p, f) = meshmatch::testdata::icosphere(k);
+    TriMesh::new(
+        p.iter().map(|v| (Vec3::from(*v) * r).to_array()).collect(),
+        f,
+    )
 }
 
 fn quilt(base: &TriMesh, sw: &Swatch, params: &Params) -> QuiltOutput {

@@ -16,65 +16,7 @@ use meshmatch::work::{CancelToken, Event, no_events};
 
 /// Unit icosphere: icosahedron subdivided `n` times.
 fn icosphere(n: usize) -> TriMesh {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let base = [
-        [-1., t, 0.],
-        [1., t, 0.],
-        [-1., -t, 0.],
-        [1., -t, 0.],
-        [0., -1., t],
-        [0., 1., t],
-        [0., -1., -t],
-        [0., 1., -t],
-        [t, 0., -1.],
-        [t, 0., 1.],
-        [-t, 0., -1.],
-        [-t, 0., 1.],
-    ];
-    let mut p: Vec<[f32; 3]> = base
-        .iter()
-        .map(|v| Vec3::from(*v).normalize().to_array())
-        .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..n {
-        let mut mid = std::collections::HashMap::new();
-        let mut nf = Vec::new();
-        let mut m = |a: u32, b: u32, p: &mut Vec<[f32; 3]>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                let v = (Vec3::from(p[a as usize]) + Vec3::from(p[b as usize])).normalize();
-                p.push(v.to_array());
-                p.len() as u32 - 1
-            })
-        };
-        for [a, b, c] in f {
-            let ab = m(a, b, &mut p);
-            let bc = m(b, c, &mut p);
-            let ca = m(c, a, &mut p);
-            nf.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = nf;
-    }
+    let (p, f) = meshmatch::testdata::icosphere(n);
     TriMesh::new(p, f)
 }
 

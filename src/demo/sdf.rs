@@ -5,6 +5,7 @@
 //! exact capsule / sphere / round cone, the `k0 (k0 - 1) / k1` ellipsoid bound, and the
 //! quadratic polynomial smooth minimum `min(a, b) - h^2 k / 4`, `h = max(k - |a - b|, 0) / k`.
 
+use crate::geometry::{Fade, value_noise};
 use crate::mesh::TriMesh;
 use glam::{Quat, Vec3};
 use rayon::prelude::*;
@@ -509,32 +510,7 @@ pub fn signed_volume(mesh: &TriMesh) -> f64 {
         .sum()
 }
 
-/// Deterministic smooth 3D value noise in [-1, 1] (trilinear with quintic fade over hashed
-/// lattice values).
+/// Deterministic smooth 3D value noise in [-1, 1] (quintic fade, [`value_noise`]).
 pub fn noise3(p: Vec3, seed: u32) -> f32 {
-    fn hash(x: i32, y: i32, z: i32, seed: u32) -> f32 {
-        let mut h = (x as u32).wrapping_mul(0x8da6_b343)
-            ^ (y as u32).wrapping_mul(0xd816_3841)
-            ^ (z as u32).wrapping_mul(0xcb1a_b31f)
-            ^ seed.wrapping_mul(0x1656_67b1);
-        h ^= h >> 15;
-        h = h.wrapping_mul(0x2c1b_3c6d);
-        h ^= h >> 12;
-        h = h.wrapping_mul(0x297a_2d39);
-        h ^= h >> 15;
-        (h as f32 / u32::MAX as f32) * 2.0 - 1.0
-    }
-    let fl = p.floor();
-    let fr = p - fl;
-    let w = fr * fr * fr * (fr * (fr * 6.0 - 15.0) + 10.0);
-    let (x, y, z) = (fl.x as i32, fl.y as i32, fl.z as i32);
-    let mut acc = 0.0;
-    for c in 0..8 {
-        let (dx, dy, dz) = (c & 1, (c >> 1) & 1, c >> 2);
-        let wx = if dx == 1 { w.x } else { 1.0 - w.x };
-        let wy = if dy == 1 { w.y } else { 1.0 - w.y };
-        let wz = if dz == 1 { w.z } else { 1.0 - w.z };
-        acc += wx * wy * wz * hash(x + dx, y + dy, z + dz, seed);
-    }
-    acc
+    value_noise(p, seed.wrapping_mul(0x1656_67b1), Fade::Quintic)
 }

@@ -1,39 +1,7 @@
 //! The minimum-norm affine map between geodesic-distance vectors (MeshMatch §3.2).
 
-/// Solve the small dense system `a x = b` (n x n, row-major) by Gaussian elimination with partial
-/// pivoting; `None` if singular.
-fn solve_dense(mut a: Vec<f64>, mut b: Vec<f64>, n: usize) -> Option<Vec<f64>> {
-    for c in 0..n {
-        let p = (c..n).max_by(|&i, &j| a[i * n + c].abs().total_cmp(&a[j * n + c].abs()))?;
-        if a[p * n + c].abs() < 1e-14 {
-            return None;
-        }
-        if p != c {
-            for k in 0..n {
-                a.swap(c * n + k, p * n + k);
-            }
-            b.swap(c, p);
-        }
-        for r in c + 1..n {
-            let f = a[r * n + c] / a[c * n + c];
-            if f != 0.0 {
-                for k in c..n {
-                    a[r * n + k] -= f * a[c * n + k];
-                }
-                b[r] -= f * b[c];
-            }
-        }
-    }
-    let mut x = vec![0.0; n];
-    for r in (0..n).rev() {
-        let mut s = b[r];
-        for k in r + 1..n {
-            s -= a[r * n + k] * x[k];
-        }
-        x[r] = s / a[r * n + r];
-    }
-    Some(x)
-}
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
 
 /// The affine map of MeshMatch §3.2 taking target geodesic-distance vectors to source ones:
 /// returns `K x (K + 1)` row-major `[M | b]` with `M g_T + b = g_S` at every constrained pair
@@ -50,24 +18,25 @@ pub fn min_norm_affine(target_rows: &[Vec<f32>], source_rows: &[Vec<f32>], k: us
         .flat_map(|g| g.iter().map(|&x| x as f64).chain(std::iter::once(1.0)))
         .collect();
     let scale = a.iter().map(|x| x * x).sum::<f64>() / p.max(1) as f64;
-    let mut aat = vec![0.0f64; p * p];
+    let mut aat = Mat::<f64>::from_fn(p, p, |i, j| {
+        (0..cols).map(|c| a[i * cols + c] * a[j * cols + c]).sum()
+    });
     for i in 0..p {
-        for j in 0..p {
-            aat[i * p + j] = (0..cols).map(|c| a[i * cols + c] * a[j * cols + c]).sum();
-        }
-        aat[i * p + i] += 1e-6 * scale.max(1e-12);
+        aat[(i, i)] += 1e-6 * scale.max(1e-12);
+    }
+    // Residuals of the identity rows, one column per output row, all solved with one
+    // factorisation of the (symmetric positive definite) A Aᵀ + εI.
+    let mut y = Mat::<f64>::from_fn(p, k, |i, r| source_rows[i][r] as f64 - a[i * cols + r]);
+    match aat.llt(Side::Lower) {
+        Ok(llt) => llt.solve_in_place(y.as_mut()),
+        Err(_) => y.fill(0.0),
     }
     let mut out = vec![0.0f64; k * cols];
     for r in 0..k {
-        // Residual of the identity row.
-        let resid: Vec<f64> = (0..p)
-            .map(|i| source_rows[i][r] as f64 - a[i * cols + r])
-            .collect();
-        let y = solve_dense(aat.clone(), resid, p).unwrap_or_else(|| vec![0.0; p]);
         for c in 0..cols {
             let mut m = if c == r { 1.0 } else { 0.0 };
             for i in 0..p {
-                m += a[i * cols + c] * y[i];
+                m += a[i * cols + c] * y[(i, r)];
             }
             out[r * cols + c] = m;
         }

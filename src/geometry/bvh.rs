@@ -8,14 +8,16 @@ const LEAF_SIZE: usize = 4;
 /// along a shared edge must not slip between the triangles by rounding (and hit the far side).
 pub(crate) const BARY_EPS: f32 = 1e-5;
 
+/// A node of a median-split triangle tree ([`median_split`]).
 #[derive(Clone, Copy, Debug)]
-struct Node {
-    lo: Vec3,
-    hi: Vec3,
+pub(crate) struct Node {
+    /// Bounds of the node's triangles.
+    pub lo: Vec3,
+    pub hi: Vec3,
     /// Leaf: first index into `order`; inner node: index of the left child (right = left + 1).
-    start: u32,
+    pub start: u32,
     /// Number of triangles for a leaf, 0 for an inner node.
-    count: u32,
+    pub count: u32,
 }
 
 /// A bounding-volume hierarchy over a triangle list (median split on the longest centroid axis,
@@ -109,82 +111,96 @@ pub(crate) fn closest_on_triangle(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> [f32; 3
     best
 }
 
-impl TriangleBvh {
-    /// Build over `faces` (faces with out-of-range indices are left out).
-    pub fn new(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Self {
-        let n = positions.len();
-        let in_range = |f: &[u32; 3]| f.iter().all(|&v| (v as usize) < n);
-        let mut order: Vec<u32> = (0..faces.len() as u32)
-            .filter(|&f| in_range(&faces[f as usize]))
-            .collect();
-        let corner = |f: u32| faces[f as usize].map(|v| Vec3::from(positions[v as usize]));
-        // Per face: its bounds and centroid (zero for a face left out), read once per level of
-        // the build.
-        let fbox: Vec<[Vec3; 3]> = faces
-            .iter()
-            .map(|f| {
-                if in_range(f) {
-                    let [a, b, c] = f.map(|v| Vec3::from(positions[v as usize]));
-                    [a.min(b).min(c), a.max(b).max(c), (a + b + c) / 3.0]
-                } else {
-                    [Vec3::ZERO; 3]
-                }
-            })
-            .collect();
-        let mut nodes = Vec::with_capacity(2 * order.len() / LEAF_SIZE + 1);
-        if !order.is_empty() {
-            nodes.push(Node {
+/// The median-split tree over `faces` (faces with out-of-range indices are left out): each
+/// node is split at the median centroid along the longest axis of its centroids' bounds, down
+/// to leaves of at most `leaf_size` triangles; nodes in one flat array (root first, children
+/// after their parent, siblings side by side). Returns the nodes and the face of each triangle
+/// slot, in leaf order.
+pub(crate) fn median_split(
+    positions: &[[f32; 3]],
+    faces: &[[u32; 3]],
+    leaf_size: usize,
+) -> (Vec<Node>, Vec<u32>) {
+    let n = positions.len();
+    let in_range = |f: &[u32; 3]| f.iter().all(|&v| (v as usize) < n);
+    let mut order: Vec<u32> = (0..faces.len() as u32)
+        .filter(|&f| in_range(&faces[f as usize]))
+        .collect();
+    // Per face: its bounds and centroid (zero for a face left out), read once per level of
+    // the build.
+    let fbox: Vec<[Vec3; 3]> = faces
+        .iter()
+        .map(|f| {
+            if in_range(f) {
+                let [a, b, c] = f.map(|v| Vec3::from(positions[v as usize]));
+                [a.min(b).min(c), a.max(b).max(c), (a + b + c) / 3.0]
+            } else {
+                [Vec3::ZERO; 3]
+            }
+        })
+        .collect();
+    let mut nodes = Vec::with_capacity(2 * order.len() / leaf_size + 1);
+    if !order.is_empty() {
+        nodes.push(Node {
+            lo: Vec3::ZERO,
+            hi: Vec3::ZERO,
+            start: 0,
+            count: order.len() as u32,
+        });
+        // iterative build: (node, start, end)
+        let mut stack = vec![(0usize, 0usize, order.len())];
+        while let Some((ni, s, e)) = stack.pop() {
+            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            let (mut clo, mut chi) = (lo, hi);
+            for &f in &order[s..e] {
+                let [flo, fhi, fc] = fbox[f as usize];
+                lo = lo.min(flo);
+                hi = hi.max(fhi);
+                clo = clo.min(fc);
+                chi = chi.max(fc);
+            }
+            nodes[ni].lo = lo;
+            nodes[ni].hi = hi;
+            if e - s <= leaf_size {
+                nodes[ni].start = s as u32;
+                nodes[ni].count = (e - s) as u32;
+                continue;
+            }
+            let ext = chi - clo;
+            let axis = if ext.x >= ext.y && ext.x >= ext.z {
+                0
+            } else if ext.y >= ext.z {
+                1
+            } else {
+                2
+            };
+            let mid = (s + e) / 2;
+            order[s..e].select_nth_unstable_by(mid - s, |&a, &b| {
+                fbox[a as usize][2][axis].total_cmp(&fbox[b as usize][2][axis])
+            });
+            let left = nodes.len();
+            let blank = Node {
                 lo: Vec3::ZERO,
                 hi: Vec3::ZERO,
                 start: 0,
-                count: order.len() as u32,
-            });
-            // iterative build: (node, start, end)
-            let mut stack = vec![(0usize, 0usize, order.len())];
-            while let Some((ni, s, e)) = stack.pop() {
-                let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-                let (mut clo, mut chi) = (lo, hi);
-                for &f in &order[s..e] {
-                    let [flo, fhi, fc] = fbox[f as usize];
-                    lo = lo.min(flo);
-                    hi = hi.max(fhi);
-                    clo = clo.min(fc);
-                    chi = chi.max(fc);
-                }
-                nodes[ni].lo = lo;
-                nodes[ni].hi = hi;
-                if e - s <= LEAF_SIZE {
-                    nodes[ni].start = s as u32;
-                    nodes[ni].count = (e - s) as u32;
-                    continue;
-                }
-                let ext = chi - clo;
-                let axis = if ext.x >= ext.y && ext.x >= ext.z {
-                    0
-                } else if ext.y >= ext.z {
-                    1
-                } else {
-                    2
-                };
-                let mid = (s + e) / 2;
-                order[s..e].select_nth_unstable_by(mid - s, |&a, &b| {
-                    fbox[a as usize][2][axis].total_cmp(&fbox[b as usize][2][axis])
-                });
-                let left = nodes.len();
-                let blank = Node {
-                    lo: Vec3::ZERO,
-                    hi: Vec3::ZERO,
-                    start: 0,
-                    count: 0,
-                };
-                nodes.push(blank);
-                nodes.push(blank);
-                nodes[ni].start = left as u32;
-                nodes[ni].count = 0;
-                stack.push((left, s, mid));
-                stack.push((left + 1, mid, e));
-            }
+                count: 0,
+            };
+            nodes.push(blank);
+            nodes.push(blank);
+            nodes[ni].start = left as u32;
+            nodes[ni].count = 0;
+            stack.push((left, s, mid));
+            stack.push((left + 1, mid, e));
         }
+    }
+    (nodes, order)
+}
+
+impl TriangleBvh {
+    /// Build over `faces` (faces with out-of-range indices are left out).
+    pub fn new(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Self {
+        let (nodes, order) = median_split(positions, faces, LEAF_SIZE);
+        let corner = |f: u32| faces[f as usize].map(|v| Vec3::from(positions[v as usize]));
         let tris = order.iter().map(|&f| corner(f)).collect();
         TriangleBvh { nodes, order, tris }
     }

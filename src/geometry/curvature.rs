@@ -151,41 +151,10 @@ fn outer(a: DVec3, b: DVec3) -> DMat3 {
 mod tests {
     use super::*;
 
-    /// UV sphere of radius r.
-    pub(crate) fn sphere(r: f32, nu: u32, nv: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let mut pos = vec![[0.0, 0.0, r]];
-        for i in 1..nv {
-            let th = std::f32::consts::PI * i as f32 / nv as f32;
-            for j in 0..nu {
-                let ph = std::f32::consts::TAU * j as f32 / nu as f32;
-                pos.push([
-                    r * th.sin() * ph.cos(),
-                    r * th.sin() * ph.sin(),
-                    r * th.cos(),
-                ]);
-            }
-        }
-        pos.push([0.0, 0.0, -r]);
-        let last = pos.len() as u32 - 1;
-        let mut faces = Vec::new();
-        let ring = |i: u32, j: u32| 1 + (i - 1) * nu + (j % nu);
-        for j in 0..nu {
-            faces.push([0, ring(1, j), ring(1, j + 1)]);
-            faces.push([last, ring(nv - 1, j + 1), ring(nv - 1, j)]);
-        }
-        for i in 1..nv - 1 {
-            for j in 0..nu {
-                let (a, b, c, d) = (
-                    ring(i, j),
-                    ring(i, j + 1),
-                    ring(i + 1, j),
-                    ring(i + 1, j + 1),
-                );
-                faces.push([a, c, d]);
-                faces.push([a, d, b]);
-            }
-        }
-        (pos, faces)
+    /// UV sphere of radius `r`, `nu` vertices a ring, `nv` rings of faces.
+    fn sphere(r: f32, nu: usize, nv: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+        let (p, f) = crate::testdata::uv_sphere(nv, nu);
+        (p.iter().map(|&v| v.map(|x| r * x)).collect(), f)
     }
 
     #[test]

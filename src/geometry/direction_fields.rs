@@ -5,7 +5,7 @@
 //! Unknowns are one complex number per vertex in its tangent frame ([`super::tangent_frames`]);
 //! the energy is `Σ_ij w_ij |x_i − e^{i ρ_ij} x_j|²` (cotangent weights `w_ij`, negative per-face
 //! weights clamped to 0, `ρ_ij` the discrete Levi-Civita transport of
-//! [`super::parallel_transport_angle`]). Minimising it plus `t |x − g|²_M` gives
+//! [`super::transport_angle`]). Minimising it plus `t |x − g|²_M` gives
 //! `(A + t M) x = t M g`: with `t = 1 / ℓ²` the result follows the guide `g` at scales above
 //! `ℓ` and is as smooth as the surface allows below it, so the guide's jumps and
 //! spread-out singularities become isolated points.
@@ -17,7 +17,7 @@ use faer::{MatMut, Side};
 use glam::Vec3;
 
 use super::basic::d3;
-use super::frames::{parallel_transport_angle, tangent_frames};
+use super::frames::{FrameRule, tangent_frames, transport_angle};
 use super::laplacian::{check_faces, face_cot_weights, mass_matrix_barycentric};
 use crate::error::{Error, Result};
 
@@ -45,7 +45,7 @@ pub fn smooth_direction_field(
             "direction field: length must be positive (got {length})"
         )));
     }
-    let frames = tangent_frames(normals);
+    let frames = tangent_frames(normals, FrameRule::Duff);
     let mass = mass_matrix_barycentric(positions, faces);
     let t = 1.0 / (length * length);
     let mut trip: Vec<Triplet<usize, usize, f64>> = Vec::with_capacity(faces.len() * 3 * 12);
@@ -58,7 +58,8 @@ pub fn smooth_direction_field(
                 continue;
             }
             let (i, j) = (f[(k + 1) % 3] as usize, f[(k + 2) % 3] as usize);
-            let rho = parallel_transport_angle(normals[i], frames[i], normals[j], frames[j]) as f64;
+            let (ni, nj) = (Vec3::from(normals[i]), Vec3::from(normals[j]));
+            let rho = transport_angle(FrameRule::Duff, nj, frames.get(j), ni, frames.get(i)) as f64;
             let (c, s) = (rho.cos(), rho.sin());
             for d in 0..2 {
                 trip.push(Triplet::new(2 * i + d, 2 * i + d, wk));
@@ -78,7 +79,7 @@ pub fn smooth_direction_field(
     let g: Vec<[f64; 2]> = (0..n)
         .map(|i| {
             let gi = Vec3::from(guide[i]);
-            let (t1, t2) = (Vec3::from(frames[i][0]), Vec3::from(frames[i][1]));
+            let (t1, t2) = frames.get(i);
             let (x, y) = (gi.dot(t1) as f64, gi.dot(t2) as f64);
             let r = (x * x + y * y).sqrt();
             if r > 0.0 && r.is_finite() {
@@ -104,7 +105,7 @@ pub fn smooth_direction_field(
     llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut rhs, 2 * n, 1));
     Ok((0..n)
         .map(|i| {
-            let (t1, t2) = (Vec3::from(frames[i][0]), Vec3::from(frames[i][1]));
+            let (t1, t2) = frames.get(i);
             let (x, y) = (rhs[2 * i] as f32, rhs[2 * i + 1] as f32);
             let v = t1 * x + t2 * y;
             let fallback = t1 * g[i][0] as f32 + t2 * g[i][1] as f32;
@@ -123,20 +124,8 @@ mod tests {
     #[test]
     fn a_smooth_guide_on_a_plane_is_kept_and_a_jump_is_smoothed() {
         let (nx, ny, h) = (30usize, 20usize, 0.1f32);
-        let mut pos = Vec::new();
-        for j in 0..=ny {
-            for i in 0..=nx {
-                pos.push([i as f32 * h, j as f32 * h, 0.0]);
-            }
-        }
+        let (pos, faces) = crate::testdata::grid_cells(nx, ny, h);
         let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
-        let mut faces = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
         let normals = vec![[0.0, 0.0, 1.0]; pos.len()];
         let along = vec![[1.0, 0.0, 0.0]; pos.len()];
         let out = smooth_direction_field(&pos, &faces, &normals, &along, 0.5).unwrap();

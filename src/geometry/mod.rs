@@ -8,11 +8,12 @@
 //! - [`laplacian_deform`] (uniform Laplacian coordinates + soft position constraints, Zhou et
 //!   al. 2006 eq. (4)-(5))
 //! - [`HeatGeodesics`] (heat-method distances, factorised once, many source sets)
-//! - [`tangent_frames`], [`parallel_transport_angle`]
+//! - [`tangent_frames`] / [`Frames`] by a [`FrameRule`], [`transport_angle`]
 //! - [`smooth_direction_field`] (Knöppel et al. 2013: the smooth tangent field nearest a guide)
 //! - [`TriangleBvh`] (closest point, ray hit)
 //! - [`refine_to_density`] / [`Refined`], [`nearest_original`]
 //! - [`morton_order`] (a cache-friendly visiting order along the Z-order curve)
+//! - [`value_noise`] (hashed-lattice value noise with a [`Fade`])
 //! - [`taubin_smooth`]
 //! - [`shape_map`] / [`functional_map`] (functional maps + ZoomOut: a global intrinsic map)
 //! - [`solid_angle_curvature`] (Connolly / Mertens multi-scale curvature, Barnes-Hut tree)
@@ -51,6 +52,7 @@ mod heat;
 mod laplacian;
 mod laplacian_editing;
 mod morton_order;
+mod noise;
 mod occlusion;
 mod refine;
 mod shell_map;
@@ -81,12 +83,13 @@ pub use direction_fields::smooth_direction_field;
 pub use distance_transform::distance_transform;
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
-pub use frames::{parallel_transport_angle, tangent_frames};
+pub use frames::{FrameRule, Frames, frame_of, tangent_frames, transport_angle};
 pub use functional_map::{FmapParams, MapQuality, ShapeMap, Spectrum, functional_map, shape_map};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};
 pub use laplacian_editing::laplacian_deform;
 pub use morton_order::{inverse_order, morton_order};
+pub use noise::{Fade, value_noise};
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
 pub(crate) use refine::IntMap;
 pub use refine::{Refined, nearest_original, refine_to_density};

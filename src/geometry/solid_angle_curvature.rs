@@ -31,6 +31,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::bvh::median_split;
 use crate::error::Result;
 use crate::work::CancelToken;
 
@@ -64,7 +65,8 @@ struct Node {
     count: u32,
 }
 
-/// A triangle tree for solid-angle sums (dipole summaries per node).
+/// A triangle tree for solid-angle sums: the median-split tree of [`super::TriangleBvh`] (leaves
+/// of up to 8 triangles) with a dipole summary per node.
 #[derive(Clone, Debug)]
 pub struct SolidAngleTree {
     nodes: Vec<Node>,
@@ -125,70 +127,23 @@ fn clipped_solid_angle(t: [Vec3; 3], r: f32) -> f32 {
 impl SolidAngleTree {
     /// Build over `faces` (faces with out-of-range indices are left out).
     pub fn new(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Self {
-        let nv = positions.len();
-        let mut tris: Vec<[Vec3; 3]> = faces
+        let (tree, order) = median_split(positions, faces, LEAF);
+        let tris: Vec<[Vec3; 3]> = order
             .iter()
-            .filter(|f| f.iter().all(|&v| (v as usize) < nv))
-            .map(|f| f.map(|v| Vec3::from(positions[v as usize])))
+            .map(|&f| faces[f as usize].map(|v| Vec3::from(positions[v as usize])))
             .collect();
-        let mut nodes: Vec<Node> = Vec::with_capacity(2 * tris.len() / LEAF + 2);
-        if tris.is_empty() {
-            return SolidAngleTree { nodes, tris };
-        }
-        let blank = Node {
-            lo: Vec3::ZERO,
-            hi: Vec3::ZERO,
-            c: Vec3::ZERO,
-            n: Vec3::ZERO,
-            rad: 0.0,
-            start: 0,
-            count: 0,
-        };
-        nodes.push(blank);
-        let mut stack = vec![(0usize, 0usize, tris.len())];
-        while let Some((ni, s, e)) = stack.pop() {
-            let mut lo = Vec3::splat(f32::INFINITY);
-            let mut hi = Vec3::splat(f32::NEG_INFINITY);
-            let mut clo = lo;
-            let mut chi = hi;
-            for t in &tris[s..e] {
-                for x in t {
-                    lo = lo.min(*x);
-                    hi = hi.max(*x);
-                }
-                let c = (t[0] + t[1] + t[2]) / 3.0;
-                clo = clo.min(c);
-                chi = chi.max(c);
-            }
-            nodes[ni].lo = lo;
-            nodes[ni].hi = hi;
-            if e - s <= LEAF {
-                nodes[ni].start = s as u32;
-                nodes[ni].count = (e - s) as u32;
-                continue;
-            }
-            let ext = chi - clo;
-            let axis = if ext.x >= ext.y && ext.x >= ext.z {
-                0
-            } else if ext.y >= ext.z {
-                1
-            } else {
-                2
-            };
-            let mid = (s + e) / 2;
-            tris[s..e].select_nth_unstable_by(mid - s, |a, b| {
-                let ca = a[0][axis] + a[1][axis] + a[2][axis];
-                let cb = b[0][axis] + b[1][axis] + b[2][axis];
-                ca.total_cmp(&cb)
-            });
-            let left = nodes.len();
-            nodes.push(blank);
-            nodes.push(blank);
-            nodes[ni].start = left as u32;
-            nodes[ni].count = 0;
-            stack.push((left, s, mid));
-            stack.push((left + 1, mid, e));
-        }
+        let mut nodes: Vec<Node> = tree
+            .iter()
+            .map(|b| Node {
+                lo: b.lo,
+                hi: b.hi,
+                c: Vec3::ZERO,
+                n: Vec3::ZERO,
+                rad: 0.0,
+                start: b.start,
+                count: b.count,
+            })
+            .collect();
         // dipoles bottom-up (children always have larger indices than their parent): sum of
         // area vectors, area, and area-weighted centroid
         let mut area = vec![0.0f32; nodes.len()];
@@ -405,43 +360,6 @@ fn cone_excess(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> Vec<f32> {
 mod tests {
     use super::*;
 
-    /// UV sphere of radius `rad` (closed, outward CCW).
-    pub(crate) fn uv_sphere(rad: f32, nu: u32, nv: u32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let mut pos = vec![[0.0, 0.0, rad]];
-        for i in 1..nv {
-            let th = std::f32::consts::PI * i as f32 / nv as f32;
-            for j in 0..nu {
-                let ph = std::f32::consts::TAU * j as f32 / nu as f32;
-                pos.push([
-                    rad * th.sin() * ph.cos(),
-                    rad * th.sin() * ph.sin(),
-                    rad * th.cos(),
-                ]);
-            }
-        }
-        pos.push([0.0, 0.0, -rad]);
-        let south = pos.len() as u32 - 1;
-        let ring = |i: u32, j: u32| 1 + (i - 1) * nu + (j % nu);
-        let mut f = Vec::new();
-        for j in 0..nu {
-            f.push([0, ring(1, j), ring(1, j + 1)]);
-            f.push([south, ring(nv - 1, j + 1), ring(nv - 1, j)]);
-        }
-        for i in 1..nv - 1 {
-            for j in 0..nu {
-                let (a, b, c, d) = (
-                    ring(i, j),
-                    ring(i, j + 1),
-                    ring(i + 1, j),
-                    ring(i + 1, j + 1),
-                );
-                f.push([a, c, d]);
-                f.push([a, d, b]);
-            }
-        }
-        (pos, f)
-    }
-
     #[test]
     fn plane_sphere_and_cavity() {
         // plane: a 41x41 grid
@@ -469,7 +387,7 @@ mod tests {
         );
 
         // (the poles' triangle fans concentrate curvature at one vertex: skip them)
-        let (pos, faces) = uv_sphere(1.0, 192, 96);
+        let (pos, faces) = crate::testdata::uv_sphere(96, 192);
         let radii = [0.1, 0.3, 0.6];
         let k = solid_angle_curvature(&pos, &faces, &radii);
         for v in (1000..pos.len() - 1000).step_by(997) {

@@ -228,23 +228,7 @@ pub fn stripe_pattern(
 mod tests {
     use super::*;
 
-    fn grid(nx: usize, ny: usize, h: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let mut pos = Vec::new();
-        for j in 0..=ny {
-            for i in 0..=nx {
-                pos.push([i as f32 * h, j as f32 * h, 0.0]);
-            }
-        }
-        let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
-        let mut faces = Vec::new();
-        for j in 0..ny {
-            for i in 0..nx {
-                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
-        (pos, faces)
-    }
+    use crate::testdata::grid_cells as grid;
 
     #[test]
     fn a_constant_field_on_a_plane_gives_straight_stripes_of_the_asked_period() {

@@ -77,31 +77,7 @@ pub fn thickness(
 mod tests {
     use super::*;
 
-    /// A closed axis-aligned box `[0, a] × [0, b] × [0, c]`, wound outwards, 12 triangles.
-    fn cuboid(a: f32, b: f32, c: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let pos: Vec<[f32; 3]> = (0..8)
-            .map(|i| {
-                [
-                    if i & 1 != 0 { a } else { 0.0 },
-                    if i & 2 != 0 { b } else { 0.0 },
-                    if i & 4 != 0 { c } else { 0.0 },
-                ]
-            })
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let faces = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        (pos, faces)
-    }
+    use crate::testdata::cuboid;
 
     #[test]
     fn a_thin_slab_is_thinner_than_a_thick_one_and_close_to_its_depth() {

@@ -75,7 +75,8 @@ pub fn retessellate(
         .zip(&offsets)
         .map(|((p, n), &(a, r))| {
             let n = Vec3::from(*n);
-            let (t1, t2) = crate::features::frame_of(n.normalize_or(Vec3::Z));
+            let (t1, t2) =
+                crate::geometry::frame_of(n.normalize_or(Vec3::Z), crate::features::FRAME_RULE);
             let th = a * std::f32::consts::TAU;
             let q = Vec3::from(*p) + jitter * edge * r.sqrt() * (th.cos() * t1 + th.sin() * t2);
             match bvh.closest_point(q.to_array()) {

@@ -568,72 +568,7 @@ mod tests {
     use rand::rngs::SmallRng;
     use std::collections::HashMap;
 
-    /// A UV sphere-like closed mesh: an icosahedron subdivided `k` times, projected to the sphere.
-    fn icosphere(k: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let t = (1.0 + 5f32.sqrt()) / 2.0;
-        let mut p: Vec<[f32; 3]> = vec![
-            [-1.0, t, 0.0],
-            [1.0, t, 0.0],
-            [-1.0, -t, 0.0],
-            [1.0, -t, 0.0],
-            [0.0, -1.0, t],
-            [0.0, 1.0, t],
-            [0.0, -1.0, -t],
-            [0.0, 1.0, -t],
-            [t, 0.0, -1.0],
-            [t, 0.0, 1.0],
-            [-t, 0.0, -1.0],
-            [-t, 0.0, 1.0],
-        ];
-        let mut f: Vec<[u32; 3]> = vec![
-            [0, 11, 5],
-            [0, 5, 1],
-            [0, 1, 7],
-            [0, 7, 10],
-            [0, 10, 11],
-            [1, 5, 9],
-            [5, 11, 4],
-            [11, 10, 2],
-            [10, 7, 6],
-            [7, 1, 8],
-            [3, 9, 4],
-            [3, 4, 2],
-            [3, 2, 6],
-            [3, 6, 8],
-            [3, 8, 9],
-            [4, 9, 5],
-            [2, 4, 11],
-            [6, 2, 10],
-            [8, 6, 7],
-            [9, 8, 1],
-        ];
-        for _ in 0..k {
-            let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-            let mut nf = Vec::new();
-            for tri in &f {
-                let mut m = [0u32; 3];
-                for e in 0..3 {
-                    let (a, b) = (tri[e], tri[(e + 1) % 3]);
-                    let key = (a.min(b), a.max(b));
-                    m[e] = *mid.entry(key).or_insert_with(|| {
-                        let pa = Vec3::from(p[a as usize]);
-                        let pb = Vec3::from(p[b as usize]);
-                        p.push((0.5 * (pa + pb)).to_array());
-                        (p.len() - 1) as u32
-                    });
-                }
-                nf.push([tri[0], m[0], m[2]]);
-                nf.push([tri[1], m[1], m[0]]);
-                nf.push([tri[2], m[2], m[1]]);
-                nf.push([m[0], m[1], m[2]]);
-            }
-            f = nf;
-        }
-        for q in p.iter_mut() {
-            *q = Vec3::from(*q).normalize().to_array();
-        }
-        (p, f)
-    }
+    use crate::testdata::flat_split_icosphere as icosphere;
 
     fn check_closed_manifold(l: &Level) {
         let mut edges: HashMap<(u32, u32), usize> = HashMap::new();

@@ -4,8 +4,9 @@
 
 use crate::error::{Error, Result};
 use crate::features::{
-    ANGLE_STEP_DEG, FAN_ANGLES, FAN_RADII, FanSampler, Frames, exp_neg, transport_angle,
+    ANGLE_STEP_DEG, FAN_ANGLES, FAN_RADII, FRAME_RULE, FanSampler, Frames, exp_neg,
 };
+use crate::geometry::transport_angle;
 use crate::hierarchy::{Hierarchy, Level};
 use crate::work::CancelToken;
 use glam::Vec3;
@@ -672,9 +673,7 @@ impl RandomSearch<'_, '_> {
 #[inline]
 fn polar(level: &Level, frames: &Frames, v: usize, q: Vec3) -> (f32, f32) {
     let d = q - Vec3::from(level.positions[v]);
-    let x = d.dot(Vec3::from(frames.t1[v]));
-    let y = d.dot(Vec3::from(frames.t2[v]));
-    (d.length(), y.atan2(x))
+    (d.length(), frames.angle(v, d))
 }
 
 /// Walk on the source level from `s` towards the point at tangent offset `(x, y)` in `s`'s
@@ -813,18 +812,18 @@ pub(crate) fn upsample(
             // Target fine frame -> target coarse frame -> (rotation k) -> source coarse frame ->
             // source fine frame.
             let a1 = transport_angle(
+                FRAME_RULE,
                 Vec3::from(ltf.normals[vf]),
-                Vec3::from(ft[l].t1[vf]),
+                ft[l].get(vf),
                 Vec3::from(ltc.normals[pc]),
-                Vec3::from(ft[l + 1].t1[pc]),
-                Vec3::from(ft[l + 1].t2[pc]),
+                ft[l + 1].get(pc),
             );
             let a2 = transport_angle(
+                FRAME_RULE,
                 Vec3::from(lsc.normals[sc]),
-                Vec3::from(fs[l + 1].t1[sc]),
+                fs[l + 1].get(sc),
                 Vec3::from(lsf.normals[best]),
-                Vec3::from(fs[l].t1[best]),
-                Vec3::from(fs[l].t2[best]),
+                fs[l].get(best),
             );
             (best as u32, rot_index(a1 + k as f32 * STEP + a2))
         })

@@ -210,11 +210,9 @@ impl GlobalMap {
             let (mut cx, mut cy) = (0.0f32, 0.0f32);
             for &u in lt.adjacency.row(v) {
                 let dt = Vec3::from(lt.positions[u as usize]) - pv;
-                let at = dt
-                    .dot(Vec3::from(ft.t2[v]))
-                    .atan2(dt.dot(Vec3::from(ft.t1[v])));
+                let at = ft.angle(v, dt);
                 let ds = Vec3::from(mapped[u as usize]) - mv;
-                let (x, y) = (ds.dot(Vec3::from(fs.t1[s])), ds.dot(Vec3::from(fs.t2[s])));
+                let (x, y) = fs.coords(s, ds);
                 let len = x.hypot(y);
                 if !(len > 0.0 && at.is_finite()) {
                     continue;

@@ -17,7 +17,7 @@ use glam::Vec3;
 use super::{FeatureSet, Params, Up, features};
 use crate::color::srgb_to_lab;
 use crate::error::{Error, Result};
-use crate::geometry::refine_to_density;
+use crate::geometry::{Fade, refine_to_density, value_noise};
 use crate::mesh::{Csr, TriMesh};
 use crate::stats::KdTree;
 use crate::work::CancelToken;
@@ -121,40 +121,6 @@ fn lerp(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
     [0, 1, 2].map(|k| a[k] + (b[k] - a[k]) * t)
 }
 
-fn hash3(x: i32, y: i32, z: i32, seed: u32) -> f32 {
-    let mut h = (x as u32).wrapping_mul(0x8da6_b343)
-        ^ (y as u32).wrapping_mul(0xd816_3841)
-        ^ (z as u32).wrapping_mul(0xcb1a_b31f)
-        ^ seed.wrapping_mul(0x9e37_79b9);
-    h ^= h >> 15;
-    h = h.wrapping_mul(0x2c1b_3c6d);
-    h ^= h >> 12;
-    h = h.wrapping_mul(0x297a_2d39);
-    h ^= h >> 15;
-    (h as f32 / u32::MAX as f32) * 2.0 - 1.0
-}
-
-/// Trilinear value noise in [-1, 1] on a lattice of spacing 1.
-fn value_noise(p: Vec3, seed: u32) -> f32 {
-    let f = p.floor();
-    let t = p - f;
-    let (x, y, z) = (f.x as i32, f.y as i32, f.z as i32);
-    let s = |v: f32| v * v * (3.0 - 2.0 * v);
-    let (u, v, w) = (s(t.x), s(t.y), s(t.z));
-    let mut acc = 0.0;
-    for dz in 0..2 {
-        for dy in 0..2 {
-            for dx in 0..2 {
-                let wx = if dx == 0 { 1.0 - u } else { u };
-                let wy = if dy == 0 { 1.0 - v } else { v };
-                let wz = if dz == 0 { 1.0 - w } else { w };
-                acc += wx * wy * wz * hash3(x + dx, y + dy, z + dz, seed);
-            }
-        }
-    }
-    acc
-}
-
 /// The strength in [0, 1] of one rule at vertex `v` (features `fs`, up axis `up`).
 pub fn rule_strength(rule: Rule, fs: &FeatureSet, v: usize, up: Up) -> f32 {
     let row = fs.row(v);
@@ -203,7 +169,12 @@ pub fn paint(recipe: &Recipe, fs: &FeatureSet, positions: &[[f32; 3]], up: Up) -
                 c = lerp(c, [0.90, 0.88, 0.84], 0.8 * s(Rule::Wear));
             }
             let g = if recipe.grain > 0.0 {
-                1.0 + recipe.grain * value_noise(Vec3::from(positions[v]) / cell, 17)
+                1.0 + recipe.grain
+                    * value_noise(
+                        Vec3::from(positions[v]) / cell,
+                        17u32.wrapping_mul(0x9e37_79b9),
+                        Fade::Cubic,
+                    )
             } else {
                 1.0
             };
