@@ -154,37 +154,7 @@ pub fn measure(
         None => vec![true; iw * ih],
     };
 
-    // colours
-    let lab_t: Vec<[f32; 3]> = tex
-        .iter()
-        .zip(&covered)
-        .filter(|(_, c)| **c)
-        .map(|(c, _)| crate::color::srgb_to_lab(*c))
-        .collect();
-    let lab_i: Vec<[f32; 3]> = img
-        .iter()
-        .zip(&opaque)
-        .filter(|(_, o)| **o)
-        .map(|(c, _)| crate::color::srgb_to_lab(*c))
-        .collect();
-    if lab_t.is_empty() || lab_i.is_empty() {
-        return None;
-    }
-    let std_l = |v: &[[f32; 3]]| {
-        let n = v.len() as f64;
-        let m = v.iter().map(|c| c[0] as f64).sum::<f64>() / n;
-        (v.iter().map(|c| (c[0] as f64 - m).powi(2)).sum::<f64>() / n).sqrt()
-    };
-    let contrast = std_l(&lab_t) / std_l(&lab_i).max(1e-9);
-    let lab_w1 = (0..3)
-        .map(|k| {
-            crate::stats::wasserstein1(
-                &lab_t.iter().map(|c| c[k]).collect::<Vec<_>>(),
-                &lab_i.iter().map(|c| c[k]).collect::<Vec<_>>(),
-            )
-        })
-        .sum::<f64>()
-        / 3.0;
+    let (contrast, lab_w1) = colour_character(&tex, &covered, &img, &opaque)?;
 
     // texels per image pixel: the layout's mean surface length per texel against the image's
     let mut uv_area = 0.0f64;
@@ -287,6 +257,48 @@ pub fn measure(
         patch_distance: 255.0 * patch_distance,
         reverse_distance: 255.0 * reverse_distance,
     })
+}
+
+/// Contrast (std of L* over the image's) and Lab W1 (Wasserstein-1 of L*, a*, b*, mean) of the
+/// covered texels against the opaque image pixels; `None` when either is empty.
+fn colour_character(
+    tex: &[[f32; 3]],
+    covered: &[bool],
+    img: &[[f32; 3]],
+    opaque: &[bool],
+) -> Option<(f64, f64)> {
+    let lab_t: Vec<[f32; 3]> = tex
+        .iter()
+        .zip(covered)
+        .filter(|(_, c)| **c)
+        .map(|(c, _)| crate::color::srgb_to_lab(*c))
+        .collect();
+    let lab_i: Vec<[f32; 3]> = img
+        .iter()
+        .zip(opaque)
+        .filter(|(_, o)| **o)
+        .map(|(c, _)| crate::color::srgb_to_lab(*c))
+        .collect();
+    if lab_t.is_empty() || lab_i.is_empty() {
+        return None;
+    }
+    let std_l = |v: &[[f32; 3]]| {
+        let n = v.len() as f64;
+        let m = v.iter().map(|c| c[0] as f64).sum::<f64>() / n;
+        (v.iter().map(|c| (c[0] as f64 - m).powi(2)).sum::<f64>() / n).sqrt()
+    };
+    let contrast = std_l(&lab_t) / std_l(&lab_i).max(1e-9);
+    let lab_w1 = (0..3)
+        .map(|k| {
+            crate::stats::wasserstein1(
+                &lab_t.iter().map(|c| c[k]).collect::<Vec<_>>(),
+                &lab_i.iter().map(|c| c[k]).collect::<Vec<_>>(),
+            )
+        })
+        .sum::<f64>()
+        / 3.0;
+
+    Some((contrast, lab_w1))
 }
 
 /// An image with a validity mask.

@@ -115,9 +115,70 @@ pub fn paste_patches(
     cancel: &CancelToken,
 ) -> Result<PatchOutput> {
     let total = Stopwatch::start();
-    let sp = &params.synth;
-    let target = input.target;
     check_inputs(input, params, pp)?;
+    let (pixel, radius) = patch_size(input, params, pp)?;
+
+    // 1. layout
+    let (mut mesh, atlas, atlas_reason) = texture_layout(input.target, params, cancel)?;
+    let uvs = mesh.uvs.clone().expect("the layout sets UVs");
+    let surface = Surface::new(&mesh, &uvs);
+    let size = params.texture_size as usize;
+    let texels = crate::geometry::uv_texels(&uvs, surface.faces.len(), size, size);
+    let face_texels = face_texel_lists(&texels, surface.faces.len());
+    cancel.check()?;
+
+    // 2. orientation
+    let image = match input.alpha {
+        None => Img::from_rgb(input.exemplar),
+        Some(a) => transparent_filled(input.exemplar, a)?.0,
+    };
+    // fades over the image's border and its holes alike
+    let border_fade = (pp.feather * radius / pixel).max(1.0);
+    let opacity: Option<Vec<f32>> = input.alpha.map(|a| hole_fade(a, border_fade));
+    let turn = patch_orientation(input, &surface, params.synth.orientation, radius, cancel)?;
+
+    // 3.-7. seeds, flatten, splotch, place, paste
+    let ctx = Context {
+        surface: &surface,
+        adjacency: crate::mesh::vertex_adjacency(surface.positions.len(), &surface.faces),
+        vertex_faces: crate::mesh::vertex_faces(surface.positions.len(), &surface.faces),
+        texels: &texels,
+        face_texels: &face_texels,
+        image: &image,
+        opacity: opacity.as_deref(),
+        pixel,
+        radius,
+        reach: radius * (1.0 + pp.wobble) * 1.1 + longest_edge(&surface),
+        border_fade,
+        pp,
+    };
+    let (canvas, patches) = ctx.paste_all(&turn, params.synth.seed, &total, sink, cancel)?;
+
+    let (pixels, covered, uncovered) = canvas.texture(&texels);
+    set_texture(&mut mesh, size, pixels, covered);
+    Ok(PatchOutput {
+        mesh,
+        atlas,
+        atlas_reason,
+        patches,
+        radius,
+        uncovered,
+        orientation_used: turn.orientation,
+        anisotropy: turn.anisotropy,
+        seconds: total.secs(),
+    })
+}
+
+/// An image pixel's size and a patch's radius on the surface (`params.synth`'s scale is the
+/// image's width in surface units, default a quarter of the bounding-box diagonal); refuses a
+/// scale at which the surface would need too many patches, or a texture that does not fit in
+/// memory.
+fn patch_size(
+    input: &TextureInput,
+    params: &TextureParams,
+    pp: &PatchParams,
+) -> Result<(f32, f32)> {
+    let target = input.target;
     let (lo, hi) = target
         .bounds()
         .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
@@ -125,7 +186,7 @@ pub fn paste_patches(
     if !(diag > 0.0 && diag.is_finite()) {
         return Err(Error::InvalidMesh("target mesh has zero extent".into()));
     }
-    let scale = sp.scale.unwrap_or(diag / 4.0);
+    let scale = params.synth.scale.unwrap_or(diag / 4.0);
     if !(scale.is_finite() && scale > 0.0) {
         return Err(Error::InvalidInput(format!(
             "scale must be positive, got {scale}"
@@ -148,34 +209,37 @@ pub fn paste_patches(
         &format!("a {0}x{0} texture", params.texture_size),
         "use a smaller --texture-size",
     )?;
+    Ok((pixel, radius))
+}
 
-    // 1. layout
-    let (mut mesh, atlas, atlas_reason) = texture_layout(target, params, cancel)?;
-    let uvs = mesh.uvs.clone().expect("the layout sets UVs");
-    let surface = Surface::new(&mesh, &uvs);
-    let size = params.texture_size as usize;
-    let texels = crate::geometry::uv_texels(&uvs, surface.faces.len(), size, size);
-    let face_texels = face_texel_lists(&texels, surface.faces.len());
-    cancel.check()?;
+/// How patches turn: the orientation used (`auto` reads the image's anisotropy), the field
+/// they follow, and its symmetry.
+struct Turn {
+    orientation: Orientation,
+    anisotropy: Option<anisotropy::Anisotropy>,
+    field: Option<Vec<[f32; 3]>>,
+    /// 0: patches turn freely (no field); else the field's symmetry.
+    symmetry: usize,
+}
 
-    // 2. orientation
-    let image = match input.alpha {
-        None => Img::from_rgb(input.exemplar),
-        Some(a) => transparent_filled(input.exemplar, a)?.0,
-    };
-    // fades over the image's border and its holes alike
-    let border_fade = (pp.feather * radius / pixel).max(1.0);
-    let opacity: Option<Vec<f32>> = input.alpha.map(|a| hole_fade(a, border_fade));
-    let anis = (sp.orientation == Orientation::Auto).then(|| {
+/// Step 2: the orientation patches follow.
+fn patch_orientation(
+    input: &TextureInput,
+    surface: &Surface,
+    asked: Orientation,
+    radius: f32,
+    cancel: &CancelToken,
+) -> Result<Turn> {
+    let ew = input.exemplar.width();
+    let anis = (asked == Orientation::Auto).then(|| {
         let probe = super::shrink_exemplar(input.exemplar.clone(), ew.min(256));
         let pa = input
             .alpha
             .map(|a| super::resize_alpha(a.clone(), probe.width(), probe.height()));
         anisotropy::exemplar_anisotropy(&probe, pa.as_ref())
     });
-    let orientation = anis.map_or(sp.orientation, anisotropy::choose_orientation);
-    let field = orientation_field(input, &surface, orientation, radius, cancel)?;
-    // 0: patches turn freely (no field); else the field's symmetry
+    let orientation = anis.map_or(asked, anisotropy::choose_orientation);
+    let field = orientation_field(input, surface, orientation, radius, cancel)?;
     let symmetry = match (&field, orientation) {
         (None, _) => 0,
         (_, Orientation::Relax4) => 4,
@@ -183,107 +247,11 @@ pub fn paste_patches(
         _ => 1,
     };
     cancel.check()?;
-
-    // 3.-7. seeds, flatten, splotch, place, paste
-    let ctx = Context {
-        surface: &surface,
-        adjacency: crate::mesh::vertex_adjacency(surface.positions.len(), &surface.faces),
-        vertex_faces: crate::mesh::vertex_faces(surface.positions.len(), &surface.faces),
-        texels: &texels,
-        face_texels: &face_texels,
-        image: &image,
-        opacity: opacity.as_deref(),
-        pixel,
-        radius,
-        reach: radius * (1.0 + pp.wobble) * 1.1 + longest_edge(&surface),
-        border_fade,
-        pp,
-    };
-    let mut canvas = Canvas {
-        color: vec![[0.0; 3]; texels.len()],
-        alpha: vec![0.0; texels.len()],
-        covered: 0,
-        usage: vec![0.0; USAGE * USAGE],
-    };
-    let layout_texels = texels.iter().filter(|t| t.is_some()).count().max(1);
-    let mut rng = stage_rng(sp.seed, 11);
-    let mut order: Vec<u32> = (0..texels.len() as u32)
-        .filter(|&t| texels[t as usize].is_some())
-        .collect();
-    order.shuffle(&mut rng);
-    let mut scratch = Scratch {
-        uv: vec![[0.0; 2]; surface.positions.len()],
-        stamp: vec![0; surface.positions.len()],
-        fstamp: vec![0; surface.faces.len()],
-        now: 0,
-    };
-    let mut patches = 0usize;
-    let mut last_report = Stopwatch::start();
-    for &seed_texel in &order {
-        if canvas.alpha[seed_texel as usize] >= 0.5 {
-            continue;
-        }
-        cancel.check()?;
-        let (face, bary) = texels[seed_texel as usize].expect("a layout texel");
-        let n = surface.normal(face, bary);
-        let e1 = seed_direction(&surface, field.as_deref(), face, bary, n, &mut rng);
-        let Some(patch) = ctx.flatten(face, bary, n, e1, &mut scratch) else {
-            continue;
-        };
-        let splotch = Splotch::random(&mut rng, pp);
-        let place = ctx.place(&patch, &splotch, &canvas, symmetry, &mut rng);
-        ctx.paste(&patch, &splotch, &place, &mut canvas);
-        patches += 1;
-        if last_report.secs() > 0.1 {
-            last_report = Stopwatch::start();
-            sink(Event::Progress(Progress {
-                stage: "patches",
-                level: 0,
-                levels: 1,
-                iteration: patches,
-                energy: 0.0,
-                elapsed: total.secs(),
-                fraction: canvas.covered as f32 / layout_texels as f32,
-            }));
-        }
-    }
-
-    // the texture: normalised colours, uncovered texels filled with the gutters
-    let mut uncovered = 0usize;
-    let covered: Vec<bool> = canvas
-        .alpha
-        .iter()
-        .zip(&texels)
-        .map(|(&a, t)| {
-            if t.is_some() && a <= 1e-3 {
-                uncovered += 1;
-            }
-            a > 1e-3
-        })
-        .collect();
-    let pixels: Vec<[f32; 3]> = canvas
-        .color
-        .par_iter()
-        .zip(canvas.alpha.par_iter())
-        .map(|(c, &a)| {
-            if a > 1e-3 {
-                c.map(|x| (x / a).clamp(0.0, 1.0))
-            } else {
-                [0.0; 3]
-            }
-        })
-        .collect();
-    set_texture(&mut mesh, size, pixels, covered);
-    Ok(PatchOutput {
-        mesh,
-        atlas,
-        atlas_reason,
-        patches,
-        radius,
-        uncovered: uncovered as f64 / layout_texels as f64,
-        orientation_used: orientation,
+    Ok(Turn {
+        orientation,
         anisotropy: anis,
-        seconds: total.secs(),
+        field,
+        symmetry,
     })
 }
 
@@ -455,6 +423,39 @@ struct Canvas {
 /// Cells a side of the image's usage grid.
 const USAGE: usize = 16;
 
+impl Canvas {
+    /// The texture: colours un-premultiplied, which texels a patch covers (the rest are left to
+    /// the gutter fill), and the share of layout texels left uncovered.
+    fn texture(&self, texels: &[Option<(u32, [f32; 3])>]) -> (Vec<[f32; 3]>, Vec<bool>, f64) {
+        let layout_texels = texels.iter().filter(|t| t.is_some()).count().max(1);
+        let mut uncovered = 0usize;
+        let covered: Vec<bool> = self
+            .alpha
+            .iter()
+            .zip(texels)
+            .map(|(&a, t)| {
+                if t.is_some() && a <= 1e-3 {
+                    uncovered += 1;
+                }
+                a > 1e-3
+            })
+            .collect();
+        let pixels: Vec<[f32; 3]> = self
+            .color
+            .par_iter()
+            .zip(self.alpha.par_iter())
+            .map(|(c, &a)| {
+                if a > 1e-3 {
+                    c.map(|x| (x / a).clamp(0.0, 1.0))
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect();
+        (pixels, covered, uncovered as f64 / layout_texels as f64)
+    }
+}
+
 /// Per-vertex flattening buffers, reused across patches.
 struct Scratch {
     uv: Vec<[f32; 2]>,
@@ -542,6 +543,68 @@ impl Placement {
 }
 
 impl Context<'_> {
+    /// Steps 3-7 for every patch: seeds in a random order, each not yet covered starting a
+    /// patch that is flattened, shaped, placed and pasted. Returns the canvas and the count.
+    fn paste_all(
+        &self,
+        turn: &Turn,
+        seed: u64,
+        total: &Stopwatch,
+        sink: &dyn Fn(Event),
+        cancel: &CancelToken,
+    ) -> Result<(Canvas, usize)> {
+        let (s, texels) = (self.surface, self.texels);
+        let mut canvas = Canvas {
+            color: vec![[0.0; 3]; texels.len()],
+            alpha: vec![0.0; texels.len()],
+            covered: 0,
+            usage: vec![0.0; USAGE * USAGE],
+        };
+        let layout_texels = texels.iter().filter(|t| t.is_some()).count().max(1);
+        let mut rng = stage_rng(seed, 11);
+        let mut order: Vec<u32> = (0..texels.len() as u32)
+            .filter(|&t| texels[t as usize].is_some())
+            .collect();
+        order.shuffle(&mut rng);
+        let mut scratch = Scratch {
+            uv: vec![[0.0; 2]; s.positions.len()],
+            stamp: vec![0; s.positions.len()],
+            fstamp: vec![0; s.faces.len()],
+            now: 0,
+        };
+        let mut patches = 0usize;
+        let mut last_report = Stopwatch::start();
+        for &seed_texel in &order {
+            if canvas.alpha[seed_texel as usize] >= 0.5 {
+                continue;
+            }
+            cancel.check()?;
+            let (face, bary) = texels[seed_texel as usize].expect("a layout texel");
+            let n = s.normal(face, bary);
+            let e1 = seed_direction(s, turn.field.as_deref(), face, bary, n, &mut rng);
+            let Some(patch) = self.flatten(face, bary, n, e1, &mut scratch) else {
+                continue;
+            };
+            let splotch = Splotch::random(&mut rng, self.pp);
+            let place = self.place(&patch, &splotch, &canvas, turn.symmetry, &mut rng);
+            self.paste(&patch, &splotch, &place, &mut canvas);
+            patches += 1;
+            if last_report.secs() > 0.1 {
+                last_report = Stopwatch::start();
+                sink(Event::Progress(Progress {
+                    stage: "patches",
+                    level: 0,
+                    levels: 1,
+                    iteration: patches,
+                    energy: 0.0,
+                    elapsed: total.secs(),
+                    fraction: canvas.covered as f32 / layout_texels as f32,
+                }));
+            }
+        }
+        Ok((canvas, patches))
+    }
+
     /// Step 4: the faces around the seed flattened by the exponential map, without the faces
     /// the flattening stretches or flips; `None` when the seed's own face is among those.
     fn flatten(
@@ -640,16 +703,9 @@ impl Context<'_> {
         (a, p)
     }
 
-    /// Step 6: the placement whose image best matches the covered texels under the patch.
-    fn place(
-        &self,
-        patch: &Patch,
-        splotch: &Splotch,
-        canvas: &Canvas,
-        symmetry: usize,
-        rng: &mut dyn rand::RngCore,
-    ) -> Placement {
-        // the texels already covered under the patch, a spread subset
+    /// The texels already covered under the patch (texel, patch face), a spread subset of at
+    /// most [`SCORE_SAMPLES`].
+    fn overlap(&self, patch: &Patch, canvas: &Canvas) -> Vec<(u32, usize)> {
         let mut overlap: Vec<(u32, usize)> = Vec::new();
         for (i, &f) in patch.faces.iter().enumerate() {
             for &t in self.face_texels.row(f as usize) {
@@ -664,6 +720,19 @@ impl Context<'_> {
                 .map(|k| overlap[(k as f64 * step) as usize])
                 .collect();
         }
+        overlap
+    }
+
+    /// Step 6: the placement whose image best matches the covered texels under the patch.
+    fn place(
+        &self,
+        patch: &Patch,
+        splotch: &Splotch,
+        canvas: &Canvas,
+        symmetry: usize,
+        rng: &mut dyn rand::RngCore,
+    ) -> Placement {
+        let overlap = self.overlap(patch, canvas);
         let (w, h) = (self.image.w as f32, self.image.h as f32);
         // centres within half a radius of the border: a patch may run off the image (it fades
         // there and other patches cover the rest), so every part of the image can be a core
@@ -756,44 +825,16 @@ impl Context<'_> {
                 best_score = sc;
             }
         }
-        // pattern search around the best
-        let mut step = (margin * 0.25).max(1.0);
-        let mut angle = best.sin.atan2(best.cos);
-        let mut astep = if free_rotation { 0.2 } else { 0.0 };
-        for _ in 0..12 {
-            let mut improved = false;
-            let mut tries: Vec<(Vec2, f32)> = vec![
-                (best.centre + Vec2::new(step, 0.0), angle),
-                (best.centre - Vec2::new(step, 0.0), angle),
-                (best.centre + Vec2::new(0.0, step), angle),
-                (best.centre - Vec2::new(0.0, step), angle),
-            ];
-            if astep > 0.0 {
-                tries.push((best.centre, angle + astep));
-                tries.push((best.centre, angle - astep));
-            }
-            for (c, a) in tries {
-                if c.x < xs.0 || c.x > xs.1 || c.y < ys.0 || c.y > ys.1 {
-                    continue;
-                }
-                let pl = Placement::new(c, a);
-                let sc = score(&pl);
-                if sc < best_score {
-                    best = pl;
-                    best_score = sc;
-                    angle = a;
-                    improved = true;
-                }
-            }
-            if !improved {
-                step *= 0.5;
-                astep *= 0.5;
-                if step < 0.5 {
-                    break;
-                }
-            }
-        }
-        best
+        let bounds = (xs, ys);
+        let astep = if free_rotation { 0.2 } else { 0.0 };
+        pattern_search(
+            best,
+            best_score,
+            (margin * 0.25).max(1.0),
+            astep,
+            bounds,
+            score,
+        )
     }
 
     /// Step 7: composite the patch's texels over the canvas.
@@ -849,6 +890,55 @@ fn hole_fade(alpha: &image::GrayImage, fade: f32) -> Vec<f32> {
         .into_iter()
         .map(|d| ((d - FRINGE) / fade).clamp(0.0, 1.0))
         .collect()
+}
+
+/// A pattern search from `best` (score `best_score`): steps of `step` pixels along x and y and
+/// of `astep` radians in angle, halved when none improves, within `bounds` (the centre's x and
+/// y ranges).
+fn pattern_search(
+    mut best: Placement,
+    mut best_score: f32,
+    mut step: f32,
+    mut astep: f32,
+    bounds: ((f32, f32), (f32, f32)),
+    score: impl Fn(&Placement) -> f32,
+) -> Placement {
+    let (xs, ys) = bounds;
+    let mut angle = best.sin.atan2(best.cos);
+    for _ in 0..12 {
+        let mut improved = false;
+        let mut tries: Vec<(Vec2, f32)> = vec![
+            (best.centre + Vec2::new(step, 0.0), angle),
+            (best.centre - Vec2::new(step, 0.0), angle),
+            (best.centre + Vec2::new(0.0, step), angle),
+            (best.centre - Vec2::new(0.0, step), angle),
+        ];
+        if astep > 0.0 {
+            tries.push((best.centre, angle + astep));
+            tries.push((best.centre, angle - astep));
+        }
+        for (c, a) in tries {
+            if c.x < xs.0 || c.x > xs.1 || c.y < ys.0 || c.y > ys.1 {
+                continue;
+            }
+            let pl = Placement::new(c, a);
+            let sc = score(&pl);
+            if sc < best_score {
+                best = pl;
+                best_score = sc;
+                angle = a;
+                improved = true;
+            }
+        }
+        if !improved {
+            step *= 0.5;
+            astep *= 0.5;
+            if step < 0.5 {
+                break;
+            }
+        }
+    }
+    best
 }
 
 /// The mean use of the usage grid's cells within `r` pixels of `c` (the nearest cell's when none
