@@ -135,6 +135,51 @@ fn a_transparent_hole_never_reaches_the_surface_and_own_uvs_are_kept() {
 }
 
 #[test]
+fn a_holes_halo_is_not_pasted_and_its_edge_fades_like_a_rim() {
+    // A cut-out as artists make them: green leaves-like noise with a transparent disc whose
+    // antialiased edge left a one-pixel magenta halo (the colour that was cut away)
+    let (w, h) = (128u32, 128u32);
+    let mut rgb = image::RgbImage::new(w, h);
+    let mut alpha = image::GrayImage::new(w, h);
+    for y in 0..h {
+        for x in 0..w {
+            let r = ((x as f32 - 64.0).powi(2) + (y as f32 - 64.0).powi(2)).sqrt();
+            let g = 120 + ((x * 7 + y * 13) % 60) as u8;
+            let (c, a) = if r < 24.0 {
+                ([255, 0, 255], 0)
+            } else if r < 25.0 {
+                ([255, 0, 255], 255)
+            } else {
+                ([30, g, 40], 255)
+            };
+            rgb.put_pixel(x, y, image::Rgb(c));
+            alpha.put_pixel(x, y, image::Luma([a]));
+        }
+    }
+    let target = load("bunny/bunny.obj");
+    let r = paste(&rgb, Some(&alpha), &target, 512);
+    let texture = &r.mesh.texture.as_ref().unwrap().image;
+    let uvs = r.mesh.uvs.as_ref().unwrap();
+    let texels = meshmatch::geometry::uv_texels(uvs, r.mesh.faces.len(), 512, 512);
+    let (mut magenta, mut covered) = (0usize, 0usize);
+    for (t, hit) in texels.iter().enumerate() {
+        if hit.is_some() {
+            covered += 1;
+            let p = texture.get_pixel((t % 512) as u32, (t / 512) as u32).0;
+            // any visible share of the halo: red and blue well above the leaves' own
+            if p[0] > 60 && p[2] > 70 {
+                magenta += 1;
+            }
+        }
+    }
+    assert!(r.uncovered < 0.001, "{:.4} uncovered", r.uncovered);
+    assert!(
+        magenta == 0,
+        "{magenta} of {covered} texels show the hole's halo"
+    );
+}
+
+#[test]
 fn patches_are_the_same_in_any_units() {
     // Spot with its own UVs and the penguin with a generated atlas, 1024 times larger and
     // smaller (exact in floating point): the same texture, byte for byte
