@@ -37,7 +37,8 @@
 use std::time::Instant;
 
 use faer::linalg::matmul::matmul;
-use faer::{Accum, MatMut, MatRef, Par};
+use faer::linalg::solvers::Solve;
+use faer::{Accum, MatMut, MatRef, Par, Side};
 use rayon::prelude::*;
 
 use super::eigen::laplacian_eigen;
@@ -446,39 +447,15 @@ fn descriptors(
     out
 }
 
-/// Solve the SPD system `a x = b` (`a` row-major `k × k`) by Cholesky; `None` when not PD.
+/// Solve the SPD system `a x = b` (`a` row-major `k × k`, its lower triangle read) by Cholesky;
+/// `None` when not PD.
 fn cholesky_solve(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
-    let mut l = vec![0.0; k * k];
-    for i in 0..k {
-        for j in 0..=i {
-            let mut s = a[i * k + j];
-            for p in 0..j {
-                s -= l[i * k + p] * l[j * k + p];
-            }
-            if i == j {
-                if s.is_nan() || s <= 0.0 {
-                    return None;
-                }
-                l[i * k + i] = s.sqrt();
-            } else {
-                l[i * k + j] = s / l[j * k + j];
-            }
-        }
-    }
-    let mut y = b.to_vec();
-    for i in 0..k {
-        for p in 0..i {
-            y[i] -= l[i * k + p] * y[p];
-        }
-        y[i] /= l[i * k + i];
-    }
-    for i in (0..k).rev() {
-        for p in i + 1..k {
-            y[i] -= l[p * k + i] * y[p];
-        }
-        y[i] /= l[i * k + i];
-    }
-    Some(y)
+    let llt = MatRef::from_row_major_slice(a, k, k)
+        .llt(Side::Lower)
+        .ok()?;
+    let mut x = b.to_vec();
+    llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut x, k, 1));
+    Some(x)
 }
 
 fn sub3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

@@ -682,8 +682,15 @@ fn polar(level: &Level, frames: &Frames, v: usize, q: Vec3) -> (f32, f32) {
 fn walk(level: &Level, frames: &Frames, s: usize, x: f32, y: f32) -> usize {
     let ps = Vec3::from(level.positions[s]);
     let goal = ps + x * Vec3::from(frames.t1[s]) + y * Vec3::from(frames.t2[s]);
-    let mut best = s;
-    let mut bd = (ps - goal).length_squared();
+    descend(level, goal, s, (ps - goal).length_squared())
+}
+
+/// Greedy descent on `level` towards `goal` from vertex `start` (at squared distance `d0`):
+/// at most 4 steps, each to the neighbour nearest the goal that [`beats`] the current one.
+#[inline]
+fn descend(level: &Level, goal: Vec3, start: usize, d0: f32) -> usize {
+    let mut best = start;
+    let mut bd = d0;
     for _ in 0..4 {
         let cur = best;
         for &u in level.adjacency.row(cur) {
@@ -796,19 +803,7 @@ pub(crate) fn upsample(
                     best = c as usize;
                 }
             }
-            for _ in 0..4 {
-                let cur = best;
-                for &u in lsf.adjacency.row(cur) {
-                    let d = (Vec3::from(lsf.positions[u as usize]) - goal).length_squared();
-                    if beats(d, bd) {
-                        bd = d;
-                        best = u as usize;
-                    }
-                }
-                if cur == best {
-                    break;
-                }
-            }
+            let best = descend(lsf, goal, best, bd);
             // Target fine frame -> target coarse frame -> (rotation k) -> source coarse frame ->
             // source fine frame.
             let a1 = transport_angle(

@@ -13,6 +13,8 @@
 //! 6. Heeger-Bergen iterations: per channel, decompose, match every band per cluster over its
 //!    support and blend by `w_k`, collapse, then the same for the channel values.
 
+use faer::MatRef;
+use faer::linalg::solvers::Solve;
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
 use rayon::prelude::*;
@@ -102,37 +104,6 @@ pub fn feather(x: &[f32], dim: usize, km: &KMeans) -> Feather {
     Feather { support }
 }
 
-/// Solve the small dense system `m a = r` (Gaussian elimination with partial pivoting);
-/// `None` when singular.
-fn solve(mut m: Vec<f64>, mut r: Vec<f64>, n: usize) -> Option<Vec<f64>> {
-    for col in 0..n {
-        let piv =
-            (col..n).max_by(|&a, &b| m[a * n + col].abs().total_cmp(&m[b * n + col].abs()))?;
-        if m[piv * n + col].abs() < 1e-300 {
-            return None;
-        }
-        if piv != col {
-            for j in 0..n {
-                m.swap(piv * n + j, col * n + j);
-            }
-            r.swap(piv, col);
-        }
-        for row in col + 1..n {
-            let f = m[row * n + col] / m[col * n + col];
-            for j in col..n {
-                m[row * n + j] -= f * m[col * n + j];
-            }
-            r[row] -= f * r[col];
-        }
-    }
-    let mut a = vec![0.0; n];
-    for row in (0..n).rev() {
-        let s: f64 = (row + 1..n).map(|j| m[row * n + j] * a[j]).sum();
-        a[row] = (r[row] - s) / m[row * n + row];
-    }
-    Some(a)
-}
-
 /// Weighted least squares `y ≈ A x + b` over a support (`A`: 3 × dim, stored with `b` as
 /// `3 × (dim + 1)` row-major, last column `b`); ridge-regularised.
 fn fit_affine(x: &[f32], dim: usize, y: &[Vec<f32>], sup: &[(u32, f32)]) -> Vec<f64> {
@@ -160,22 +131,29 @@ fn fit_affine(x: &[f32], dim: usize, y: &[Vec<f32>], sup: &[(u32, f32)]) -> Vec<
     for j in 0..dim {
         ata[j * m + j] += 1e-7 * tr / dim.max(1) as f64 + 1e-12;
     }
+    // One LU factorisation (partial pivoting) for the three colour channels; singular when a
+    // pivot vanishes.
+    let lu = MatRef::from_row_major_slice(&ata, m, m).partial_piv_lu();
+    let singular = (0..m).any(|i| lu.U()[(i, i)].abs() < 1e-300);
+    let mut sol = MatRef::from_row_major_slice(&aty, m, 3).to_owned();
+    if !singular {
+        lu.solve_in_place(sol.as_mut());
+    }
     let mut out = vec![0.0f64; 3 * m];
     for c in 0..3 {
-        let r: Vec<f64> = (0..m).map(|a| aty[a * 3 + c]).collect();
-        let sol = solve(ata.clone(), r, m).unwrap_or_else(|| {
+        if singular {
             // fall back to the weighted mean
             let wt: f64 = sup.iter().map(|s| s.1 as f64).sum::<f64>().max(1e-300);
-            let mean = sup
+            out[c * m + dim] = sup
                 .iter()
                 .map(|&(i, w)| w as f64 * y[c][i as usize] as f64)
                 .sum::<f64>()
                 / wt;
-            let mut v = vec![0.0; m];
-            v[dim] = mean;
-            v
-        });
-        out[c * m..(c + 1) * m].copy_from_slice(&sol);
+        } else {
+            for a in 0..m {
+                out[c * m + a] = sol[(a, c)];
+            }
+        }
     }
     out
 }
