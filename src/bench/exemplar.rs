@@ -162,7 +162,9 @@ pub(super) fn every_shared_pair(
 /// texel by texel ([`crate::synthesis::exemplar::character`]); `MESHMATCH_METHODS` picks
 /// among `patches,neighbourhood,triplanar`.
 pub fn synth_character_rows(json: bool) -> Result<()> {
-    use crate::synthesis::exemplar::character::{Exemplar, measure, triplanar_texture};
+    use crate::synthesis::exemplar::character::{
+        Exemplar, SAMPLES, measure_with, triplanar_texture,
+    };
     use crate::synthesis::exemplar::patch_pasting::paste_patches;
     use crate::synthesis::exemplar::{TextureInput, TextureParams, synthesize_texture};
     let (meshes, textures) = shared_meshes_and_textures();
@@ -199,6 +201,14 @@ pub fn synth_character_rows(json: bool) -> Result<()> {
                 image: &tex.image,
                 alpha: alpha.as_ref(),
                 scale,
+            };
+            let samples = match std::env::var("MESHMATCH_MEASURE_SAMPLES") {
+                Err(_) => SAMPLES,
+                Ok(v) => v.parse().map_err(|_| {
+                    crate::error::Error::InvalidInput(format!(
+                        "MESHMATCH_MEASURE_SAMPLES: '{v}' is not a count"
+                    ))
+                })?,
             };
             let methods = std::env::var("MESHMATCH_METHODS")
                 .unwrap_or_else(|_| "patches,neighbourhood,triplanar".into());
@@ -242,7 +252,7 @@ pub fn synth_character_rows(json: bool) -> Result<()> {
                     _ => continue,
                 };
                 if let Some(tx) = tx
-                    && let Some(c) = measure(laid, &tx, &ex, 1)
+                    && let Some(c) = measure_with(laid, &tx, &ex, 1, samples)
                 {
                     print_character(json, &name(m), &name(t), method, &c, secs);
                 }

@@ -23,8 +23,8 @@ use crate::mesh::TriMesh;
 
 /// Side of a compared patch.
 pub const PATCH: usize = 11;
-/// Patches compared each way.
-const SAMPLES: usize = 300;
+/// Patches compared each way by [`measure`].
+pub const SAMPLES: usize = 300;
 /// PCA dimensions of the pre-filter.
 const PCA_DIMS: usize = 24;
 /// Exact distances computed per query, from the PCA's nearest.
@@ -132,6 +132,19 @@ pub fn measure(
     ex: &Exemplar,
     seed: u64,
 ) -> Option<Character> {
+    measure_with(mesh, texture, ex, seed, SAMPLES)
+}
+
+/// [`measure`] with `samples` patches compared each way: the patch and reverse distances are
+/// means over samples, so their standard error falls as one over its square root.
+pub fn measure_with(
+    mesh: &TriMesh,
+    texture: &image::RgbImage,
+    ex: &Exemplar,
+    seed: u64,
+    samples: usize,
+) -> Option<Character> {
+    let samples = samples.max(1);
     let uvs = mesh
         .uvs
         .as_ref()
@@ -197,11 +210,13 @@ pub fn measure(
     let mut texture_patches: Vec<Vec<f32>> = Vec::new();
     let mut queries: Vec<Vec<Vec<f32>>> = Vec::new(); // per sample, its 16 rotations
     let mut tries = 0;
-    while (texture_patches.len() < 96_000 || queries.len() < SAMPLES) && tries < 400_000 {
+    while (texture_patches.len() < 96_000 || queries.len() < samples)
+        && tries < 400_000.max(4 * samples)
+    {
         tries += 1;
         let c = centres[rng.random_range(0..centres.len())];
         let at = Vec2::new((c % tw) as f32, (c / tw) as f32);
-        if queries.len() < SAMPLES {
+        if queries.len() < samples {
             let rots: Vec<Vec<f32>> = (0..16)
                 .filter_map(|r| {
                     tex_img.patch(at, step, r as f32 * std::f32::consts::TAU / 16.0, false)
@@ -226,7 +241,7 @@ pub fn measure(
     if queries.is_empty() || texture_patches.is_empty() {
         return None;
     }
-    let image_queries: Vec<Vec<f32>> = (0..SAMPLES)
+    let image_queries: Vec<Vec<f32>> = (0..samples)
         .filter_map(|_| {
             let x = rng.random_range(PATCH / 2..iw.saturating_sub(PATCH / 2).max(PATCH / 2 + 1));
             let y = rng.random_range(PATCH / 2..ih.saturating_sub(PATCH / 2).max(PATCH / 2 + 1));
