@@ -712,20 +712,9 @@ fn synth_texture(
     sink: &dyn Fn(crate::work::Event),
     cancel: &CancelToken,
 ) -> Result<crate::mesh::TriMesh> {
-    use crate::synthesis::exemplar::{TextureInput, TextureParams, synthesize_texture};
-    let params = TextureParams {
-        synth: crate::synthesis::SynthParams {
-            scale: a.scale,
-            orientation,
-            levels: a.levels,
-            search,
-            seed: a.seed,
-            ..Default::default()
-        },
-        texture_size: a.texture_size,
-        texel_budget: a.texel_budget,
-        new_atlas: false,
-    };
+    use crate::synthesis::exemplar::{TextureInput, synthesize_texture};
+    let mut params = texture_params(a, orientation);
+    params.synth.search = search;
     let input = TextureInput {
         exemplar,
         alpha,
@@ -779,18 +768,9 @@ fn synth_patches(
     sink: &dyn Fn(crate::work::Event),
     cancel: &CancelToken,
 ) -> Result<crate::mesh::TriMesh> {
+    use crate::synthesis::exemplar::TextureInput;
     use crate::synthesis::exemplar::patch_pasting::{PatchParams, paste_patches};
-    use crate::synthesis::exemplar::{TextureInput, TextureParams};
-    let params = TextureParams {
-        synth: crate::synthesis::SynthParams {
-            scale: a.scale,
-            orientation,
-            seed: a.seed,
-            ..Default::default()
-        },
-        texture_size: a.texture_size,
-        ..Default::default()
-    };
+    let params = texture_params(a, orientation);
     let input = TextureInput {
         exemplar,
         alpha,
@@ -812,6 +792,26 @@ fn synth_patches(
         a.texture_size
     );
     Ok(r.mesh)
+}
+
+/// The texture-space parameters the flags ask for (patch pasting reads the scale, orientation,
+/// seed and texture size of them).
+fn texture_params(
+    a: &SynthArgs,
+    orientation: crate::synthesis::Orientation,
+) -> crate::synthesis::exemplar::TextureParams {
+    crate::synthesis::exemplar::TextureParams {
+        synth: crate::synthesis::SynthParams {
+            scale: a.scale,
+            orientation,
+            levels: a.levels,
+            seed: a.seed,
+            ..Default::default()
+        },
+        texture_size: a.texture_size,
+        texel_budget: a.texel_budget,
+        new_atlas: false,
+    }
 }
 
 /// The atlas generated for a texture-space result and why, on stderr.

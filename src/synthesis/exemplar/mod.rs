@@ -580,6 +580,25 @@ fn resolve_auto(
     }
 }
 
+/// The image's width in surface units: `scale`, or a quarter of the target's bounding-box
+/// diagonal; refuses a mesh without extent and a scale that is not positive.
+pub(crate) fn surface_scale(target: &TriMesh, scale: Option<f32>) -> Result<f32> {
+    let (lo, hi) = target
+        .bounds()
+        .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
+    let diag = Vec3::from(hi).distance(Vec3::from(lo));
+    if !(diag > 0.0 && diag.is_finite()) {
+        return Err(Error::InvalidMesh("target mesh has zero extent".into()));
+    }
+    let scale = scale.unwrap_or(diag / 4.0);
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "scale must be positive, got {scale}"
+        )));
+    }
+    Ok(scale)
+}
+
 /// Refuse a target, exemplar, scale or mask the surface synthesis cannot use, or a refined mesh
 /// over the vertex limit or the memory; the scale and the texel spacing `h0` it gives.
 fn check_surface_input(
@@ -590,19 +609,7 @@ fn check_surface_input(
 ) -> Result<(f32, f32)> {
     validate(target, exemplar.dimensions(), params.levels)?;
     let nv = target.num_vertices();
-    let (lo, hi) = target
-        .bounds()
-        .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
-    let diag = Vec3::from(hi).distance(Vec3::from(lo));
-    if diag <= 0.0 {
-        return Err(Error::InvalidMesh("target mesh has zero extent".into()));
-    }
-    let scale = params.scale.unwrap_or(diag / 4.0);
-    if !(scale.is_finite() && scale > 0.0) {
-        return Err(Error::InvalidInput(format!(
-            "scale must be positive, got {scale}"
-        )));
-    }
+    let scale = surface_scale(target, params.scale)?;
     if let Some(m) = mask {
         if m.len() != nv {
             return Err(Error::InvalidInput(format!(

@@ -38,7 +38,9 @@ use rand::seq::SliceRandom;
 use rayon::prelude::*;
 
 use super::pyramid::{Img, stage_rng};
-use super::texture_space::{Surface, TextureInput, TextureParams, set_texture, texture_layout};
+use super::texture_space::{
+    Surface, TextureInput, TextureParams, check_texture_memory, set_texture, texture_layout,
+};
 use super::{Orientation, anisotropy, feature_field, transparent_filled};
 use crate::error::{Error, Result};
 use crate::mesh::{Csr, TriMesh};
@@ -179,19 +181,7 @@ fn patch_size(
     pp: &PatchParams,
 ) -> Result<(f32, f32)> {
     let target = input.target;
-    let (lo, hi) = target
-        .bounds()
-        .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
-    let diag = Vec3::from(hi).distance(Vec3::from(lo));
-    if !(diag > 0.0 && diag.is_finite()) {
-        return Err(Error::InvalidMesh("target mesh has zero extent".into()));
-    }
-    let scale = params.synth.scale.unwrap_or(diag / 4.0);
-    if !(scale.is_finite() && scale > 0.0) {
-        return Err(Error::InvalidInput(format!(
-            "scale must be positive, got {scale}"
-        )));
-    }
+    let scale = super::surface_scale(target, params.synth.scale)?;
     let (ew, eh) = input.exemplar.dimensions();
     let pixel = scale / ew as f32;
     let radius = pp.radius * ew.min(eh) as f32 * pixel;
@@ -203,12 +193,7 @@ fn patch_size(
              {expected:.0} of them): use a larger scale or --method neighbourhood"
         )));
     }
-    let out_texels = (params.texture_size as u64).pow(2);
-    crate::work::check_memory(
-        out_texels.saturating_mul(64),
-        &format!("a {0}x{0} texture", params.texture_size),
-        "use a smaller --texture-size",
-    )?;
+    check_texture_memory(params.texture_size)?;
     Ok((pixel, radius))
 }
 

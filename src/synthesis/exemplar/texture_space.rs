@@ -923,27 +923,18 @@ fn check_texture_input(input: &TextureInput, params: &TextureParams) -> Result<f
             f.len()
         )));
     }
-    // the output's texel hits (20 bytes), colours, coverage, pull-push pyramid and 8-bit copy
-    let out_texels = (params.texture_size as u64).pow(2);
+    check_texture_memory(params.texture_size)?;
+    super::surface_scale(target, sp.scale)
+}
+
+/// Refuses an output texture of `size²` texels that does not fit in memory: its texel hits
+/// (20 bytes), colours, coverage, pull-push pyramid and 8-bit copy.
+pub(super) fn check_texture_memory(size: u32) -> Result<()> {
     crate::work::check_memory(
-        out_texels.saturating_mul(64),
-        &format!("a {0}x{0} texture", params.texture_size),
+        (size as u64).pow(2).saturating_mul(64),
+        &format!("a {size}x{size} texture"),
         "use a smaller --texture-size",
-    )?;
-    let (lo, hi) = target
-        .bounds()
-        .ok_or_else(|| Error::InvalidMesh("empty mesh".into()))?;
-    let diag = Vec3::from(hi).distance(Vec3::from(lo));
-    if diag <= 0.0 {
-        return Err(Error::InvalidMesh("target mesh has zero extent".into()));
-    }
-    let scale = sp.scale.unwrap_or(diag / 4.0);
-    if !(scale.is_finite() && scale > 0.0) {
-        return Err(Error::InvalidInput(format!(
-            "scale must be positive, got {scale}"
-        )));
-    }
-    Ok(scale)
+    )
 }
 
 /// The working texture's size and the exemplar's working width.
