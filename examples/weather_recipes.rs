@@ -56,66 +56,35 @@ fn main() {
     let mut variants: Vec<(&str, Params)> = vec![("default", Params::default())];
     if let Ok(v) = std::env::var("VARIANTS") {
         for name in v.split(',') {
-            let p = match name {
-                "np" => Params {
-                    method: Method::NonParametric,
-                    ..Params::default()
-                },
-                "dims1" => Params {
-                    cca_dims: 1,
-                    ..Params::default()
-                },
-                "dims2" => Params {
-                    cca_dims: 2,
-                    ..Params::default()
-                },
-                "noms" => Params {
-                    multiscale_matching: false,
-                    ..Params::default()
-                },
-                "nomatch" => Params {
-                    match_strength: 0.0,
-                    ..Params::default()
-                },
-                "half" => Params {
-                    match_strength: 0.5,
-                    ..Params::default()
-                },
-                "noise0" => Params {
-                    noise: 0.0,
-                    ..Params::default()
-                },
-                "noise05" => Params {
-                    noise: 0.5,
-                    ..Params::default()
-                },
-                "k1" => Params {
-                    clusters: 1,
-                    ..Params::default()
-                },
-                "k10" => Params {
-                    clusters: 10,
-                    ..Params::default()
-                },
-                "k200" => Params {
-                    clusters: 200,
-                    ..Params::default()
-                },
-                "nb1" => Params {
-                    neighbours: 1,
-                    ..Params::default()
-                },
-                "nb2" => Params {
-                    neighbours: 2,
-                    ..Params::default()
-                },
-                "nohb" => Params {
-                    hb_iterations: 0,
-                    ..Params::default()
-                },
-                _ => continue,
-            };
-            variants.push((Box::leak(name.to_string().into_boxed_str()), p));
+            // modifiers compose with '+', e.g. `nomatch+noise0`
+            let mut p = Params::default();
+            let mut known = true;
+            for m in name.split('+') {
+                match m {
+                    "np" => p.method = Method::NonParametric,
+                    "dims1" => p.cca_dims = 1,
+                    "dims2" => p.cca_dims = 2,
+                    "noms" => p.multiscale_matching = false,
+                    "nomatch" => p.match_strength = 0.0,
+                    "half" => p.match_strength = 0.5,
+                    "noise0" => p.noise = 0.0,
+                    "noise05" => p.noise = 0.5,
+                    "k1" => p.clusters = 1,
+                    "k10" => p.clusters = 10,
+                    "k200" => p.clusters = 200,
+                    "nb1" => p.neighbours = 1,
+                    "nb2" => p.neighbours = 2,
+                    "nohb" => p.hb_iterations = 0,
+                    "affine" => p.mean = meshmatch::synthesis::weathering::Mean::Affine,
+                    "hb1" => p.hb_iterations = 1,
+                    "lv1" => p.levels = 1,
+                    "lv2" => p.levels = 2,
+                    _ => known = false,
+                }
+            }
+            if known {
+                variants.push((Box::leak(name.to_string().into_boxed_str()), p));
+            }
         }
     }
     let cancel = CancelToken::new();
@@ -167,6 +136,24 @@ fn main() {
             continue;
         }
         for r in &list {
+            if std::env::var("CAP").is_ok() {
+                use meshmatch::synthesis::weathering::recipes::{paint, score};
+                let t = paint(r, &pr.target_features, &pr.target_refined.positions, Up::Y);
+                let mut r0 = r.clone();
+                r0.grain = 0.0;
+                let t0 = paint(
+                    &r0,
+                    &pr.target_features,
+                    &pr.target_refined.positions,
+                    Up::Y,
+                );
+                let adj = pr.target_refined.adjacency();
+                println!(
+                    "{:<8} cap(nograin vs truth) {}",
+                    r.name,
+                    row("", &score(&t0, &t, &adj))
+                );
+            }
             for (vname, params) in &variants {
                 let e = evaluate(&pr, r, params, &cancel).expect("evaluate");
                 println!(

@@ -28,6 +28,7 @@ pub mod nonparametric;
 pub mod parametric;
 pub mod pyramid;
 pub mod recipes;
+mod regression;
 
 use std::sync::Arc;
 
@@ -102,7 +103,45 @@ impl std::str::FromStr for Method {
     }
 }
 
-/// Parameters of the transfer; `Default` gives the paper's settings.
+/// The mean colour of the parametric synthesis (§4.2).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mean {
+    /// A k-nearest-neighbour regression of colour on the features, each weighed by how far the
+    /// colour follows it ([`regression`]); the histogram matching then synthesizes the residual's
+    /// grain only. Carries rules that are not linear in the features (thresholds, a rule that
+    /// needs two features at once). The default.
+    #[default]
+    Neighbours,
+    /// The paper's per-cluster affine maps of the guidance; the histogram matching then matches
+    /// the whole colour.
+    Affine,
+}
+
+impl Mean {
+    /// The name the CLI and the Python package use.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Mean::Neighbours => "neighbours",
+            Mean::Affine => "affine",
+        }
+    }
+}
+
+impl std::str::FromStr for Mean {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        match s.to_ascii_lowercase().as_str() {
+            "neighbours" | "neighbors" | "knn" => Ok(Mean::Neighbours),
+            "affine" => Ok(Mean::Affine),
+            _ => Err(Error::InvalidInput(format!(
+                "unknown mean '{s}' (expected neighbours or affine)"
+            ))),
+        }
+    }
+}
+
+/// Parameters of the transfer; `Default` gives the paper's settings, except [`Params::mean`].
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 #[serde(default)]
 pub struct Params {
@@ -120,6 +159,9 @@ pub struct Params {
     pub clusters: usize,
     /// Synthesis method.
     pub method: Method,
+    /// The parametric synthesis's mean colour: [`Mean::Neighbours`] by default (the paper's is
+    /// [`Mean::Affine`]; `docs/systems/weathering.md` has both measured).
+    pub mean: Mean,
     /// Random seed (occlusion rays, rotations, k-means, noise).
     pub seed: u64,
     /// Maximum PDF-transfer rotations.
@@ -155,6 +197,7 @@ impl Default for Params {
             cca_dims: 3,
             clusters: 50,
             method: Method::Parametric,
+            mean: Mean::Neighbours,
             seed: 0,
             pdf_iterations: 20,
             hb_iterations: 3,
@@ -372,6 +415,7 @@ pub fn run(
         decorrelated: &src_dec,
         train: &train,
         features: &fs,
+        target_features: &ft,
     };
     let colors = synthesize_colours(
         &guidance, &colours, &rs.mesh, &rt.mesh, params, &stages, cancel,
@@ -585,6 +629,8 @@ struct ColourSource<'a> {
     decorrelated: &'a [[f32; 3]],
     train: &'a [u32],
     features: &'a FeatureSet,
+    /// The target's features (for [`Mean::Neighbours`]).
+    target_features: &'a FeatureSet,
 }
 
 /// Synthesize the target's colour (§4) from the matched guidance, by the parametric or the
@@ -657,31 +703,74 @@ fn synthesize_colours(
         )?;
         [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect::<Vec<f32>>())
     } else {
-        // The source's decorrelated colour channels and their Laplacian bands, on the training
-        // vertices.
-        let channels: [Vec<f32>; 3] =
-            [0, 1, 2].map(|c| src_dec.iter().map(|y| y[c]).collect::<Vec<f32>>());
-        let pick = |v: &[f32]| -> Vec<f32> { train.iter().map(|&i| v[i as usize]).collect() };
-        let src_levels: [Vec<Vec<f32>>; 3] = [0, 1, 2].map(|c| {
-            pyramid::decompose(&src_adj, &channels[c], levels)
-                .iter()
-                .map(|l| pick(l))
-                .collect()
-        });
-        let src_channels: [Vec<f32>; 3] = [0, 1, 2].map(|c| pick(&channels[c]));
-        drop(src_adj);
-        parametric::synthesize(
-            &parametric::SourceData {
-                guidance: &g.source_train,
-                colour: &src_channels,
-                levels: &src_levels,
-            },
-            &g.target,
-            &tgt_adj,
-            d,
-            &knobs,
-            &mut partial,
-        )?
+        parametric_colours(g, colours, &src_adj, &tgt_adj, params, &knobs, &mut partial)?
     };
     Ok(to_srgb(&y))
+}
+
+/// The parametric synthesis (§4.2) of the decorrelated colour channels on the target. With
+/// [`Mean::Neighbours`] the mean is regressed on the features ([`regression`]) and the
+/// synthesis runs on the finest Laplacian band of the source's residual about it (the grain),
+/// added back to the target's regressed mean; with [`Mean::Affine`] it runs on the colour itself.
+fn parametric_colours(
+    g: &Guidance,
+    colours: &ColourSource,
+    src_adj: &crate::mesh::Csr,
+    tgt_adj: &crate::mesh::Csr,
+    params: &Params,
+    knobs: &parametric::SynthKnobs,
+    partial: &mut parametric::PartialFn,
+) -> Result<[Vec<f32>; 3]> {
+    let (train, src_dec) = (colours.train, colours.decorrelated);
+    let levels = knobs.levels;
+    let mut channels: [Vec<f32>; 3] =
+        [0, 1, 2].map(|c| src_dec.iter().map(|y| y[c]).collect::<Vec<f32>>());
+    let mean = match params.mean {
+        Mean::Affine => None,
+        Mean::Neighbours => {
+            let pr = regression::predict(
+                colours.features,
+                colours.target_features,
+                train,
+                src_dec,
+                &g.model,
+            );
+            for (ch, m) in channels.iter_mut().zip(&pr.source) {
+                for (x, mv) in ch.iter_mut().zip(m) {
+                    *x -= mv;
+                }
+                *ch = pyramid::decompose(src_adj, ch, 2).swap_remove(0);
+            }
+            Some(pr.target)
+        }
+    };
+    // the synthesized channels and their Laplacian bands, on the training vertices
+    let pick = |v: &[f32]| -> Vec<f32> { train.iter().map(|&i| v[i as usize]).collect() };
+    let src_levels: [Vec<Vec<f32>>; 3] = [0, 1, 2].map(|c| {
+        pyramid::decompose(src_adj, &channels[c], levels)
+            .iter()
+            .map(|l| pick(l))
+            .collect()
+    });
+    let src_channels: [Vec<f32>; 3] = [0, 1, 2].map(|c| pick(&channels[c]));
+    let plus_mean = |y: &[Vec<f32>; 3]| -> [Vec<f32>; 3] {
+        match &mean {
+            None => y.clone(),
+            Some(m) => [0, 1, 2].map(|c| y[c].iter().zip(&m[c]).map(|(a, b)| a + b).collect()),
+        }
+    };
+    let mut partial_with_mean = |it: usize, y: &[Vec<f32>; 3]| partial(it, &plus_mean(y));
+    let y = parametric::synthesize(
+        &parametric::SourceData {
+            guidance: &g.source_train,
+            colour: &src_channels,
+            levels: &src_levels,
+        },
+        &g.target,
+        tgt_adj,
+        g.dim,
+        knobs,
+        &mut partial_with_mean,
+    )?;
+    Ok(plus_mean(&y))
 }

@@ -1,0 +1,197 @@
+//! The mean colour of the parametric synthesis as a non-linear regression on the features
+//! ([`super::Mean::Neighbours`]).
+//!
+//! The paper's mean is a per-cluster affine map of the 3-D guidance. Rules that are not linear in
+//! the features (a stain past a curvature threshold, moss where the surface faces up *and* is
+//! exposed) are then carried only as far as a linear projection of the features can carry them,
+//! and the histogram matching that follows spreads what is left over whole clusters. Here the mean
+//! is a k-nearest-neighbour regression of the decorrelated colour on the features:
+//! 1. **Standardise** every feature column by the training vertices' mean and deviation.
+//! 2. **Weigh** each column by its relevance: the root sum of its squared correlations with the
+//!    canonical colour variates of the CCA (the components switched off give no weight), scaled
+//!    so the most relevant column has weight 1. Columns that no colour direction follows drop out
+//!    of the distance, so they do not scatter the neighbours.
+//! 3. **Regress**: each vertex gets the mean colour of its `k` nearest training vertices in the
+//!    weighted space (a training vertex leaves itself out, so the source's residual is what the
+//!    regression does not explain on unseen points).
+//!
+//! The synthesis then runs on the residual's finest Laplacian band (the grain), and the target's
+//! colour is its regressed mean plus the synthesized grain.
+
+use rayon::prelude::*;
+
+use super::FeatureSet;
+use crate::stats::{Cca, KdTree, pearson};
+
+/// Neighbours averaged per vertex.
+pub const NEIGHBOURS: usize = 8;
+
+/// The regressed mean colour (decorrelated channels) on every source and target vertex, and the
+/// feature weights it used.
+pub(super) struct Prediction {
+    /// Per channel, on every source vertex (leave-one-out on the training vertices).
+    pub source: [Vec<f32>; 3],
+    /// Per channel, on every target vertex.
+    pub target: [Vec<f32>; 3],
+    /// Weight of each feature column in the distance.
+    pub weights: Vec<f32>,
+}
+
+/// Regress the decorrelated source colours `src_dec` of the training vertices `train` on the
+/// features `fs` (source) and `ft` (target), weighted by their relevance to the CCA `model`.
+pub(super) fn predict(
+    fs: &FeatureSet,
+    ft: &FeatureSet,
+    train: &[u32],
+    src_dec: &[[f32; 3]],
+    model: &Cca,
+) -> Prediction {
+    let p = fs.dim;
+    let (mean, scale) = column_scales(fs, train);
+    let ys: Vec<f32> = train.iter().flat_map(|&v| src_dec[v as usize]).collect();
+    let vy = model.project_y(&ys);
+    let weights = relevance(fs, train, &vy, model.d);
+    let map = |x: &[f32]| -> Vec<f32> {
+        x.iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let j = i % p;
+                ((v as f64 - mean[j]) * scale[j]) as f32 * weights[j]
+            })
+            .collect()
+    };
+    let (xs, xt) = (map(&fs.values), map(&ft.values));
+    let xtrain: Vec<f32> = train
+        .iter()
+        .flat_map(|&v| xs[v as usize * p..(v as usize + 1) * p].iter().copied())
+        .collect();
+    let tree = KdTree::new(&xtrain, p);
+    let k = NEIGHBOURS.min(train.len().saturating_sub(1)).max(1);
+    let colour = |j: u32| src_dec[train[j as usize] as usize];
+    let regress = |x: &[f32], leave_out: bool| -> [Vec<f32>; 3] {
+        let rows: Vec<[f32; 3]> = x
+            .par_chunks(p)
+            .enumerate()
+            .map_init(Vec::new, |buf, (v, q)| {
+                tree.knn(q, k + 1, buf);
+                let mut m = [0.0f32; 3];
+                let mut n = 0usize;
+                for &(_, j) in buf.iter() {
+                    if n == k || (leave_out && train[j as usize] == v as u32) {
+                        continue;
+                    }
+                    let c = colour(j);
+                    for (mk, ck) in m.iter_mut().zip(c) {
+                        *mk += ck;
+                    }
+                    n += 1;
+                }
+                m.map(|s| s / n.max(1) as f32)
+            })
+            .collect();
+        [0, 1, 2].map(|c| rows.iter().map(|r| r[c]).collect())
+    };
+    Prediction {
+        source: regress(&xs, true),
+        target: regress(&xt, false),
+        weights,
+    }
+}
+
+/// Per feature column, the training vertices' mean and the reciprocal of their standard
+/// deviation (0 for a constant column).
+fn column_scales(fs: &FeatureSet, train: &[u32]) -> (Vec<f64>, Vec<f64>) {
+    let p = fs.dim;
+    let n = train.len().max(1) as f64;
+    let mut mean = vec![0.0f64; p];
+    for &v in train {
+        for (m, &x) in mean.iter_mut().zip(fs.row(v as usize)) {
+            *m += x as f64 / n;
+        }
+    }
+    let mut var = vec![0.0f64; p];
+    for &v in train {
+        for ((s, &x), m) in var.iter_mut().zip(fs.row(v as usize)).zip(&mean) {
+            *s += (x as f64 - m).powi(2) / n;
+        }
+    }
+    let scale = var
+        .iter()
+        .map(|&s| if s > 1e-18 { 1.0 / s.sqrt() } else { 0.0 })
+        .collect();
+    (mean, scale)
+}
+
+/// Per feature column, the root sum of its squared correlations (over the training vertices)
+/// with the `d` canonical colour variates `vy` (`train.len() × d`), the largest scaled to 1.
+fn relevance(fs: &FeatureSet, train: &[u32], vy: &[f32], d: usize) -> Vec<f32> {
+    let variates: Vec<Vec<f32>> = (0..d)
+        .map(|k| vy.iter().skip(k).step_by(d.max(1)).copied().collect())
+        .collect();
+    let w: Vec<f32> = (0..fs.dim)
+        .map(|j| {
+            let col: Vec<f32> = train.iter().map(|&v| fs.row(v as usize)[j]).collect();
+            variates
+                .iter()
+                .map(|vk| pearson(&col, vk).powi(2))
+                .sum::<f64>()
+                .sqrt() as f32
+        })
+        .collect();
+    let top = w.iter().copied().fold(0.0f32, f32::max);
+    if top > 0.0 && top.is_finite() {
+        w.iter().map(|x| x / top).collect()
+    } else {
+        vec![1.0; fs.dim]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stats::cca;
+    use rand::rngs::SmallRng;
+    use rand::{Rng, SeedableRng};
+
+    /// A colour that steps where one of six features passes a threshold, the other five noise:
+    /// the regression recovers the step (a linear map of the features cannot), and the five
+    /// unrelated columns get little weight.
+    #[test]
+    fn a_threshold_rule_is_regressed_and_unrelated_features_weigh_little() {
+        let mut rng = SmallRng::seed_from_u64(5);
+        let (n, p) = (4000, 6);
+        let make = |rng: &mut SmallRng| -> FeatureSet {
+            let values: Vec<f32> = (0..n * p).map(|_| rng.random::<f32>()).collect();
+            FeatureSet {
+                values,
+                dim: p,
+                names: (0..p).map(|j| format!("f{j}")).collect(),
+                ..FeatureSet::default()
+            }
+        };
+        let (fs, ft) = (make(&mut rng), make(&mut rng));
+        let rule = |f: &FeatureSet, v: usize| -> [f32; 3] {
+            let s = if f.row(v)[2] > 0.7 { 1.0 } else { 0.0 };
+            [s, 0.3 * s, 0.0]
+        };
+        let src: Vec<[f32; 3]> = (0..n).map(|v| rule(&fs, v)).collect();
+        let train: Vec<u32> = (0..n as u32).collect();
+        let ys: Vec<f32> = src.iter().flatten().copied().collect();
+        let model = cca(&fs.values, p, &ys, 3, 3, 1e-6).unwrap();
+        let pr = predict(&fs, &ft, &train, &src, &model);
+        assert!((pr.weights[2] - 1.0).abs() < 1e-6, "{:?}", pr.weights);
+        for (j, w) in pr.weights.iter().enumerate() {
+            if j != 2 {
+                assert!(*w < 0.2, "column {j} weighs {w}");
+            }
+        }
+        let truth: Vec<f32> = (0..n).map(|v| rule(&ft, v)[0]).collect();
+        let r = pearson(&pr.target[0], &truth);
+        assert!(r > 0.9, "correlation {r}");
+        // leave-one-out: a lone training point far from the others does not predict itself
+        let wrong = (0..n)
+            .filter(|&v| (pr.source[0][v] - src[v][0]).abs() > 0.5)
+            .count();
+        assert!(wrong < n / 20, "{wrong} source vertices mispredicted");
+    }
+}
