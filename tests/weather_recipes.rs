@@ -63,40 +63,51 @@ fn check(e: &Evaluation, l: f64, w1: f64) {
 
 #[test]
 fn dirt_alone() {
-    check(&run(&Recipe::single(Rule::Dirt)), 0.7, 4.0);
+    check(&run(&Recipe::single(Rule::Dirt)), 0.85, 4.0);
 }
 
 #[test]
 fn edge_wear_alone() {
-    check(&run(&Recipe::single(Rule::Wear)), 0.7, 4.0);
+    check(&run(&Recipe::single(Rule::Wear)), 0.85, 4.0);
 }
 
-/// Below the 0.7 aimed at: measured 0.38 (kNN floor 0.76) at 12K points; asserted with a margin.
+/// Measured 0.86 at 12K points (kNN floor 0.76; the paper's affine mean 0.38).
 #[test]
 fn concavity_alone() {
-    check(&run(&Recipe::single(Rule::Concavity)), 0.25, 4.0);
+    let e = run(&Recipe::single(Rule::Concavity));
+    check(&e, 0.7, 4.0);
+    assert!(
+        e.method.corr[1] > 0.7 && e.method.corr[2] > 0.7,
+        "{:?}",
+        e.method.corr
+    );
 }
 
 #[test]
 fn height_tint_alone() {
-    check(&run(&Recipe::single(Rule::HeightTint)), 0.7, 4.0);
+    check(&run(&Recipe::single(Rule::HeightTint)), 0.85, 4.0);
 }
 
-/// Below the 0.7 aimed at: measured L 0.51, a* 0.63 (kNN floor 0.62, 0.82); asserted with a
-/// margin.
+/// Measured L 0.60, a* 0.78 at 12K points (kNN floor 0.62, 0.82; the paper's affine mean 0.51,
+/// 0.63). Moss changes lightness little, so its lightness correlation stays below 0.7 (the
+/// recipe without grain against with it: 0.81).
 #[test]
 fn moss_alone() {
     let e = run(&Recipe::single(Rule::Moss));
-    check(&e, 0.4, 4.0);
-    assert!(e.method.corr[1] > 0.5, "{:?}", e.method.corr);
+    check(&e, 0.5, 4.0);
+    assert!(
+        e.method.corr[1] > 0.7 && e.method.corr[2] > 0.7,
+        "{:?}",
+        e.method.corr
+    );
 }
 
-/// Below the targets: measured L 0.70, a* 0.66, b* 0.53, W1 4.4 (kNN floor 0.88, 0.80, 0.71,
-/// 2.4) at 12K points; asserted with a margin.
+/// Chroma below the targets: measured L 0.90, a* 0.61, b* 0.43, W1 2.0 (kNN floor 0.88, 0.80,
+/// 0.71, 2.4; the paper's affine mean 0.70, 0.66, 0.54, 4.4) at 12K points.
 #[test]
 fn every_rule_together() {
     let e = run(&Recipe::new("all", &Rule::ALL));
-    check(&e, 0.6, 5.5);
+    check(&e, 0.8, 3.0);
     assert!(
         e.method.corr[1] > 0.55 && e.method.corr[2] > 0.4,
         "{:?}",
@@ -165,8 +176,8 @@ fn without(recipe: &Recipe, k: usize, d: usize) -> Evaluation {
 /// crevices), the component that carries the moss (weighing the up-facing normal or occlusion
 /// most) switched off drops the moss and keeps the dirt; the one that carries the dirt (weighing
 /// the ambient occlusion most) switched off drops the dirt and keeps the moss. Measured at 12K
-/// points: moss 0.68, dirt 0.64 with every component; moss component off: moss 0.08, dirt 0.61;
-/// dirt component off: moss 0.48, dirt 0.13 (correlations on the cat with each rule's strength).
+/// points: moss 0.90, dirt 0.88 with every component; moss component off: moss 0.13, dirt 0.94;
+/// dirt component off: moss 0.73, dirt 0.10 (correlations on the cat with each rule's strength).
 #[test]
 fn switching_off_a_component_drops_the_rule_it_carries_and_keeps_the_other() {
     let recipe = Recipe::new("mossy", &[Rule::Moss, Rule::Dirt]);

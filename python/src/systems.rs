@@ -554,7 +554,8 @@ fn synthesize(
 #[pyo3(signature = (source, target, *, mask=None, method="parametric".to_string(),
     up="y".to_string(), vertices=weathering::Params::default().working_vertices,
     rays=weathering::Params::default().rays, clusters=weathering::Params::default().clusters,
-    seed=0, components=None, texture_size=1024, textured=None, progress=None, cancel=None))]
+    seed=0, components=None, mean="neighbours".to_string(), texture_size=1024, textured=None,
+    progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn weather(
     py: Python<'_>,
@@ -568,12 +569,14 @@ fn weather(
     clusters: usize,
     seed: u64,
     components: Option<Vec<usize>>,
+    mean: String,
     texture_size: u32,
     textured: Option<bool>,
     progress: Option<&Bound<'_, PyAny>>,
     cancel: Option<&Bound<'_, CancelToken>>,
 ) -> PyResult<Mesh> {
     let method: weathering::Method = method.parse().or_py()?;
+    let mean: weathering::Mean = mean.parse().or_py()?;
     let up: weathering::Up = up.parse().or_py()?;
     cli::weathering::check_weather(vertices, rays, clusters, texture_size).or_py()?;
     if let Some(c) = &components {
@@ -590,6 +593,7 @@ fn weather(
         rays,
         clusters,
         method,
+        mean,
         seed,
         components,
         ..weathering::Params::default()

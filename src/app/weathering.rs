@@ -147,6 +147,25 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
                     ),
                 );
             }
+            if !r.mean_weights.is_empty() {
+                let mut w: Vec<(&String, f32)> = r
+                    .feature_names
+                    .iter()
+                    .zip(r.mean_weights.iter().copied())
+                    .collect();
+                w.sort_by(|a, b| b.1.total_cmp(&a.1));
+                let top = w
+                    .iter()
+                    .take(4)
+                    .map(|(n, x)| format!("{n} {x:.2}"))
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                ui.label(format!("The mean colour follows: {top}"))
+                    .on_hover_text(
+                        "The features the regressed mean colour compares, weighed by how far \
+                         the colour follows them (1 = the most)",
+                    );
+            }
             egui::CollapsingHeader::new("All CCA weights")
                 .id_salt("weather_cca_weights")
                 .show(ui, |ui| {

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use super::common::*;
 use crate::error::{Error, Result};
 use crate::mesh::io;
-use crate::synthesis::weathering::{self, Method, Params, Up};
+use crate::synthesis::weathering::{self, Mean, Method, Params, Up};
 use crate::work::CancelToken;
 
 /// Most `--clusters`.
@@ -34,6 +34,10 @@ pub struct WeatherArgs {
     /// parametric (histogram matching per cluster; the default) or nonparametric.
     #[arg(long, default_value = "parametric")]
     pub method: String,
+    /// The parametric method's mean colour: neighbours (a regression on the features, which
+    /// keeps threshold-like rules; the default) or affine (the paper's per-cluster affine maps).
+    #[arg(long, default_value = "neighbours")]
+    pub mean: String,
     /// Source vertices (file numbering, one per line) to leave out of training.
     #[arg(long)]
     pub mask: Option<PathBuf>,
@@ -69,6 +73,7 @@ impl WeatherArgs {
     pub fn run(&self) -> Result<i32> {
         let a = self;
         let method: Method = a.method.parse()?;
+        let mean: Mean = a.mean.parse()?;
         let up: Up = a.up.parse()?;
         check_weather(a.vertices, a.rays, a.clusters, a.texture_size)?;
         let components = match &a.components {
@@ -102,6 +107,7 @@ impl WeatherArgs {
             rays: a.rays,
             clusters: a.clusters,
             method,
+            mean,
             seed: a.seed,
             components,
             ..Params::default()

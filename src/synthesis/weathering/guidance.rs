@@ -78,6 +78,9 @@ pub(super) struct Guidance {
     pub target: Vec<f32>,
     /// Guidance dimension.
     pub dim: usize,
+    /// The colour weights (`W_y` columns, decorrelated channels) of the components switched
+    /// off: the colour directions a regressed mean must not vary along.
+    pub dropped: Vec<[f64; 3]>,
 }
 
 /// Fit the CCA between the source features and decorrelated colours on the training vertices,
@@ -116,7 +119,19 @@ pub(super) fn fit_guidance(
         correlations: model.correlations.clone(),
         training_vertices: train.len(),
         enabled: enabled.clone(),
+        mean_weights: Vec::new(),
     };
+    let q = model.q.min(3);
+    let dropped: Vec<[f64; 3]> = (0..d)
+        .filter(|&k| !enabled[k])
+        .map(|k| {
+            let mut w = [0.0f64; 3];
+            for (r, x) in w.iter_mut().enumerate().take(q) {
+                *x = model.wy[r * d + k];
+            }
+            w
+        })
+        .collect();
     // the components switched off leave the guidance (none off: the model as the paper has it)
     let model = if enabled.iter().all(|&e| e) {
         model
@@ -139,5 +154,6 @@ pub(super) fn fit_guidance(
         source_train,
         target,
         dim,
+        dropped,
     })
 }

@@ -237,6 +237,10 @@ pub struct CcaReport {
     /// Per canonical direction, whether the guidance kept it ([`Params::components`]).
     #[serde(default)]
     pub enabled: Vec<bool>,
+    /// Per feature, its weight in the distance of the regressed mean ([`Mean::Neighbours`],
+    /// the most relevant 1); empty with [`Mean::Affine`] and the non-parametric method.
+    #[serde(default)]
+    pub mean_weights: Vec<f32>,
 }
 
 impl CcaReport {
@@ -248,11 +252,17 @@ impl CcaReport {
         for k in 0..d {
             s += &format!(" {:>8}", format!("dir{}", k + 1));
         }
+        if !self.mean_weights.is_empty() {
+            s += &format!(" {:>8}", "mean");
+        }
         s.push('\n');
-        for (name, w) in self.feature_names.iter().zip(&self.weights) {
+        for (j, (name, w)) in self.feature_names.iter().zip(&self.weights).enumerate() {
             s += &format!("{name:<14}");
             for x in w {
                 s += &format!(" {x:>8.3}");
+            }
+            if let Some(m) = self.mean_weights.get(j) {
+                s += &format!(" {m:>8.3}");
             }
             s.push('\n');
         }
@@ -417,9 +427,10 @@ pub fn run(
         features: &fs,
         target_features: &ft,
     };
-    let colors = synthesize_colours(
+    let (colors, mean_weights) = synthesize_colours(
         &guidance, &colours, &rs.mesh, &rt.mesh, params, &stages, cancel,
     )?;
+    guidance.report.mean_weights = mean_weights;
     stages.end("synthesis", clock);
     let nv = tgt.num_vertices();
     let file_colors = tgt.to_file_order(&colors[..nv], [0.5; 3]);
@@ -634,7 +645,8 @@ struct ColourSource<'a> {
 }
 
 /// Synthesize the target's colour (§4) from the matched guidance, by the parametric or the
-/// non-parametric method, emitting `Event::Partial` per iteration; sRGB per target vertex.
+/// non-parametric method, emitting `Event::Partial` per iteration; sRGB per target vertex, and
+/// the feature weights of the regressed mean (empty without one).
 fn synthesize_colours(
     g: &Guidance,
     colours: &ColourSource,
@@ -643,7 +655,7 @@ fn synthesize_colours(
     params: &Params,
     stages: &Stages,
     cancel: &CancelToken,
-) -> Result<Vec<[f32; 3]>> {
+) -> Result<(Vec<[f32; 3]>, Vec<f32>)> {
     let (train, src_dec, d) = (colours.train, colours.decorrelated, g.dim);
     let src_adj = src.adjacency();
     let levels = params.levels.max(1);
@@ -680,7 +692,7 @@ fn synthesize_colours(
         });
         Ok(())
     };
-    let y = if params.method == Method::NonParametric {
+    let (y, weights) = if params.method == Method::NonParametric {
         let gs_all = g.model.project_x(&colours.features.values);
         let mut partial_np = |it: usize, c: &[[f32; 3]]| -> Result<()> {
             let y: [Vec<f32>; 3] = [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect());
@@ -701,17 +713,19 @@ fn synthesize_colours(
             &knobs,
             &mut partial_np,
         )?;
-        [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect::<Vec<f32>>())
+        let y = [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect::<Vec<f32>>());
+        (y, Vec::new())
     } else {
         parametric_colours(g, colours, &src_adj, &tgt_adj, params, &knobs, &mut partial)?
     };
-    Ok(to_srgb(&y))
+    Ok((to_srgb(&y), weights))
 }
 
 /// The parametric synthesis (§4.2) of the decorrelated colour channels on the target. With
 /// [`Mean::Neighbours`] the mean is regressed on the features ([`regression`]) and the
 /// synthesis runs on the finest Laplacian band of the source's residual about it (the grain),
 /// added back to the target's regressed mean; with [`Mean::Affine`] it runs on the colour itself.
+/// Also returns the regression's feature weights (empty with [`Mean::Affine`]).
 fn parametric_colours(
     g: &Guidance,
     colours: &ColourSource,
@@ -720,11 +734,12 @@ fn parametric_colours(
     params: &Params,
     knobs: &parametric::SynthKnobs,
     partial: &mut parametric::PartialFn,
-) -> Result<[Vec<f32>; 3]> {
+) -> Result<([Vec<f32>; 3], Vec<f32>)> {
     let (train, src_dec) = (colours.train, colours.decorrelated);
     let levels = knobs.levels;
     let mut channels: [Vec<f32>; 3] =
         [0, 1, 2].map(|c| src_dec.iter().map(|y| y[c]).collect::<Vec<f32>>());
+    let mut weights = Vec::new();
     let mean = match params.mean {
         Mean::Affine => None,
         Mean::Neighbours => {
@@ -741,7 +756,10 @@ fn parametric_colours(
                 }
                 *ch = pyramid::decompose(src_adj, ch, 2).swap_remove(0);
             }
-            Some(pr.target)
+            weights = pr.weights;
+            let mut target = pr.target;
+            regression::drop_directions(&mut target, &g.dropped, train, src_dec);
+            Some(target)
         }
     };
     // the synthesized channels and their Laplacian bands, on the training vertices
@@ -772,5 +790,5 @@ fn parametric_colours(
         knobs,
         &mut partial_with_mean,
     )?;
-    Ok(plus_mean(&y))
+    Ok((plus_mean(&y), weights))
 }

@@ -7,10 +7,11 @@
 //! and the histogram matching that follows spreads what is left over whole clusters. Here the mean
 //! is a k-nearest-neighbour regression of the decorrelated colour on the features:
 //! 1. **Standardise** every feature column by the training vertices' mean and deviation.
-//! 2. **Weigh** each column by its relevance: the root sum of its squared correlations with the
-//!    canonical colour variates of the CCA (the components switched off give no weight), scaled
-//!    so the most relevant column has weight 1. Columns that no colour direction follows drop out
-//!    of the distance, so they do not scatter the neighbours.
+//! 2. **Weigh** each column by its relevance to the colour, from the CCA (the components switched
+//!    off give no weight): the geometric mean of its correlation with the canonical colour
+//!    variates and of its canonical weight ([`relevance`]), the most relevant column 1. Columns
+//!    that no colour direction follows drop out of the distance, so they do not scatter the
+//!    neighbours.
 //! 3. **Regress**: each vertex gets the mean colour of its `k` nearest training vertices in the
 //!    weighted space (a training vertex leaves itself out, so the source's residual is what the
 //!    regression does not explain on unseen points).
@@ -50,7 +51,7 @@ pub(super) fn predict(
     let (mean, scale) = column_scales(fs, train);
     let ys: Vec<f32> = train.iter().flat_map(|&v| src_dec[v as usize]).collect();
     let vy = model.project_y(&ys);
-    let weights = relevance(fs, train, &vy, model.d);
+    let weights = relevance(fs, train, &vy, model);
     let map = |x: &[f32]| -> Vec<f32> {
         x.iter()
             .enumerate()
@@ -98,6 +99,47 @@ pub(super) fn predict(
     }
 }
 
+/// Remove from the regressed colours `y` (decorrelated channels) their variation along each
+/// canonical colour direction in `dropped` (a switched-off component's `W_y` column): with
+/// `v = wᵀ (y - ȳ)` and the direction's loading `a = Σ_yy w` over the training colours,
+/// `y ← y - a v`, so the component's variate is constant (at its mean) and the other
+/// components, uncorrelated with it, keep theirs.
+pub(super) fn drop_directions(
+    y: &mut [Vec<f32>; 3],
+    dropped: &[[f64; 3]],
+    train: &[u32],
+    src_dec: &[[f32; 3]],
+) {
+    if dropped.is_empty() || train.is_empty() {
+        return;
+    }
+    let n = train.len() as f64;
+    let mut mean = [0.0f64; 3];
+    for &v in train {
+        for (m, &c) in mean.iter_mut().zip(&src_dec[v as usize]) {
+            *m += c as f64 / n;
+        }
+    }
+    let mut cov = [[0.0f64; 3]; 3];
+    for &v in train {
+        let c = src_dec[v as usize];
+        for i in 0..3 {
+            for j in 0..3 {
+                cov[i][j] += (c[i] as f64 - mean[i]) * (c[j] as f64 - mean[j]) / n;
+            }
+        }
+    }
+    for w in dropped {
+        let a: [f64; 3] = [0, 1, 2].map(|i| (0..3).map(|j| cov[i][j] * w[j]).sum());
+        for i in 0..y[0].len() {
+            let v: f64 = (0..3).map(|c| w[c] * (y[c][i] as f64 - mean[c])).sum();
+            for c in 0..3 {
+                y[c][i] -= (a[c] * v) as f32;
+            }
+        }
+    }
+}
+
 /// Per feature column, the training vertices' mean and the reciprocal of their standard
 /// deviation (0 for a constant column).
 fn column_scales(fs: &FeatureSet, train: &[u32]) -> (Vec<f64>, Vec<f64>) {
@@ -122,13 +164,19 @@ fn column_scales(fs: &FeatureSet, train: &[u32]) -> (Vec<f64>, Vec<f64>) {
     (mean, scale)
 }
 
-/// Per feature column, the root sum of its squared correlations (over the training vertices)
-/// with the `d` canonical colour variates `vy` (`train.len() × d`), the largest scaled to 1.
-fn relevance(fs: &FeatureSet, train: &[u32], vy: &[f32], d: usize) -> Vec<f32> {
+/// Per feature column, how far the colour follows it: the geometric mean of two measures over
+/// the canonical pairs of `model`, each the root sum of squares over the pairs and scaled so
+/// its largest column is 1:
+/// - its correlation with the canonical colour variates `vy` (`train.len() × d`): the colour
+///   follows the column (a column that merely varies with a relevant one also scores here);
+/// - its standardised canonical weight times the pair's canonical correlation: the CCA needs
+///   the column beside the others (a stand-in for a relevant column scores low here).
+fn relevance(fs: &FeatureSet, train: &[u32], vy: &[f32], model: &Cca) -> Vec<f32> {
+    let d = model.d;
     let variates: Vec<Vec<f32>> = (0..d)
         .map(|k| vy.iter().skip(k).step_by(d.max(1)).copied().collect())
         .collect();
-    let w: Vec<f32> = (0..fs.dim)
+    let follows: Vec<f32> = (0..fs.dim)
         .map(|j| {
             let col: Vec<f32> = train.iter().map(|&v| fs.row(v as usize)[j]).collect();
             variates
@@ -138,12 +186,24 @@ fn relevance(fs: &FeatureSet, train: &[u32], vy: &[f32], d: usize) -> Vec<f32> {
                 .sqrt() as f32
         })
         .collect();
-    let top = w.iter().copied().fold(0.0f32, f32::max);
-    if top > 0.0 && top.is_finite() {
-        w.iter().map(|x| x / top).collect()
-    } else {
-        vec![1.0; fs.dim]
-    }
+    let sw = model.standardised_wx();
+    let needed: Vec<f32> = (0..fs.dim)
+        .map(|j| {
+            (0..d)
+                .map(|k| (model.correlations[k] * sw[j * d + k]).powi(2))
+                .sum::<f64>()
+                .sqrt() as f32
+        })
+        .collect();
+    let unit = |w: Vec<f32>| -> Option<Vec<f32>> {
+        let top = w.iter().copied().fold(0.0f32, f32::max);
+        (top > 0.0 && top.is_finite()).then(|| w.iter().map(|x| x / top).collect())
+    };
+    let both = match (unit(follows), unit(needed)) {
+        (Some(a), Some(b)) => a.iter().zip(&b).map(|(x, y)| (x * y).sqrt()).collect(),
+        _ => vec![1.0; fs.dim],
+    };
+    unit(both).unwrap_or_else(|| vec![1.0; fs.dim])
 }
 
 #[cfg(test)]
