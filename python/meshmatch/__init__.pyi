@@ -189,13 +189,15 @@ def weather(
     clusters: int = 50,
     seed: int = 0,
     components: list[int] | None = None,
+    mean: Literal["neighbours", "affine"] = "neighbours",
     texture_size: int = 1024,
     textured: bool | None = None,
     progress: Progress | None = None,
     cancel: CancelToken | None = None,
 ) -> Mesh:
     """Geometry-correlated transfer (Mertens et al. 2006); `components` keeps only those CCA
-    components (0 = strongest), as `--components`."""
+    components (0 = strongest), as `--components`; `mean` is the parametric method's mean
+    colour, as `--mean` (`"affine"`: the paper's)."""
 
 def quilt(
     base: Mesh,

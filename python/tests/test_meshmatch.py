@@ -179,6 +179,14 @@ def test_weather_equals_the_clis(tmp_path, data, cli, spot, penguin):
     assert np.abs(r2.colors - r.colors).max() > 0.05, "a component switched off changes nothing"
     with pytest.raises(meshmatch.MeshMatchError, match="no component 7"):
         meshmatch.weather(spot, penguin, vertices=4000, rays=16, components=[7])
+    out3 = tmp_path / "cli_affine.ply"
+    cli("weather", "--source", data / "spot/spot.obj", "--target", data / "penguin/penguin.obj",
+        "--out", out3, "--vertices", "4000", "--rays", "16", "--mean", "affine")
+    r3 = meshmatch.weather(spot, penguin, vertices=4000, rays=16, mean="affine")
+    assert np.abs(r3.colors - ply_colors(out3)).max() <= 0.5 / 255 + 1e-6
+    assert np.abs(r3.colors - r.colors).max() > 0.05, "the paper's affine mean is the default"
+    with pytest.raises(meshmatch.MeshMatchError, match="unknown mean"):
+        meshmatch.weather(spot, penguin, vertices=4000, rays=16, mean="median")
 
 
 def test_synthesize_equals_the_clis_texture(tmp_path, data, cli, spot):
