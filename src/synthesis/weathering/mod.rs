@@ -107,14 +107,13 @@ impl std::str::FromStr for Method {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mean {
-    /// A k-nearest-neighbour regression of colour on the features, each weighed by how far the
-    /// colour follows it ([`regression`]); the histogram matching then synthesizes the residual's
-    /// grain only. Carries rules that are not linear in the features (thresholds, a rule that
-    /// needs two features at once). The default.
+    /// The colour regressed on the features (k nearest neighbours, each feature weighed by how
+    /// far the colour follows it; [`regression`]) joins the guidance, so the clusters and their
+    /// affine maps follow it. Carries rules that are not linear in the features (thresholds, a
+    /// rule that needs two features at once). The default.
     #[default]
     Neighbours,
-    /// The paper's per-cluster affine maps of the guidance; the histogram matching then matches
-    /// the whole colour.
+    /// The paper's per-cluster affine maps of the CCA guidance alone.
     Affine,
 }
 
@@ -722,10 +721,10 @@ fn synthesize_colours(
 }
 
 /// The parametric synthesis (§4.2) of the decorrelated colour channels on the target. With
-/// [`Mean::Neighbours`] the mean is regressed on the features ([`regression`]) and the
-/// synthesis runs on the finest Laplacian band of the source's residual about it (the grain),
-/// added back to the target's regressed mean; with [`Mean::Affine`] it runs on the colour itself.
-/// Also returns the regression's feature weights (empty with [`Mean::Affine`]).
+/// [`Mean::Neighbours`] the colour regressed on the features ([`regression`]) joins the guidance
+/// as three more fields, so the clusters separate what the regression tells apart and their
+/// affine maps follow it; with [`Mean::Affine`] the guidance is the CCA's alone. Also returns
+/// the regression's feature weights (empty with [`Mean::Affine`]).
 fn parametric_colours(
     g: &Guidance,
     colours: &ColourSource,
@@ -736,12 +735,8 @@ fn parametric_colours(
     partial: &mut parametric::PartialFn,
 ) -> Result<([Vec<f32>; 3], Vec<f32>)> {
     let (train, src_dec) = (colours.train, colours.decorrelated);
-    let levels = knobs.levels;
-    let mut channels: [Vec<f32>; 3] =
-        [0, 1, 2].map(|c| src_dec.iter().map(|y| y[c]).collect::<Vec<f32>>());
-    let mut weights = Vec::new();
-    let mean = match params.mean {
-        Mean::Affine => None,
+    let (src_guidance, tgt_guidance, dim, weights) = match params.mean {
+        Mean::Affine => (g.source_train.clone(), g.target.clone(), g.dim, Vec::new()),
         Mean::Neighbours => {
             let pr = regression::predict(
                 colours.features,
@@ -750,45 +745,41 @@ fn parametric_colours(
                 src_dec,
                 &g.model,
             );
-            for (ch, m) in channels.iter_mut().zip(&pr.source) {
-                for (x, mv) in ch.iter_mut().zip(m) {
-                    *x -= mv;
-                }
-                *ch = pyramid::decompose(src_adj, ch, 2).swap_remove(0);
-            }
-            weights = pr.weights;
             let mut target = pr.target;
             regression::drop_directions(&mut target, &g.dropped, train, src_dec);
-            Some(target)
+            let (gs, gt) = regression::extend_guidance(
+                &g.source_train,
+                &g.target,
+                g.dim,
+                train,
+                &pr.source,
+                &target,
+            );
+            (gs, gt, g.dim + 3, pr.weights)
         }
     };
-    // the synthesized channels and their Laplacian bands, on the training vertices
+    // the colour channels and their Laplacian bands, on the training vertices
+    let channels: [Vec<f32>; 3] =
+        [0, 1, 2].map(|c| src_dec.iter().map(|y| y[c]).collect::<Vec<f32>>());
     let pick = |v: &[f32]| -> Vec<f32> { train.iter().map(|&i| v[i as usize]).collect() };
     let src_levels: [Vec<Vec<f32>>; 3] = [0, 1, 2].map(|c| {
-        pyramid::decompose(src_adj, &channels[c], levels)
+        pyramid::decompose(src_adj, &channels[c], knobs.levels)
             .iter()
             .map(|l| pick(l))
             .collect()
     });
     let src_channels: [Vec<f32>; 3] = [0, 1, 2].map(|c| pick(&channels[c]));
-    let plus_mean = |y: &[Vec<f32>; 3]| -> [Vec<f32>; 3] {
-        match &mean {
-            None => y.clone(),
-            Some(m) => [0, 1, 2].map(|c| y[c].iter().zip(&m[c]).map(|(a, b)| a + b).collect()),
-        }
-    };
-    let mut partial_with_mean = |it: usize, y: &[Vec<f32>; 3]| partial(it, &plus_mean(y));
     let y = parametric::synthesize(
         &parametric::SourceData {
-            guidance: &g.source_train,
+            guidance: &src_guidance,
             colour: &src_channels,
             levels: &src_levels,
         },
-        &g.target,
+        &tgt_guidance,
         tgt_adj,
-        g.dim,
+        dim,
         knobs,
-        &mut partial_with_mean,
+        partial,
     )?;
-    Ok((plus_mean(&y), weights))
+    Ok((y, weights))
 }

@@ -1,11 +1,11 @@
-//! The mean colour of the parametric synthesis as a non-linear regression on the features
-//! ([`super::Mean::Neighbours`]).
+//! The colour regressed on the features, as three more guidance fields of the parametric
+//! synthesis ([`super::Mean::Neighbours`]).
 //!
-//! The paper's mean is a per-cluster affine map of the 3-D guidance. Rules that are not linear in
-//! the features (a stain past a curvature threshold, moss where the surface faces up *and* is
-//! exposed) are then carried only as far as a linear projection of the features can carry them,
-//! and the histogram matching that follows spreads what is left over whole clusters. Here the mean
-//! is a k-nearest-neighbour regression of the decorrelated colour on the features:
+//! The paper's mean colour is a per-cluster affine map of the 3-D guidance, and its histogram
+//! matching re-ranks the colour inside each cluster. Rules that are not linear in the features (a
+//! stain past a curvature threshold, moss where the surface faces up *and* is exposed) are then
+//! carried only as far as a linear projection can carry them, and where a cluster mixes stained
+//! and clean points, matching its histogram scatters the stain over the clean ones. Here:
 //! 1. **Standardise** every feature column by the training vertices' mean and deviation.
 //! 2. **Weigh** each column by its relevance to the colour, from the CCA (the components switched
 //!    off give no weight): the geometric mean of its correlation with the canonical colour
@@ -13,11 +13,11 @@
 //!    that no colour direction follows drop out of the distance, so they do not scatter the
 //!    neighbours.
 //! 3. **Regress**: each vertex gets the mean colour of its `k` nearest training vertices in the
-//!    weighted space (a training vertex leaves itself out, so the source's residual is what the
-//!    regression does not explain on unseen points).
-//!
-//! The synthesis then runs on the residual's finest Laplacian band (the grain), and the target's
-//! colour is its regressed mean plus the synthesized grain.
+//!    weighted space (a training vertex leaves itself out).
+//! 4. **Guide**: the regressed colour joins the guidance ([`extend_guidance`]), so the clusters
+//!    separate what the regression tells apart and their affine maps follow it, while the
+//!    histogram matching still gives each cluster the source's colours, crisp where the geometry
+//!    does not decide them.
 
 use rayon::prelude::*;
 
@@ -97,6 +97,51 @@ pub(super) fn predict(
         target: regress(&xt, false),
         weights,
     }
+}
+
+/// The guidance of the training vertices (`g_train`, `dim` per row) and of the target (`g_target`)
+/// with the regressed colours appended as three more fields, each scaled to unit standard
+/// deviation over the training vertices, as the canonical variates are.
+pub(super) fn extend_guidance(
+    g_train: &[f32],
+    g_target: &[f32],
+    dim: usize,
+    train: &[u32],
+    source: &[Vec<f32>; 3],
+    target: &[Vec<f32>; 3],
+) -> (Vec<f32>, Vec<f32>) {
+    let n = train.len().max(1) as f64;
+    let scale: [f32; 3] = [0, 1, 2].map(|c| {
+        let m = train
+            .iter()
+            .map(|&i| source[c][i as usize] as f64)
+            .sum::<f64>()
+            / n;
+        let var = train
+            .iter()
+            .map(|&i| (source[c][i as usize] as f64 - m).powi(2))
+            .sum::<f64>()
+            / n;
+        if var > 1e-18 {
+            (1.0 / var.sqrt()) as f32
+        } else {
+            0.0
+        }
+    });
+    let rows = |g: &[f32], colour: &dyn Fn(usize, usize) -> f32| -> Vec<f32> {
+        g.chunks(dim.max(1))
+            .enumerate()
+            .flat_map(|(k, r)| {
+                let mut row = r.to_vec();
+                row.extend((0..3).map(|c| colour(k, c) * scale[c]));
+                row
+            })
+            .collect()
+    };
+    (
+        rows(g_train, &|k, c| source[c][train[k] as usize]),
+        rows(g_target, &|v, c| target[c][v]),
+    )
 }
 
 /// Remove from the regressed colours `y` (decorrelated channels) their variation along each
