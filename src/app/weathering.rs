@@ -160,9 +160,9 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
                     .map(|(n, x)| format!("{n} {x:.2}"))
                     .collect::<Vec<_>>()
                     .join(", ");
-                ui.label(format!("The mean colour follows: {top}"))
+                ui.label(format!("The regressed colour follows: {top}"))
                     .on_hover_text(
-                        "The features the regressed mean colour compares, weighed by how far \
+                        "The features the regression on geometry compares, weighed by how far \
                          the colour follows them (1 = the most)",
                     );
             }

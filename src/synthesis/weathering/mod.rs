@@ -236,7 +236,7 @@ pub struct CcaReport {
     /// Per canonical direction, whether the guidance kept it ([`Params::components`]).
     #[serde(default)]
     pub enabled: Vec<bool>,
-    /// Per feature, its weight in the distance of the regressed mean ([`Mean::Neighbours`],
+    /// Per feature, its weight in the colour regression's distance ([`Mean::Neighbours`],
     /// the most relevant 1); empty with [`Mean::Affine`] and the non-parametric method.
     #[serde(default)]
     pub mean_weights: Vec<f32>,
