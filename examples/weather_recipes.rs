@@ -4,7 +4,10 @@
 //! `cargo run --release --example weather_recipes [-- --ablate] [--diagnose]`; `N` sets the
 //! working vertices (default 50000), `PAIRS` the pairs (`igea:bunny,cow:cat,nefertiti:penguin`),
 //! `RECIPES` the recipes by name, `VARIANTS` parameter variants beside the defaults (`np`,
-//! `dims1`, `dims2`, `noms`, `nomatch`, `half`, `noise0`, `noise05`, `k1`, `k10`, `k200`, `nb1`, `nb2`, `nohb`).
+//! `dims1`, `dims2`, `noms`, `nomatch`, `half`, `noise0`, `noise05`, `k1`, `k10`, `k200`, `nb1`,
+//! `nb2`, `nohb`, `hb1`, `lv1`, `lv2`, `affine`; combined with `+`, e.g. `affine+nomatch`). `CAP=1`
+//! also prints each recipe without its grain scored against the recipe with it: the most a
+//! result that keeps the grain can reach.
 
 use meshmatch::synthesis::weathering::recipes::{
     Recipe, Rule, diagnose, evaluate, prepare, recipes,
