@@ -33,6 +33,12 @@ pub fn grid_cells(nx: usize, ny: usize, h: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>
             positions.push([i as f32 * h, j as f32 * h, 0.0]);
         }
     }
+    (positions, grid_faces(nx, ny))
+}
+
+/// The faces of a grid of `nx × ny` cells whose vertex `(i, j)` is `j (nx + 1) + i`, each cell
+/// split into two counter-clockwise triangles (normal +z when `i` runs along x and `j` along y).
+pub fn grid_faces(nx: usize, ny: usize) -> Vec<[u32; 3]> {
     let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
     let mut faces = Vec::with_capacity(2 * nx * ny);
     for j in 0..ny {
@@ -41,7 +47,7 @@ pub fn grid_cells(nx: usize, ny: usize, h: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>
             faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
         }
     }
-    (positions, faces)
+    faces
 }
 
 /// A closed axis-aligned box `[0, a] × [0, b] × [0, c]` (corner `i` at `(i & 1, i & 2, i & 4)`

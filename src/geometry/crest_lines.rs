@@ -402,18 +402,22 @@ fn crest_field(
     }
 }
 
+/// A triangle's unit normal and twice its area; `None` when it is degenerate (or not finite).
+fn unit_normal_and_double_area(p: &[Vec3; 3]) -> Option<(Vec3, f32)> {
+    let nrm = (p[1] - p[0]).cross(p[2] - p[0]);
+    let a2 = nrm.length();
+    (!a2.is_nan() && a2 > 0.0).then(|| (nrm / a2, a2))
+}
+
 /// Per-vertex area-weighted sum of the linear per-face gradients of `vals` (weights: twice the
 /// face areas).
 fn vertex_gradient(positions: &[[f32; 3]], faces: &[[u32; 3]], vals: &[f32]) -> Vec<Vec3> {
     let mut g = vec![Vec3::ZERO; positions.len()];
     for f in faces {
         let p = f.map(|i| Vec3::from(positions[i as usize]));
-        let nrm = (p[1] - p[0]).cross(p[2] - p[0]);
-        let a2 = nrm.length();
-        if a2.is_nan() || a2 <= 0.0 {
+        let Some((nu, a2)) = unit_normal_and_double_area(&p) else {
             continue;
-        }
-        let nu = nrm / a2;
+        };
         let mut gf = Vec3::ZERO;
         for c in 0..3 {
             let e = p[(c + 2) % 3] - p[(c + 1) % 3];
@@ -503,12 +507,9 @@ fn crest_segments(
             }
         });
         let p = f.map(|i| Vec3::from(positions[i as usize]));
-        let nrm = (p[1] - p[0]).cross(p[2] - p[0]);
-        let a2 = nrm.length();
-        if a2.is_nan() || a2 <= 0.0 {
+        let Some((nu, a2)) = unit_normal_and_double_area(&p) else {
             continue;
-        }
-        let nu = nrm / a2;
+        };
         let mut ge = Vec3::ZERO;
         let mut tsum = Vec3::ZERO;
         for c in 0..3 {

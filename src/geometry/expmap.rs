@@ -158,20 +158,7 @@ mod tests {
     #[test]
     fn plane_is_unfolded_isometrically() {
         let m = 12;
-        let mut pos = Vec::new();
-        for j in 0..=m {
-            for i in 0..=m {
-                pos.push([i as f32 * 0.1, j as f32 * 0.1, 0.0]);
-            }
-        }
-        let mut faces = Vec::new();
-        let id = |i: usize, j: usize| (j * (m + 1) + i) as u32;
-        for j in 0..m {
-            for i in 0..m {
-                faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-                faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-            }
-        }
+        let (pos, faces) = crate::testdata::grid_cells(m, m, 0.1);
         let nrm = vec![[0.0, 0.0, 1.0]; pos.len()];
         let adj = vertex_adjacency(pos.len(), &faces);
         let f = faces[2 * (6 * m + 6)];

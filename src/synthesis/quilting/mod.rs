@@ -415,15 +415,7 @@ pub fn saddle(k: f32, n: usize) -> TriMesh {
             positions.push([x, y, k * (x * x - y * y)]);
         }
     }
-    let id = |i: usize, j: usize| (j * (n + 1) + i) as u32;
-    let mut faces = Vec::with_capacity(2 * n * n);
-    for j in 0..n {
-        for i in 0..n {
-            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    TriMesh::new(positions, faces)
+    TriMesh::new(positions, crate::testdata::grid_faces(n, n))
 }
 
 /// A flat `w x h` rectangle in the z = 0 plane (normal +z), corner at the origin, split into
@@ -436,15 +428,7 @@ pub fn plane(w: f32, h: f32, nx: usize, ny: usize) -> TriMesh {
             pos.push([w * i as f32 / nx as f32, h * j as f32 / ny as f32, 0.0]);
         }
     }
-    let id = |i: usize, j: usize| (j * (nx + 1) + i) as u32;
-    let mut faces = Vec::with_capacity(2 * nx * ny);
-    for j in 0..ny {
-        for i in 0..nx {
-            faces.push([id(i, j), id(i + 1, j), id(i + 1, j + 1)]);
-            faces.push([id(i, j), id(i + 1, j + 1), id(i, j + 1)]);
-        }
-    }
-    TriMesh::new(pos, faces)
+    TriMesh::new(pos, crate::testdata::grid_faces(nx, ny))
 }
 
 /// negative volume, i.e. are wound with their normals pointing inwards.

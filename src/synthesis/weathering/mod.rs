@@ -30,6 +30,7 @@ pub mod pyramid;
 pub mod recipes;
 mod regression;
 
+use std::borrow::Cow;
 use std::sync::Arc;
 
 use crate::error::{Error, Result};
@@ -115,16 +116,6 @@ pub enum Mean {
     Neighbours,
     /// The paper's per-cluster affine maps of the CCA guidance alone.
     Affine,
-}
-
-impl Mean {
-    /// The name the CLI and the Python package use.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Mean::Neighbours => "neighbours",
-            Mean::Affine => "affine",
-        }
-    }
 }
 
 impl std::str::FromStr for Mean {
@@ -715,7 +706,7 @@ fn synthesize_colours(
         let y = [0, 1, 2].map(|k| c.iter().map(|x| x[k]).collect::<Vec<f32>>());
         (y, Vec::new())
     } else {
-        parametric_colours(g, colours, &src_adj, &tgt_adj, params, &knobs, &mut partial)?
+        parametric_colours(g, colours, src_adj, &tgt_adj, params, &knobs, &mut partial)?
     };
     Ok((to_srgb(&y), weights))
 }
@@ -728,7 +719,7 @@ fn synthesize_colours(
 fn parametric_colours(
     g: &Guidance,
     colours: &ColourSource,
-    src_adj: &crate::mesh::Csr,
+    src_adj: crate::mesh::Csr,
     tgt_adj: &crate::mesh::Csr,
     params: &Params,
     knobs: &parametric::SynthKnobs,
@@ -736,7 +727,12 @@ fn parametric_colours(
 ) -> Result<([Vec<f32>; 3], Vec<f32>)> {
     let (train, src_dec) = (colours.train, colours.decorrelated);
     let (src_guidance, tgt_guidance, dim, weights) = match params.mean {
-        Mean::Affine => (g.source_train.clone(), g.target.clone(), g.dim, Vec::new()),
+        Mean::Affine => (
+            Cow::Borrowed(&g.source_train[..]),
+            Cow::Borrowed(&g.target[..]),
+            g.dim,
+            Vec::new(),
+        ),
         Mean::Neighbours => {
             let pr = regression::predict(
                 colours.features,
@@ -755,7 +751,7 @@ fn parametric_colours(
                 &pr.source,
                 &target,
             );
-            (gs, gt, g.dim + 3, pr.weights)
+            (Cow::Owned(gs), Cow::Owned(gt), g.dim + 3, pr.weights)
         }
     };
     // the colour channels and their Laplacian bands, on the training vertices
@@ -763,12 +759,13 @@ fn parametric_colours(
         [0, 1, 2].map(|c| src_dec.iter().map(|y| y[c]).collect::<Vec<f32>>());
     let pick = |v: &[f32]| -> Vec<f32> { train.iter().map(|&i| v[i as usize]).collect() };
     let src_levels: [Vec<Vec<f32>>; 3] = [0, 1, 2].map(|c| {
-        pyramid::decompose(src_adj, &channels[c], knobs.levels)
+        pyramid::decompose(&src_adj, &channels[c], knobs.levels)
             .iter()
             .map(|l| pick(l))
             .collect()
     });
     let src_channels: [Vec<f32>; 3] = [0, 1, 2].map(|c| pick(&channels[c]));
+    drop(src_adj);
     let y = parametric::synthesize(
         &parametric::SourceData {
             guidance: &src_guidance,

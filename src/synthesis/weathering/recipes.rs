@@ -291,20 +291,7 @@ pub fn knn_on(
     d: usize,
     k: usize,
 ) -> Vec<[f32; 3]> {
-    use rayon::prelude::*;
-    let tree = KdTree::new(xs, d);
-    xt.par_chunks(d)
-        .map_init(Vec::new, |buf, q| {
-            tree.knn(q, k.max(1), buf);
-            let mut c = [0.0f32; 3];
-            for &(_, i) in buf.iter() {
-                for (ck, sk) in c.iter_mut().zip(src_colors[i as usize]) {
-                    *ck += sk;
-                }
-            }
-            c.map(|x| x / buf.len().max(1) as f32)
-        })
-        .collect()
+    super::regression::knn_mean(&KdTree::new(xs, d), src_colors, xt, d, k, None)
 }
 
 /// A source/target pair prepared for [`evaluate`]: the source refined to the working density

@@ -68,35 +68,48 @@ pub(super) fn predict(
         .collect();
     let tree = KdTree::new(&xtrain, p);
     let k = NEIGHBOURS.min(train.len().saturating_sub(1)).max(1);
-    let colour = |j: u32| src_dec[train[j as usize] as usize];
-    let regress = |x: &[f32], leave_out: bool| -> [Vec<f32>; 3] {
-        let rows: Vec<[f32; 3]> = x
-            .par_chunks(p)
-            .enumerate()
-            .map_init(Vec::new, |buf, (v, q)| {
-                tree.knn(q, k + 1, buf);
-                let mut m = [0.0f32; 3];
-                let mut n = 0usize;
-                for &(_, j) in buf.iter() {
-                    if n == k || (leave_out && train[j as usize] == v as u32) {
-                        continue;
-                    }
-                    let c = colour(j);
-                    for (mk, ck) in m.iter_mut().zip(c) {
-                        *mk += ck;
-                    }
-                    n += 1;
-                }
-                m.map(|s| s / n.max(1) as f32)
-            })
-            .collect();
+    let colours: Vec<[f32; 3]> = train.iter().map(|&v| src_dec[v as usize]).collect();
+    let channels = |rows: Vec<[f32; 3]>| -> [Vec<f32>; 3] {
         [0, 1, 2].map(|c| rows.iter().map(|r| r[c]).collect())
     };
     Prediction {
-        source: regress(&xs, true),
-        target: regress(&xt, false),
+        source: channels(knn_mean(&tree, &colours, &xs, p, k, Some(train))),
+        target: channels(knn_mean(&tree, &colours, &xt, p, k, None)),
         weights,
     }
+}
+
+/// Per query row of `xq` (`d` per row), the mean colour of its `k` nearest points of `tree`
+/// (whose point `j` has colour `colours[j]`). With `leave_out = Some(ids)`, the query rows are
+/// vertices and a tree point `j` whose vertex `ids[j]` is the query's own is skipped.
+pub(crate) fn knn_mean(
+    tree: &KdTree,
+    colours: &[[f32; 3]],
+    xq: &[f32],
+    d: usize,
+    k: usize,
+    leave_out: Option<&[u32]>,
+) -> Vec<[f32; 3]> {
+    let k = k.max(1);
+    let query = k + usize::from(leave_out.is_some());
+    xq.par_chunks(d)
+        .enumerate()
+        .map_init(Vec::new, |buf, (v, q)| {
+            tree.knn(q, query, buf);
+            let mut m = [0.0f32; 3];
+            let mut n = 0usize;
+            for &(_, j) in buf.iter() {
+                if n == k || leave_out.is_some_and(|ids| ids[j as usize] == v as u32) {
+                    continue;
+                }
+                for (mk, ck) in m.iter_mut().zip(colours[j as usize]) {
+                    *mk += ck;
+                }
+                n += 1;
+            }
+            m.map(|s| s / n.max(1) as f32)
+        })
+        .collect()
 }
 
 /// The guidance of the training vertices (`g_train`, `dim` per row) and of the target (`g_target`)
