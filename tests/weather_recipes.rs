@@ -71,7 +71,7 @@ fn edge_wear_alone() {
     check(&run(&Recipe::single(Rule::Wear)), 0.8, 4.0);
 }
 
-/// Measured 0.85 at 12K points (kNN floor 0.76; the paper's affine mean 0.38).
+/// Measured 0.79 at 12K points (kNN floor 0.76; the paper's affine mean 0.38).
 #[test]
 fn concavity_alone() {
     let e = run(&Recipe::single(Rule::Concavity));
@@ -88,7 +88,7 @@ fn height_tint_alone() {
     check(&run(&Recipe::single(Rule::HeightTint)), 0.8, 4.0);
 }
 
-/// Measured L 0.62, a* 0.78 at 12K points (kNN floor 0.62, 0.82; the paper's affine mean 0.51,
+/// Measured L 0.61, a* 0.78 at 12K points (kNN floor 0.62, 0.82; the paper's affine mean 0.51,
 /// 0.63). Moss changes lightness little, so its lightness correlation stays below 0.7 (the
 /// recipe without grain against with it: 0.81).
 #[test]
@@ -102,14 +102,14 @@ fn moss_alone() {
     );
 }
 
-/// Chroma below the targets: measured L 0.85, a* 0.65, b* 0.46, W1 3.0 (kNN floor 0.88, 0.80,
-/// 0.71, 2.4; the paper's affine mean 0.70, 0.66, 0.54, 4.4) at 12K points.
+/// All five rules at once, more than any recipe: measured L 0.81, a* 0.78, b* 0.67, W1 3.0 (kNN
+/// floor 0.88, 0.80, 0.71, 2.4; the paper's affine mean 0.70, 0.66, 0.54, 4.4) at 12K points.
 #[test]
 fn every_rule_together() {
     let e = run(&Recipe::new("all", &Rule::ALL));
     check(&e, 0.8, 4.0);
     assert!(
-        e.method.corr[1] > 0.55 && e.method.corr[2] > 0.4,
+        e.method.corr[1] > 0.7 && e.method.corr[2] > 0.6,
         "{:?}",
         e.method.corr
     );

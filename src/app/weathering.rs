@@ -163,7 +163,8 @@ impl<P: AppParams> SystemTool<P> for WeatherDialog {
                 ui.label(format!("The regressed colour follows: {top}"))
                     .on_hover_text(
                         "The features the regression on geometry compares, weighed by how far \
-                         the colour follows them (1 = the most)",
+                         the colour follows them (1 = the most; half of every weight is the same \
+                         for all, so none is below 0.5)",
                     );
             }
             egui::CollapsingHeader::new("All CCA weights")

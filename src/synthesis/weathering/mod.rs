@@ -228,7 +228,7 @@ pub struct CcaReport {
     #[serde(default)]
     pub enabled: Vec<bool>,
     /// Per feature, its weight in the colour regression's distance ([`Mean::Neighbours`],
-    /// the most relevant 1); empty with [`Mean::Affine`] and the non-parametric method.
+    /// the most relevant 1, none below 0.5); empty with [`Mean::Affine`] and the non-parametric method.
     #[serde(default)]
     pub mean_weights: Vec<f32>,
 }
