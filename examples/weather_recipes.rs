@@ -7,7 +7,8 @@
 //! `dims1`, `dims2`, `noms`, `nomatch`, `half`, `noise0`, `noise05`, `k1`, `k10`, `k200`, `nb1`,
 //! `nb2`, `nohb`, `hb1`, `lv1`, `lv2`, `affine`; combined with `+`, e.g. `affine+nomatch`). `CAP=1`
 //! also prints each recipe without its grain scored against the recipe with it: the most a
-//! result that keeps the grain can reach.
+//! result that keeps the grain can reach. `OUT=dir` writes the target coloured by the recipe
+//! (`{source}_{target}_{recipe}_truth.ply`) and by each variant's result.
 
 use meshmatch::synthesis::weathering::recipes::{
     Recipe, Rule, diagnose, evaluate, prepare, recipes,
@@ -157,8 +158,25 @@ fn main() {
                     row("", &score(&t0, &t, &adj))
                 );
             }
+            let out = std::env::var("OUT").ok().map(std::path::PathBuf::from);
+            let write = |what: &str, colours: Vec<[f32; 3]>| {
+                if let Some(dir) = &out {
+                    let mut m = pr.target_refined.clone();
+                    m.colors = Some(colours);
+                    let path = dir.join(format!("{s}_{t}_{}_{what}.ply", r.name));
+                    meshmatch::mesh::io::save(&m, &path).expect("save");
+                }
+            };
+            if out.is_some() {
+                use meshmatch::synthesis::weathering::recipes::paint;
+                write(
+                    "truth",
+                    paint(r, &pr.target_features, &pr.target_refined.positions, Up::Y),
+                );
+            }
             for (vname, params) in &variants {
                 let e = evaluate(&pr, r, params, &cancel).expect("evaluate");
+                write(vname, e.colors.clone());
                 println!(
                     "{:<8} {:<8} {}   | knn {}  ({:.1} s, rho {:.2?})",
                     r.name,
