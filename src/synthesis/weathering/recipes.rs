@@ -226,24 +226,6 @@ pub fn score(out: &[[f32; 3]], truth: &[[f32; 3]], adj: &Csr) -> Scores {
     }
 }
 
-/// Columns of `fs` standardised by the source's per-column mean and standard deviation (a
-/// constant column gets weight 0).
-fn standardise(fs: &FeatureSet, mean: &[f64], std: &[f64]) -> Vec<f32> {
-    let d = fs.dim;
-    fs.values
-        .iter()
-        .enumerate()
-        .map(|(i, &x)| {
-            let j = i % d;
-            if std[j] > 1e-9 {
-                ((x as f64 - mean[j]) / std[j]) as f32
-            } else {
-                0.0
-            }
-        })
-        .collect()
-}
-
 /// k-nearest-neighbour regression of colour on features: every target vertex gets the mean
 /// colour of its `k` nearest source vertices in standardised feature space.
 pub fn knn_regression(
@@ -252,34 +234,13 @@ pub fn knn_regression(
     tgt: &FeatureSet,
     k: usize,
 ) -> Vec<[f32; 3]> {
-    let d = src.dim;
-    let n = src.len().max(1) as f64;
-    let mean: Vec<f64> = (0..d)
-        .map(|j| {
-            src.values
-                .iter()
-                .skip(j)
-                .step_by(d)
-                .map(|&x| x as f64)
-                .sum::<f64>()
-                / n
-        })
-        .collect();
-    let std: Vec<f64> = (0..d)
-        .map(|j| {
-            (src.values
-                .iter()
-                .skip(j)
-                .step_by(d)
-                .map(|&x| (x as f64 - mean[j]).powi(2))
-                .sum::<f64>()
-                / n)
-                .sqrt()
-        })
-        .collect();
-    let xs = standardise(src, &mean, &std);
-    let xt = standardise(tgt, &mean, &std);
-    knn_on(&xs, src_colors, &xt, d, k)
+    use super::regression::{column_scales, standardised};
+    let all: Vec<u32> = (0..src.len() as u32).collect();
+    let (mean, scale) = column_scales(src, &all);
+    let alike = vec![1.0f32; src.dim];
+    let xs = standardised(src, &mean, &scale, &alike);
+    let xt = standardised(tgt, &mean, &scale, &alike);
+    knn_on(&xs, src_colors, &xt, src.dim, k)
 }
 
 /// k-nearest-neighbour regression on given coordinates (`d` per row): the mean colour of the

@@ -52,16 +52,10 @@ pub(super) fn predict(
     let ys: Vec<f32> = train.iter().flat_map(|&v| src_dec[v as usize]).collect();
     let vy = model.project_y(&ys);
     let weights = relevance(fs, train, &vy, model);
-    let map = |x: &[f32]| -> Vec<f32> {
-        x.iter()
-            .enumerate()
-            .map(|(i, &v)| {
-                let j = i % p;
-                ((v as f64 - mean[j]) * scale[j]) as f32 * weights[j]
-            })
-            .collect()
-    };
-    let (xs, xt) = (map(&fs.values), map(&ft.values));
+    let (xs, xt) = (
+        standardised(fs, &mean, &scale, &weights),
+        standardised(ft, &mean, &scale, &weights),
+    );
     let xtrain: Vec<f32> = train
         .iter()
         .flat_map(|&v| xs[v as usize * p..(v as usize + 1) * p].iter().copied())
@@ -198,9 +192,28 @@ pub(super) fn drop_directions(
     }
 }
 
+/// The rows of `fs`, each column `j` standardised by `mean[j]` and `scale[j]`
+/// ([`column_scales`]) and multiplied by `weights[j]`.
+pub(super) fn standardised(
+    fs: &FeatureSet,
+    mean: &[f64],
+    scale: &[f64],
+    weights: &[f32],
+) -> Vec<f32> {
+    let p = fs.dim;
+    fs.values
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            let j = i % p;
+            ((v as f64 - mean[j]) * scale[j]) as f32 * weights[j]
+        })
+        .collect()
+}
+
 /// Per feature column, the training vertices' mean and the reciprocal of their standard
 /// deviation (0 for a constant column).
-fn column_scales(fs: &FeatureSet, train: &[u32]) -> (Vec<f64>, Vec<f64>) {
+pub(super) fn column_scales(fs: &FeatureSet, train: &[u32]) -> (Vec<f64>, Vec<f64>) {
     let p = fs.dim;
     let n = train.len().max(1) as f64;
     let mut mean = vec![0.0f64; p];
