@@ -160,7 +160,7 @@ pub(super) fn every_shared_pair(
 /// defaults for a textured output (patch pasting), with `--method neighbourhood` (Wei-Levoy in
 /// texture space), and triplanar projection at the same scale, all in the same layout, measured
 /// texel by texel ([`crate::synthesis::exemplar::character`]); `MESHMATCH_METHODS` picks
-/// among `patches,neighbourhood,triplanar`.
+/// among `patches,neighbourhood,triplanar`, `MESHMATCH_SEED` the synthesis's seed.
 pub fn synth_character_rows(json: bool) -> Result<()> {
     use crate::synthesis::exemplar::character::{
         Exemplar, SAMPLES, measure_with, triplanar_texture,
@@ -218,7 +218,12 @@ pub fn synth_character_rows(json: bool) -> Result<()> {
                 target: &target,
                 field: None,
             };
-            let params = TextureParams::default();
+            let mut params = TextureParams::default();
+            if let Ok(v) = std::env::var("MESHMATCH_SEED") {
+                params.synth.seed = v.parse().map_err(|_| {
+                    crate::error::Error::InvalidInput(format!("MESHMATCH_SEED: '{v}' is not a seed"))
+                })?;
+            }
             let cancel = CancelToken::new();
             // patch pasting lays the texture out (the target's UVs or an atlas); the others
             // go into the same layout
