@@ -64,7 +64,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let only = std::env::var("TASKS").ok();
     for (name, kind, deformation) in tasks {
-        if only.as_ref().is_some_and(|o| !o.split(',').any(|t| t == name)) {
+        if only
+            .as_ref()
+            .is_some_and(|o| !o.split(',').any(|t| t == name))
+        {
             continue;
         }
         let task = TexelTask::new(with(kind), 12_000, deformation, size, 7)?;

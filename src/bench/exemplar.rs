@@ -221,7 +221,9 @@ pub fn synth_character_rows(json: bool) -> Result<()> {
             let mut params = TextureParams::default();
             if let Ok(v) = std::env::var("MESHMATCH_SEED") {
                 params.synth.seed = v.parse().map_err(|_| {
-                    crate::error::Error::InvalidInput(format!("MESHMATCH_SEED: '{v}' is not a seed"))
+                    crate::error::Error::InvalidInput(format!(
+                        "MESHMATCH_SEED: '{v}' is not a seed"
+                    ))
                 })?;
             }
             let cancel = CancelToken::new();
