@@ -185,6 +185,24 @@ pub fn synth_character_rows(json: bool) -> Result<()> {
         );
         println!("| --- | --- | ---: | ---: | ---: | ---: | ---: |");
     }
+    // the settings every pair shares, read once
+    let samples = match std::env::var("MESHMATCH_MEASURE_SAMPLES") {
+        Err(_) => SAMPLES,
+        Ok(v) => v.parse().map_err(|_| {
+            crate::error::Error::InvalidInput(format!(
+                "MESHMATCH_MEASURE_SAMPLES: '{v}' is not a count"
+            ))
+        })?,
+    };
+    let methods = std::env::var("MESHMATCH_METHODS")
+        .unwrap_or_else(|_| "patches,neighbourhood,triplanar".into());
+    let mut params = TextureParams::default();
+    if let Ok(v) = std::env::var("MESHMATCH_SEED") {
+        params.synth.seed = v.parse().map_err(|_| {
+            crate::error::Error::InvalidInput(format!("MESHMATCH_SEED: '{v}' is not a seed"))
+        })?;
+    }
+    let patch_params = patch_params()?;
     for m in &meshes {
         for t in &textures {
             if let Some(w) = &wanted
@@ -202,35 +220,17 @@ pub fn synth_character_rows(json: bool) -> Result<()> {
                 alpha: alpha.as_ref(),
                 scale,
             };
-            let samples = match std::env::var("MESHMATCH_MEASURE_SAMPLES") {
-                Err(_) => SAMPLES,
-                Ok(v) => v.parse().map_err(|_| {
-                    crate::error::Error::InvalidInput(format!(
-                        "MESHMATCH_MEASURE_SAMPLES: '{v}' is not a count"
-                    ))
-                })?,
-            };
-            let methods = std::env::var("MESHMATCH_METHODS")
-                .unwrap_or_else(|_| "patches,neighbourhood,triplanar".into());
             let input = TextureInput {
                 exemplar: &tex.image,
                 alpha: alpha.as_ref(),
                 target: &target,
                 field: None,
             };
-            let mut params = TextureParams::default();
-            if let Ok(v) = std::env::var("MESHMATCH_SEED") {
-                params.synth.seed = v.parse().map_err(|_| {
-                    crate::error::Error::InvalidInput(format!(
-                        "MESHMATCH_SEED: '{v}' is not a seed"
-                    ))
-                })?;
-            }
             let cancel = CancelToken::new();
             // patch pasting lays the texture out (the target's UVs or an atlas); the others
             // go into the same layout
             let t0 = Instant::now();
-            let patches = paste_patches(&input, &params, &patch_params()?, &|_| {}, &cancel)?;
+            let patches = paste_patches(&input, &params, &patch_params, &|_| {}, &cancel)?;
             let secs = t0.elapsed().as_secs_f64();
             let laid = &patches.mesh;
             let texture = |m: &crate::mesh::TriMesh| m.texture.as_ref().map(|x| x.image.clone());
