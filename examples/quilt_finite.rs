@@ -26,7 +26,13 @@ fn main() {
             continue;
         }
         let sw = load_swatch(finite_patch(kind, 1), quilting::Axis::Z).expect("swatch");
-        for name in ["bunny", "horse", "saddle"] {
+        for name in ["bunny", "horse", "saddle", "cylinder"] {
+            if name == "cylinder" && std::env::var("BASE").is_ok_and(|b| b != "cylinder") {
+                continue;
+            }
+            if name == "cylinder" && std::env::var("BASE").is_err() {
+                continue;
+            }
             if std::env::var("BASE").is_ok_and(|b| b != name) {
                 continue;
             }
@@ -37,6 +43,8 @@ fn main() {
             };
             let base = if name == "saddle" {
                 quilting::saddle(0.5, 64)
+            } else if name == "cylinder" {
+                cylinder(64, 200)
             } else {
                 let mut b = meshmatch::mesh::io::load(&base).expect("base");
                 b.repair().expect("repair");
@@ -126,4 +134,24 @@ fn main() {
             }
         }
     }
+}
+
+/// An open cylinder of radius 1 and length 12 along z, `nc` quads around and `nl` along.
+fn cylinder(nc: usize, nl: usize) -> meshmatch::TriMesh {
+    let mut pos = Vec::new();
+    for j in 0..=nl {
+        for i in 0..nc {
+            let a = std::f32::consts::TAU * i as f32 / nc as f32;
+            pos.push([a.cos(), a.sin(), 12.0 * j as f32 / nl as f32 - 6.0]);
+        }
+    }
+    let mut faces = Vec::new();
+    for j in 0..nl {
+        for i in 0..nc {
+            let v = |i: usize, j: usize| (j * nc + i % nc) as u32;
+            faces.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+            faces.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+        }
+    }
+    meshmatch::TriMesh::new(pos, faces)
 }

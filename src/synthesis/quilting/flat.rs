@@ -8,6 +8,9 @@ use glam::{Vec2, Vec3};
 
 use super::shell::Base;
 
+/// A flattened edge longer than this many times its length on the base tears the flattening.
+const TEAR: f32 = 3.0;
+
 /// A flattened patch with a point-location grid.
 pub(super) struct Flat {
     /// Base face -> index into `faces`.
@@ -18,6 +21,9 @@ pub(super) struct Flat {
     cell: f32,
     dims: [usize; 2],
     grid: Vec<Vec<u32>>,
+    /// Faces next to a tear (a vertex shared with a torn face): no point is extrapolated from
+    /// them.
+    near_tear: Vec<bool>,
     /// Where several faces hold a point, take the first in `faces` (a chart grown outwards
     /// from the seed that overlaps itself past a singularity: the sheet nearer the seed wins).
     prefer_first: bool,
@@ -89,11 +95,41 @@ impl Flat {
             }
         }
         faces.sort_unstable_by_key(|x| x.0);
-        Flat::from_faces(faces, false)
+        Flat::from_faces(base, faces, false)
     }
 
     /// A flattening given face by face (2D corners per base face, each face once).
-    pub(super) fn from_faces(faces: Vec<(u32, [Vec2; 3])>, prefer_first: bool) -> Flat {
+    ///
+    /// A face the flattening tears (folded over, or an edge stretched past [`TEAR`] times its
+    /// length: the exponential map past its cut locus, around a limb thinner than the disc, puts
+    /// the faces straddling the cut across the whole chart) holds no point: points there are
+    /// not on the patch, and nothing is extrapolated from the faces around the tear.
+    pub(super) fn from_faces(
+        base: &Base,
+        faces: Vec<(u32, [Vec2; 3])>,
+        prefer_first: bool,
+    ) -> Flat {
+        let torn: Vec<bool> = faces
+            .iter()
+            .map(|(f, t)| {
+                let c = base.faces[*f as usize].map(|v| Vec3::from(base.p[v as usize]));
+                (t[1] - t[0]).perp_dot(t[2] - t[0]) <= 0.0
+                    || (0..3).any(|k| {
+                        let (a, b) = (k, (k + 1) % 3);
+                        t[a].distance(t[b]) > TEAR * c[a].distance(c[b])
+                    })
+            })
+            .collect();
+        let cut: std::collections::HashSet<u32> = faces
+            .iter()
+            .zip(&torn)
+            .filter(|x| *x.1)
+            .flat_map(|((f, _), _)| base.faces[*f as usize])
+            .collect();
+        let near_tear: Vec<bool> = faces
+            .iter()
+            .map(|(f, _)| base.faces[*f as usize].iter().any(|v| cut.contains(v)))
+            .collect();
         let mut lo = Vec2::splat(f32::INFINITY);
         let mut hi = Vec2::splat(f32::NEG_INFINITY);
         for (_, t) in &faces {
@@ -116,6 +152,9 @@ impl Flat {
             .max(1e-12);
         let mut grid = vec![Vec::new(); dims[0] * dims[1]];
         for (k, (_, t)) in faces.iter().enumerate() {
+            if torn[k] {
+                continue;
+            }
             let mut a = Vec2::splat(f32::INFINITY);
             let mut b = Vec2::splat(f32::NEG_INFINITY);
             for q in t {
@@ -142,6 +181,7 @@ impl Flat {
             cell,
             dims,
             grid,
+            near_tear,
             prefer_first,
         }
     }
@@ -197,6 +237,9 @@ impl Flat {
         for j in (cj - r).max(0)..=(cj + r).min(self.dims[1] as i64 - 1) {
             for i in (ci - r).max(0)..=(ci + r).min(self.dims[0] as i64 - 1) {
                 for &k in &self.grid[j as usize * self.dims[0] + i as usize] {
+                    if self.near_tear[k as usize] {
+                        continue;
+                    }
                     let (f, t) = &self.faces[k as usize];
                     let d = seg_dist(p, t[0], t[1])
                         .min(seg_dist(p, t[1], t[2]))

@@ -150,6 +150,7 @@ fn by_lattice(
         )
     };
     let flat = Flat::from_faces(
+        base,
         g.into_iter().map(|(f, c)| (f, c.map(to_uv))).collect(),
         true,
     );
