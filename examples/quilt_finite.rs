@@ -5,7 +5,7 @@
 //! reproduced, element pairs whose surfaces cross, coverage and run time.
 //! `cargo run --release --example quilt_finite` (`KIND=rings-patch|weave-patch|pebbles`,
 //! `BASE=bunny|horse|saddle`, `DETECT=0` for the box tiling without detection, `LATTICE=0` for the
-//! paper's matching on every patch, `OUT=dir` to write each quilt as OBJ, with `CROP=x,y,z` also the elements and base faces within
+//! paper's matching on every patch, `FILL=0` without the gap filling, `OUT=dir` to write each quilt as OBJ, with `CROP=x,y,z` also the elements and base faces within
 //! 1.2 swatch widths of that point, for close-up renders).
 use glam::Vec3;
 use meshmatch::synthesis::quilting::{self, Input, Params, PatchKind, finite_patch, load_swatch};
@@ -56,6 +56,7 @@ fn main() {
                 swatch_size: Some(frac * diag),
                 detect_period: !std::env::var("DETECT").is_ok_and(|v| v == "0"),
                 lattice: !std::env::var("LATTICE").is_ok_and(|v| v == "0"),
+                fill: !std::env::var("FILL").is_ok_and(|v| v == "0"),
                 ..Params::default()
             };
             let input = Input {

@@ -828,10 +828,12 @@ fn nudged_strands_fill_the_gaps_between_patches_on_a_curved_base() {
     // patches disagree, the cut drops whole strands; moved by part of a spacing, some fit
     let base = icosphere(1.0, 4);
     let sw = swatch(SwatchKind::Weave, 1);
-    // the paper's matching on every patch (the global lattice leaves few gaps to fill)
+    // the paper's matching on every patch (the global lattice leaves few gaps to fill), and
+    // no gap filling after the patches (it fills some of the same gaps)
     let params = Params {
         swatch_size: Some(0.9),
         lattice: false,
+        fill: false,
         ..Default::default()
     };
     let plain = quilt(
@@ -1057,4 +1059,70 @@ fn a_finite_ring_patch_keeps_its_links_and_density_on_convex_and_saddle_bases() 
         assert!(s.coverage >= 0.95, "{label}");
         assert_eq!(quilting::crossing_pairs(&out).len(), 0, "{label}");
     }
+}
+
+/// An open cylinder of radius 1 and length 12 along z, `nc` quads around and `nl` along.
+fn cylinder(nc: usize, nl: usize) -> TriMesh {
+    let mut pos = Vec::new();
+    for j in 0..=nl {
+        for i in 0..nc {
+            let a = std::f32::consts::TAU * i as f32 / nc as f32;
+            pos.push([a.cos(), a.sin(), 12.0 * j as f32 / nl as f32 - 6.0]);
+        }
+    }
+    let mut faces = Vec::new();
+    for j in 0..nl {
+        for i in 0..nc {
+            let v = |i: usize, j: usize| (j * nc + i % nc) as u32;
+            faces.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+            faces.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+        }
+    }
+    TriMesh::new(pos, faces)
+}
+
+#[test]
+fn a_limb_thinner_than_a_patch_is_covered_and_its_gaps_filled() {
+    // a limb (a horse's leg) whose half girth is the patch's radius: the exponential map wraps
+    // around it and tears along the far side; the faces straddling the tear once spanned the
+    // whole chart, so every element seemed distorted and the limb stayed bare
+    let rings = load_swatch(
+        quilting::finite_patch(quilting::PatchKind::Rings, 1),
+        Axis::Z,
+    )
+    .unwrap();
+    let limb = cylinder(64, 200);
+    let params = Params {
+        swatch_size: Some(6.2), // patch radius 3.1, half the girth pi
+        ..Default::default()
+    };
+    let unfilled = quilt(
+        &limb,
+        &rings,
+        &Params {
+            fill: false,
+            ..params.clone()
+        },
+    );
+    let out = quilt(&limb, &rings, &params);
+    check_integrity(&out, &rings);
+    let (a, b) = (&unfilled.stats, &out.stats);
+    eprintln!(
+        "limb: {}\n  without filling: {}",
+        b.arrangement_summary(),
+        a.arrangement_summary()
+    );
+    assert!(
+        a.elements > 0 && a.density_ratio >= 0.75,
+        "{}",
+        a.arrangement_summary()
+    );
+    // the filling adds elements in the gaps, never denser than the swatch allows
+    assert!(b.filled > 0 && b.coverage > a.coverage);
+    assert!(
+        (0.85..=1.15).contains(&b.density_ratio),
+        "{}",
+        b.arrangement_summary()
+    );
+    assert_eq!(quilting::crossing_pairs(&out).len(), 0);
 }

@@ -92,8 +92,18 @@ impl Mapper<'_> {
 /// The patch's candidates at translation `t` (swatch units): each element within the disc,
 /// with its copies one period apart when the tile repeats.
 pub(super) fn candidates(mapper: &Mapper, t: Vec2, stats: &mut QuiltStats) -> Vec<Candidate> {
+    candidates_within(mapper, t, mapper.patch.rp, stats)
+}
+
+/// [`candidates`] centred within `rp` (base units) of the patch's seed.
+pub(super) fn candidates_within(
+    mapper: &Mapper,
+    t: Vec2,
+    rp: f32,
+    stats: &mut QuiltStats,
+) -> Vec<Candidate> {
     let (sw, s, period) = (mapper.setup.sw, mapper.setup.s, mapper.setup.period);
-    let (rp, lattice_t) = (mapper.patch.rp, mapper.patch.lattice_t);
+    let lattice_t = mapper.patch.lattice_t;
     let mut cands: Vec<Candidate> = Vec::new();
     let rs = rp / s;
     for (e, el) in sw.elements.iter().enumerate() {

@@ -185,6 +185,26 @@ impl Placement {
         }
     }
 
+    /// Places one candidate as an element of its own.
+    pub(super) fn place_one(&mut self, c: Candidate, sw: &Swatch) {
+        self.out_faces += sw.elements[c.source as usize].faces.len();
+        self.anchored[c.anchor.0 as usize].push((self.placed.len() as u32, 0));
+        self.centres
+            .insert(self.placed.len() as u32, &[c.centre.to_array()]);
+        self.max_radius = self.max_radius.max(c.radius);
+        self.placed.push(Placed {
+            source: c.source,
+            positions: c.positions,
+            faces: None,
+            pieces: vec![Piece {
+                centre: c.centre,
+                anchor: c.anchor,
+                dir: c.dir,
+            }],
+            alive: true,
+        });
+    }
+
     /// Places the candidates the patch accepted on their own (not merged into an old
     /// element); errors when the quilt now has more than `max_faces` faces.
     pub(super) fn place(
@@ -211,22 +231,7 @@ impl Placement {
                     shift: Vec2::ZERO,
                 },
             );
-            self.out_faces += sw.elements[c.source as usize].faces.len();
-            self.anchored[c.anchor.0 as usize].push((self.placed.len() as u32, 0));
-            self.centres
-                .insert(self.placed.len() as u32, &[c.centre.to_array()]);
-            self.max_radius = self.max_radius.max(c.radius);
-            self.placed.push(Placed {
-                source: c.source,
-                positions: c.positions,
-                faces: None,
-                pieces: vec![Piece {
-                    centre: c.centre,
-                    anchor: c.anchor,
-                    dir: c.dir,
-                }],
-                alive: true,
-            });
+            self.place_one(c, sw);
         }
         if self.out_faces > max_faces {
             return Err(Error::InvalidInput(format!(

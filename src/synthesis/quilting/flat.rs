@@ -1,5 +1,5 @@
 //! A flattened patch: the base faces of a disc with their 2D corners, a grid to locate points
-//! in them (or, just past the disc's boundary, extrapolated from the nearest face), and the
+//! in them (or, just past the base's boundary, extrapolated from the nearest boundary face), and the
 //! flattening's area distortion.
 
 use std::collections::HashMap;
@@ -21,9 +21,9 @@ pub(super) struct Flat {
     cell: f32,
     dims: [usize; 2],
     grid: Vec<Vec<u32>>,
-    /// Faces next to a tear (a vertex shared with a torn face): no point is extrapolated from
-    /// them.
-    near_tear: Vec<bool>,
+    /// The faces points just past the base's boundary are extrapolated from: those with an
+    /// edge on the base's boundary, away from any tear (no vertex shared with a torn face).
+    extrapolating: Vec<u32>,
     /// Where several faces hold a point, take the first in `faces` (a chart grown outwards
     /// from the seed that overlaps itself past a singularity: the sheet nearer the seed wins).
     prefer_first: bool,
@@ -126,9 +126,11 @@ impl Flat {
             .filter(|x| *x.1)
             .flat_map(|((f, _), _)| base.faces[*f as usize])
             .collect();
-        let near_tear: Vec<bool> = faces
-            .iter()
-            .map(|(f, _)| base.faces[*f as usize].iter().any(|v| cut.contains(v)))
+        let extrapolating: Vec<u32> = (0..faces.len() as u32)
+            .filter(|&k| {
+                let f = faces[k as usize].0 as usize;
+                base.on_boundary[f] && !base.faces[f].iter().any(|v| cut.contains(v))
+            })
             .collect();
         let mut lo = Vec2::splat(f32::INFINITY);
         let mut hi = Vec2::splat(f32::NEG_INFINITY);
@@ -181,7 +183,7 @@ impl Flat {
             cell,
             dims,
             grid,
-            near_tear,
+            extrapolating,
             prefer_first,
         }
     }
@@ -195,8 +197,8 @@ impl Flat {
     }
 
     /// Locate `p`: the face containing it (largest smallest barycentric coordinate), or with
-    /// `extrapolate > 0` the nearest face within that distance, with affine (possibly
-    /// negative) barycentric coordinates. Returns `(face, b, inside)`.
+    /// `extrapolate > 0` the nearest face on the base's boundary within that distance, with
+    /// affine (possibly negative) barycentric coordinates. Returns `(face, b, inside)`.
     pub(super) fn locate(&self, p: Vec2, extrapolate: f32) -> Option<(u32, [f32; 3], bool)> {
         if self.faces.is_empty() || !p.is_finite() {
             return None;
@@ -230,27 +232,17 @@ impl Flat {
         if extrapolate <= 0.0 {
             return None;
         }
-        let r = (extrapolate / self.cell).ceil() as i64 + 1;
-        let q = ((p - self.lo) / self.cell).floor();
-        let (ci, cj) = (q.x as i64, q.y as i64);
         let mut best: Option<(u32, [f32; 3], f32)> = None;
-        for j in (cj - r).max(0)..=(cj + r).min(self.dims[1] as i64 - 1) {
-            for i in (ci - r).max(0)..=(ci + r).min(self.dims[0] as i64 - 1) {
-                for &k in &self.grid[j as usize * self.dims[0] + i as usize] {
-                    if self.near_tear[k as usize] {
-                        continue;
-                    }
-                    let (f, t) = &self.faces[k as usize];
-                    let d = seg_dist(p, t[0], t[1])
-                        .min(seg_dist(p, t[1], t[2]))
-                        .min(seg_dist(p, t[2], t[0]));
-                    if d <= extrapolate
-                        && best.is_none_or(|x| d < x.2)
-                        && let Some(b) = bary2(p, t)
-                    {
-                        best = Some((*f, b, d));
-                    }
-                }
+        for &k in &self.extrapolating {
+            let (f, t) = &self.faces[k as usize];
+            let d = seg_dist(p, t[0], t[1])
+                .min(seg_dist(p, t[1], t[2]))
+                .min(seg_dist(p, t[2], t[0]));
+            if d <= extrapolate
+                && best.is_none_or(|x| d < x.2)
+                && let Some(b) = bary2(p, t)
+            {
+                best = Some((*f, b, d));
             }
         }
         best.map(|(f, b, _)| (f, b, false))

@@ -24,13 +24,14 @@ pub(super) struct Patch {
     pub(super) lattice_t: Option<Vec2>,
 }
 
-/// The patch seeded on face `seed`: flattened by the lattice's chart when it serves, else by
-/// the exponential map, shrinking while distorted.
+/// The patch seeded on face `seed` with a placement disc of radius `rp`: flattened by the
+/// lattice's chart when it serves, else by the exponential map, shrinking while distorted.
 pub(super) fn flatten(
     setup: &Setup,
     base: &Base,
     lattice: &mut Lattice,
     seed: usize,
+    rp: f32,
     stats: &mut QuiltStats,
 ) -> Patch {
     let (r_elem, mean_edge, tau) = (setup.r_elem, setup.mean_edge, setup.tau);
@@ -46,7 +47,6 @@ pub(super) fn flatten(
             rp + 2.0 * r_elem + 2.0 * mean_edge + tau,
         )
     };
-    let rp = setup.params.patch_radius * setup.l;
     // the lattice's try computes the disc at the full radius; the fallback starts from it
     let mut first_disc = None;
     if let Some(lat) = lattice

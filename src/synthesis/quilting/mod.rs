@@ -142,6 +142,7 @@ mod candidates;
 mod crossing;
 mod cut;
 mod elements;
+mod fill;
 mod finite_patch;
 mod flat;
 mod flatten;
@@ -216,6 +217,11 @@ pub struct Params {
     /// first position that clears every element (fills the gaps left where the lattices of
     /// neighbouring patches disagree). Compact elements are never moved.
     pub nudge: bool,
+    /// Once every face is covered by a patch, visit the gaps wider than the swatch's own
+    /// largest gap (seams where the cut dropped clashing copies) and place there the first
+    /// copy of a tile element, registered with its neighbours or moved by up to half the
+    /// tile's spacing, that clears every element ([`fill`]).
+    pub fill: bool,
     /// Place every patch on one global lattice: two stripe patterns along the orientation field
     /// and across it (Knöppel et al. 2015, period one swatch) give each patch its flattening,
     /// so that neighbouring patches lay their copies on the same lattice and threads meet
@@ -258,6 +264,7 @@ impl Default for Params {
             follow_neighbours: true,
             merge_elements: false,
             nudge: true,
+            fill: true,
             lattice: true,
             lattice_scale: 1.25,
             merge_min_aspect: 3.0,
@@ -294,6 +301,8 @@ pub struct QuiltStats {
     pub merged: usize,
     /// Dropped candidates kept after all, nudged into a gap.
     pub nudged: usize,
+    /// Elements placed in gaps after the patches ([`Params::fill`]).
+    pub filled: usize,
     /// Candidates dropped because part of them fell off the flattened base.
     pub dropped_unmapped: usize,
     /// Elements dropped at the end because a vertex lay outside the shell (distorted or
@@ -573,7 +582,8 @@ fn run_unit(
         let Some(seed) = coverage.next_seed(first_patch.then_some(first)) else {
             break;
         };
-        let patch = flatten::flatten(&setup, &base, &mut lattice, seed, &mut stats);
+        let rp = params.patch_radius * size.l;
+        let patch = flatten::flatten(&setup, &base, &mut lattice, seed, rp, &mut stats);
         // 3. matching
         let (rot, t) = matching::register(&setup, &base, &patch, &elements, &mut rng);
         // 4. candidates, the cut (with merging), nudge
@@ -599,6 +609,21 @@ fn run_unit(
             fraction: stats.covered_fraction,
             ..Default::default()
         }));
+    }
+
+    // the gaps the seams left
+    if params.fill {
+        let reach = swatch_measures.largest_gap * size.s;
+        stats.filled = fill::fill(
+            &setup,
+            &base,
+            &mut lattice,
+            &mut elements,
+            reach,
+            stats.patches,
+            &mut rng,
+            cancel,
+        )?;
     }
 
     // the output: the shell guard, then the arrangement measured

@@ -20,6 +20,8 @@ pub(super) struct Base<'a> {
     pub(super) area: Vec<f64>,
     pub(super) adj: Csr,
     pub(super) vf: Csr,
+    /// Per face: it has an edge on the base's boundary.
+    pub(super) on_boundary: Vec<bool>,
     /// The offset surface bounding the shell.
     pub(super) top: Vec<[f32; 3]>,
     /// Shell thickness `H` (height fraction 1).
@@ -139,6 +141,7 @@ pub(super) fn build<'a>(
         fnrm,
         area,
         adj,
+        on_boundary: boundary_faces(faces, &vf),
         vf,
         top,
         thickness: h,
@@ -153,4 +156,21 @@ pub(super) fn build<'a>(
             inverted: shell_inverted,
         },
     )
+}
+
+/// Per face: whether one of its edges belongs to no other face.
+fn boundary_faces(faces: &[[u32; 3]], vf: &Csr) -> Vec<bool> {
+    faces
+        .iter()
+        .map(|f| {
+            (0..3).any(|k| {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                vf.row(a as usize)
+                    .iter()
+                    .filter(|&&g| faces[g as usize].contains(&b))
+                    .count()
+                    == 1
+            })
+        })
+        .collect()
 }

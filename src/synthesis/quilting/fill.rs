@@ -1,0 +1,202 @@
+//! Gap filling (not in the paper; [`super::Params::fill`]): after every face is covered by a
+//! patch, the base faces still farther than the swatch's own largest gap from any element are
+//! visited in order. Each seeds a patch as in step 2, registered with the elements around it as
+//! in step 3; the tile's copies that reach the gap are tried at the registered translation,
+//! then moved by an eighth to a half of the tile's smallest spacing in twelve directions
+//! (threads: a quarter and a half in eight, as the nudge), and the first that clears every
+//! element (vertex clearance, centres at least 0.9 of the swatch's spacing apart, no crossing
+//! surfaces) is placed. The registered translation comes first, so a filler continues its
+//! neighbours' lattice (and their links) where the seams allow it. Where a try fails, the gap
+//! faces within half the gap width (threads: the whole width) are not tried again.
+//!
+//! Gaps within reach of an open base's border are left as the covering pass leaves them.
+//!
+//! Where patches meet, the cut keeps whole elements and drops the copies that clash, which
+//! leaves holes along the seams: on the horse, with the ring patch a tenth of its diagonal
+//! wide, a sixth of the area, filled to a twentieth (`examples/quilt_finite`).
+
+use glam::{Vec2, Vec3};
+use rand::rngs::SmallRng;
+
+use super::QuiltStats;
+use super::candidates::{Mapper, candidates_within};
+use super::crossing;
+use super::elements::{Candidate, Placement, VertexHash};
+use super::flatten;
+use super::lattice::Lattice;
+use super::matching;
+use super::setup::Setup;
+use super::shell::Base;
+use crate::error::Result;
+use crate::work::CancelToken;
+
+/// Fills the gaps wider than `reach` (base units) between the placed elements, with at most
+/// twice `patches` tries (each costs what a patch of the covering pass costs), as many for a
+/// tile of threads alone (long elements, costly to map and test, which rarely fit a gap);
+/// returns how many elements were added.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn fill(
+    setup: &Setup,
+    base: &Base,
+    lattice: &mut Lattice,
+    elements: &mut Placement,
+    reach: f32,
+    patches: usize,
+    rng: &mut SmallRng,
+    cancel: &CancelToken,
+) -> Result<usize> {
+    let sw = setup.sw;
+    if !(reach > 0.0) || !setup.min_spacing.is_finite() {
+        return Ok(0);
+    }
+    let mut verts = VertexHash::new(reach);
+    for (k, pe) in elements.placed.iter().enumerate() {
+        if pe.alive {
+            verts.insert(k as u32, &pe.positions);
+        }
+    }
+    let centroid = |f: usize| {
+        base.faces[f]
+            .iter()
+            .map(|&v| Vec3::from(base.p[v as usize]))
+            .sum::<Vec3>()
+            / 3.0
+    };
+    let gap =
+        |verts: &VertexHash, f: usize| !verts.any_near(&[centroid(f).to_array()], reach, |_| true);
+    // an open base's border keeps its own margin (elements past it are dropped, as the
+    // covering pass drops them): gaps within an element's reach of it are left
+    let border_reach = reach + 2.0 * setup.r_elem;
+    let mut border = VertexHash::new(border_reach);
+    for (f, _) in base.on_boundary.iter().enumerate().filter(|x| *x.1) {
+        border.insert(0, &[centroid(f).to_array()]);
+    }
+    let gaps: Vec<usize> = (0..base.faces.len())
+        .filter(|&f| {
+            gap(&verts, f) && !border.any_near(&[centroid(f).to_array()], border_reach, |_| true)
+        })
+        .collect();
+    // compact elements are tried on a fine ring of moves; threads (long, costly to map and
+    // to test) on the nudge's coarse one
+    let step = setup.min_spacing;
+    let threads = setup.elongated.iter().all(|&e| e);
+    let (moves, dirs): (&[f32], usize) = if threads {
+        (&[0.25, 0.5], 8)
+    } else {
+        (&[0.125, 0.25, 0.375, 0.5], 12)
+    };
+    // where a try failed, the faces within `skip` are not tried again
+    let skip = if threads { reach } else { 0.5 * reach };
+    let budget = if threads { patches } else { 2 * patches };
+    let mut offsets = vec![Vec2::ZERO];
+    for m in moves {
+        for k in 0..dirs {
+            let a = std::f32::consts::TAU * k as f32 / dirs as f32;
+            offsets.push(Vec2::new(a.cos(), a.sin()) * (m * step));
+        }
+    }
+    // the tries' counters stay out of the run's
+    let mut scratch = QuiltStats::default();
+    let mut added = 0;
+    let mut tries = 0;
+    let mut failed = VertexHash::new(reach);
+    for (i, f) in gaps.into_iter().enumerate() {
+        if i % 16 == 0 {
+            cancel.check()?;
+        }
+        let c0 = centroid(f);
+        if !gap(&verts, f) || failed.any_near(&[c0.to_array()], skip, |_| true) {
+            continue;
+        }
+        if tries == budget {
+            break;
+        }
+        tries += 1;
+        let rp = (3.0 * setup.r_elem + reach).min(setup.params.patch_radius * setup.l);
+        let patch = flatten::flatten(setup, base, lattice, f, rp, &mut scratch);
+        let (rot, t) = matching::register(setup, base, &patch, elements, rng);
+        let mapper = Mapper {
+            setup,
+            base,
+            patch: &patch,
+            rot,
+        };
+        let near = Neighbours::around(setup, elements, c0, patch.rp);
+        let mut found = None;
+        'tries: for d in &offsets {
+            for c in candidates_within(&mapper, t + *d, setup.r_elem + reach, &mut scratch) {
+                let covers = c
+                    .positions
+                    .iter()
+                    .any(|p| Vec3::from(*p).distance(c0) <= reach);
+                if covers && near.clears(setup, elements, &c) {
+                    found = Some(c);
+                    break 'tries;
+                }
+            }
+        }
+        if let Some(c) = found {
+            let id = elements.placed.len() as u32;
+            verts.insert(id, &c.positions);
+            elements.place_one(c, sw);
+            added += 1;
+        } else {
+            failed.insert(0, &[c0.to_array()]);
+        }
+    }
+    Ok(added)
+}
+
+/// The alive elements around a gap, with their vertices hashed for the clearance test.
+struct Neighbours {
+    ids: Vec<u32>,
+    hash: VertexHash,
+}
+
+impl Neighbours {
+    fn around(setup: &Setup, elements: &Placement, c: Vec3, rp: f32) -> Neighbours {
+        let r = rp + 2.0 * elements.max_radius + setup.tau;
+        let ids: Vec<u32> = elements
+            .centres
+            .near(&[c.to_array()], r.min(elements.centres.cell))
+            .into_iter()
+            .filter(|&e| elements.placed[e as usize].alive)
+            .collect();
+        let mut hash = VertexHash::new(setup.tau);
+        for (k, &e) in ids.iter().enumerate() {
+            hash.insert(k as u32, &elements.placed[e as usize].positions);
+        }
+        Neighbours { ids, hash }
+    }
+
+    /// Whether `c` clears every neighbour: no vertex within the clearance, centres at least
+    /// 0.9 of the swatch's spacing apart, no crossing surfaces.
+    fn clears(&self, setup: &Setup, elements: &Placement, c: &Candidate) -> bool {
+        let (sw, tau, elem_faces) = (setup.sw, setup.tau, &setup.elem_faces);
+        if self.hash.any_near(&c.positions, tau, |_| true) {
+            return false;
+        }
+        let cl = sw.elements[c.source as usize].class;
+        for &e in &self.ids {
+            let o = &elements.placed[e as usize];
+            let d = o.centre_distance(c.centre);
+            if d < setup.nudge_spacing(sw.elements[o.source as usize].class, cl) {
+                return false;
+            }
+        }
+        for &e in &self.ids {
+            let o = &elements.placed[e as usize];
+            if o.centre_distance(c.centre) < 2.0 * (c.radius + elements.max_radius)
+                && crossing::surfaces_cross(
+                    &o.positions,
+                    o.faces(elem_faces),
+                    &c.positions,
+                    &elem_faces[c.source as usize],
+                )
+            {
+                return false;
+            }
+        }
+        true
+    }
+}
