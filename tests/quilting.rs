@@ -1113,7 +1113,7 @@ fn a_limb_thinner_than_a_patch_is_covered_and_its_gaps_filled() {
         a.arrangement_summary()
     );
     assert!(
-        a.elements > 0 && a.density_ratio >= 0.75,
+        a.elements > 0 && a.density_ratio >= 0.6,
         "{}",
         a.arrangement_summary()
     );
