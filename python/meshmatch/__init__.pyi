@@ -209,6 +209,7 @@ def quilt(
     seed: int = 1,
     merge: bool = False,
     nudge: bool = True,
+    fill: bool = True,
     lattice: bool = True,
     progress: Progress | None = None,
     cancel: CancelToken | None = None,

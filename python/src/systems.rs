@@ -628,7 +628,7 @@ enum SwatchArg {
 #[pyfunction]
 #[pyo3(signature = (base, swatch=SwatchArg::Spec(PathBuf::from("chain")), *, swatch_size=None, thickness=None,
     swatch_up="z".to_string(), seed=quilting::Params::default().seed, merge=false, nudge=true,
-    lattice=true, progress=None, cancel=None))]
+    fill=true, lattice=true, progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn quilt<'py>(
     py: Python<'py>,
@@ -640,6 +640,7 @@ fn quilt<'py>(
     seed: u64,
     merge: bool,
     nudge: bool,
+    fill: bool,
     lattice: bool,
     progress: Option<&Bound<'py, PyAny>>,
     cancel: Option<&Bound<'py, CancelToken>>,
@@ -669,6 +670,7 @@ fn quilt<'py>(
         seed,
         merge_elements: merge,
         nudge,
+        fill,
         lattice,
         ..quilting::Params::default()
     };

@@ -38,6 +38,7 @@ pub struct QuiltDialog {
     pub merge: bool,
     /// Move elements the cut drops into the gaps between patches.
     pub nudge: bool,
+    pub fill: bool,
     /// Place patches on one global lattice.
     pub lattice: bool,
 }
@@ -51,6 +52,7 @@ impl Default for QuiltDialog {
             seed: Params::default().seed,
             merge: Params::default().merge_elements,
             nudge: Params::default().nudge,
+            fill: Params::default().fill,
             lattice: Params::default().lattice,
         }
     }
@@ -120,6 +122,12 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
                  moved by a quarter or half of its spacing, and kept whole where it clears every \
                  other element; compact elements are never moved",
             );
+        ui.checkbox(&mut self.fill, "fill the gaps left between patches")
+            .on_hover_text(
+                "Once the surface is covered, every gap wider than the swatch's own largest \
+                 gets the first copy of a swatch element, lined up with its neighbours or moved \
+                 by up to half a spacing, that clears every other element",
+            );
         ui.checkbox(&mut self.lattice, "one lattice over the surface")
             .on_hover_text(
                 "Patches are laid on one global lattice (two stripe patterns along the \
@@ -159,6 +167,7 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
             seed: self.seed,
             merge_elements: self.merge,
             nudge: self.nudge,
+            fill: self.fill,
             lattice: self.lattice,
             ..Params::default()
         };

@@ -49,6 +49,11 @@ pub struct QuiltArgs {
     /// their spacing into the gap (on by default: fills the gaps they leave on curved bases).
     #[arg(long)]
     pub no_nudge: bool,
+    /// Do not fill the gaps left between patches once the base is covered (on by default:
+    /// each gap wider than the swatch's own largest gets the first copy of a swatch element
+    /// that clears every other element).
+    #[arg(long)]
+    pub no_fill: bool,
     /// Match every patch to its neighbours as the paper does instead of placing patches on one
     /// global lattice (two stripe patterns along the orientation field and across it). The
     /// lattice, on by default, lines up threads and crossings across seams.
@@ -111,6 +116,7 @@ impl QuiltArgs {
             seed: a.seed,
             merge_elements: a.merge,
             nudge: !a.no_nudge,
+            fill: !a.no_fill,
             lattice: !a.no_lattice,
             ..Params::default()
         };
@@ -125,7 +131,8 @@ impl QuiltArgs {
         bar.finish_and_clear();
         let s = &out.stats;
         eprintln!(
-            "quilted {} elements ({} faces; {} copies merged into others, {} moved into gaps) in \
+            "quilted {} elements ({} faces; {} copies merged into others, {} moved into gaps, {} \
+             placed in gaps after the patches) in \
              {:.2} s: {} patches ({} on the global lattice), \
              {:.1}% of the base covered, swatch {:.4} wide, shell {:.4} thick, shell stretch L2 \
              {:.3} -> {:.3}",
@@ -133,6 +140,7 @@ impl QuiltArgs {
             out.elements.num_faces(),
             s.merged,
             s.nudged,
+            s.filled,
             s.seconds,
             s.patches,
             s.lattice_patches,

@@ -134,6 +134,29 @@ impl VertexHash {
             })
         })
     }
+    /// Ids with a point closer than `r` (any size) to `p`, sorted, deduplicated.
+    pub(super) fn within(&self, p: Vec3, r: f32) -> Vec<u32> {
+        let k = self.key(p);
+        let n = (r / self.cell).ceil() as i32;
+        let mut out = Vec::new();
+        for dz in -n..=n {
+            for dy in -n..=n {
+                for dx in -n..=n {
+                    if let Some(list) = self.map.get(&[k[0] + dx, k[1] + dy, k[2] + dz]) {
+                        out.extend(
+                            list.iter()
+                                .filter(|(_, q)| q.distance_squared(p) < r * r)
+                                .map(|x| x.0),
+                        );
+                    }
+                }
+            }
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
     /// Ids with a vertex closer than `tau` (<= cell) to one of `ps`, sorted, deduplicated.
     pub(super) fn near(&self, ps: &[[f32; 3]], tau: f32) -> Vec<u32> {
         let mut out = Vec::new();

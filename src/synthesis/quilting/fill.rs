@@ -46,7 +46,7 @@ pub(super) fn fill(
     cancel: &CancelToken,
 ) -> Result<usize> {
     let sw = setup.sw;
-    if !(reach > 0.0) || !setup.min_spacing.is_finite() {
+    if reach.is_nan() || reach <= 0.0 || !setup.min_spacing.is_finite() {
         return Ok(0);
     }
     let mut verts = VertexHash::new(reach);
@@ -121,7 +121,7 @@ pub(super) fn fill(
             patch: &patch,
             rot,
         };
-        let near = Neighbours::around(setup, elements, c0, patch.rp);
+        let near = Neighbours::around(setup, elements, c0, reach);
         let mut found = None;
         'tries: for d in &offsets {
             for c in candidates_within(&mapper, t + *d, setup.r_elem + reach, &mut scratch) {
@@ -154,11 +154,19 @@ struct Neighbours {
 }
 
 impl Neighbours {
-    fn around(setup: &Setup, elements: &Placement, c: Vec3, rp: f32) -> Neighbours {
-        let r = rp + 2.0 * elements.max_radius + setup.tau;
+    /// The alive elements that may touch, cross or crowd a copy reaching within `reach` of
+    /// `c`: centres within the copy's reach, plus two element radii and the clearance or the
+    /// largest spacing kept between centres.
+    fn around(setup: &Setup, elements: &Placement, c: Vec3, reach: f32) -> Neighbours {
+        let n = setup.sw.num_elements() as u32;
+        let spacing = (0..n * n)
+            .map(|k| spacing(setup, k / n, k % n))
+            .fold(0.0f32, f32::max);
+        let r =
+            reach + setup.r_elem + (setup.r_elem + elements.max_radius + setup.tau).max(spacing);
         let ids: Vec<u32> = elements
             .centres
-            .near(&[c.to_array()], r.min(elements.centres.cell))
+            .within(c, r)
             .into_iter()
             .filter(|&e| elements.placed[e as usize].alive)
             .collect();
@@ -172,15 +180,13 @@ impl Neighbours {
     /// Whether `c` clears every neighbour: no vertex within the clearance, centres at least
     /// 0.9 of the swatch's spacing apart, no crossing surfaces.
     fn clears(&self, setup: &Setup, elements: &Placement, c: &Candidate) -> bool {
-        let (sw, tau, elem_faces) = (setup.sw, setup.tau, &setup.elem_faces);
+        let (tau, elem_faces) = (setup.tau, &setup.elem_faces);
         if self.hash.any_near(&c.positions, tau, |_| true) {
             return false;
         }
-        let cl = sw.elements[c.source as usize].class;
         for &e in &self.ids {
             let o = &elements.placed[e as usize];
-            let d = o.centre_distance(c.centre);
-            if d < setup.nudge_spacing(sw.elements[o.source as usize].class, cl) {
+            if o.centre_distance(c.centre) < spacing(setup, o.source, c.source) {
                 return false;
             }
         }
@@ -199,4 +205,15 @@ impl Neighbours {
         }
         true
     }
+}
+
+/// Two copies of tile elements `a` and `b` keep centres at least this far apart: what the
+/// covering pass's cut demands ([`Setup::conflict_dist`]) and 0.9 of their classes' closest
+/// pair in the swatch, as a nudged thread.
+fn spacing(setup: &Setup, a: u32, b: u32) -> f32 {
+    let (ca, cb) = (
+        setup.sw.elements[a as usize].class,
+        setup.sw.elements[b as usize].class,
+    );
+    setup.conflict_dist(a, b).max(setup.nudge_spacing(ca, cb))
 }

@@ -96,6 +96,12 @@
 //!    18.0 s). Compact elements are not nudged: their density is already within 10% of the
 //!    swatch's, nudging them added up to 5% (the bunny's chain to 1.13, denser than the swatch)
 //!    at 2.5 times the run time.
+//!
+//!    **Fill** (not in the paper; `fill`, on by default): once the base is covered, each gap
+//!    wider than the swatch's own largest gets the first copy of a tile element, registered
+//!    with its neighbours or moved by up to half the tile's spacing, that clears every
+//!    element ([`fill`]). Measured with `examples/quilt_finite` (a tenth of the diagonal): the
+//!    ring patch on the horse from 0.71 to 0.88 of the swatch's density, coverage 0.85 to 0.94.
 //! 5. **Shell map (§3.2).** A swatch point `(x, y, z)` goes to `uv = s R (x + t)` in the
 //!    flattened patch, to the base triangle and barycentric coordinates `b` containing it
 //!    (affine extrapolation from the nearest triangle for points just past a base boundary),
@@ -128,7 +134,7 @@
 //! `lattice.rs` (2's global lattice), `seed.rs` and `flatten.rs` (2, on `flat.rs`'s point
 //! location), `matching.rs` (3), `candidates.rs` (4's candidates through 5's shell map),
 //! `cut.rs` (4's conflicts, cut and greedy pass), `join.rs` (a merge at a seam, through
-//! [`merging`]), `nudge.rs`, and `output.rs` (the shell guard and the measures).
+//! [`merging`]), `nudge.rs`, `fill.rs`, and `output.rs` (the shell guard and the measures).
 //!
 //! Output: all kept elements merged in one [`TriMesh`], with a per-vertex element id and a
 //! per-element source (swatch element index). Planar quilting is the same code on a flat base
