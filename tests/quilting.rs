@@ -173,14 +173,20 @@ fn plane_reproduces_a_periodic_swatch() {
         ..Default::default()
     };
     let fractions = std::cell::RefCell::new(Vec::new());
+    let filling = std::cell::Cell::new(false);
     let sink = |e: meshmatch::work::Event| {
         if let meshmatch::work::Event::Progress(p) = e {
-            // the lattice's solve first, then one event per patch
+            // the lattice's solve first, then one event per patch, then the gaps filled
             if p.stage == "quilt: lattice" {
                 assert!(fractions.borrow().is_empty());
                 return;
             }
+            if p.stage == "quilt: gaps" {
+                filling.set(true);
+                return;
+            }
             assert_eq!(p.stage, "quilt");
+            assert!(!filling.get(), "a patch after the gap filling began");
             fractions.borrow_mut().push(p.fraction);
         }
     };

@@ -28,7 +28,7 @@ use super::matching;
 use super::setup::Setup;
 use super::shell::Base;
 use crate::error::Result;
-use crate::work::CancelToken;
+use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
 /// Fills the gaps wider than `reach` (base units) between the placed elements, with at most
 /// twice `patches` tries (each costs what a patch of the covering pass costs), as many for a
@@ -43,7 +43,7 @@ pub(super) fn fill(
     reach: f32,
     patches: usize,
     rng: &mut SmallRng,
-    cancel: &CancelToken,
+    (sink, clock, cancel): (&dyn Fn(Event), &Stopwatch, &CancelToken),
 ) -> Result<usize> {
     let sw = setup.sw;
     if reach.is_nan() || reach <= 0.0 || !setup.min_spacing.is_finite() {
@@ -100,9 +100,17 @@ pub(super) fn fill(
     let mut added = 0;
     let mut tries = 0;
     let mut failed = VertexHash::new(reach);
+    let n = gaps.len();
     for (i, f) in gaps.into_iter().enumerate() {
         if i % 16 == 0 {
             cancel.check()?;
+            sink(Event::Progress(Progress {
+                stage: "quilt: gaps",
+                iteration: i,
+                elapsed: clock.secs(),
+                fraction: i as f32 / n as f32,
+                ..Default::default()
+            }));
         }
         let c0 = centroid(f);
         if !gap(&verts, f) || failed.any_near(&[c0.to_array()], skip, |_| true) {

@@ -628,7 +628,7 @@ fn run_unit(
             reach,
             stats.patches,
             &mut rng,
-            cancel,
+            (sink, &clock, cancel),
         )?;
     }
 
