@@ -283,6 +283,12 @@ def test_quilt_covers_the_base_with_whole_elements(tmp_path, data, cli, penguin)
     assert ids.shape == (elements.num_vertices,)
     assert ids.max() + 1 == len(np.unique(ids)) > 10
     np.testing.assert_array_equal(elements.vertices, meshmatch.load(out).vertices)
+    # the gap filling only adds elements after the covering pass; off, as `--no-fill`
+    unfilled, _ = meshmatch.quilt(penguin, "studs", fill=False)
+    assert unfilled.num_vertices <= elements.num_vertices
+    cli("quilt", "--swatch", "studs", "--base", data / "penguin/penguin.obj", "--out", out,
+        "--elements-only", "--no-fill")
+    np.testing.assert_array_equal(unfilled.vertices, meshmatch.load(out).vertices)
 
 
 def test_bake_gives_a_texture_on_a_generated_atlas(penguin):
