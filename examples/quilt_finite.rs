@@ -4,7 +4,7 @@
 //! density over the swatch's (all, convex, saddle regions), the share of the swatch's links
 //! reproduced, element pairs whose surfaces cross, coverage and run time.
 //! `cargo run --release --example quilt_finite` (`KIND=rings-patch|weave-patch|pebbles`,
-//! `BASE=bunny|horse|saddle`, `DETECT=0` for the box tiling without detection, `LATTICE=0` for the
+//! `BASE=bunny|horse|saddle|cylinder` (a limb of radius 1 and length 12, only when named), `DETECT=0` for the box tiling without detection, `LATTICE=0` for the
 //! paper's matching on every patch, `FILL=0` without the gap filling, `OUT=dir` to write each quilt as OBJ, with `CROP=x,y,z` also the elements and base faces within
 //! 1.2 swatch widths of that point, for close-up renders).
 use glam::Vec3;
@@ -26,13 +26,14 @@ fn main() {
             continue;
         }
         let sw = load_swatch(finite_patch(kind, 1), quilting::Axis::Z).expect("swatch");
-        for name in ["bunny", "horse", "saddle", "cylinder"] {
-            if name == "cylinder" && std::env::var("BASE").is_ok_and(|b| b != "cylinder") {
-                continue;
-            }
-            if name == "cylinder" && std::env::var("BASE").is_err() {
-                continue;
-            }
+        // the cylinder (a limb as thin as a patch is wide) only when asked for
+        let cylinder = std::env::var("BASE").is_ok_and(|b| b == "cylinder");
+        let bases: &[&str] = if cylinder {
+            &["cylinder"]
+        } else {
+            &["bunny", "horse", "saddle"]
+        };
+        for &name in bases {
             if std::env::var("BASE").is_ok_and(|b| b != name) {
                 continue;
             }
@@ -44,7 +45,10 @@ fn main() {
             let base = if name == "saddle" {
                 quilting::saddle(0.5, 64)
             } else if name == "cylinder" {
-                cylinder(64, 200)
+                {
+                    let (p, f) = meshmatch::testdata::cylinder(1.0, 12.0, 64, 200);
+                    meshmatch::TriMesh::new(p, f)
+                }
             } else {
                 let mut b = meshmatch::mesh::io::load(&base).expect("base");
                 b.repair().expect("repair");
@@ -135,24 +139,4 @@ fn main() {
             }
         }
     }
-}
-
-/// An open cylinder of radius 1 and length 12 along z, `nc` quads around and `nl` along.
-fn cylinder(nc: usize, nl: usize) -> meshmatch::TriMesh {
-    let mut pos = Vec::new();
-    for j in 0..=nl {
-        for i in 0..nc {
-            let a = std::f32::consts::TAU * i as f32 / nc as f32;
-            pos.push([a.cos(), a.sin(), 12.0 * j as f32 / nl as f32 - 6.0]);
-        }
-    }
-    let mut faces = Vec::new();
-    for j in 0..nl {
-        for i in 0..nc {
-            let v = |i: usize, j: usize| (j * nc + i % nc) as u32;
-            faces.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
-            faces.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
-        }
-    }
-    meshmatch::TriMesh::new(pos, faces)
 }

@@ -77,6 +77,28 @@ pub fn cuboid(a: f32, b: f32, c: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
     (pos, faces)
 }
 
+/// An open cylinder of radius `r` and length `len` along z, centred at the origin, `nc` quads
+/// around and `nl` along (normals outwards): a limb.
+pub fn cylinder(r: f32, len: f32, nc: usize, nl: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+    let (nc, nl) = (nc.max(3), nl.max(1));
+    let mut pos = Vec::with_capacity(nc * (nl + 1));
+    for j in 0..=nl {
+        for i in 0..nc {
+            let a = std::f32::consts::TAU * i as f32 / nc as f32;
+            pos.push([r * a.cos(), r * a.sin(), len * (j as f32 / nl as f32 - 0.5)]);
+        }
+    }
+    let v = |i: usize, j: usize| (j * nc + i % nc) as u32;
+    let mut faces = Vec::with_capacity(2 * nc * nl);
+    for j in 0..nl {
+        for i in 0..nc {
+            faces.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+            faces.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+        }
+    }
+    (pos, faces)
+}
+
 /// A closed unit UV sphere: `rings - 1` rings of `segs` vertices plus two poles, counter-clockwise
 /// seen from outside (`2 segs (rings - 1)` faces): a small known closed surface for tests.
 pub fn uv_sphere(rings: usize, segs: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {

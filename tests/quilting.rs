@@ -1067,26 +1067,6 @@ fn a_finite_ring_patch_keeps_its_links_and_density_on_convex_and_saddle_bases() 
     }
 }
 
-/// An open cylinder of radius 1 and length 12 along z, `nc` quads around and `nl` along.
-fn cylinder(nc: usize, nl: usize) -> TriMesh {
-    let mut pos = Vec::new();
-    for j in 0..=nl {
-        for i in 0..nc {
-            let a = std::f32::consts::TAU * i as f32 / nc as f32;
-            pos.push([a.cos(), a.sin(), 12.0 * j as f32 / nl as f32 - 6.0]);
-        }
-    }
-    let mut faces = Vec::new();
-    for j in 0..nl {
-        for i in 0..nc {
-            let v = |i: usize, j: usize| (j * nc + i % nc) as u32;
-            faces.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
-            faces.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
-        }
-    }
-    TriMesh::new(pos, faces)
-}
-
 #[test]
 fn a_limb_thinner_than_a_patch_is_covered_and_its_gaps_filled() {
     // a limb (a horse's leg) whose half girth is the patch's radius: the exponential map wraps
@@ -1097,7 +1077,8 @@ fn a_limb_thinner_than_a_patch_is_covered_and_its_gaps_filled() {
         Axis::Z,
     )
     .unwrap();
-    let limb = cylinder(64, 200);
+    let (p, f) = meshmatch::testdata::cylinder(1.0, 12.0, 64, 200);
+    let limb = TriMesh::new(p, f);
     let params = Params {
         swatch_size: Some(6.2), // patch radius 3.1, half the girth pi
         ..Default::default()

@@ -15,8 +15,8 @@ use std::sync::Arc;
 
 pub use normals::{SHARP_ANGLE_DEG, corner_normals, vertex_normals};
 pub use topology::{
-    Csr, boundary_loops, connected_components, edge_counts, sorted_edges, vertex_adjacency,
-    vertex_faces,
+    Csr, boundary_faces, boundary_loops, connected_components, edge_counts, sorted_edges,
+    vertex_adjacency, vertex_faces,
 };
 pub use validate::{
     MAX_FACES, MAX_VERTICES, MAX_WORKING_VERTICES, MIN_WORKING_VERTICES, RepairReport,

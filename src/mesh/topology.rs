@@ -223,6 +223,24 @@ pub fn boundary_loops(faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
     loops
 }
 
+/// Per face: whether one of its edges is used by no other face (it lies on a boundary).
+pub fn boundary_faces(faces: &[[u32; 3]]) -> Vec<bool> {
+    let edges = sorted_edges(faces);
+    let mut on = vec![false; faces.len()];
+    let mut i = 0;
+    while i < edges.len() {
+        let mut j = i + 1;
+        while j < edges.len() && edges[j].0 == edges[i].0 {
+            j += 1;
+        }
+        if j - i == 1 {
+            on[edges[i].1 as usize / 3] = true;
+        }
+        i = j;
+    }
+    on
+}
+
 /// Every face edge as (undirected key `min << 32 | max`, half-edge `3 * face + k`), sorted by key.
 pub fn sorted_edges(faces: &[[u32; 3]]) -> Vec<(u64, u32)> {
     let mut e: Vec<(u64, u32)> = Vec::with_capacity(faces.len() * 3);

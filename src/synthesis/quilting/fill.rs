@@ -4,7 +4,7 @@
 //! in step 3; the tile's copies that reach the gap are tried at the registered translation,
 //! then moved by an eighth to a half of the tile's smallest spacing in twelve directions
 //! (threads: a quarter and a half in eight, as the nudge), and the first that clears every
-//! element (vertex clearance, centres at least 0.9 of the swatch's spacing apart, no crossing
+//! element (vertex clearance, the centre distances the cut and the nudge keep, no crossing
 //! surfaces) is placed. The registered translation comes first, so a filler continues its
 //! neighbours' lattice (and their links) where the seams allow it. Where a try fails, the gap
 //! faces within half the gap width (threads: the whole width) are not tried again.
@@ -95,6 +95,17 @@ pub(super) fn fill(
             offsets.push(Vec2::new(a.cos(), a.sin()) * (m * step));
         }
     }
+    // every try's disc, and how far around a gap an element may touch, cross or crowd a copy
+    // reaching into it: the copy's reach plus two element radii and the clearance, or the
+    // largest centre distance kept
+    let rp = (3.0 * setup.r_elem + reach).min(setup.params.patch_radius * setup.l);
+    let ne = sw.num_elements() as u32;
+    let kept = (0..ne * ne)
+        .map(|k| spacing(setup, k / ne, k % ne))
+        .fold(0.0f32, f32::max);
+    let around = |elements: &Placement| {
+        reach + setup.r_elem + (setup.r_elem + elements.max_radius + setup.tau).max(kept)
+    };
     // the tries' counters stay out of the run's
     let mut scratch = QuiltStats::default();
     let mut added = 0;
@@ -120,7 +131,6 @@ pub(super) fn fill(
             break;
         }
         tries += 1;
-        let rp = (3.0 * setup.r_elem + reach).min(setup.params.patch_radius * setup.l);
         let patch = flatten::flatten(setup, base, lattice, f, rp, &mut scratch);
         let (rot, t) = matching::register(setup, base, &patch, elements, rng);
         let mapper = Mapper {
@@ -129,7 +139,7 @@ pub(super) fn fill(
             patch: &patch,
             rot,
         };
-        let near = Neighbours::around(setup, elements, c0, reach);
+        let near = Neighbours::around(setup, elements, c0, around(elements));
         let mut found = None;
         'tries: for d in &offsets {
             for c in candidates_within(&mapper, t + *d, setup.r_elem + reach, &mut scratch) {
@@ -162,16 +172,8 @@ struct Neighbours {
 }
 
 impl Neighbours {
-    /// The alive elements that may touch, cross or crowd a copy reaching within `reach` of
-    /// `c`: centres within the copy's reach, plus two element radii and the clearance or the
-    /// largest spacing kept between centres.
-    fn around(setup: &Setup, elements: &Placement, c: Vec3, reach: f32) -> Neighbours {
-        let n = setup.sw.num_elements() as u32;
-        let spacing = (0..n * n)
-            .map(|k| spacing(setup, k / n, k % n))
-            .fold(0.0f32, f32::max);
-        let r =
-            reach + setup.r_elem + (setup.r_elem + elements.max_radius + setup.tau).max(spacing);
+    /// The alive elements centred within `r` of `c`.
+    fn around(setup: &Setup, elements: &Placement, c: Vec3, r: f32) -> Neighbours {
         let ids: Vec<u32> = elements
             .centres
             .within(c, r)
@@ -186,7 +188,7 @@ impl Neighbours {
     }
 
     /// Whether `c` clears every neighbour: no vertex within the clearance, centres at least
-    /// 0.9 of the swatch's spacing apart, no crossing surfaces.
+    /// [`spacing`] apart, no crossing surfaces.
     fn clears(&self, setup: &Setup, elements: &Placement, c: &Candidate) -> bool {
         let (tau, elem_faces) = (setup.tau, &setup.elem_faces);
         if self.hash.any_near(&c.positions, tau, |_| true) {

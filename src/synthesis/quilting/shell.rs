@@ -9,7 +9,7 @@ use crate::geometry::{
     face_areas, face_normals, minimize_shell_stretch, offset_surface, shell_point,
     shell_point_ruled, shell_stretch, tangent_direction, vertex_normals,
 };
-use crate::mesh::{Csr, TriMesh, vertex_adjacency, vertex_faces};
+use crate::mesh::{Csr, TriMesh, boundary_faces, vertex_adjacency, vertex_faces};
 
 /// The base surface with what the shell map needs.
 pub(super) struct Base<'a> {
@@ -141,7 +141,7 @@ pub(super) fn build<'a>(
         fnrm,
         area,
         adj,
-        on_boundary: boundary_faces(faces, &vf),
+        on_boundary: boundary_faces(faces),
         vf,
         top,
         thickness: h,
@@ -156,21 +156,4 @@ pub(super) fn build<'a>(
             inverted: shell_inverted,
         },
     )
-}
-
-/// Per face: whether one of its edges belongs to no other face.
-fn boundary_faces(faces: &[[u32; 3]], vf: &Csr) -> Vec<bool> {
-    faces
-        .iter()
-        .map(|f| {
-            (0..3).any(|k| {
-                let (a, b) = (f[k], f[(k + 1) % 3]);
-                vf.row(a as usize)
-                    .iter()
-                    .filter(|&&g| faces[g as usize].contains(&b))
-                    .count()
-                    == 1
-            })
-        })
-        .collect()
 }
