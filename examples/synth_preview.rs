@@ -4,9 +4,11 @@
 //!  OUT.png [--size 64] [--scale S] [--orientation random|up|relax2|relax4] [--search fast|exhaustive]
 //!  [--levels 4] [--seed N] [--displace] [--measure]`
 
+mod common;
+
 use std::path::Path;
 
-use glam::{Mat3, Vec3};
+use glam::Mat3;
 use meshmatch::TriMesh;
 use meshmatch::synthesis::{SynthParams, synthesize};
 use meshmatch::work::{CancelToken, no_events};
@@ -17,76 +19,24 @@ fn icosphere(n: usize) -> TriMesh {
     TriMesh::new(p, f)
 }
 
-/// Render vertex colours with Lambert shading from `views` yaw angles side by side.
+/// Vertex colours seen from each of `yaws`, tilted down, side by side.
 fn render(mesh: &TriMesh, colors: &[[f32; 3]], size: u32, yaws: &[f32]) -> image::RgbImage {
-    let (lo, hi) = mesh.bounds().unwrap();
-    let c = (Vec3::from(lo) + Vec3::from(hi)) * 0.5;
-    let r = (Vec3::from(hi) - Vec3::from(lo)).length() * 0.5;
-    let mut img =
-        image::RgbImage::from_pixel(size * yaws.len() as u32, size, image::Rgb([40, 40, 48]));
-    let normals = mesh
-        .normals
-        .clone()
-        .unwrap_or_else(|| vec![[0.0, 0.0, 1.0]; mesh.num_vertices()]);
-    for (vi, &yaw) in yaws.iter().enumerate() {
-        let rot = Mat3::from_rotation_x(-0.35) * Mat3::from_rotation_y(yaw);
-        let s = size as f32;
-        let proj: Vec<Vec3> = mesh
-            .positions
-            .iter()
-            .map(|p| {
-                let q = rot * ((Vec3::from(*p) - c) / r);
-                Vec3::new(
-                    (q.x * 0.95 + 1.0) * 0.5 * s,
-                    (1.0 - q.y * 0.95) * 0.5 * s,
-                    q.z,
-                )
-            })
-            .collect();
-        let light = Vec3::new(0.3, 0.5, 1.0).normalize();
-        let shade: Vec<Vec3> = normals
-            .iter()
-            .zip(colors)
-            .map(|(n, col)| {
-                let l = (rot * Vec3::from(*n)).dot(light).abs();
-                Vec3::from(*col) * (0.35 + 0.65 * l)
-            })
-            .collect();
-        let mut zb = vec![f32::NEG_INFINITY; (size * size) as usize];
-        for f in &mesh.faces {
-            let [a, b, cc] = f.map(|i| proj[i as usize]);
-            let area = (b.x - a.x) * (cc.y - a.y) - (b.y - a.y) * (cc.x - a.x);
-            if area.abs() < 1e-12 {
-                continue;
-            }
-            let x0 = a.x.min(b.x).min(cc.x).floor().max(0.0) as i32;
-            let x1 = a.x.max(b.x).max(cc.x).ceil().min(s - 1.0) as i32;
-            let y0 = a.y.min(b.y).min(cc.y).floor().max(0.0) as i32;
-            let y1 = a.y.max(b.y).max(cc.y).ceil().min(s - 1.0) as i32;
-            for y in y0..=y1 {
-                for x in x0..=x1 {
-                    let (px, py) = (x as f32 + 0.5, y as f32 + 0.5);
-                    let w0 = ((b.x - px) * (cc.y - py) - (b.y - py) * (cc.x - px)) / area;
-                    let w1 = ((cc.x - px) * (a.y - py) - (cc.y - py) * (a.x - px)) / area;
-                    let w2 = 1.0 - w0 - w1;
-                    if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
-                        continue;
-                    }
-                    let z = w0 * a.z + w1 * b.z + w2 * cc.z;
-                    let k = (y as u32 * size + x as u32) as usize;
-                    if z > zb[k] {
-                        zb[k] = z;
-                        let col = shade[f[0] as usize] * w0
-                            + shade[f[1] as usize] * w1
-                            + shade[f[2] as usize] * w2;
-                        let px = col.to_array().map(|v| (v.clamp(0.0, 1.0) * 255.0) as u8);
-                        img.put_pixel(vi as u32 * size + x as u32, y as u32, image::Rgb(px));
-                    }
-                }
-            }
-        }
-    }
-    img
+    let turns: Vec<Mat3> = yaws
+        .iter()
+        .map(|&yaw| Mat3::from_rotation_x(-0.35) * Mat3::from_rotation_y(yaw))
+        .collect();
+    common::side_by_side(
+        &mesh.positions,
+        &mesh.faces,
+        Some(colors),
+        mesh.normals.as_deref(),
+        &turns,
+        size,
+        common::Look {
+            background: [40, 40, 48],
+            flag_back_faces: false,
+        },
+    )
 }
 
 fn main() {
