@@ -73,7 +73,7 @@ fn main() {
             let s = &out.stats;
             let opt = |x: Option<f32>| x.map_or("-".to_string(), |v| format!("{v:.2}"));
             println!(
-                "| {} | {} | {} ({}) | {} | {:.2} ({} / {}) | {} ({:.2} per element, swatch {:.2}) | {} | {:.3} | {:.1} s |",
+                "| {} | {} | {} ({}) | {} | {:.2} ({} / {}) | {} ({:.2} per element; swatch {:.2} on its lattice, {:.2} as modelled) | {} | {:.3} | {:.1} s |",
                 kind.as_str(),
                 name,
                 s.periodicity,
@@ -86,6 +86,7 @@ fn main() {
                     .map_or("-".to_string(), |x| format!("{:.0}%", 100.0 * x)),
                 s.links_per_element,
                 s.swatch_links_per_element,
+                s.modelled_links_per_element,
                 crossing,
                 s.coverage,
                 s.seconds

@@ -1061,6 +1061,13 @@ fn a_finite_ring_patch_keeps_its_links_and_density_on_convex_and_saddle_bases() 
         );
         if sw.num_elements() == 12 {
             assert!(s.link_share.is_some_and(|x| x >= 0.8), "{label}");
+            // the patch's rows of rings as modelled: its border rings have one partner, so
+            // fewer links per ring than on its lattice
+            assert!(
+                s.modelled_links_per_element > 1.0
+                    && s.modelled_links_per_element < s.swatch_links_per_element,
+                "{label}"
+            );
         }
         assert!(s.coverage >= 0.95, "{label}");
         assert_eq!(quilting::crossing_pairs(&out).len(), 0, "{label}");

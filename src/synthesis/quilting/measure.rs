@@ -174,6 +174,17 @@ fn angle_defects(mesh: &TriMesh) -> Vec<f32> {
 
 /// Measure an output against its swatch. `s`: swatch-to-base scale; `l`: swatch width in base
 /// units (the curvature ball is `l / 2`).
+/// Links per element among the swatch's own elements as modelled (no copies around them: a
+/// finite patch's border elements have fewer partners than its interior's).
+pub fn modelled_links_per_element(sw: &Swatch) -> f32 {
+    let ne = sw.num_elements();
+    let curves: Vec<Option<Vec<Vec3>>> = (0..ne)
+        .into_par_iter()
+        .map(|e| centre_curve(sw.element_positions(e), &sw.element_faces(e)))
+        .collect();
+    2.0 * linked_pairs(&curves).len() as f32 / ne.max(1) as f32
+}
+
 pub fn quilt_measures(
     out: &super::QuiltOutput,
     base: &TriMesh,

@@ -355,6 +355,10 @@ pub struct QuiltStats {
     pub link_share: Option<f32>,
     /// Links per element in the swatch (with its copies around it on a lattice).
     pub swatch_links_per_element: f32,
+    /// Links per element among the swatch's own elements as modelled, without copies (lower
+    /// than [`QuiltStats::swatch_links_per_element`] for a finite patch, whose border elements
+    /// have fewer partners).
+    pub modelled_links_per_element: f32,
     /// Links per element in the output.
     pub links_per_element: f32,
     /// Share of the base's area with no gap larger than the swatch's largest.
@@ -398,10 +402,12 @@ impl QuiltStats {
             |name: &str, r: Option<f32>| r.map_or(String::new(), |r| format!(", {name} {r:.2}"));
         let links = match self.link_share {
             Some(x) => format!(
-                "{:.0}% of the swatch's links ({:.2} per element, swatch {:.2})",
+                "{:.0}% of the swatch's links ({:.2} per element; the swatch {:.2} on its \
+                 lattice, {:.2} as modelled)",
                 100.0 * x,
                 self.links_per_element,
-                self.swatch_links_per_element
+                self.swatch_links_per_element,
+                self.modelled_links_per_element
             ),
             None => "no links in the swatch".into(),
         };
@@ -650,6 +656,7 @@ fn run_unit(
         &swatch_measures,
         (size.s, size.l),
     );
+    out.stats.modelled_links_per_element = measure::modelled_links_per_element(input.swatch);
     out.stats.seconds = clock.secs();
     sink(Event::StageTime("quilt", out.stats.seconds));
     Ok(out)
