@@ -324,6 +324,68 @@ fn a_checker_textured_cube_of_8_vertices_renders_its_checker_per_pixel() {
 }
 
 #[test]
+fn textures_of_any_size_render_not_only_powers_of_two() {
+    // a texture's mip chain must have the GPU's level count and sizes (100 -> 50 -> 25 -> 12
+    // ...): a chain that rounded odd sides up had one level too many for 100², 3², 354 x 352
+    for (w, h) in [(100u32, 100u32), (354, 352), (3, 3), (300, 1), (1000, 1000)] {
+        let mut cube = checker_cube();
+        cube.texture = Some(std::sync::Arc::new(meshmatch::mesh::Texture {
+            image: image::RgbImage::from_fn(w, h, |x, y| {
+                if (8 * x / w + 8 * y / h.max(8)) % 2 == 0 {
+                    image::Rgb([240, 240, 240])
+                } else {
+                    image::Rgb([20, 20, 20])
+                }
+            }),
+            path: None,
+        }));
+        let img = render_image(
+            &cube,
+            None,
+            &RenderOptions {
+                azimuth_deg: 0.0,
+                elevation_deg: 0.0,
+                width: 200,
+                height: 200,
+                ..Default::default()
+            },
+        )
+        .unwrap_or_else(|e| panic!("a {w} x {h} texture: {e}"));
+        // the +z face shows the texture: light and dark squares along its middle row
+        let row: Vec<u8> = (60..140).map(|x| img.get_pixel(x, 100).0[0]).collect();
+        let (lo, hi) = (row.iter().min().unwrap(), row.iter().max().unwrap());
+        assert!(
+            *hi > 150 && (w < 8 || hi - lo > 80),
+            "a {w} x {h} texture: row {row:?}"
+        );
+    }
+}
+
+#[test]
+fn mip_chains_have_the_gpu_level_sizes() {
+    for (w, h) in [
+        (100u32, 100u32),
+        (354, 352),
+        (3, 3),
+        (300, 1),
+        (64, 64),
+        (1, 1),
+    ] {
+        let img = image::RgbaImage::new(w, h);
+        let chain = meshmatch::geometry::mip_chain(&img);
+        let levels = 32 - w.max(h).leading_zeros();
+        assert_eq!(chain.len() as u32, levels, "{w} x {h}");
+        for (l, m) in chain.iter().enumerate() {
+            assert_eq!(
+                m.dimensions(),
+                ((w >> l).max(1), (h >> l).max(1)),
+                "{w} x {h}, level {l}"
+            );
+        }
+    }
+}
+
+#[test]
 fn a_cube_draws_flat_faces_with_sharp_edges() {
     let mut cube = checker_cube();
     cube.texture = None;

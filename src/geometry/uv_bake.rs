@@ -443,8 +443,11 @@ fn pull_push(px: &mut [[f32; 3]], wt: &[f32], w: usize, h: usize) {
     });
 }
 
-/// The mip chain of an sRGB image down to 1×1: each level the 2×2 box average of the one above,
-/// averaged in linear light (odd sizes clamp at the border). Level 0 is `img` itself.
+/// The mip chain of an sRGB image down to 1×1, with a GPU's level sizes (each side halved and
+/// rounded down, at least 1: `floor(log2(max side)) + 1` levels, so that any size uploads as a
+/// sampled texture): each level the 2×2 box average of the one above in linear light (an odd
+/// side's last row or column is left out, as a GPU's own box filter leaves it). Level 0 is `img`
+/// itself.
 pub fn mip_chain(img: &image::RgbaImage) -> Vec<image::RgbaImage> {
     let mut levels = vec![img.clone()];
     while let Some(top) = levels.last() {
@@ -452,7 +455,7 @@ pub fn mip_chain(img: &image::RgbaImage) -> Vec<image::RgbaImage> {
         if w <= 1 && h <= 1 {
             break;
         }
-        let (nw, nh) = (w.div_ceil(2).max(1), h.div_ceil(2).max(1));
+        let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
         let mut next = image::RgbaImage::new(nw, nh);
         for y in 0..nh {
             for x in 0..nw {
