@@ -165,9 +165,19 @@ pub fn write_summary(
     Ok(all)
 }
 
+/// Widest the summary table's name column grows.
+const NAME_COLUMN: usize = 60;
+
 /// The summary as a text table: index, name, status, seconds, outputs, error.
 pub fn table(all: &[Outcome]) -> String {
-    let w = all.iter().map(|o| o.name.len()).max().unwrap_or(4).max(4);
+    // the name column fits the longest name up to NAME_COLUMN characters; a longer name runs
+    // past it (a width past 65535 is not even formattable)
+    let w = all
+        .iter()
+        .map(|o| o.name.chars().count())
+        .max()
+        .unwrap_or(4)
+        .clamp(4, NAME_COLUMN);
     let mut s = format!(
         "{:>5}  {:<w$}  {:<9}  {:>8}  {:<30}  error\n",
         "index", "name", "status", "seconds", "outputs"
@@ -189,4 +199,33 @@ pub fn table(all: &[Outcome]) -> String {
         );
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_name_of_any_length_fits_the_table() {
+        let outcome = |name: String| Outcome {
+            index: 0,
+            name,
+            args: Vec::new(),
+            status: Status::Ok,
+            seconds: 1.0,
+            outputs: Vec::new(),
+            error: None,
+            log: None,
+            key: None,
+        };
+        let long = "a".repeat(70_000);
+        let t = table(&[outcome(long.clone()), outcome("short".into())]);
+        assert!(t.contains(&long));
+        // short names still line up in a column of at most NAME_COLUMN characters
+        let row = t.lines().find(|l| l.contains("short")).unwrap();
+        assert!(
+            row.len() < 5 + 2 + NAME_COLUMN + 2 + 9 + 2 + 8 + 2 + 30 + 4,
+            "{row}"
+        );
+    }
 }
