@@ -371,3 +371,37 @@ args = ["convert", "bunny.obj", "out/second.glb"]
     let s = summary(dir, "farm");
     assert_eq!(statuses(&s), ["not_run", "ok"], "{s:#}");
 }
+
+#[test]
+fn nothing_writes_over_the_job_file_itself() {
+    let d = workdir();
+    // a job whose output is its own job file (a map's CSV may have any extension)
+    let own = d.path().join("self.toml");
+    let text = r#"
+[[job]]
+name = "over-itself"
+args = ["map", "--source", "bunny.obj", "--target", "bunny.obj", "--out", "self.toml"]
+
+[[job]]
+name = "fine"
+args = ["convert", "bunny.obj", "out/bunny.ply"]
+"#;
+    std::fs::write(&own, text).unwrap();
+    let o = batch(&own, &[]);
+    assert!(!o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&own).unwrap(), text);
+    let s = summary(d.path(), "self");
+    assert_eq!(statuses(&s), ["failed", "ok"]);
+    let err = s["jobs"][0]["error"].as_str().unwrap();
+    assert!(err.contains("job file itself"), "{err}");
+
+    // an OpenJD template emitted next to a job file named like one of its files
+    let params = d.path().join("params.json");
+    let json = r#"{"job": [{"name": "c", "args": ["convert", "bunny.obj", "out/b.ply"]}]}"#;
+    std::fs::write(&params, json).unwrap();
+    let o = batch(&params, &["--emit-openjd", d.path().to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("over the job file"), "{}", stderr(&o));
+    assert_eq!(std::fs::read_to_string(&params).unwrap(), json);
+    assert!(!d.path().join("template.json").exists());
+}

@@ -199,6 +199,15 @@ impl Location {
     }
 }
 
+/// Whether paths `a` and `b` lead to the same file, whatever their spelling or the links on the
+/// way ([`Location`]); false when either cannot be resolved.
+pub fn same_location(a: &Path, b: &Path) -> bool {
+    match (locate("", a), locate("", b)) {
+        (Ok(a), Ok(b)) => a.same(&b),
+        _ => false,
+    }
+}
+
 /// The [`Location`] of `p`; an error naming `flag` when a folder on its way is a file
 /// ("--out a/b.ply: a is a file, not a folder").
 fn locate(flag: &str, p: &Path) -> Result<Location> {

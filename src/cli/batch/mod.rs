@@ -73,7 +73,7 @@ impl BatchArgs {
         }
         let dir = job_file.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut jobs = jobfile::load(&job_file, &dir)?;
-        validate::validate(&mut jobs, &dir);
+        validate::validate(&mut jobs, &dir, &job_file);
         let log_dir = match &self.log_dir {
             Some(d) => std::path::absolute(d).map_err(|e| Error::io(d, e))?,
             None => dir.join(format!("{}-batch", stem(&job_file))),

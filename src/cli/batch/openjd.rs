@@ -46,6 +46,16 @@ pub fn emit(
         "Meshmatch": exe.display().to_string(),
         "LogDir": log_dir.display().to_string(),
     });
+    for name in [TEMPLATE, PARAMS] {
+        if crate::cli::common::same_location(&out.join(name), job_file) {
+            return Err(Error::InvalidInput(format!(
+                "--emit-openjd {}: its {name} would be written over the job file {}; emit \
+                 into another folder",
+                out.display(),
+                job_file.display()
+            )));
+        }
+    }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     for (name, v) in [(TEMPLATE, template), (PARAMS, params)] {
         let text = serde_json::to_string_pretty(&v).unwrap_or_default() + "\n";

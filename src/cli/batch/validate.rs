@@ -18,12 +18,22 @@ pub fn is_output(id: &str) -> bool {
 }
 
 /// Check every job still without an error, and fill in its inputs and outputs; a job that
-/// fails gets its one-line error. `dir` is the job folder (relative paths are read there).
-pub fn validate(jobs: &mut [Job], dir: &Path) {
+/// fails gets its one-line error. `dir` is the job folder (relative paths are read there); no
+/// job may write over `job_file` itself.
+pub fn validate(jobs: &mut [Job], dir: &Path, job_file: &Path) {
     let cli = Cli::command();
     for job in jobs.iter_mut().filter(|j| j.error.is_none()) {
         if let Err(msg) = check(job, &cli, dir) {
             job.error = Some(msg);
+        } else if let Some(o) = job
+            .outputs
+            .iter()
+            .find(|o| crate::cli::common::same_location(&dir.join(o), job_file))
+        {
+            job.error = Some(format!(
+                "{} is the job file itself: a job may not write over it",
+                o.display()
+            ));
         }
     }
 }
