@@ -110,6 +110,34 @@ fn bad_inputs_give_one_line_errors_and_exit_code_2() {
             &name,
         );
     }
+    // an option out of its documented range, or a swatch name that is none of them, is named
+    // with what it may be
+    let bunny = data_path("bunny/bunny.obj");
+    let image = data_path("textures/1.jpg");
+    expect_clean_failure(
+        &[
+            "synth".as_ref(),
+            "--exemplar".as_ref(),
+            image.as_os_str(),
+            "--target".as_ref(),
+            bunny.as_os_str(),
+            "--out".as_ref(),
+            d.join("s.ply").as_os_str(),
+            "--levels".as_ref(),
+            "9".as_ref(),
+        ],
+        "--levels 9: use 1 to 8",
+    );
+    expect_clean_failure(
+        &[
+            "swatch".as_ref(),
+            "--kind".as_ref(),
+            "foo".as_ref(),
+            "--out".as_ref(),
+            d.join("sw.obj").as_os_str(),
+        ],
+        "rings-patch, weave-patch, pebbles",
+    );
     // A bad file among good ones: the good one still prints, exit code 2.
     let out = bin()
         .args(["info", "--json"])

@@ -46,7 +46,7 @@ pub struct SynthArgs {
     /// curves: Xu et al. 2009's curve-guided field; the exemplar's x axis follows the curves).
     #[arg(long, default_value = crate::synthesis::Orientation::default().as_str())]
     pub orientation: String,
-    /// Pyramid levels, 1 to 12.
+    /// Pyramid levels, 1 to 8.
     #[arg(long, default_value_t = 4, allow_negative_numbers = true, value_parser = whole(1, MAX_PYRAMID_LEVELS))]
     pub levels: usize,
     /// Vertex indices (file numbering, one per line) to synthesize; the rest keep their colours.
@@ -109,7 +109,7 @@ const MIN_VERTEX_BUDGET: usize = 1000;
 const MAX_BUDGET: usize = 2_000_000;
 
 /// Most pyramid `--levels`.
-const MAX_PYRAMID_LEVELS: usize = 12;
+const MAX_PYRAMID_LEVELS: usize = 8;
 
 /// The narrowest `--exemplar-width`.
 const MIN_EXEMPLAR_WIDTH: u32 = 8;

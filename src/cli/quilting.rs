@@ -231,7 +231,14 @@ impl SwatchArgs {
             eprintln!("wrote {}", self.out.display());
             return Ok(0);
         }
-        let s = quilting::swatch(SwatchKind::parse(&self.kind)?, self.seed);
+        let kind = SwatchKind::parse(&self.kind).map_err(|_| {
+            crate::error::Error::InvalidInput(format!(
+                "--kind {}: not a built-in swatch (chain, weave, nuts, studs, scales, or the \
+                 finite patches rings-patch, weave-patch, pebbles)",
+                self.kind
+            ))
+        })?;
+        let s = quilting::swatch(kind, self.seed);
         io::save(&s.mesh, &self.out)?;
         eprintln!(
             "{} swatch: {} elements, {} faces, {:.3} x {:.3}, height {:.3}",
