@@ -118,10 +118,19 @@ fn weld_checked(mesh: &TriMesh, params: &TransferParams) -> Result<Welded> {
     // fan tables and fans; measured peak RSS is 2.4-4 KB per vertex, plus room for the address
     // space's overheads), rather than abort halfway on a failed allocation.
     let working = welded.positions.len().max(params.vertices) as u64;
+    // the mesh's own vertices are kept when there are more of them than asked for
+    let advice = if welded.positions.len() > params.vertices {
+        format!(
+            "the mesh itself has {} vertices after welding; simplify it first",
+            welded.positions.len()
+        )
+    } else {
+        "use fewer --vertices".to_string()
+    };
     crate::work::check_memory(
         working.saturating_mul(WORKING_VERTEX_BYTES),
         &format!("{working} working vertices"),
-        "use fewer --vertices",
+        &advice,
     )?;
     Ok(Welded {
         mesh: welded,
