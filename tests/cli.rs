@@ -498,3 +498,52 @@ fn convert_keeps_the_file_vertex_order_and_faces_of_a_mesh_needing_repair() {
         assert_eq!(v["repairs"]["degenerate_faces_removed"], 1, "{ext}");
     }
 }
+
+#[test]
+fn an_interrupted_command_leaves_no_temporary_file() {
+    // Ctrl-C while the output is being written (under its temporary name, renamed when the
+    // command succeeds): the command stops with 130 and takes its temporary file with it
+    let d = tmpdir("interrupt");
+    let tet = d.join("tet.obj");
+    std::fs::write(
+        &tet,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
+    )
+    .unwrap();
+    let mut child = bin()
+        .args(["features", "--rays", "1", "--texture-size", "8192"])
+        .args(["--feature", "normal", "--out"])
+        .arg(d.join("p.png"))
+        .arg(&tet)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let temporary = || {
+        std::fs::read_dir(&*d)
+            .unwrap()
+            .flatten()
+            .any(|e| e.file_name().to_string_lossy().contains(".tmp"))
+    };
+    let start = std::time::Instant::now();
+    while !temporary() && start.elapsed().as_secs() < 120 {
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    if child.try_wait().unwrap().is_some() {
+        // finished before its file could be caught: nothing to interrupt
+        return;
+    }
+    Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    let status = child.wait().unwrap();
+    if status.code() == Some(0) {
+        return; // the rename won the race
+    }
+    assert_eq!(status.code(), Some(130));
+    assert!(!temporary(), "a temporary file is left behind");
+    assert!(!d.join("p.png").exists());
+}

@@ -173,6 +173,14 @@ pub fn main() -> i32 {
             // and its outputs replace existing files only once the whole command succeeded.
             crate::mesh::io::protect_inputs();
             let staged = crate::mesh::io::StagedWrites::begin();
+            // interrupted (Ctrl-C, a scheduler's SIGTERM), a command leaves none of its files
+            // behind; `batch` cancels its jobs with its own handler
+            if !matches!(c, Command::Batch(_)) {
+                let _ = ctrlc::set_handler(|| {
+                    crate::mesh::io::discard_staged();
+                    std::process::exit(130);
+                });
+            }
             let code = c.run()?;
             staged.commit()?;
             Ok(code)

@@ -46,10 +46,12 @@ pub fn write_atomic_all(files: &[(&Path, &[u8])]) -> Result<()> {
                 for (t, _) in &temps {
                     let _ = std::fs::remove_file(t);
                 }
+                written(&temps.into_iter().map(|t| t.0).collect::<Vec<_>>());
                 return Err(e);
             }
         }
     }
+    let names: Vec<PathBuf> = temps.iter().map(|t| t.0.clone()).collect();
     // Inside a group of staged writes the renames wait for the group's commit.
     if let Ok(mut g) = STAGED.lock()
         && let Some(list) = g.as_mut()
@@ -58,9 +60,13 @@ pub fn write_atomic_all(files: &[(&Path, &[u8])]) -> Result<()> {
             list.retain(|(_, p)| *p != path);
             list.push((tmp, path));
         }
+        drop(g);
+        written(&names);
         return Ok(());
     }
-    rename_all(temps)
+    let renamed = rename_all(temps);
+    written(&names);
+    renamed
 }
 
 /// Write `bytes` to a temporary file beside `path`, flushed to disk; returns its name.
@@ -75,15 +81,38 @@ fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
     let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    let mut file = std::fs::File::create(&tmp).map_err(|e| Error::io(path, e))?;
-    let written = file.write_all(bytes).and_then(|()| file.sync_all());
-    drop(file);
+    // known while it is written, so that an interrupted command removes it too
+    let writing = |add: bool| {
+        let mut g = WRITING.lock().unwrap_or_else(|e| e.into_inner());
+        g.retain(|t| *t != tmp);
+        if add {
+            g.push(tmp.clone());
+        }
+    };
+    writing(true);
+    let written = std::fs::File::create(&tmp).and_then(|mut file| {
+        file.write_all(bytes)?;
+        file.sync_all()
+    });
     if let Err(e) = written {
         let _ = std::fs::remove_file(&tmp);
+        writing(false);
         return Err(Error::io(path, e));
     }
+    // it stays in the list until the caller has staged or renamed it
     Ok(tmp)
 }
+
+/// `temps` are no longer being written: staged, renamed or removed.
+fn written(temps: &[PathBuf]) {
+    WRITING
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .retain(|t| !temps.contains(t));
+}
+
+/// Temporary files being written right now ([`write_temporary`]).
+static WRITING: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
 
 /// Rename each (temporary, destination) in order; on a failure remove the temporaries not yet
 /// moved and report it.
@@ -136,10 +165,19 @@ impl StagedWrites {
 
 impl Drop for StagedWrites {
     fn drop(&mut self) {
-        let list = STAGED.lock().ok().and_then(|mut g| g.take());
-        for (tmp, _) in list.unwrap_or_default() {
-            let _ = std::fs::remove_file(&tmp);
-        }
+        discard_staged();
+    }
+}
+
+/// Remove the files staged so far under their temporary names (a group dropped without a
+/// commit, or a command interrupted by a signal, which runs no destructors).
+pub fn discard_staged() {
+    let list = STAGED.lock().unwrap_or_else(|e| e.into_inner()).take();
+    for (tmp, _) in list.unwrap_or_default() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    for tmp in WRITING.lock().unwrap_or_else(|e| e.into_inner()).drain(..) {
+        let _ = std::fs::remove_file(&tmp);
     }
 }
 
