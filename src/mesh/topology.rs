@@ -150,14 +150,11 @@ pub fn connected_components(n: usize, faces: &[[u32; 3]]) -> (Vec<u32>, usize) {
     (label, with_faces)
 }
 
-/// Boundary loops: chains of directed edges used by exactly one face, as vertex sequences.
-/// Non-manifold boundary vertices may split or join loops arbitrarily; every boundary edge is
-/// in exactly one returned loop (an open chain is returned as is).
-pub fn boundary_loops(faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
-    // Undirected edges sorted (no hashing: millions of edges sort in well under a second), then
-    // the directed boundary half-edges a->b (the face's orientation) of edges used once.
+/// The half-edges (`3 * face + corner`, from that corner to the next) whose undirected edge no
+/// other face uses, in the order of the sorted edges.
+fn boundary_half_edges(faces: &[[u32; 3]]) -> Vec<usize> {
     let edges = sorted_edges(faces);
-    let mut boundary: Vec<(u32, u32)> = Vec::new();
+    let mut once = Vec::new();
     let mut i = 0;
     while i < edges.len() {
         let mut j = i + 1;
@@ -165,12 +162,26 @@ pub fn boundary_loops(faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
             j += 1;
         }
         if j - i == 1 {
-            let h = edges[i].1 as usize;
-            let f = faces[h / 3];
-            boundary.push((f[h % 3], f[(h % 3 + 1) % 3]));
+            once.push(edges[i].1 as usize);
         }
         i = j;
     }
+    once
+}
+
+/// Boundary loops: chains of directed edges used by exactly one face, as vertex sequences.
+/// Non-manifold boundary vertices may split or join loops arbitrarily; every boundary edge is
+/// in exactly one returned loop (an open chain is returned as is).
+pub fn boundary_loops(faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
+    // Undirected edges sorted (no hashing: millions of edges sort in well under a second), then
+    // the directed boundary half-edges a->b (the face's orientation) of edges used once.
+    let mut boundary: Vec<(u32, u32)> = boundary_half_edges(faces)
+        .into_iter()
+        .map(|h| {
+            let f = faces[h / 3];
+            (f[h % 3], f[(h % 3 + 1) % 3])
+        })
+        .collect();
     // in face order within each start vertex (stable sort), popped from the end as a stack
     boundary.sort_by_key(|e| e.0);
     let nedges = boundary.len();
@@ -225,18 +236,9 @@ pub fn boundary_loops(faces: &[[u32; 3]]) -> Vec<Vec<u32>> {
 
 /// Per face: whether one of its edges is used by no other face (it lies on a boundary).
 pub fn boundary_faces(faces: &[[u32; 3]]) -> Vec<bool> {
-    let edges = sorted_edges(faces);
     let mut on = vec![false; faces.len()];
-    let mut i = 0;
-    while i < edges.len() {
-        let mut j = i + 1;
-        while j < edges.len() && edges[j].0 == edges[i].0 {
-            j += 1;
-        }
-        if j - i == 1 {
-            on[edges[i].1 as usize / 3] = true;
-        }
-        i = j;
+    for h in boundary_half_edges(faces) {
+        on[h / 3] = true;
     }
     on
 }

@@ -81,25 +81,21 @@ fn write_temporary(path: &Path, bytes: &[u8]) -> Result<PathBuf> {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "out".into());
     let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    // known while it is written, so that an interrupted command removes it too
-    let writing = |add: bool| {
-        let mut g = WRITING.lock().unwrap_or_else(|e| e.into_inner());
-        g.retain(|t| *t != tmp);
-        if add {
-            g.push(tmp.clone());
-        }
-    };
-    writing(true);
-    let written = std::fs::File::create(&tmp).and_then(|mut file| {
+    // known from before its first byte until the caller has staged or renamed it, so that an
+    // interrupted command removes it too
+    WRITING
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push(tmp.clone());
+    let done = std::fs::File::create(&tmp).and_then(|mut file| {
         file.write_all(bytes)?;
         file.sync_all()
     });
-    if let Err(e) = written {
+    if let Err(e) = done {
         let _ = std::fs::remove_file(&tmp);
-        writing(false);
+        written(std::slice::from_ref(&tmp));
         return Err(Error::io(path, e));
     }
-    // it stays in the list until the caller has staged or renamed it
     Ok(tmp)
 }
 
