@@ -215,6 +215,8 @@ impl Refining {
         self.source_face.reserve(2 * extra + 16);
         self.source_bary.reserve(2 * extra + 16);
         let mut edges = edge_faces(&self.faces, extra);
+        let unit = mean_squared_length(&self.positions, edges.keys());
+        let length_key = |p: &[[f32; 3]], a: u32, b: u32| length_key(p, a, b, unit);
         let mut heap: BinaryHeap<(u64, Reverse<u64>)> = edges
             .keys()
             .map(|&k| {
@@ -369,10 +371,43 @@ fn edge_faces(faces: &[[u32; 3]], extra: usize) -> IntMap<EdgeFaces> {
     edges
 }
 
-/// The priority of edge `ab`: its squared length's bits (as f64, which order as the lengths).
-fn length_key(p: &[[f32; 3]], a: u32, b: u32) -> u64 {
-    let d = Vec3::from(p[a as usize]).distance_squared(Vec3::from(p[b as usize]));
-    (d as f64).to_bits()
+/// The mean squared length of the edges `keys`, the unit of [`length_key`]'s bins (1 for an
+/// empty or degenerate mesh).
+fn mean_squared_length<'a>(p: &[[f32; 3]], keys: impl Iterator<Item = &'a u64>) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for &k in keys {
+        let (a, b) = ((k >> 32) as usize, k as u32 as usize);
+        let d = Vec3::from(p[a]).distance_squared(Vec3::from(p[b])) as f64;
+        if d.is_finite() {
+            sum += d;
+            n += 1;
+        }
+    }
+    let mean = sum / n.max(1) as f64;
+    if mean > 0.0 && mean.is_finite() {
+        mean
+    } else {
+        1.0
+    }
+}
+
+/// Bins per octave of edge length in the split order.
+const BINS_PER_OCTAVE: f64 = 32.0;
+
+/// The priority of edge `ab`: its length on a log scale relative to `unit` (the mean squared
+/// edge length), in bins of 2% of the length, so that edges of near-equal length are split in
+/// the order of their vertex numbers (the heap's tie-break) rather than of their lengths' last
+/// bits. The two halves of a bisected edge are equal in exact arithmetic; their rounding, and so
+/// the order of the whole refinement, would otherwise change with the units the mesh is written
+/// in (as the collapse order of `hierarchy`).
+fn length_key(p: &[[f32; 3]], a: u32, b: u32, unit: f64) -> u64 {
+    let d = Vec3::from(p[a as usize]).distance_squared(Vec3::from(p[b as usize])) as f64;
+    if d.is_nan() || d <= 0.0 {
+        return 0;
+    }
+    // octaves of length from 2^-1000 of the unit up; infinity clamps to the top bin
+    let octaves = 0.5 * (d / unit).log2() + 1000.0;
+    (octaves * BINS_PER_OCTAVE).floor().clamp(1.0, 1.0e9) as u64
 }
 
 /// For every vertex of `refined`, the nearest of its first `n_orig` vertices (the original
