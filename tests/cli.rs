@@ -547,3 +547,71 @@ fn an_interrupted_command_leaves_no_temporary_file() {
     assert!(!temporary(), "a temporary file is left behind");
     assert!(!d.join("p.png").exists());
 }
+
+#[test]
+fn a_failed_command_leaves_no_folder_it_made_and_says_it_wrote_nothing() {
+    // The output's folders are made before the work (so that a path under a file is refused
+    // up front); a command that then fails takes the folders it made with it, and only a
+    // command that delivered its files says "wrote".
+    let d = tmpdir("failed-folders");
+    let flat = d.join("flat.obj");
+    std::fs::write(&flat, "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n").unwrap();
+    let out = d.join("new").join("deeper").join("o.ply");
+    let o = bin()
+        .args(["features", "--feature", "curvature", "--out"])
+        .arg(&out)
+        .arg(&flat)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(!err.contains("wrote"), "{err}");
+    assert!(
+        !d.join("new").exists(),
+        "the folders made for the output are left: {err}"
+    );
+
+    // the same command on a real mesh makes them, delivers and says so last
+    let tet = d.join("tet.obj");
+    std::fs::write(
+        &tet,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
+    )
+    .unwrap();
+    let o = bin()
+        .args(["features", "--feature", "curvature", "--out"])
+        .arg(&out)
+        .arg(&tet)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(out.exists());
+    assert!(
+        err.trim_end()
+            .lines()
+            .last()
+            .unwrap_or("")
+            .starts_with("wrote"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_value_that_is_not_a_finite_number_names_its_option() {
+    for v in ["-inf", "-NaN", "-infinity"] {
+        let o = bin()
+            .args([
+                "transfer", "--source", "s.obj", "--target", "t.obj", "--out", "o.ply",
+            ])
+            .args(["--tolerance", v])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(
+            err.contains(&format!("--tolerance {v}: not a finite number")),
+            "{v}: {err}"
+        );
+    }
+}

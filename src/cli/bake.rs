@@ -81,7 +81,7 @@ impl BakeArgs {
             t.elapsed().as_secs_f64()
         );
         io::save(&target, &self.out)?;
-        eprintln!("wrote {}", self.out.display());
+        crate::cli::common::announce(format!("wrote {}", self.out.display()));
         Ok(0)
     }
 }

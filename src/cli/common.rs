@@ -6,6 +6,31 @@ use crate::error::{Error, Result};
 use crate::mesh::{TriMesh, io};
 use crate::work::Event;
 
+/// Lines saying what a command wrote ("wrote out.glb"), held until its outputs are in place:
+/// every output is written under a temporary name and renamed when the whole command succeeded
+/// (`mesh::io::StagedWrites`), so a line printed earlier could name a file that a failure or an
+/// interrupt then never delivers.
+static ANNOUNCED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+
+/// Say `line` on stderr once the command's outputs are in place (at once outside a command,
+/// where nothing is staged).
+pub fn announce(line: String) {
+    if io::staging() {
+        ANNOUNCED
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(line);
+    } else {
+        eprintln!("{line}");
+    }
+}
+
+/// The lines held by [`announce`], taken: printed by the caller after a commit, dropped after a
+/// failure.
+pub(crate) fn take_announced() -> Vec<String> {
+    std::mem::take(&mut *ANNOUNCED.lock().unwrap_or_else(|e| e.into_inner()))
+}
+
 /// Load a mesh the engine can work on: `check_usable` and [`check_geometry`]. Loader warnings
 /// are printed only when every check passes, so a refused file is one line.
 pub fn load_usable(path: &Path) -> Result<TriMesh> {
@@ -365,7 +390,7 @@ pub fn check_outputs(inputs: &[&Path], outputs: &[(&str, &Path, OutKind)]) -> Re
     }
     for &(flag, p, _) in outputs {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| {
+            io::create_folders(dir).map_err(|e| {
                 Error::InvalidInput(format!(
                     "{flag} {}: cannot create its folder ({e})",
                     p.display()
@@ -486,8 +511,10 @@ pub const ITERATIONS: Whole<usize> =
     whole(0, crate::meshmatch::MAX_ITERATIONS).unit("iterations per level");
 /// Every `--seed`.
 pub const SEED: Whole<u64> = whole(0, u64::MAX);
-/// Every `--texture-size`.
-pub const TEXTURE_SIZE: Whole<u32> = whole(1, MAX_TEXTURE_SIZE).unit("pixels per side");
+/// Every `--texture-size`: from the smallest side a generated atlas fits in (a target without
+/// UVs gets one; refused up front rather than after the solve).
+pub const TEXTURE_SIZE: Whole<u32> =
+    whole(crate::geometry::MIN_ATLAS_SIZE, MAX_TEXTURE_SIZE).unit("pixels per side");
 /// Every `--rays`.
 pub const RAYS: Whole<usize> = whole(1, MAX_RAYS).unit("rays per vertex");
 
@@ -572,13 +599,9 @@ pub fn with_result(
     }
 }
 
-/// Refuse a `--texture-size` outside 1..=[`MAX_TEXTURE_SIZE`].
+/// Refuse a `--texture-size` outside [`TEXTURE_SIZE`]'s range, or too large for memory.
 pub fn check_texture_size(size: u32) -> Result<()> {
-    if !(1..=MAX_TEXTURE_SIZE).contains(&size) {
-        return Err(Error::InvalidInput(format!(
-            "--texture-size {size}: use 1 to {MAX_TEXTURE_SIZE} pixels per side"
-        )));
-    }
+    TEXTURE_SIZE.check("--texture-size", size)?;
     crate::geometry::check_bake_memory(size)
 }
 

@@ -28,7 +28,7 @@ pub struct CompleteArgs {
     /// generated atlas), the example read at full resolution (.glb, .gltf, .obj).
     #[arg(long)]
     pub out: PathBuf,
-    /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:
+    /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 20 to 8192 (default:
     /// the mesh's texture's size, else 2048).
     #[arg(long, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: Option<u32>,
@@ -84,7 +84,7 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
         c.energy
     );
     io::save(&c.mesh, &a.out)?;
-    eprintln!("wrote {}", a.out.display());
+    crate::cli::common::announce(format!("wrote {}", a.out.display()));
     Ok(0)
 }
 

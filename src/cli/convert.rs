@@ -27,7 +27,7 @@ impl ConvertArgs {
         mesh.check_usable()?;
         io::save(&mesh, &self.output)?;
         io::print_warnings(&warnings);
-        eprintln!("wrote {}", self.output.display());
+        crate::cli::common::announce(format!("wrote {}", self.output.display()));
         Ok(0)
     }
 }

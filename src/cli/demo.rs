@@ -31,7 +31,7 @@ fn demo(out: &Path) -> Result<i32> {
             file.display()
         )));
     }
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    io::create_folders(out).map_err(|e| Error::io(out, e))?;
     let t = std::time::Instant::now();
     let scene = crate::demo::scene();
     eprintln!(

@@ -66,11 +66,11 @@ fn detail(a: &DetailArgs) -> Result<i32> {
         t.elapsed().as_secs_f64()
     );
     io::save(&r.mesh, &a.out)?;
-    eprintln!(
+    crate::cli::common::announce(format!(
         "wrote {} ({} vertices)",
         a.out.display(),
         r.mesh.num_vertices()
-    );
+    ));
     Ok(0)
 }
 

@@ -372,10 +372,10 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     )?;
     bar.finish_and_clear();
     io::save(&s.mesh, &a.out)?;
-    eprintln!("wrote {}", a.out.display());
+    crate::cli::common::announce(format!("wrote {}", a.out.display()));
     if let (Some(d), Some(dense)) = (&a.out_dense, &s.dense) {
         io::save(dense, d)?;
-        eprintln!("wrote {}", d.display());
+        crate::cli::common::announce(format!("wrote {}", d.display()));
     }
     Ok(0)
 }

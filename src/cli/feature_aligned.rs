@@ -97,11 +97,11 @@ impl CurvesArgs {
             CurveKind::Ravine => (r, v + 1, c),
             CurveKind::Crease => (r, v, c + 1),
         });
-        eprintln!(
+        crate::cli::common::announce(format!(
             "{} curves ({nr} ridges, {nv} ravines, {nc} creases) in {secs:.2} s; wrote {}",
             curves.len(),
             self.out.display()
-        );
+        ));
         Ok(0)
     }
 }

@@ -127,7 +127,7 @@ impl FeaturesArgs {
                 " (stretched to black .. white)"
             }
         );
-        eprintln!("wrote {}", self.out.display());
+        crate::cli::common::announce(format!("wrote {}", self.out.display()));
         Ok(0)
     }
 }
@@ -209,12 +209,12 @@ impl FeaturesArgs {
         );
         if png {
             for p in feature_maps::save_map_pngs(&maps, &self.out, self.bits)? {
-                eprintln!("wrote {}", p.display());
+                crate::cli::common::announce(format!("wrote {}", p.display()));
             }
         } else {
             for (m, p) in maps.maps.iter().zip(&outs) {
                 io::save(&feature_maps::textured_with(&mesh, &maps, m), p)?;
-                eprintln!("wrote {}", p.display());
+                crate::cli::common::announce(format!("wrote {}", p.display()));
             }
         }
         Ok(0)
@@ -246,7 +246,7 @@ impl FeaturesArgs {
             out.texture = None;
             io::save(&out, p)?;
             eprintln!("{}: {}", m.name, m.scale);
-            eprintln!("wrote {}", p.display());
+            crate::cli::common::announce(format!("wrote {}", p.display()));
         }
         Ok(0)
     }

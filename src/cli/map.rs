@@ -50,7 +50,7 @@ impl MapArgs {
             s.push_str(&format!("{t},{src}\n"));
         }
         crate::mesh::io::write_atomic(&self.out, s.as_bytes())?;
-        eprintln!(
+        crate::cli::common::announce(format!(
             "map of {} target vertices computed in {:.2} s on {} x {} vertices (k = {}, isometry score {:.2}); wrote {}",
             m.target_to_source.len(),
             t.elapsed().as_secs_f64(),
@@ -59,7 +59,7 @@ impl MapArgs {
             m.k,
             m.score,
             self.out.display()
-        );
+        ));
         for (name, s) in &m.timings {
             eprintln!("  {name:<12} {s:8.3} s");
         }

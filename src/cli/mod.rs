@@ -161,6 +161,30 @@ pub fn main() -> i32 {
                 let _ = writeln!(std::io::stderr().lock(), "meshmatch: {flag} {value}: {why}");
                 return 2;
             }
+            // "-inf" and "-nan" are not numbers to clap's negative-number test, so they arrive
+            // as an unknown option; say which option they were given to.
+            // (clap names the first letter, "-i", as a short option)
+            let args: Vec<String> = std::env::args_os()
+                .map(|a| a.to_string_lossy().into_owned())
+                .collect();
+            if e.kind() == ErrorKind::UnknownArgument
+                && let Some(ContextValue::String(bad)) = e.get(ContextKind::InvalidArg)
+                && let Some(at) = args
+                    .iter()
+                    .position(|a| is_signed_non_finite(a) && a.starts_with(bad.as_str()))
+            {
+                let arg = &args[at];
+                let flag = at
+                    .checked_sub(1)
+                    .map(|i| args[i].as_str())
+                    .filter(|f| f.starts_with("--"));
+                let line = match flag {
+                    Some(flag) => format!("{flag} {arg}: not a finite number"),
+                    None => format!("{arg}: not a finite number"),
+                };
+                let _ = writeln!(std::io::stderr().lock(), "meshmatch: {line} (see --help)");
+                return 2;
+            }
             let first = clap_error_line(&e);
             let _ = writeln!(std::io::stderr().lock(), "meshmatch: {first} (see --help)");
             return 2;
@@ -181,8 +205,14 @@ pub fn main() -> i32 {
                     std::process::exit(130);
                 });
             }
-            let code = c.run()?;
+            let code = c.run();
+            let said = common::take_announced();
+            let code = code?;
             staged.commit()?;
+            let mut err = std::io::stderr().lock();
+            for line in said {
+                let _ = writeln!(err, "{line}");
+            }
             Ok(code)
         }
     });
@@ -201,6 +231,15 @@ pub fn main() -> i32 {
             if is_broken_pipe(&msg) { 0 } else { 2 }
         }
     }
+}
+
+/// "-inf", "-infinity" and "-nan" in any case: a value that parses as a float but that clap,
+/// which takes a word starting with '-' for an option unless it is a finite number, never
+/// hands to the option's parser.
+fn is_signed_non_finite(arg: &str) -> bool {
+    arg.strip_prefix('-')
+        .map(|r| ["inf", "infinity", "nan"].contains(&r.to_ascii_lowercase().as_str()))
+        .unwrap_or(false)
 }
 
 /// A bad argument as one line, like every other refusal (clap's own text adds a usage hint on

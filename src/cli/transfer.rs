@@ -69,7 +69,7 @@ pub struct TransferArgs {
     /// bent copy, 0 between different animals, linear in between). stderr says what was chosen.
     #[arg(long, default_value = "auto", value_parser = parse_structure, allow_hyphen_values = true)]
     pub structure: StructureArg,
-    /// Size of the baked texture (pixels per side) for .glb/.gltf/.obj outputs, 1 to 8192 (default:
+    /// Size of the baked texture (pixels per side) for .glb/.gltf/.obj outputs, 20 to 8192 (default:
     /// the target's own texture's size, else 2048).
     #[arg(long, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: Option<u32>,
@@ -177,10 +177,10 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     }
     let out_mesh = &t.delivered;
     io::save(&out_mesh.mesh, &a.out)?;
-    eprintln!("wrote {}", a.out.display());
+    crate::cli::common::announce(format!("wrote {}", a.out.display()));
     if let (Some(path), Some(d)) = (&a.out_dense, &t.dense) {
         io::save(d, path)?;
-        eprintln!("wrote {}", path.display());
+        crate::cli::common::announce(format!("wrote {}", path.display()));
     }
     if let Some(nnf) = &a.nnf_out {
         let mut csv = String::from("target_vertex,source_vertex,rotation_deg\n");
@@ -188,7 +188,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
             csv.push_str(&format!("{t},{s},{r}\n"));
         }
         io::write_atomic(nnf, csv.as_bytes())?;
-        eprintln!("wrote {}", nnf.display());
+        crate::cli::common::announce(format!("wrote {}", nnf.display()));
     }
     Ok(0)
 }

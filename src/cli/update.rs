@@ -20,7 +20,7 @@ pub struct UpdateArgs {
     /// (or a generated atlas) from the old texture read at full resolution (.glb, .gltf, .obj).
     #[arg(long)]
     pub out: PathBuf,
-    /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 1 to 8192 (default:
+    /// Size of the baked texture (pixels per side) for .glb/.obj outputs, 20 to 8192 (default:
     /// the old mesh's texture's size, else 2048).
     #[arg(long, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: Option<u32>,
@@ -65,7 +65,7 @@ fn update(a: &UpdateArgs) -> Result<i32> {
         r.energy
     );
     io::save(&out, &a.out)?;
-    eprintln!("wrote {}", a.out.display());
+    crate::cli::common::announce(format!("wrote {}", a.out.display()));
     Ok(0)
 }
 

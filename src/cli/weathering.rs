@@ -63,7 +63,7 @@ pub struct WeatherArgs {
     /// default.
     #[arg(long)]
     pub components: Option<String>,
-    /// Size of the baked texture (pixels per side) when the target has UVs, 1 to 8192.
+    /// Size of the baked texture (pixels per side) when the target has UVs, 20 to 8192.
     #[arg(long, default_value_t = 1024, allow_negative_numbers = true, value_parser = TEXTURE_SIZE)]
     pub texture_size: u32,
 }
@@ -145,11 +145,11 @@ impl WeatherArgs {
             eprintln!("{line}");
         }
         io::save(&out_mesh.mesh, &a.out)?;
-        eprintln!("wrote {}", a.out.display());
+        crate::cli::common::announce(format!("wrote {}", a.out.display()));
         if let Some(dense) = &a.out_dense {
             let d = crate::meshmatch::deliver_dense(&out.target.mesh, &out.colors);
             io::save(&d, dense)?;
-            eprintln!("wrote {}", dense.display());
+            crate::cli::common::announce(format!("wrote {}", dense.display()));
         }
         Ok(0)
     }

@@ -104,7 +104,7 @@ pub use solid_angle_curvature::{
 pub use sparse_evaluation::{SparseSamples, sparse_samples, sparse_samples_if_worth_it};
 pub use stripe_patterns::{StripePattern, stripe_pattern};
 pub use thickness::thickness;
-pub use uv_atlas::{AtlasParams, UvAtlas, uv_atlas};
+pub use uv_atlas::{AtlasParams, MIN_ATLAS_SIZE, UvAtlas, min_atlas_size, uv_atlas};
 pub use uv_bake::{
     BAKE_BYTES_PER_TEXEL, BakedImage, bake_closest, bake_onto, bake_uv, check_bake_memory,
     fill_gutters, fill_gutters_dilated, mip_chain, sample_bilinear, uv_texels,

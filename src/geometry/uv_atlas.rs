@@ -10,6 +10,17 @@
 use crate::error::{Error, Result};
 use crate::work::CancelToken;
 
+/// The smallest texture side an atlas can be laid out for with `padding` texels around each
+/// chart.
+pub const fn min_atlas_size(padding: u32) -> u32 {
+    let need = 4 * padding + 4;
+    if need > 16 { need } else { 16 }
+}
+
+/// The smallest texture side an atlas with the default padding can be laid out for: the least
+/// `--texture-size` every command takes, so a target without UVs is refused before the work.
+pub const MIN_ATLAS_SIZE: u32 = min_atlas_size(AtlasParams::DEFAULT_PADDING);
+
 /// Parameters of [`uv_atlas`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AtlasParams {
@@ -30,11 +41,16 @@ pub struct AtlasParams {
     pub max_chart_faces: usize,
 }
 
+impl AtlasParams {
+    /// Empty texels around every chart unless a caller says otherwise.
+    pub const DEFAULT_PADDING: u32 = 4;
+}
+
 impl Default for AtlasParams {
     fn default() -> Self {
         AtlasParams {
             texture_size: 2048,
-            padding: 4,
+            padding: Self::DEFAULT_PADDING,
             max_chart_angle: 70.0,
             max_area_distortion: 4.0,
             max_chart_faces: 4096,
@@ -65,7 +81,7 @@ pub fn uv_atlas(
     cancel: &CancelToken,
 ) -> Result<UvAtlas> {
     let size = params.texture_size;
-    if size < 16 || size < 4 * params.padding + 4 {
+    if size < min_atlas_size(params.padding) {
         return Err(Error::InvalidInput(format!(
             "texture size {size} is too small for an atlas with {} texels of padding",
             params.padding

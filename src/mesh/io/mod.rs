@@ -155,6 +155,10 @@ impl StagedWrites {
             .ok()
             .and_then(|mut g| g.take())
             .unwrap_or_default();
+        MADE_FOLDERS
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clear();
         rename_all(list)
     }
 }
@@ -163,6 +167,33 @@ impl Drop for StagedWrites {
     fn drop(&mut self) {
         discard_staged();
     }
+}
+
+/// Folders made for outputs while a [`StagedWrites`] group is open, outermost first: a
+/// command that fails or is interrupted removes them again (those left empty), so it leaves
+/// the file system as it found it.
+static MADE_FOLDERS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// `create_dir_all`, remembering the folders it made while a group is open.
+pub fn create_folders(dir: &Path) -> std::io::Result<()> {
+    let missing: Vec<PathBuf> = dir
+        .ancestors()
+        .take_while(|a| !a.as_os_str().is_empty() && std::fs::symlink_metadata(a).is_err())
+        .map(Path::to_path_buf)
+        .collect();
+    let made = std::fs::create_dir_all(dir);
+    if staging() {
+        MADE_FOLDERS
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .extend(missing.into_iter().rev().filter(|d| d.is_dir()));
+    }
+    made
+}
+
+/// True while a [`StagedWrites`] group is open (outputs wait for its commit).
+pub fn staging() -> bool {
+    STAGED.lock().map(|g| g.is_some()).unwrap_or(false)
 }
 
 /// Remove the files staged so far under their temporary names (a group dropped without a
@@ -174,6 +205,15 @@ pub fn discard_staged() {
     }
     for tmp in WRITING.lock().unwrap_or_else(|e| e.into_inner()).drain(..) {
         let _ = std::fs::remove_file(&tmp);
+    }
+    // deepest first; a folder something else has meanwhile put a file in stays
+    for dir in MADE_FOLDERS
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .drain(..)
+        .rev()
+    {
+        let _ = std::fs::remove_dir(&dir);
     }
 }
 
@@ -543,6 +583,27 @@ fn finish(mut mesh: TriMesh, path: &Path) -> Result<TriMesh> {
             && l != n
         {
             return Err(Error::format(path, format!("{what} count mismatch")));
+        }
+    }
+    // A colour that is not a number (NaN or infinite, from a broken exporter) would reach every
+    // system's statistics (a weathering's PCA, a transfer's patch distances) and fail far from
+    // here; it is read as black, and said once with the file's name.
+    if let Some(colors) = mesh.colors.as_mut() {
+        let mut bad = 0usize;
+        let mut first = None;
+        for (i, c) in colors.iter_mut().enumerate() {
+            if !c.iter().all(|x| x.is_finite()) {
+                first.get_or_insert(i);
+                bad += 1;
+                *c = [0.0; 3];
+            }
+        }
+        if let Some(first) = first {
+            warn(format!(
+                "{}: {bad} vertex colours are not numbers (the first at vertex {first}); read as \
+                 black",
+                path.display()
+            ));
         }
     }
     mesh.file_index = (0..n as u32).collect();
