@@ -1010,3 +1010,27 @@ fn a_failed_export_leaves_no_sidecar_behind() {
         ]
     );
 }
+
+#[test]
+fn colours_that_are_not_numbers_load_as_black_with_the_files_name() {
+    // A broken exporter's NaN or infinite colours would reach a weathering's PCA or a transfer's
+    // patch distances and fail there, far from the file: they load as black, said once.
+    let dir = scratch("nan-colours");
+    let p = dir.join("nan.ply");
+    std::fs::write(
+        &p,
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nproperty float red\nproperty float green\nproperty float blue\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0 0.5 0.5 0.5\n1 0 0 nan 0.2 0.3\n0 1 0 inf 1 1\n3 0 1 2\n",
+    )
+    .unwrap();
+    let (m, warnings) = io::load_with_warnings(&p).unwrap();
+    let colors = m.colors.as_ref().expect("the file's colours are kept");
+    assert!(colors.iter().flatten().all(|c| c.is_finite()));
+    assert_eq!(colors[1], [0.0; 3]);
+    assert_eq!(colors[2], [0.0; 3]);
+    assert!((colors[0][0] - 0.5).abs() < 1e-6, "{colors:?}");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].contains("nan.ply") && warnings[0].contains("2 vertex colours"),
+        "{warnings:?}"
+    );
+}

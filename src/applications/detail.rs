@@ -149,6 +149,8 @@ pub fn transfer_detail(
             params.vertices
         )));
     }
+    // working meshes of `vertices` that cannot fit are refused now, not after refining them
+    crate::meshmatch::check_working_memory(params.vertices)?;
     // No global shape map here (detail is synthesised from the source's statistics, not its layout).
     let params = &TransferParams {
         structure: Some(0.0),

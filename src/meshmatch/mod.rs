@@ -32,6 +32,7 @@ use crate::work::{CancelToken, Event};
 
 pub use deliver::{BakeLayout, Delivered, bake_texture, deliver, deliver_dense};
 pub use global_map::{POINT_MAP_VERTICES, PointMap, map_meshes};
+pub(crate) use prepare::check_working_memory;
 pub use prepare::{PreparedMesh, prepare, prepare_pair};
 pub use resample::Resampler;
 pub use solve::{solve, solve_constrained};

@@ -89,6 +89,20 @@ fn progress(stage: &'static str, watch: &Stopwatch, fraction: f32) -> Progress {
     }
 }
 
+/// Refuse, before either mesh is refined or simplified, working meshes of `vertices` that
+/// cannot fit, for callers that build both working meshes first and then prepare them
+/// (`detail`): the bound of each preparation's own check (the measured peak of a transfer per
+/// working vertex) plus the two working meshes held meanwhile (positions, faces and the detail
+/// signal: about 256 bytes per vertex each, with room), so that the preparation's check, which
+/// sees them in the memory already used, does not refuse what this one let through.
+pub(crate) fn check_working_memory(vertices: usize) -> Result<()> {
+    crate::work::check_memory(
+        (vertices as u64).saturating_mul(super::WORKING_VERTEX_BYTES + 2 * 256),
+        &format!("{vertices} working vertices"),
+        "use fewer --vertices",
+    )
+}
+
 /// Prepare a source and a target at once ([`prepare`] of each): the target on a thread of its
 /// own, so that each mesh's sequential stages (refinement, hierarchy, the HKS eigen-solve)
 /// overlap the other's work. Progress events come from the source's preparation only (`sink`
