@@ -92,7 +92,7 @@ pub use morton_order::{inverse_order, morton_order};
 pub use noise::{Fade, value_noise};
 pub use occlusion::{OcclusionBvh, directional_occlusion, directional_occlusion_with};
 pub(crate) use refine::IntMap;
-pub use refine::{Refined, nearest_original, refine_to_density};
+pub use refine::{Refined, nearest_original, refine_to_density, refine_to_edge_length};
 pub use shell_map::{
     ShellStretch, StretchReport, minimize_shell_stretch, offset_surface, shell_point,
     shell_point_ruled, shell_stretch,

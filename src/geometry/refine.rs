@@ -124,7 +124,7 @@ impl Refined {
 /// are dropped; faces with a repeated vertex are kept but never split.
 ///
 /// The steps: [`Refining::start`] (the valid faces and their records),
-/// [`Refining::bisect_longest_edges`] (through [`Refining::add_midpoint`] and
+/// [`Refining::bisect`] (through [`Refining::add_midpoint`] and
 /// [`Refining::split_face`]) and [`Refining::finish`].
 pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
     let mut r = Refining::start(mesh);
@@ -132,7 +132,19 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
     // is asked (a caller's runaway target, e.g. from a zero or NaN area ratio, stops here).
     let target_vertices = target_vertices.min(crate::mesh::MAX_WORKING_VERTICES);
     if target_vertices > r.n0 && !r.faces.is_empty() {
-        r.bisect_longest_edges(target_vertices);
+        r.bisect(target_vertices, None);
+    }
+    r.finish(mesh)
+}
+
+/// Refine `mesh` by longest-edge bisection until no edge is longer than `max_length` (up to the
+/// bins of the split order: 0.3%), or it has `max_vertices` vertices. The records are those of
+/// [`refine_to_density`]; a mesh with no longer edge comes back as it is.
+pub fn refine_to_edge_length(mesh: &TriMesh, max_length: f32, max_vertices: usize) -> Refined {
+    let mut r = Refining::start(mesh);
+    let max_vertices = max_vertices.min(crate::mesh::MAX_WORKING_VERTICES);
+    if max_vertices > r.n0 && !r.faces.is_empty() && max_length > 0.0 {
+        r.bisect(max_vertices, Some(max_length * max_length));
     }
     r.finish(mesh)
 }
@@ -206,8 +218,9 @@ impl Refining {
     }
 
     /// Split the longest edge (a max-priority queue on squared length) until the mesh has
-    /// `target_vertices` vertices or no edge is left.
-    fn bisect_longest_edges(&mut self, target_vertices: usize) {
+    /// `target_vertices` vertices, no edge is left, or (with `down_to`, a squared length) the
+    /// longest edge's bin is below that length's.
+    fn bisect(&mut self, target_vertices: usize, down_to: Option<f32>) {
         let extra = (target_vertices - self.n0).min(1 << 24);
         self.positions.reserve(extra);
         self.parent_map.reserve(extra);
@@ -226,8 +239,14 @@ impl Refining {
                 )
             })
             .collect();
+        let stop = down_to.map(|l2| squared_length_bin(l2 as f64, unit));
         let mut flist: Vec<u32> = Vec::with_capacity(4);
         while self.positions.len() < target_vertices {
+            if let (Some(stop), Some((top, _))) = (stop, heap.peek())
+                && *top < stop
+            {
+                break;
+            }
             let Some((_, Reverse(key))) = heap.pop() else {
                 break;
             };
@@ -392,16 +411,21 @@ fn mean_squared_length<'a>(p: &[[f32; 3]], keys: impl Iterator<Item = &'a u64>) 
 }
 
 /// Bins per octave of edge length in the split order.
-const BINS_PER_OCTAVE: f64 = 32.0;
+const BINS_PER_OCTAVE: f64 = 16.0;
 
 /// The priority of edge `ab`: its length on a log scale relative to `unit` (the mean squared
-/// edge length), in bins of 2% of the length, so that edges of near-equal length are split in
-/// the order of their vertex numbers (the heap's tie-break) rather than of their lengths' last
-/// bits. The two halves of a bisected edge are equal in exact arithmetic; their rounding, and so
-/// the order of the whole refinement, would otherwise change with the units the mesh is written
-/// in (as the collapse order of `hierarchy`).
+/// edge length), in bins of 0.3% of the length as the collapse order's, so that edges of
+/// near-equal length are split in the order of their vertex numbers (the heap's tie-break)
+/// rather than of their lengths' last bits. The two halves of a bisected edge are equal in
+/// exact arithmetic; their rounding, and so the order of the whole refinement, would otherwise
+/// change with the units the mesh is written in.
 fn length_key(p: &[[f32; 3]], a: u32, b: u32, unit: f64) -> u64 {
     let d = Vec3::from(p[a as usize]).distance_squared(Vec3::from(p[b as usize])) as f64;
+    squared_length_bin(d, unit)
+}
+
+/// [`length_key`] of the squared length `d`.
+fn squared_length_bin(d: f64, unit: f64) -> u64 {
     if d.is_nan() || d <= 0.0 {
         return 0;
     }
@@ -512,6 +536,55 @@ mod tests {
         assert_eq!(out.file_index[59], u32::MAX);
         // already dense enough: unchanged
         assert_eq!(refine_to_density(&m, 3).mesh.num_vertices(), 4);
+    }
+
+    #[test]
+    fn slivers_are_split_until_no_edge_is_longer_than_asked() {
+        // a cone of 60 slivers from rim to apex, each 1.4 long and 0.1 wide at the rim
+        let n = 60u32;
+        let mut pos: Vec<[f32; 3]> = (0..n)
+            .map(|i| {
+                let a = std::f32::consts::TAU * i as f32 / n as f32;
+                [a.cos(), a.sin(), 0.0]
+            })
+            .collect();
+        pos.push([0.0, 0.0, 1.0]);
+        let faces: Vec<[u32; 3]> = (0..n).map(|i| [n, i, (i + 1) % n]).collect();
+        let m = TriMesh::new(pos, faces);
+        let r = refine_to_edge_length(&m, 0.2, 100_000);
+        let out = &r.mesh;
+        let longest = out
+            .faces
+            .iter()
+            .flat_map(|f| (0..3).map(move |k| (f[k], f[(k + 1) % 3])))
+            .map(|(a, b)| {
+                Vec3::from(out.positions[a as usize])
+                    .distance(Vec3::from(out.positions[b as usize]))
+            })
+            .fold(0.0f32, f32::max);
+        // within the split order's bins (a sixteenth of an octave)
+        assert!(longest <= 0.2 * 1.05, "longest edge {longest}");
+        assert!(out.num_vertices() > m.num_vertices());
+        // the same surface: every face inside its input face (the records), the area kept
+        for (fi, face) in out.faces.iter().enumerate() {
+            let src = m.faces[r.source_face[fi] as usize];
+            for (&corner, b) in face.iter().zip(&r.source_bary[fi]) {
+                let p = (0..3).fold(Vec3::ZERO, |a, k| {
+                    a + b[k] * Vec3::from(m.positions[src[k] as usize])
+                });
+                assert!(p.distance(Vec3::from(out.positions[corner as usize])) < 1e-5);
+            }
+        }
+        let area = |mesh: &TriMesh| -> f32 {
+            crate::geometry::face_areas(&mesh.positions, &mesh.faces)
+                .iter()
+                .map(|&a| a as f32)
+                .sum()
+        };
+        assert!((area(out) - area(&m)).abs() < 1e-4 * area(&m));
+        // nothing to do: the mesh comes back as it is
+        let same = refine_to_edge_length(&m, 2.0, 100_000);
+        assert_eq!(same.mesh.positions, m.positions);
     }
 
     #[test]

@@ -13,7 +13,11 @@
 //!    the linking number of centre curves, and the output is measured against the swatch
 //!    ([`measure`]: density, links reproduced, coverage; in [`QuiltStats`]).
 //! 1. **Scale.** `L` = swatch x extent in base units (default a tenth of the base's bounding-box
-//!    diagonal), `s = L / l_in`; shell thickness `H` (default `s h_in`).
+//!    diagonal), `s = L / l_in`; shell thickness `H` (default `s h_in`). A base with edges
+//!    longer than a patch's radius (the slivers of a CAD cone or cylinder, spanning its whole
+//!    height) is first split on the same surface by longest-edge bisection until none is
+//!    ([`crate::geometry::refine_to_edge_length`]): every face under a patch would otherwise
+//!    hold elements from all along the surface, and each patch would read them all.
 //! 2. **Patch growing (§3.1).** Seed = the uncovered base triangle with the most covered
 //!    triangles around its corners (the first at random under the seed). The patch is the
 //!    geodesic disc of radius `R_place = patch_radius L` around its centroid, grown by Dijkstra
@@ -566,11 +570,19 @@ fn run_unit(
     );
     // 1. the scale, and the shell it sets (5)
     let size = setup::size(input, mesh, sw, params)?;
-    let (base, shell) = shell::build(mesh, input.field, params, size.h);
+    // faces longer than a patch (a CAD cone's or cylinder's slivers, spanning its height) put
+    // every patch over hundreds of faces and every element's anchor search through them:
+    // split, on the same surface, until no edge is longer than the patch radius
+    let fine = split_long_faces(mesh, input.field, params.patch_radius * size.l);
+    let (mesh, field) = match &fine {
+        Some((m, f)) => (m, f.as_deref()),
+        None => (mesh, input.field),
+    };
+    let (base, shell) = shell::build(mesh, field, params, size.h);
     setup::check_output_size(sw, base.area.iter().sum(), size.s, params)?;
     let setup = setup::Setup::new(params, sw, found.as_ref(), size, mesh);
     // 2. the global lattice
-    let mut lattice = lattice::Lattice::solve(&setup, &base, input.field.is_some(), sink, &clock);
+    let mut lattice = lattice::Lattice::solve(&setup, &base, field.is_some(), sink, &clock);
     cancel.check()?;
 
     let mut rng = SmallRng::seed_from_u64(params.seed);
@@ -642,7 +654,7 @@ fn run_unit(
     let mut out = output::assemble(
         &elements,
         &setup.elem_faces,
-        &input.base.positions,
+        &mesh.positions,
         base.faces,
         stats,
         found.as_ref(),
@@ -660,6 +672,50 @@ fn run_unit(
     out.stats.seconds = clock.secs();
     sink(Event::StageTime("quilt", out.stats.seconds));
     Ok(out)
+}
+
+/// Most vertices [`split_long_faces`] adds to a base.
+const MAX_SPLIT_VERTICES: usize = 400_000;
+
+/// `mesh` with every edge longer than `max_length` bisected (the same surface), and the
+/// orientation field carried to the new vertices (the normalised mean of the split edge's
+/// ends'); `None` when no edge is that long.
+fn split_long_faces(
+    mesh: &TriMesh,
+    field: Option<&[[f32; 3]]>,
+    max_length: f32,
+) -> Option<(TriMesh, Option<Vec<[f32; 3]>>)> {
+    let longest = mesh
+        .faces
+        .iter()
+        .flat_map(|f| (0..3).map(move |k| (f[k], f[(k + 1) % 3])))
+        .map(|(a, b)| {
+            glam::Vec3::from(mesh.positions[a as usize])
+                .distance(glam::Vec3::from(mesh.positions[b as usize]))
+        })
+        .fold(0.0f32, f32::max);
+    if !(longest > max_length && max_length > 0.0) {
+        return None;
+    }
+    let plain = TriMesh::new(mesh.positions.clone(), mesh.faces.clone());
+    let r = crate::geometry::refine_to_edge_length(
+        &plain,
+        max_length,
+        mesh.positions.len() + MAX_SPLIT_VERTICES,
+    );
+    let field = field.map(|f| {
+        let mut out: Vec<[f32; 3]> = f.to_vec();
+        for &[a, b] in &r.parent_map[f.len()..] {
+            let (fa, fb) = (
+                glam::Vec3::from(out[a as usize]),
+                glam::Vec3::from(out[b as usize]),
+            );
+            let m = (fa + fb).normalize_or_zero();
+            out.push(if m == glam::Vec3::ZERO { fa } else { m }.into());
+        }
+        out
+    });
+    Some((r.mesh, field))
 }
 
 /// The same surface wound the other way.
