@@ -97,13 +97,11 @@ fn position_difference(a: &TriMesh, b: &TriMesh, s: f64) -> f64 {
 }
 
 /// The systems whose colours stay the same in thousandths and thousands too (up to a vertex
-/// in a hundred): every size-dependent order (collapses, splits, candidate ties) is decided in
-/// bins relative to the mesh's own size. The others amplify the last-digit differences of
+/// in a hundred): every size-dependent order (collapses, candidate ties) is decided in bins
+/// relative to the mesh's own size, and nothing is refined. The others amplify the last-digit differences of
 /// the coordinates through sequential choices, and their numbers are printed.
-const METRIC_SAME: [&str; 6] = [
+const METRIC_SAME: [&str; 4] = [
     "complete",
-    "update",
-    "transfer",
     "features-ao",
     "features-curvature",
     "features-height",

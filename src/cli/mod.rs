@@ -201,6 +201,11 @@ pub fn main() -> i32 {
             // behind; `batch` cancels its jobs with its own handler
             if !matches!(c, Command::Batch(_)) {
                 let _ = ctrlc::set_handler(|| {
+                    // the outputs are complete and being renamed: the command ends as it would
+                    // have, with every file delivered
+                    if crate::mesh::io::committing() {
+                        return;
+                    }
                     crate::mesh::io::discard_staged();
                     std::process::exit(130);
                 });

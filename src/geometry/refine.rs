@@ -137,8 +137,7 @@ pub fn refine_to_density(mesh: &TriMesh, target_vertices: usize) -> Refined {
     r.finish(mesh)
 }
 
-/// Refine `mesh` by longest-edge bisection until no edge is longer than `max_length` (up to the
-/// bins of the split order: 0.3%), or it has `max_vertices` vertices. The records are those of
+/// Refine `mesh` by longest-edge bisection until no edge is longer than `max_length`, or it has `max_vertices` vertices. The records are those of
 /// [`refine_to_density`]; a mesh with no longer edge comes back as it is.
 pub fn refine_to_edge_length(mesh: &TriMesh, max_length: f32, max_vertices: usize) -> Refined {
     let mut r = Refining::start(mesh);
@@ -228,8 +227,6 @@ impl Refining {
         self.source_face.reserve(2 * extra + 16);
         self.source_bary.reserve(2 * extra + 16);
         let mut edges = edge_faces(&self.faces, extra);
-        let unit = mean_squared_length(&self.positions, edges.keys());
-        let length_key = |p: &[[f32; 3]], a: u32, b: u32| length_key(p, a, b, unit);
         let mut heap: BinaryHeap<(u64, Reverse<u64>)> = edges
             .keys()
             .map(|&k| {
@@ -239,7 +236,7 @@ impl Refining {
                 )
             })
             .collect();
-        let stop = down_to.map(|l2| squared_length_bin(l2 as f64, unit));
+        let stop = down_to.map(|l2| squared_length_key(l2 as f64));
         let mut flist: Vec<u32> = Vec::with_capacity(4);
         while self.positions.len() < target_vertices {
             if let (Some(stop), Some((top, _))) = (stop, heap.peek())
@@ -390,48 +387,19 @@ fn edge_faces(faces: &[[u32; 3]], extra: usize) -> IntMap<EdgeFaces> {
     edges
 }
 
-/// The mean squared length of the edges `keys`, the unit of [`length_key`]'s bins (1 for an
-/// empty or degenerate mesh).
-fn mean_squared_length<'a>(p: &[[f32; 3]], keys: impl Iterator<Item = &'a u64>) -> f64 {
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for &k in keys {
-        let (a, b) = ((k >> 32) as usize, k as u32 as usize);
-        let d = Vec3::from(p[a]).distance_squared(Vec3::from(p[b])) as f64;
-        if d.is_finite() {
-            sum += d;
-            n += 1;
-        }
-    }
-    let mean = sum / n.max(1) as f64;
-    if mean > 0.0 && mean.is_finite() {
-        mean
-    } else {
-        1.0
-    }
-}
-
-/// Bins per octave of edge length in the split order.
-const BINS_PER_OCTAVE: f64 = 16.0;
-
-/// The priority of edge `ab`: its length on a log scale relative to `unit` (the mean squared
-/// edge length), in bins of 0.3% of the length as the collapse order's, so that edges of
-/// near-equal length are split in the order of their vertex numbers (the heap's tie-break)
-/// rather than of their lengths' last bits. The two halves of a bisected edge are equal in
-/// exact arithmetic; their rounding, and so the order of the whole refinement, would otherwise
-/// change with the units the mesh is written in.
-fn length_key(p: &[[f32; 3]], a: u32, b: u32, unit: f64) -> u64 {
+/// The priority of edge `ab`: its squared length's bits (as f64, which order as the lengths).
+fn length_key(p: &[[f32; 3]], a: u32, b: u32) -> u64 {
     let d = Vec3::from(p[a as usize]).distance_squared(Vec3::from(p[b as usize])) as f64;
-    squared_length_bin(d, unit)
+    squared_length_key(d)
 }
 
-/// [`length_key`] of the squared length `d`.
-fn squared_length_bin(d: f64, unit: f64) -> u64 {
+/// [`length_key`] of the squared length `d`: 0 for nothing to split (zero, NaN).
+fn squared_length_key(d: f64) -> u64 {
     if d.is_nan() || d <= 0.0 {
-        return 0;
+        0
+    } else {
+        d.to_bits()
     }
-    // octaves of length from 2^-1000 of the unit up; infinity clamps to the top bin
-    let octaves = 0.5 * (d / unit).log2() + 1000.0;
-    (octaves * BINS_PER_OCTAVE).floor().clamp(1.0, 1.0e9) as u64
 }
 
 /// For every vertex of `refined`, the nearest of its first `n_orig` vertices (the original
@@ -562,8 +530,7 @@ mod tests {
                     .distance(Vec3::from(out.positions[b as usize]))
             })
             .fold(0.0f32, f32::max);
-        // within the split order's bins (a sixteenth of an octave)
-        assert!(longest <= 0.2 * 1.05, "longest edge {longest}");
+        assert!(longest <= 0.2 + 1e-6, "longest edge {longest}");
         assert!(out.num_vertices() > m.num_vertices());
         // the same surface: every face inside its input face (the records), the area kept
         for (fi, face) in out.faces.iter().enumerate() {

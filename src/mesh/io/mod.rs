@@ -150,6 +150,7 @@ impl StagedWrites {
     /// Move every staged file to its destination. A rename failing (which needs a destination
     /// that changed kind meanwhile) removes the files not yet moved and reports it.
     pub fn commit(self) -> Result<()> {
+        COMMITTING.store(true, std::sync::atomic::Ordering::SeqCst);
         let list = STAGED
             .lock()
             .ok()
@@ -189,6 +190,17 @@ pub fn create_folders(dir: &Path) -> std::io::Result<()> {
             .extend(missing.into_iter().rev().filter(|d| d.is_dir()));
     }
     made
+}
+
+/// Set once a group's commit has begun: from then on its outputs are being delivered whole,
+/// and an interrupt lets the command finish rather than leave some of them renamed and the
+/// others not ([`committing`]).
+static COMMITTING: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// True once the command's outputs are being put in place (a signal handler then lets the
+/// command end as it would have).
+pub fn committing() -> bool {
+    COMMITTING.load(std::sync::atomic::Ordering::SeqCst)
 }
 
 /// True while a [`StagedWrites`] group is open (outputs wait for its commit).
