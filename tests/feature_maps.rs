@@ -3,7 +3,9 @@
 //! bunny): texels inside a face carry the vertex values interpolated there, gutters are filled,
 //! 16-bit maps carry 16 bits, `--feature all` writes every map, bad input is one line.
 
-use std::path::{Path, PathBuf};
+mod scratch;
+use scratch::Scratch;
+use std::path::Path;
 use std::process::Command;
 
 use meshmatch::cli::common::load_usable;
@@ -13,11 +15,9 @@ use meshmatch::synthesis::weathering::feature_maps::{
 use meshmatch::testdata::data_path;
 use meshmatch::work::CancelToken;
 
-fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("meshmatch_feature_maps_{name}"));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A scratch folder of its own, removed when the test ends.
+fn dir(name: &str) -> Scratch {
+    Scratch::new(&format!("feature-maps-{name}"))
 }
 
 fn cli(args: &[&str]) -> (i32, String) {
