@@ -81,7 +81,7 @@ impl BakeArgs {
             t.elapsed().as_secs_f64()
         );
         io::save(&target, &self.out)?;
-        crate::cli::common::announce(format!("wrote {}", self.out.display()));
+        crate::cli::common::announce_written(&self.out);
         Ok(0)
     }
 }

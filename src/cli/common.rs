@@ -25,6 +25,11 @@ pub fn announce(line: String) {
     }
 }
 
+/// [`announce`] "wrote `path`".
+pub fn announce_written(path: &Path) {
+    announce(format!("wrote {}", path.display()));
+}
+
 /// The lines held by [`announce`], taken: printed by the caller after a commit, dropped after a
 /// failure.
 pub(crate) fn take_announced() -> Vec<String> {

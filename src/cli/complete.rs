@@ -84,7 +84,7 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
         c.energy
     );
     io::save(&c.mesh, &a.out)?;
-    crate::cli::common::announce(format!("wrote {}", a.out.display()));
+    crate::cli::common::announce_written(&a.out);
     Ok(0)
 }
 

@@ -27,7 +27,7 @@ impl ConvertArgs {
         mesh.check_usable()?;
         io::save(&mesh, &self.output)?;
         io::print_warnings(&warnings);
-        crate::cli::common::announce(format!("wrote {}", self.output.display()));
+        crate::cli::common::announce_written(&self.output);
         Ok(0)
     }
 }

@@ -372,10 +372,10 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     )?;
     bar.finish_and_clear();
     io::save(&s.mesh, &a.out)?;
-    crate::cli::common::announce(format!("wrote {}", a.out.display()));
+    crate::cli::common::announce_written(&a.out);
     if let (Some(d), Some(dense)) = (&a.out_dense, &s.dense) {
         io::save(dense, d)?;
-        crate::cli::common::announce(format!("wrote {}", d.display()));
+        crate::cli::common::announce_written(d);
     }
     Ok(0)
 }

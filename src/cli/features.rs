@@ -127,7 +127,7 @@ impl FeaturesArgs {
                 " (stretched to black .. white)"
             }
         );
-        crate::cli::common::announce(format!("wrote {}", self.out.display()));
+        crate::cli::common::announce_written(&self.out);
         Ok(0)
     }
 }
@@ -209,12 +209,12 @@ impl FeaturesArgs {
         );
         if png {
             for p in feature_maps::save_map_pngs(&maps, &self.out, self.bits)? {
-                crate::cli::common::announce(format!("wrote {}", p.display()));
+                crate::cli::common::announce_written(&p);
             }
         } else {
             for (m, p) in maps.maps.iter().zip(&outs) {
                 io::save(&feature_maps::textured_with(&mesh, &maps, m), p)?;
-                crate::cli::common::announce(format!("wrote {}", p.display()));
+                crate::cli::common::announce_written(p);
             }
         }
         Ok(0)
@@ -246,7 +246,7 @@ impl FeaturesArgs {
             out.texture = None;
             io::save(&out, p)?;
             eprintln!("{}: {}", m.name, m.scale);
-            crate::cli::common::announce(format!("wrote {}", p.display()));
+            crate::cli::common::announce_written(p);
         }
         Ok(0)
     }

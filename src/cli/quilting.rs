@@ -179,7 +179,7 @@ impl QuiltArgs {
             }
             _ => io::save(&merged(&out.elements, with_base), &a.out)?,
         }
-        crate::cli::common::announce(format!("wrote {}", a.out.display()));
+        crate::cli::common::announce_written(&a.out);
         Ok(0)
     }
 }
@@ -228,7 +228,7 @@ impl SwatchArgs {
                 s.extent[1],
                 s.height
             );
-            crate::cli::common::announce(format!("wrote {}", self.out.display()));
+            crate::cli::common::announce_written(&self.out);
             return Ok(0);
         }
         let kind = SwatchKind::parse(&self.kind).map_err(|_| {
@@ -249,7 +249,7 @@ impl SwatchArgs {
             s.extent[1],
             s.height
         );
-        crate::cli::common::announce(format!("wrote {}", self.out.display()));
+        crate::cli::common::announce_written(&self.out);
         Ok(0)
     }
 }

@@ -79,7 +79,7 @@ impl RenderArgs {
             markers,
         };
         crate::render::render_to_png(&m, None, &opts, &self.out)?;
-        crate::cli::common::announce(format!("wrote {}", self.out.display()));
+        crate::cli::common::announce_written(&self.out);
         Ok(0)
     }
 }

@@ -177,10 +177,10 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
     }
     let out_mesh = &t.delivered;
     io::save(&out_mesh.mesh, &a.out)?;
-    crate::cli::common::announce(format!("wrote {}", a.out.display()));
+    crate::cli::common::announce_written(&a.out);
     if let (Some(path), Some(d)) = (&a.out_dense, &t.dense) {
         io::save(d, path)?;
-        crate::cli::common::announce(format!("wrote {}", path.display()));
+        crate::cli::common::announce_written(path);
     }
     if let Some(nnf) = &a.nnf_out {
         let mut csv = String::from("target_vertex,source_vertex,rotation_deg\n");
@@ -188,7 +188,7 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
             csv.push_str(&format!("{t},{s},{r}\n"));
         }
         io::write_atomic(nnf, csv.as_bytes())?;
-        crate::cli::common::announce(format!("wrote {}", nnf.display()));
+        crate::cli::common::announce_written(nnf);
     }
     Ok(0)
 }

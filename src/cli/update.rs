@@ -65,7 +65,7 @@ fn update(a: &UpdateArgs) -> Result<i32> {
         r.energy
     );
     io::save(&out, &a.out)?;
-    crate::cli::common::announce(format!("wrote {}", a.out.display()));
+    crate::cli::common::announce_written(&a.out);
     Ok(0)
 }
 

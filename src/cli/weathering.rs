@@ -145,11 +145,11 @@ impl WeatherArgs {
             eprintln!("{line}");
         }
         io::save(&out_mesh.mesh, &a.out)?;
-        crate::cli::common::announce(format!("wrote {}", a.out.display()));
+        crate::cli::common::announce_written(&a.out);
         if let Some(dense) = &a.out_dense {
             let d = crate::meshmatch::deliver_dense(&out.target.mesh, &out.colors);
             io::save(&d, dense)?;
-            crate::cli::common::announce(format!("wrote {}", dense.display()));
+            crate::cli::common::announce_written(dense);
         }
         Ok(0)
     }

@@ -685,24 +685,14 @@ fn split_long_faces(
     field: Option<&[[f32; 3]]>,
     max_length: f32,
 ) -> Option<(TriMesh, Option<Vec<[f32; 3]>>)> {
-    let longest = mesh
-        .faces
-        .iter()
-        .flat_map(|f| (0..3).map(move |k| (f[k], f[(k + 1) % 3])))
-        .map(|(a, b)| {
-            glam::Vec3::from(mesh.positions[a as usize])
-                .distance(glam::Vec3::from(mesh.positions[b as usize]))
-        })
-        .fold(0.0f32, f32::max);
-    if !(longest > max_length && max_length > 0.0) {
-        return None;
-    }
-    let plain = TriMesh::new(mesh.positions.clone(), mesh.faces.clone());
     let r = crate::geometry::refine_to_edge_length(
-        &plain,
+        &TriMesh::new(mesh.positions.clone(), mesh.faces.clone()),
         max_length,
         mesh.positions.len() + MAX_SPLIT_VERTICES,
     );
+    if r.mesh.positions.len() == mesh.positions.len() {
+        return None;
+    }
     let field = field.map(|f| {
         let mut out: Vec<[f32; 3]> = f.to_vec();
         for &[a, b] in &r.parent_map[f.len()..] {
