@@ -1120,3 +1120,81 @@ fn a_limb_thinner_than_a_patch_is_covered_and_its_gaps_filled() {
     );
     assert_eq!(quilting::crossing_pairs(&out).len(), 0);
 }
+
+/// A swatch of `n x n` small tetrahedra on a unit square, each moved by up to `jitter` of the
+/// step (a deterministic hash).
+fn tetra_field(n: usize, jitter: f32) -> TriMesh {
+    let step = 1.0 / n as f32;
+    let size = 0.3 * step;
+    let hash = |i: usize, k: u32| {
+        let h = (i as u32)
+            .wrapping_mul(2_654_435_761)
+            .wrapping_add(k.wrapping_mul(40_503));
+        ((h ^ (h >> 13)).wrapping_mul(1_274_126_177) >> 8) as f32 / (1u32 << 24) as f32 - 0.5
+    };
+    let mut positions = Vec::new();
+    let mut faces = Vec::new();
+    for i in 0..n * n {
+        let x = ((i % n) as f32 + 0.5 + jitter * hash(i, 1)) * step;
+        let y = ((i / n) as f32 + 0.5 + jitter * hash(i, 2)) * step;
+        let b = positions.len() as u32;
+        positions.extend([
+            [x, y, 0.0],
+            [x + size, y, 0.0],
+            [x, y + size, 0.0],
+            [x + size / 3.0, y + size / 3.0, size],
+        ]);
+        faces.extend([[0, 2, 1], [0, 1, 3], [1, 2, 3], [2, 0, 3]].map(|f| f.map(|v| v + b)));
+    }
+    TriMesh::new(positions, faces)
+}
+
+/// Swatches of thousands of elements are read as quickly as small ones: the lattice of a
+/// 60 x 60 grid of copies is found (a tile of one element), a jittered grid has none, and the
+/// clearance between elements is the true one.
+#[test]
+fn a_swatch_of_thousands_of_elements_is_read_in_full() {
+    use quilting::periodicity::{detect, symmetries};
+    let grid = load_swatch(tetra_field(60, 0.0), Axis::Z).unwrap();
+    assert_eq!(grid.num_elements(), 3600);
+    let p = detect(&grid);
+    assert_eq!(p.kind, "lattice");
+    let [a, b] = p.lattice.unwrap();
+    let step = 1.0 / 60.0;
+    for v in [a, b] {
+        let len = (v[0] * v[0] + v[1] * v[1]).sqrt();
+        assert!((len - step).abs() < 1e-3 * step, "{v:?}");
+    }
+    assert_eq!(p.tile.num_elements(), 1);
+    let jittered = load_swatch(tetra_field(60, 0.4), Axis::Z).unwrap();
+    assert!(symmetries(&jittered).is_empty());
+    assert_eq!(detect(&jittered).kind, "spacing");
+    // the clearance against every pair of vertices of distinct elements
+    let small = load_swatch(tetra_field(12, 0.4), Axis::Z).unwrap();
+    let mut brute = f32::INFINITY;
+    for a in 0..small.num_elements() {
+        for b in a + 1..small.num_elements() {
+            for p in small.element_positions(a) {
+                for q in small.element_positions(b) {
+                    brute = brute.min(Vec3::from(*p).distance(Vec3::from(*q)));
+                }
+            }
+        }
+    }
+    assert_eq!(small.clearance(), brute);
+    // and the centre spacing of its one class against every pair of centres
+    let centres: Vec<[f32; 3]> = small.elements.iter().map(|e| e.centre).collect();
+    let mut nearest = f32::INFINITY;
+    for (i, a) in centres.iter().enumerate() {
+        for b in &centres[i + 1..] {
+            nearest = nearest.min((a[0] - b[0]).hypot(a[1] - b[1]));
+        }
+    }
+    let (classes, spacing) = small.class_spacing();
+    assert_eq!(classes, 1);
+    assert!(
+        (spacing[0] - nearest).abs() <= 1e-6 * nearest,
+        "{} {nearest}",
+        spacing[0]
+    );
+}

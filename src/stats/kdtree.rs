@@ -45,6 +45,37 @@ impl KdTree {
         out.sort_by(|a, b| a.0.total_cmp(&b.0));
     }
 
+    /// Every point within squared distance `r2` of `q` (inclusive), as original indices in
+    /// tree order. `out` is reused (cleared first).
+    pub fn within(&self, q: &[f32], r2: f32, out: &mut Vec<u32>) {
+        out.clear();
+        if !self.nodes.is_empty() {
+            self.gather(0, q, r2, out);
+        }
+    }
+
+    fn gather(&self, node: usize, q: &[f32], r2: f32, out: &mut Vec<u32>) {
+        let (start, end, axis, split) = self.nodes[node];
+        if axis == usize::MAX {
+            for i in start as usize..end as usize {
+                let p = &self.points[i * self.dim..(i + 1) * self.dim];
+                let d: f32 = p.iter().zip(q).map(|(a, b)| (a - b) * (a - b)).sum();
+                if d <= r2 {
+                    out.push(self.index[i]);
+                }
+            }
+            return;
+        }
+        // the left child holds coordinates up to the split, the right from it
+        let diff = q[axis] - split;
+        if diff <= 0.0 || diff * diff <= r2 {
+            self.gather(node + 1, q, r2, out);
+        }
+        if diff >= 0.0 || diff * diff <= r2 {
+            self.gather(end as usize, q, r2, out);
+        }
+    }
+
     fn search(&self, node: usize, q: &[f32], k: usize, out: &mut Vec<(f32, u32)>) {
         let (start, end, axis, split) = self.nodes[node];
         if axis == usize::MAX {
@@ -128,6 +159,33 @@ fn build(
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng, rngs::SmallRng};
+
+    #[test]
+    fn within_finds_every_point_in_the_ball_and_no_other() {
+        let mut rng = SmallRng::seed_from_u64(5);
+        let dim = 2;
+        // a grid (coordinates on split values) and random points
+        let mut pts: Vec<f32> = (0..400)
+            .flat_map(|i| [(i % 20) as f32 / 20.0, (i / 20) as f32 / 20.0])
+            .collect();
+        pts.extend((0..2000 * dim).map(|_| rng.random::<f32>()));
+        let tree = KdTree::new(&pts, dim);
+        let mut out = Vec::new();
+        for _ in 0..200 {
+            let q = [rng.random::<f32>(), rng.random::<f32>()];
+            let r2 = 0.02 * rng.random::<f32>();
+            tree.within(&q, r2, &mut out);
+            out.sort_unstable();
+            let brute: Vec<u32> = (0..pts.len() / dim)
+                .filter(|&i| {
+                    let d = (pts[2 * i] - q[0]).powi(2) + (pts[2 * i + 1] - q[1]).powi(2);
+                    d <= r2
+                })
+                .map(|i| i as u32)
+                .collect();
+            assert_eq!(out, brute);
+        }
+    }
 
     #[test]
     fn knn_matches_brute_force() {

@@ -10,6 +10,7 @@ use super::join;
 use super::maxflow;
 use super::merging;
 use super::setup::Setup;
+use crate::stats::KdTree;
 
 /// Which old elements and candidates of the patch survive, and which candidates are accepted.
 pub(super) fn select(
@@ -74,10 +75,33 @@ fn conflict_graph(
     }
     let mut conflicts: Vec<(usize, usize)> = Vec::new();
     let mut partner: Partners = vec![None; cands.len()];
+    // the old elements' piece centres, so that each candidate meets only those within its
+    // reach: a conflict needs centres closer than the largest conflict distance or than twice
+    // the two radii
+    let mut piece_centres: Vec<f32> = Vec::new();
+    let mut piece_of: Vec<u32> = Vec::new();
+    for (k, e) in old.iter().enumerate() {
+        for q in &placed[*e as usize].pieces {
+            piece_centres.extend_from_slice(&q.centre.to_array());
+            piece_of.push(k as u32);
+        }
+    }
+    let pieces = KdTree::new(&piece_centres, 3);
+    let own_max = setup.own_spacing.iter().cloned().fold(0.0f32, f32::max);
+    let conflict_reach = 1.001 * max_conflict.max(1.1 * own_max * setup.s);
+    let mut within: Vec<u32> = Vec::new();
+    let mut reached: Vec<u32> = Vec::new();
     for (j, c) in cands.iter().enumerate() {
         let cl = sw.elements[c.source as usize].class;
         let mut near = old_hash.near(&c.positions, tau);
-        for (k, e) in old.iter().enumerate() {
+        let reach = conflict_reach.max(2.0 * (c.radius + max_radius));
+        pieces.within(&c.centre.to_array(), reach * reach, &mut within);
+        reached.clear();
+        reached.extend(within.iter().map(|&i| piece_of[i as usize]));
+        reached.sort_unstable();
+        reached.dedup();
+        for &k in &reached {
+            let (k, e) = (k as usize, &old[k as usize]);
             let pe = &placed[*e as usize];
             let d = pe.centre_distance(c.centre);
             if d < setup.conflict_dist(pe.source, c.source)
@@ -166,23 +190,29 @@ fn greedy(
     });
     // old elements grown by a merge in this patch (their cached merges are stale)
     let mut grown = vec![false; sel.old.len()];
+    // the accepted candidates' centres: a clash needs centres closer than twice the two radii
+    let r_cand = cands.iter().map(|c| c.radius).fold(0.0f32, f32::max);
+    let mut accepted_centres = VertexHash::new((4.0 * r_cand).max(f32::MIN_POSITIVE));
     for j in order {
         let c = &cands[j];
         let clash = sel.accepted_hash.any_near(&c.positions, tau, |_| true)
-            || sel.accepted.iter().any(|&a| {
-                let o = &cands[a];
-                let d = o.centre.distance(c.centre);
-                d < setup
-                    .conflict_dist(o.source, c.source)
-                    .min(0.9 * (o.radius + c.radius))
-                    || (d < 2.0 * (o.radius + c.radius)
-                        && crossing::surfaces_cross(
-                            &o.positions,
-                            &elem_faces[o.source as usize],
-                            &c.positions,
-                            &elem_faces[c.source as usize],
-                        ))
-            });
+            || accepted_centres
+                .within(c.centre, 2.0 * (c.radius + r_cand))
+                .into_iter()
+                .any(|i| {
+                    let o = &cands[sel.accepted[i as usize]];
+                    let d = o.centre.distance(c.centre);
+                    d < setup
+                        .conflict_dist(o.source, c.source)
+                        .min(0.9 * (o.radius + c.radius))
+                        || (d < 2.0 * (o.radius + c.radius)
+                            && crossing::surfaces_cross(
+                                &o.positions,
+                                &elem_faces[o.source as usize],
+                                &c.positions,
+                                &elem_faces[c.source as usize],
+                            ))
+                });
         if clash {
             stats.dropped_conflict += 1;
             sel.retry.push(j);
@@ -203,6 +233,7 @@ fn greedy(
         }
         sel.accepted_hash
             .insert(sel.accepted.len() as u32, &c.positions);
+        accepted_centres.insert(sel.accepted.len() as u32, &[c.centre.to_array()]);
         sel.accepted.push(j);
     }
 }

@@ -11,6 +11,67 @@ use super::flatten::Patch;
 use super::setup::Setup;
 use super::shell::Base;
 use super::swatch::Swatch;
+use crate::stats::KdTree;
+
+/// The tile's element centres for the matching's nearest-centre queries: one k-d tree over
+/// all of them and one per class, with the copies around the tile when it repeats.
+pub(super) struct Centres {
+    /// The tile's extent when it repeats (queries are wrapped into it).
+    period: Option<Vec2>,
+    all: (KdTree, Vec<Vec2>),
+    by_class: Vec<(KdTree, Vec<Vec2>)>,
+}
+
+impl Centres {
+    pub(super) fn new(sw: &Swatch) -> Centres {
+        let period = sw.periodic.then(|| Vec2::new(sw.extent[0], sw.extent[1]));
+        let shifts: Vec<Vec2> = match period {
+            Some(e) => (-1..=1)
+                .flat_map(|j| (-1..=1).map(move |i| Vec2::new(i as f32 * e.x, j as f32 * e.y)))
+                .collect(),
+            None => vec![Vec2::ZERO],
+        };
+        let nc = sw.elements.iter().map(|e| e.class + 1).max().unwrap_or(0) as usize;
+        let mut all = Vec::new();
+        let mut by_class = vec![Vec::new(); nc];
+        for el in &sw.elements {
+            for sh in &shifts {
+                let c = Vec2::new(el.centre[0], el.centre[1]) + *sh;
+                all.push(c);
+                by_class[el.class as usize].push(c);
+            }
+        }
+        let tree = |pts: Vec<Vec2>| {
+            let flat: Vec<f32> = pts.iter().flat_map(|p| p.to_array()).collect();
+            (KdTree::new(&flat, 2), pts)
+        };
+        Centres {
+            period,
+            all: tree(all),
+            by_class: by_class.into_iter().map(tree).collect(),
+        }
+    }
+
+    /// For a point `x` of the tile's frame and a class: the offset from the nearest centre of
+    /// that class (`x` minus it; infinite when the class has none) and the distance to the
+    /// nearest centre of any class.
+    fn nearest(&self, x: Vec2, class: u32, near: &mut Vec<(f32, u32)>) -> (Vec2, f32) {
+        let x = match self.period {
+            Some(e) => x - (x / e).floor() * e,
+            None => x,
+        };
+        let mut residual = Vec2::splat(f32::INFINITY);
+        if let Some((tree, pts)) = self.by_class.get(class as usize) {
+            tree.knn(&x.to_array(), 1, near);
+            if let Some(&(_, i)) = near.first() {
+                residual = x - pts[i as usize];
+            }
+        }
+        self.all.0.knn(&x.to_array(), 1, near);
+        let any = near.first().map_or(f32::INFINITY, |n| n.0.sqrt());
+        (residual, any)
+    }
+}
 
 /// The patch's rotation (its +u axis to the swatch's +x) and the swatch translation `t`
 /// (swatch units) with `uv = s R (x + t)`.
@@ -22,7 +83,7 @@ pub(super) fn register(
     rng: &mut SmallRng,
 ) -> (Vec2, Vec2) {
     let (params, s, sw) = (setup.params, setup.s, setup.sw);
-    let (classes, images, cell) = (&setup.classes, &setup.images, setup.cell);
+    let cell = setup.cell;
     let (faces, mesh_positions) = (base.faces, base.p);
     let (flat, rp, lattice_t) = (&patch.flat, patch.rp, patch.lattice_t);
     let (anchored, placed) = (&elements.anchored, &elements.placed);
@@ -60,18 +121,20 @@ pub(super) fn register(
     // the translation t (swatch units) with uv = s (x + t)
     let t = match lattice_t {
         Some(t) => t,
-        None => choose_translation(sw, classes, images, placed, &old, cell, rp / s, rng),
+        None => choose_translation(sw, &setup.centres, placed, &old, cell, rp / s, rng),
     };
     (rot, t)
 }
 
 /// Eq. (1)-(3) at the element level: the swatch translation (swatch units) that best explains
 /// the old elements `old` (id, position in swatch coordinates of the patch frame).
+/// Old elements the translation's grid search scores, at most.
+const MATCHED_OLD: usize = 128;
+
 #[allow(clippy::too_many_arguments)]
 fn choose_translation(
     sw: &Swatch,
-    classes: &[u32],
-    images: &[[f32; 2]],
+    centres: &Centres,
     placed: &[Placed],
     old: &[(u32, Vec2)],
     cell: f32,
@@ -104,31 +167,12 @@ fn choose_translation(
             },
         );
     }
-    let cost = |t: Vec2, x: Vec2, cl: u32| -> (f32, Vec2) {
-        // (cost, residual to the nearest same-class centre)
-        let mut best = 4.0f32;
-        let mut res = Vec2::splat(f32::INFINITY);
-        for (j, el) in sw.elements.iter().enumerate() {
-            let c = Vec2::new(el.centre[0], el.centre[1]) + t;
-            for im in images {
-                let mut d = x - c - Vec2::from(*im);
-                if sw.periodic {
-                    d.x -= (d.x / ex).round() * ex;
-                    d.y -= (d.y / ey).round() * ey;
-                }
-                let penalty = if classes[j] == cl { 0.0 } else { 1.0 };
-                let e = d.length() / cell + penalty;
-                if e < best {
-                    best = e;
-                    if penalty == 0.0 {
-                        res = d;
-                    }
-                }
-                if sw.periodic {
-                    break; // wrapped distance already covers the images
-                }
-            }
-        }
+    // (cost, residual to the nearest same-class centre): that centre's distance in cells, or
+    // another class's plus one, at most 4
+    let mut near = Vec::with_capacity(1);
+    let mut cost = |t: Vec2, x: Vec2, cl: u32| -> (f32, Vec2) {
+        let (res, any) = centres.nearest(x - t, cl, &mut near);
+        let best = (res.length() / cell).min(any / cell + 1.0).min(4.0);
         (best, res)
     };
     let steps = |r: (f32, f32)| -> Vec<f32> {
@@ -138,12 +182,16 @@ fn choose_translation(
         let k = ((r.1 - r.0) / cell).ceil() as usize;
         (0..k.max(1)).map(|i| r.0 + i as f32 * cell).collect()
     };
+    // the grid search scores at most MATCHED_OLD of the old elements, spread over the patch
+    // (a swatch of thousands of small elements puts thousands in a patch); the refinement
+    // below reads them all
+    let stride = old.len().div_ceil(MATCHED_OLD).max(1);
     let mut best = (f32::INFINITY, Vec2::ZERO);
     for &ty in &steps(ry) {
         for &tx in &steps(rx) {
             let t = Vec2::new(tx, ty);
             let mut e = 0.0;
-            for (id, x) in old {
+            for (id, x) in old.iter().step_by(stride) {
                 let cl = sw.elements[placed[*id as usize].source as usize].class;
                 e += cost(t, *x, cl).0;
                 if e >= best.0 {

@@ -30,6 +30,7 @@ use glam::{Vec2, Vec3};
 
 use super::swatch::Swatch;
 use crate::mesh::TriMesh;
+use crate::stats::kdtree::KdTree;
 
 /// What [`detect`] found.
 #[derive(Clone, Debug)]
@@ -132,19 +133,28 @@ pub fn spacing_density(sw: &Swatch) -> f32 {
 /// included).
 pub fn nearest_spacing(sw: &Swatch) -> Vec<f32> {
     let images = sw.images();
-    sw.elements
+    let centres: Vec<Vec2> = sw
+        .elements
+        .iter()
+        .map(|e| Vec2::new(e.centre[0], e.centre[1]))
+        .collect();
+    let tree = KdTree::new(&flat(&centres), 2);
+    let mut near = Vec::with_capacity(2);
+    centres
         .iter()
         .enumerate()
-        .map(|(i, a)| {
+        .map(|(i, &a)| {
             let mut best = f32::INFINITY;
-            for (j, b) in sw.elements.iter().enumerate() {
-                for im in &images {
-                    if i == j && im[0] == 0.0 && im[1] == 0.0 {
-                        continue;
-                    }
-                    let d = (a.centre[0] - b.centre[0] - im[0])
-                        .hypot(a.centre[1] - b.centre[1] - im[1]);
-                    best = best.min(d);
+            for im in &images {
+                // the element itself is its own nearest in the unshifted copy
+                let own = im[0] == 0.0 && im[1] == 0.0;
+                tree.knn(
+                    &(a - Vec2::from(*im)).to_array(),
+                    1 + own as usize,
+                    &mut near,
+                );
+                if let Some(&(d2, _)) = near.iter().find(|n| !(own && n.1 as usize == i)) {
+                    best = best.min(d2.sqrt());
                 }
             }
             if best.is_finite() { best } else { 0.0 }
@@ -165,81 +175,151 @@ fn spacing_box(sw: &Swatch) -> (f32, f32, f32) {
         lo = lo.min(*p);
         hi = hi.max(*p);
     }
-    let mut sum = 0.0f32;
-    for (i, p) in c.iter().enumerate() {
-        let nn = c
-            .iter()
-            .enumerate()
-            .filter(|(j, _)| *j != i)
-            .map(|(_, q)| p.distance(*q))
-            .fold(f32::INFINITY, f32::min);
-        if nn.is_finite() {
-            sum += nn;
-        }
-    }
-    let d = sum / c.len().max(1) as f32;
+    let d = nearest_distances(&c)
+        .into_iter()
+        .filter(|d| d.is_finite())
+        .sum::<f32>()
+        / c.len().max(1) as f32;
     (hi.x - lo.x, hi.y - lo.y, d)
 }
 
-/// The symmetry translations of a finite swatch (x-y, swatch units), shortest first.
+/// Each point's distance to the nearest other point (infinite for a single point).
+fn nearest_distances(c: &[Vec2]) -> Vec<f32> {
+    let tree = KdTree::new(&flat(c), 2);
+    let mut near = Vec::with_capacity(2);
+    c.iter()
+        .map(|p| {
+            tree.knn(&p.to_array(), 2, &mut near);
+            near.get(1).map_or(f32::INFINITY, |n| n.0.sqrt())
+        })
+        .collect()
+}
+
+fn flat(c: &[Vec2]) -> Vec<f32> {
+    c.iter().flat_map(|p| p.to_array()).collect()
+}
+
+/// Elements that anchor the candidate translations: every one for a small swatch, else those
+/// nearest the centre and nearest each corner of the swatch (by their boxes, the ones a shift
+/// towards the opposite corner keeps inside longest).
+const ALL_ANCHORS_UP_TO: usize = 64;
+const ANCHORS_PER_PLACE: usize = 3;
+
+fn anchors(k: &[Key], extent: Vec2) -> Vec<usize> {
+    let ne = k.len();
+    if ne <= ALL_ANCHORS_UP_TO {
+        return (0..ne).collect();
+    }
+    let centre = 0.5 * extent;
+    let scores: [&dyn Fn(&Key) -> f32; 5] = [
+        &|a| a.centre.truncate().distance(centre),
+        &|a| a.hi.x + a.hi.y,
+        &|a| a.hi.x + (extent.y - a.lo.y),
+        &|a| (extent.x - a.lo.x) + a.hi.y,
+        &|a| (extent.x - a.lo.x) + (extent.y - a.lo.y),
+    ];
+    let mut out: Vec<usize> = Vec::new();
+    for score in scores {
+        let mut order: Vec<usize> = (0..ne).collect();
+        order.select_nth_unstable_by(ANCHORS_PER_PLACE, |&i, &j| {
+            score(&k[i]).total_cmp(&score(&k[j]))
+        });
+        out.extend_from_slice(&order[..ANCHORS_PER_PLACE]);
+    }
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+/// The shortest symmetry translation of a finite swatch and the shortest one not parallel to
+/// it (x-y, swatch units): none, one or two, shortest first.
+///
+/// Candidates are the differences between an anchor element's centre and the centres of the
+/// elements with its shape ([`anchors`]: all of a small swatch's), tried shortest first, each
+/// checked element by element with a nearest-centre lookup and given up at its first element
+/// that lands on nothing, so a swatch of thousands of elements is decided in about a second.
 pub fn symmetries(sw: &Swatch) -> Vec<Vec2> {
     let k = keys(sw);
     let ne = k.len();
-    let spacing = {
-        let mut m = f32::INFINITY;
-        for i in 0..ne {
-            for j in i + 1..ne {
-                m = m.min(k[i].centre.truncate().distance(k[j].centre.truncate()));
-            }
-        }
-        m
-    };
+    if ne < 2 {
+        return Vec::new();
+    }
+    let centres: Vec<Vec2> = k.iter().map(|a| a.centre.truncate()).collect();
+    let spacing = nearest_distances(&centres)
+        .into_iter()
+        .fold(f32::INFINITY, f32::min);
     if !spacing.is_finite() || spacing <= 0.0 {
         return Vec::new();
     }
     let tol = 0.02 * spacing;
-    let (blo, bhi) = (Vec2::ZERO, Vec2::new(sw.extent[0], sw.extent[1]));
+    let extent = Vec2::new(sw.extent[0], sw.extent[1]);
+    // candidates in the half plane x > 0 (or x = 0, y > 0): -t is a symmetry when t is
     let mut cands: Vec<Vec2> = Vec::new();
-    for i in 0..ne {
+    for i in anchors(&k, extent) {
         for j in 0..ne {
             if i == j || !same_shape(&k[i], &k[j]) {
                 continue;
             }
-            let t = (k[j].centre - k[i].centre).truncate();
-            if t.x < -tol || (t.x.abs() <= tol && t.y <= 0.0) {
+            let t = centres[j] - centres[i];
+            let t = if t.x < -tol || (t.x.abs() <= tol && t.y <= 0.0) {
+                -t
+            } else {
+                t
+            };
+            cands.push(t);
+        }
+    }
+    cands.sort_by(|a, b| a.length().total_cmp(&b.length()).then(a.x.total_cmp(&b.x)));
+    // one candidate per translation: a cell of `tol` holds at most a few, and a repeat lies in
+    // its cell or a neighbour
+    let cell = |t: Vec2| ((t.x / tol).floor() as i64, (t.y / tol).floor() as i64);
+    let mut seen: std::collections::HashMap<(i64, i64), Vec<Vec2>> = Default::default();
+    let tree = KdTree::new(&flat(&centres), 2);
+    let mut near = Vec::with_capacity(1);
+    let mut is_symmetry = |t: Vec2| -> bool {
+        let (margin, lo, hi) = (0.02 * spacing, Vec2::ZERO, extent);
+        let mut landed = 0usize;
+        for a in &k {
+            let (blo, bhi) = (a.lo.truncate() + t, a.hi.truncate() + t);
+            if blo.x < lo.x - margin
+                || blo.y < lo.y - margin
+                || bhi.x > hi.x + margin
+                || bhi.y > hi.y + margin
+            {
                 continue;
             }
-            if !cands.iter().any(|c| c.distance(t) <= tol) {
-                cands.push(t);
+            // centres are at least `spacing` apart, so only the nearest can be within `tol`
+            tree.knn(&(a.centre.truncate() + t).to_array(), 1, &mut near);
+            match near.first() {
+                Some(&(d2, b)) if d2.sqrt() <= tol && same_shape(a, &k[b as usize]) => landed += 1,
+                _ => return false,
+            }
+        }
+        landed >= 2
+    };
+    let mut out: Vec<Vec2> = Vec::new();
+    for t in cands {
+        let (cx, cy) = cell(t);
+        let repeat = (-1..=1).any(|dx| {
+            (-1..=1).any(|dy| {
+                seen.get(&(cx + dx, cy + dy))
+                    .is_some_and(|v| v.iter().any(|s| s.distance(t) <= tol))
+            })
+        });
+        if repeat {
+            continue;
+        }
+        seen.entry((cx, cy)).or_default().push(t);
+        let independent = out
+            .first()
+            .is_none_or(|a| a.perp_dot(t).abs() > 0.1 * a.length() * t.length());
+        if independent && is_symmetry(t) {
+            out.push(t);
+            if out.len() == 2 {
+                break;
             }
         }
     }
-    let mut out: Vec<Vec2> = cands
-        .into_iter()
-        .filter(|&t| {
-            let (mut eligible, mut landed) = (0usize, 0usize);
-            for a in &k {
-                let (lo, hi) = (a.lo.truncate() + t, a.hi.truncate() + t);
-                let margin = 0.02 * spacing;
-                if lo.x < blo.x - margin
-                    || lo.y < blo.y - margin
-                    || hi.x > bhi.x + margin
-                    || hi.y > bhi.y + margin
-                {
-                    continue;
-                }
-                eligible += 1;
-                let target = a.centre.truncate() + t;
-                if k.iter()
-                    .any(|b| same_shape(a, b) && b.centre.truncate().distance(target) <= tol)
-                {
-                    landed += 1;
-                }
-            }
-            landed >= 2 && landed == eligible
-        })
-        .collect();
-    out.sort_by(|a, b| a.length().total_cmp(&b.length()));
     out
 }
 
@@ -254,13 +334,7 @@ pub fn detect(sw: &Swatch) -> Periodicity {
             kind: "periodic",
         };
     }
-    let sym = symmetries(sw);
-    let basis = sym.first().and_then(|&a| {
-        sym.iter()
-            .find(|b| a.perp_dot(**b).abs() > 0.1 * a.length() * b.length())
-            .map(|&b| [a, b])
-    });
-    if let Some([a, b]) = basis
+    if let [a, b] = symmetries(sw)[..]
         && let Some(t) = lattice_tile(sw, a, b)
     {
         return t;

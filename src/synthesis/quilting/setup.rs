@@ -123,8 +123,8 @@ pub(super) struct Setup<'a> {
     pub(super) r_elem: f32,
     /// Grid step of the matching's translations, swatch units.
     pub(super) cell: f32,
-    pub(super) classes: Vec<u32>,
-    pub(super) images: Vec<[f32; 2]>,
+    /// The tile's element centres, for the matching's nearest-centre queries.
+    pub(super) centres: super::matching::Centres,
     /// Each tile element's own triangles.
     pub(super) elem_faces: Vec<Vec<[u32; 3]>>,
     /// The base's mean edge length.
@@ -181,8 +181,6 @@ impl<'a> Setup<'a> {
         let min_spacing = spacing.iter().cloned().fold(f32::INFINITY, f32::min);
         let r_elem = sw.elements.iter().map(|e| e.radius).fold(0.0f32, f32::max) * s;
         let cell = sw.extent[0].min(sw.extent[1]) / 16.0;
-        let classes: Vec<u32> = sw.elements.iter().map(|e| e.class).collect();
-        let images = sw.images();
         let elem_faces: Vec<Vec<[u32; 3]>> = (0..sw.elements.len())
             .map(|e| sw.element_faces(e))
             .collect();
@@ -261,8 +259,7 @@ impl<'a> Setup<'a> {
             min_spacing,
             r_elem,
             cell,
-            classes,
-            images,
+            centres: super::matching::Centres::new(sw),
             elem_faces,
             mean_edge,
             period,

@@ -7,7 +7,7 @@
 //! mesh into a [`Swatch`], splitting it into elements and rejecting unusable inputs with one-line
 //! errors.
 
-use glam::{Mat3, Vec3};
+use glam::{Mat3, Vec2, Vec3};
 use rand::{Rng, SeedableRng, rngs::SmallRng};
 
 use crate::error::{Error, Result};
@@ -239,7 +239,8 @@ impl Swatch {
     pub fn clearance(&self) -> f32 {
         let images = self.images();
         let ne = self.elements.len();
-        // bounding boxes first, exact vertex distances only for near pairs
+        // element boxes, found near each other by their centres (a k-d tree), exact vertex
+        // distances only for pairs whose boxes come closer than the best so far
         let boxes: Vec<(Vec3, Vec3)> = (0..ne)
             .map(|e| {
                 let ps = self.element_positions(e);
@@ -252,32 +253,55 @@ impl Swatch {
                 (lo, hi)
             })
             .collect();
+        let centres: Vec<f32> = boxes
+            .iter()
+            .flat_map(|(lo, hi)| (0.5 * (*lo + *hi)).to_array())
+            .collect();
+        let radius: Vec<f32> = boxes
+            .iter()
+            .map(|(lo, hi)| 0.5 * lo.distance(*hi))
+            .collect();
+        let rmax = radius.iter().cloned().fold(0.0f32, f32::max);
+        let tree = crate::stats::KdTree::new(&centres, 3);
+        let exact = |a: usize, b: usize, off: Vec3, best: &mut f32| {
+            for p in self.element_positions(a) {
+                let p = Vec3::from(*p);
+                for q in self.element_positions(b) {
+                    *best = best.min(p.distance(Vec3::from(*q) + off));
+                }
+            }
+        };
         let mut best = f32::INFINITY;
+        // a first bound: each element against the one whose centre is nearest
+        let mut knn = Vec::with_capacity(2);
         for a in 0..ne {
-            for b in 0..ne {
-                for im in &images {
+            tree.knn(&centres[3 * a..3 * a + 3], 2, &mut knn);
+            if let Some(&(_, b)) = knn.iter().find(|n| n.1 as usize != a) {
+                exact(a, b as usize, Vec3::ZERO, &mut best);
+            }
+        }
+        let mut near = Vec::new();
+        for a in 0..ne {
+            let ca = Vec3::from_slice(&centres[3 * a..3 * a + 3]);
+            for im in &images {
+                let off = Vec3::new(im[0], im[1], 0.0);
+                let r = radius[a] + rmax + best;
+                tree.within(&(ca - off).to_array(), r * r, &mut near);
+                for &b in &near {
+                    let b = b as usize;
                     if a == b && im[0] == 0.0 && im[1] == 0.0 {
                         continue;
                     }
                     if b < a && !self.periodic {
                         continue;
                     }
-                    let off = Vec3::new(im[0], im[1], 0.0);
                     let (la, ha) = boxes[a];
                     let (lb, hb) = (boxes[b].0 + off, boxes[b].1 + off);
                     let gap = (lb - ha).max(la - hb).max(Vec3::ZERO).length();
                     if gap >= best {
                         continue;
                     }
-                    for p in self.element_positions(a) {
-                        let p = Vec3::from(*p);
-                        for q in self.element_positions(b) {
-                            let d = p.distance(Vec3::from(*q) + off);
-                            if d < best {
-                                best = d;
-                            }
-                        }
-                    }
+                    exact(a, b, off, &mut best);
                 }
             }
         }
@@ -291,25 +315,66 @@ impl Swatch {
         let nc = self.elements.iter().map(|e| e.class + 1).max().unwrap_or(0) as usize;
         let mut t = vec![f32::INFINITY; nc * nc];
         let images = self.images();
-        for (i, a) in self.elements.iter().enumerate() {
-            for (j, b) in self.elements.iter().enumerate() {
-                for im in &images {
-                    if i == j && im[0] == 0.0 && im[1] == 0.0 {
-                        continue;
+        let centre = |e: &Element| Vec2::new(e.centre[0], e.centre[1]);
+        if nc > CLASS_TREES_UP_TO {
+            // many classes: every pair, as a tree per class would cost as much
+            for (i, a) in self.elements.iter().enumerate() {
+                for (j, b) in self.elements.iter().enumerate() {
+                    for im in &images {
+                        if i == j && im[0] == 0.0 && im[1] == 0.0 {
+                            continue;
+                        }
+                        let d = centre(a).distance(centre(b) + Vec2::from(*im));
+                        let k = a.class as usize * nc + b.class as usize;
+                        t[k] = t[k].min(d);
+                        let k = b.class as usize * nc + a.class as usize;
+                        t[k] = t[k].min(d);
                     }
-                    let d = ((a.centre[0] - b.centre[0] - im[0]).powi(2)
-                        + (a.centre[1] - b.centre[1] - im[1]).powi(2))
-                    .sqrt();
-                    let k = a.class as usize * nc + b.class as usize;
-                    t[k] = t[k].min(d);
-                    let k = b.class as usize * nc + a.class as usize;
-                    t[k] = t[k].min(d);
+                }
+            }
+            return (nc, t);
+        }
+        // each element against the nearest centre of every class (a k-d tree per class)
+        let mut members: Vec<Vec<usize>> = vec![Vec::new(); nc];
+        for (i, e) in self.elements.iter().enumerate() {
+            members[e.class as usize].push(i);
+        }
+        let trees: Vec<crate::stats::KdTree> = members
+            .iter()
+            .map(|m| {
+                let pts: Vec<f32> = m
+                    .iter()
+                    .flat_map(|&i| centre(&self.elements[i]).to_array())
+                    .collect();
+                crate::stats::KdTree::new(&pts, 2)
+            })
+            .collect();
+        let mut near = Vec::with_capacity(2);
+        for (i, a) in self.elements.iter().enumerate() {
+            for (cb, tree) in trees.iter().enumerate() {
+                for im in &images {
+                    let own = im[0] == 0.0 && im[1] == 0.0;
+                    let q = centre(a) - Vec2::from(*im);
+                    tree.knn(&q.to_array(), 1 + own as usize, &mut near);
+                    let hit = near
+                        .iter()
+                        .find(|n| !(own && members[cb][n.1 as usize] == i));
+                    if let Some(&(d2, _)) = hit {
+                        let d = d2.sqrt();
+                        let k = a.class as usize * nc + cb;
+                        t[k] = t[k].min(d);
+                        let k = cb * nc + a.class as usize;
+                        t[k] = t[k].min(d);
+                    }
                 }
             }
         }
         (nc, t)
     }
 }
+
+/// Classes up to which [`Swatch::class_spacing`] searches a k-d tree per class.
+const CLASS_TREES_UP_TO: usize = 64;
 
 /// Split a user mesh into elements and validate it as a swatch. `up` names the axis that points
 /// away from the surface; it is rotated onto +z. The x-y extent is the bounding box, moved to
