@@ -615,3 +615,49 @@ fn a_value_that_is_not_a_finite_number_names_its_option() {
         );
     }
 }
+
+/// Run where stderr is a log (a batch job, a farm), a long command still shows that it moves:
+/// a plain line per stage and per tenth of the work, `[hh:mm:ss]  40% stage`, the stage times,
+/// and "wrote" last.
+#[test]
+fn a_log_shows_the_progress_as_plain_lines() {
+    let d = tmpdir("log");
+    let out = d.join("t.ply");
+    let o = bin()
+        .args(["transfer", "--vertices", "2000", "--source"])
+        .arg(data_path("spot/spot.obj"))
+        .arg("--target")
+        .arg(data_path("bunny/bunny.obj"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let progress: Vec<(u32, &str)> = err
+        .lines()
+        .filter_map(|l| {
+            let rest = l.strip_prefix('[')?;
+            let (clock, rest) = rest.split_once("] ")?;
+            let ok = clock.len() == 8 && clock.split(':').all(|f| f.parse::<u32>().is_ok());
+            let (pct, stage) = rest.trim_start().split_once("% ")?;
+            ok.then_some((pct.parse().ok()?, stage))
+        })
+        .collect();
+    let solve: Vec<u32> = progress
+        .iter()
+        .filter(|(_, st)| *st == "solve")
+        .map(|p| p.0)
+        .collect();
+    assert!(solve.len() >= 3, "the solve's tenths: {err}");
+    assert!(solve.windows(2).all(|w| w[0] < w[1]), "{err}");
+    assert!(progress.iter().any(|(_, st)| *st == "refine"), "{err}");
+    assert!(
+        err.lines().any(|l| l.trim_start().starts_with("level 0")),
+        "stage times: {err}"
+    );
+    assert!(
+        err.lines().last().is_some_and(|l| l.starts_with("wrote ")),
+        "{err}"
+    );
+}

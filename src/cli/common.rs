@@ -1,5 +1,6 @@
 //! Helpers shared by the subcommands: loading, output paths, progress bars, masks, solver flags.
 
+use std::io::IsTerminal;
 use std::path::Path;
 
 use crate::error::{Error, Result};
@@ -625,7 +626,8 @@ pub fn progress_bar() -> indicatif::ProgressBar {
 pub fn bar_sink(bar: &indicatif::ProgressBar, e: Event) {
     match e {
         Event::Progress(p) | Event::Partial { progress: p, .. } => {
-            bar.set_position((p.fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+            let position = (p.fraction.clamp(0.0, 1.0) * 1000.0) as u64;
+            bar.set_position(position);
             if p.iteration > 0 {
                 bar.set_message(format!(
                     "{} level {}/{} iteration {} energy {:.4}",
@@ -634,8 +636,41 @@ pub fn bar_sink(bar: &indicatif::ProgressBar, e: Event) {
             } else {
                 bar.set_message(p.stage.to_string());
             }
+            if !std::io::stderr().is_terminal() {
+                log_progress(bar, position, p.stage);
+            }
         }
-        Event::StageTime(name, s) => bar.println(format!("  {name:<12} {s:8.3} s")),
+        Event::StageTime(name, s) => {
+            let line = format!("  {name:<12} {s:8.3} s");
+            if std::io::stderr().is_terminal() {
+                bar.println(line);
+            } else {
+                eprintln!("{line}");
+            }
+        }
+    }
+}
+
+/// Where the progress is not drawn (stderr is a log file or a pipe: a batch job, a render
+/// farm), a plain line each time a command enters a stage or passes a tenth of its work, so
+/// that a log shows a long run moving: `[00:01:23]  40% synthesis`.
+fn log_progress(bar: &indicatif::ProgressBar, position: u64, stage: &str) {
+    static LAST: std::sync::Mutex<Option<(u64, String)>> = std::sync::Mutex::new(None);
+    let mut last = LAST.lock().unwrap_or_else(|e| e.into_inner());
+    let tenth = position / 100;
+    let news = last
+        .as_ref()
+        .is_none_or(|(t, st)| *t != tenth || st != stage);
+    if news {
+        let secs = bar.elapsed().as_secs();
+        eprintln!(
+            "[{:02}:{:02}:{:02}] {:>3}% {stage}",
+            secs / 3600,
+            secs / 60 % 60,
+            secs % 60,
+            position / 10
+        );
+        *last = Some((tenth, stage.to_string()));
     }
 }
 
