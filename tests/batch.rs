@@ -100,7 +100,10 @@ fn batch_runs_records_resumes_and_forces() {
     assert!(s["jobs"][2]["seconds"].as_f64().unwrap() > 0.0);
     // Every job's log beside the summary, and the table.
     let logs = dir.join("jobs-batch");
-    assert!(logs.join("2-spot-to-bunny.log").is_file());
+    // the transfer's log shows its progress as plain lines, its stage times and what it wrote
+    let transfer_log = std::fs::read_to_string(logs.join("2-spot-to-bunny.log")).unwrap();
+    assert!(transfer_log.contains("% solve"), "{transfer_log}");
+    assert!(transfer_log.contains("wrote "), "{transfer_log}");
     let log = std::fs::read_to_string(logs.join("3-wrong-extension.log")).unwrap();
     assert!(log.contains("must end in"), "{log}");
     let table = std::fs::read_to_string(logs.join("batch-summary.txt")).unwrap();

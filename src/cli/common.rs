@@ -636,24 +636,39 @@ pub fn bar_sink(bar: &indicatif::ProgressBar, e: Event) {
             } else {
                 bar.set_message(p.stage.to_string());
             }
-            if !std::io::stderr().is_terminal() {
+            if progress_lines() {
                 log_progress(bar, position, p.stage);
             }
         }
         Event::StageTime(name, s) => {
             let line = format!("  {name:<12} {s:8.3} s");
-            if std::io::stderr().is_terminal() {
-                bar.println(line);
-            } else {
+            if progress_lines() {
                 eprintln!("{line}");
+            } else {
+                bar.println(line);
             }
         }
     }
 }
 
-/// Where the progress is not drawn (stderr is a log file or a pipe: a batch job, a render
-/// farm), a plain line each time a command enters a stage or passes a tenth of its work, so
-/// that a log shows a long run moving: `[00:01:23]  40% synthesis`.
+/// The environment variable that asks for [`log_progress`]'s lines (`lines`); `batch` sets it
+/// for its jobs, so their logs show them.
+pub const PROGRESS_ENV: &str = "MESHMATCH_PROGRESS";
+
+/// Whether progress goes to stderr as plain lines: asked for by [`PROGRESS_ENV`] and stderr
+/// not a terminal (where the bar is drawn instead). Otherwise a command run with stderr
+/// captured says nothing before its summary, and a refusal stays one line.
+fn progress_lines() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| {
+        std::env::var_os(PROGRESS_ENV).is_some_and(|v| v == "lines")
+            && !std::io::stderr().is_terminal()
+    })
+}
+
+/// Where the progress is not drawn (a batch job's log, a render farm), a plain line each time
+/// a command enters a stage or passes a tenth of its work, so that a log shows a long run
+/// moving: `[00:01:23]  40% synthesis`.
 fn log_progress(bar: &indicatif::ProgressBar, position: u64, stage: &str) {
     static LAST: std::sync::Mutex<Option<(u64, String)>> = std::sync::Mutex::new(None);
     let mut last = LAST.lock().unwrap_or_else(|e| e.into_inner());

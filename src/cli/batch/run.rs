@@ -159,7 +159,9 @@ fn spawn(job: &Job, opts: &Options) -> Result<(Child, String)> {
         .current_dir(&opts.dir)
         .stdin(Stdio::null())
         .stdout(out)
-        .stderr(err);
+        .stderr(err)
+        // the log shows the job's progress as plain lines
+        .env(super::super::common::PROGRESS_ENV, "lines");
     if let Some(t) = opts.threads_per_job {
         cmd.env("RAYON_NUM_THREADS", t.to_string());
     }

@@ -5,10 +5,11 @@
 //!    about their mean and its box size. Two elements share a key only when one is a
 //!    translated copy of the other (a turned or resized copy does not).
 //! 2. **Self-matching.** Every difference `t` between the centres of two elements with equal keys
-//!    is a candidate translation. `t` is a symmetry when the swatch shifted by `t` matches itself
-//!    wherever the shifted copy stays inside the swatch: every element whose shifted box lies
-//!    within the swatch's box must land on an element with its key (centres within 2% of the
-//!    shortest centre spacing), and at least two elements must land.
+//!    is a candidate translation (from a few anchor elements when the swatch has many: see
+//!    [`symmetries`]), tried shortest first. `t` is a symmetry when the swatch shifted by `t`
+//!    matches itself wherever the shifted copy stays inside the swatch: every element whose
+//!    shifted box lies within the swatch's box must land on an element with its key (centres
+//!    within 2% of the shortest centre spacing), and at least two elements must land.
 //! 3. **Lattice.** `a` = the shortest symmetry, `b` = the shortest one not parallel to `a`. The
 //!    tile is the smallest rectangle spanned by two orthogonal lattice vectors `A`, `B`
 //!    (combinations `i a + j b`, `|i|, |j| <= 4`) with `A` along the swatch's x axis when the

@@ -2,13 +2,14 @@
 //! the tile): the swatch's width `L` and the scale `s` on the base, the shell thickness `H`,
 //! and the tile's clearances, spacings, periods and element shapes at that scale.
 
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 use super::periodicity::{self, Periodicity};
 use super::swatch::Swatch;
 use super::{Input, Params};
 use crate::error::{Error, Result};
 use crate::mesh::TriMesh;
+use crate::stats::KdTree;
 
 /// The swatch's scale on the base.
 #[derive(Clone, Copy)]
@@ -124,7 +125,7 @@ pub(super) struct Setup<'a> {
     /// Grid step of the matching's translations, swatch units.
     pub(super) cell: f32,
     /// The tile's element centres, for the matching's nearest-centre queries.
-    pub(super) centres: super::matching::Centres,
+    pub(super) centres: Centres,
     /// Each tile element's own triangles.
     pub(super) elem_faces: Vec<Vec<[u32; 3]>>,
     /// The base's mean edge length.
@@ -259,7 +260,7 @@ impl<'a> Setup<'a> {
             min_spacing,
             r_elem,
             cell,
-            centres: super::matching::Centres::new(sw),
+            centres: Centres::new(sw),
             elem_faces,
             mean_edge,
             period,
@@ -327,4 +328,64 @@ pub(super) fn principal_aspect(ps: &[[f32; 3]]) -> f32 {
         return f32::INFINITY;
     }
     (l1 / l2).sqrt() as f32
+}
+
+/// The tile's element centres for the matching's nearest-centre queries: one k-d tree over
+/// all of them and one per class, with the copies around the tile when it repeats.
+pub(super) struct Centres {
+    /// The tile's extent when it repeats (queries are wrapped into it).
+    period: Option<Vec2>,
+    all: (KdTree, Vec<Vec2>),
+    by_class: Vec<(KdTree, Vec<Vec2>)>,
+}
+
+impl Centres {
+    pub(super) fn new(sw: &Swatch) -> Centres {
+        let period = sw.periodic.then(|| Vec2::new(sw.extent[0], sw.extent[1]));
+        let shifts: Vec<Vec2> = match period {
+            Some(e) => (-1..=1)
+                .flat_map(|j| (-1..=1).map(move |i| Vec2::new(i as f32 * e.x, j as f32 * e.y)))
+                .collect(),
+            None => vec![Vec2::ZERO],
+        };
+        let nc = sw.elements.iter().map(|e| e.class + 1).max().unwrap_or(0) as usize;
+        let mut all = Vec::new();
+        let mut by_class = vec![Vec::new(); nc];
+        for el in &sw.elements {
+            for sh in &shifts {
+                let c = Vec2::new(el.centre[0], el.centre[1]) + *sh;
+                all.push(c);
+                by_class[el.class as usize].push(c);
+            }
+        }
+        let tree = |pts: Vec<Vec2>| {
+            let flat: Vec<f32> = pts.iter().flat_map(|p| p.to_array()).collect();
+            (KdTree::new(&flat, 2), pts)
+        };
+        Centres {
+            period,
+            all: tree(all),
+            by_class: by_class.into_iter().map(tree).collect(),
+        }
+    }
+
+    /// For a point `x` of the tile's frame and a class: the offset from the nearest centre of
+    /// that class (`x` minus it; infinite when the class has none) and the distance to the
+    /// nearest centre of any class.
+    pub(super) fn nearest(&self, x: Vec2, class: u32, near: &mut Vec<(f32, u32)>) -> (Vec2, f32) {
+        let x = match self.period {
+            Some(e) => x - (x / e).floor() * e,
+            None => x,
+        };
+        let mut residual = Vec2::splat(f32::INFINITY);
+        if let Some((tree, pts)) = self.by_class.get(class as usize) {
+            tree.knn(&x.to_array(), 1, near);
+            if let Some(&(_, i)) = near.first() {
+                residual = x - pts[i as usize];
+            }
+        }
+        self.all.0.knn(&x.to_array(), 1, near);
+        let any = near.first().map_or(f32::INFINITY, |n| n.0.sqrt());
+        (residual, any)
+    }
 }
