@@ -87,14 +87,12 @@ fn conflict_graph(
         }
     }
     let pieces = KdTree::new(&piece_centres, 3);
-    let own_max = setup.own_spacing.iter().cloned().fold(0.0f32, f32::max);
-    let conflict_reach = 1.001 * max_conflict.max(1.1 * own_max * setup.s);
     let mut within: Vec<u32> = Vec::new();
     let mut reached: Vec<u32> = Vec::new();
     for (j, c) in cands.iter().enumerate() {
         let cl = sw.elements[c.source as usize].class;
         let mut near = old_hash.near(&c.positions, tau);
-        let reach = conflict_reach.max(2.0 * (c.radius + max_radius));
+        let reach = setup.conflict_reach.max(2.0 * (c.radius + max_radius));
         pieces.within(&c.centre.to_array(), reach * reach, &mut within);
         reached.clear();
         reached.extend(within.iter().map(|&i| piece_of[i as usize]));

@@ -65,12 +65,11 @@ pub(super) fn register(
     (rot, t)
 }
 
-/// Eq. (1)-(3) at the element level: the swatch translation (swatch units) that best explains
-/// the old elements `old` (id, position in swatch coordinates of the patch frame).
 /// Old elements the translation's grid search scores, at most.
 const MATCHED_OLD: usize = 128;
 
-#[allow(clippy::too_many_arguments)]
+/// Eq. (1)-(3) at the element level: the swatch translation (swatch units) that best explains
+/// the old elements `old` (id, position in swatch coordinates of the patch frame).
 fn choose_translation(
     sw: &Swatch,
     centres: &Centres,

@@ -200,12 +200,14 @@ fn flat(c: &[Vec2]) -> Vec<f32> {
     c.iter().flat_map(|p| p.to_array()).collect()
 }
 
+/// Swatches of up to this many elements anchor candidates at every element.
+const ALL_ANCHORS_UP_TO: usize = 64;
+/// Anchors nearest the centre, and nearest each corner, of a larger swatch.
+const ANCHORS_PER_PLACE: usize = 3;
+
 /// Elements that anchor the candidate translations: every one for a small swatch, else those
 /// nearest the centre and nearest each corner of the swatch (by their boxes, the ones a shift
 /// towards the opposite corner keeps inside longest).
-const ALL_ANCHORS_UP_TO: usize = 64;
-const ANCHORS_PER_PLACE: usize = 3;
-
 fn anchors(k: &[Key], extent: Vec2) -> Vec<usize> {
     let ne = k.len();
     if ne <= ALL_ANCHORS_UP_TO {

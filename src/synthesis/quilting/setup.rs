@@ -139,6 +139,10 @@ pub(super) struct Setup<'a> {
     pub(super) elongated: Vec<bool>,
     /// Largest conflict distance between centres, base units.
     pub(super) max_conflict: f32,
+    /// Largest centre distance at which [`Setup::conflict_dist`] can call two elements in
+    /// conflict (its class term, [`Setup::max_conflict`], or its own-spacing term), base units,
+    /// with a little slack for rounding.
+    pub(super) conflict_reach: f32,
     /// How far a nudged candidate may move, base units.
     pub(super) nudge_reach: f32,
     /// Cell of the hash of placed elements' centres.
@@ -227,6 +231,8 @@ impl<'a> Setup<'a> {
             .iter()
             .filter(|x| x.is_finite())
             .fold(0.0f32, |a, &b| a.max(0.7 * b * s));
+        let own_max = own_spacing.iter().cloned().fold(0.0f32, f32::max);
+        let conflict_reach = 1.001 * max_conflict.max(1.1 * own_max * s);
         // how far a nudged candidate may move (at most half of a class's spacing); only threads are
         // nudged, so a swatch without any widens no search
         let nudge_reach = if params.nudge && elongated.iter().any(|&long| long) {
@@ -267,6 +273,7 @@ impl<'a> Setup<'a> {
             merge_delta,
             elongated,
             max_conflict,
+            conflict_reach,
             nudge_reach,
             centre_cell,
             rp_min,
