@@ -92,6 +92,13 @@ fn ink_clouds_on_the_bunny_keep_their_contrast_and_plumes() {
     compare("bunny/bunny.obj", "textures/2.jpg");
 }
 
+/// The horse's thin legs cut most patches short: the image's parts must still reach the
+/// surface in their own proportions (pale background and red plumes alike).
+#[test]
+fn ink_clouds_on_the_horse_keep_their_colours() {
+    compare("horse/horse.ply", "textures/2.jpg");
+}
+
 #[test]
 fn bark_on_the_penguin_keeps_its_contrast_and_strips() {
     compare("penguin/penguin.obj", "textures/3.jpg");

@@ -18,6 +18,7 @@ mod neigh;
 mod orient;
 pub mod patch_pasting;
 mod pyramid;
+mod seam;
 mod search;
 pub mod texture_space;
 

@@ -23,10 +23,15 @@
 //!    lapped textures' hand-drawn splotch), with a feathered edge.
 //! 6. **Place**: among random image positions (and rotations, when the field allows), the one
 //!    whose image colours best match the texels already covered under the new patch's
-//!    footprint (sum of squared differences weighted by both alphas), refined by a pattern
-//!    search.
+//!    footprint (sum of squared differences weighted by both alphas, over the image's colour
+//!    variance), plus a penalty for parts of the image that more texels already show than the
+//!    average (counted texel by texel, so the texture keeps the image's colour distribution),
+//!    refined by a pattern search.
 //! 7. **Paste**: each texel of the patch's faces reads the full-resolution image at its
-//!    coordinate (bilinear) and is composited over what is there with the splotch's alpha.
+//!    coordinate (bilinear). Where something is already there, the patch shows only inside a
+//!    closed seam around its seed that runs where old and new agree best (Efros & Freeman's
+//!    boundary cut, [`super::seam`]), so patches meet at a sharp seam instead of a blended band;
+//!    where nothing is, it is composited with the splotch's feathered alpha.
 //!    Transparent image pixels give alpha 0, so they never reach the surface.
 //!
 //! Texels no patch covers (faces every flattening left out) are filled from their neighbours
@@ -38,6 +43,7 @@ use rand::seq::SliceRandom;
 use rayon::prelude::*;
 
 use super::pyramid::{Img, stage_rng};
+use super::seam::SeamCosts;
 use super::texture_space::{
     Surface, TextureInput, TextureParams, check_texture_memory, set_texture, texture_layout,
 };
@@ -59,8 +65,9 @@ pub struct PatchParams {
     pub wobble: f32,
     /// Image positions (and rotations) tried per patch before refining the best.
     pub candidates: usize,
-    /// How strongly a placement's score grows with the use of its part of the image, relative
-    /// to the mean use, so that all of the image reaches the surface.
+    /// How much a placement's score grows with the use of its part of the image (texels showing
+    /// it, relative to the mean over the image), against its mismatch in units of the image's
+    /// colour variance, so that all of the image reaches the surface in its own proportions.
     pub usage_weight: f32,
 }
 
@@ -152,6 +159,7 @@ pub fn paste_patches(
         radius,
         reach: radius * (1.0 + pp.wobble) * 1.1 + longest_edge(&surface),
         border_fade,
+        variance: colour_variance(&image, opacity.as_deref()),
         pp,
     };
     let (canvas, patches) = ctx.paste_all(&turn, params.synth.seed, &total, sink, cancel)?;
@@ -391,6 +399,9 @@ struct Context<'a> {
     reach: f32,
     /// Image pixels over which a patch fades out at the image's border.
     border_fade: f32,
+    /// The image's colour variance (summed over the channels, opaque pixels): half the mean
+    /// squared difference of two random pixels, the scale of a placement's colour mismatch.
+    variance: f32,
     pp: &'a PatchParams,
 }
 
@@ -401,9 +412,15 @@ struct Canvas {
     alpha: Vec<f32>,
     /// Texels with alpha at least 0.5.
     covered: usize,
-    /// Patches whose core covered each cell of a `USAGE² ` grid over the image.
+    /// Texels now showing each cell of a `USAGE²` grid over the image: the texture's make-up
+    /// by where in the image its texels come from.
     usage: Vec<f32>,
+    /// The usage cell each texel shows ([`NO_CELL`]: none yet).
+    source: Vec<u16>,
 }
+
+/// A texel no patch has shown yet.
+const NO_CELL: u16 = u16::MAX;
 
 /// Cells a side of the image's usage grid.
 const USAGE: usize = 16;
@@ -487,15 +504,17 @@ impl Splotch {
         if rho < 1.0 - self.harmonics.iter().map(|h| h.0).sum::<f32>() - self.feather {
             return 1.0;
         }
-        let a = q.y.atan2(q.x);
-        let rim = 1.0
-            + self
-                .harmonics
-                .iter()
-                .enumerate()
-                .map(|(k, &(amp, ph))| amp * ((k + 1) as f32 * a + ph).cos())
-                .sum::<f32>();
-        ((rim - rho) / self.feather).clamp(0.0, 1.0)
+        ((self.rim(q.y.atan2(q.x)) - rho) / self.feather).clamp(0.0, 1.0)
+    }
+
+    /// The rim's radius (in radii) at angle `a`.
+    fn rim(&self, a: f32) -> f32 {
+        1.0 + self
+            .harmonics
+            .iter()
+            .enumerate()
+            .map(|(k, &(amp, ph))| amp * ((k + 1) as f32 * a + ph).cos())
+            .sum::<f32>()
     }
 }
 
@@ -544,6 +563,7 @@ impl Context<'_> {
             alpha: vec![0.0; texels.len()],
             covered: 0,
             usage: vec![0.0; USAGE * USAGE],
+            source: vec![NO_CELL; texels.len()],
         };
         let layout_texels = texels.iter().filter(|t| t.is_some()).count().max(1);
         let mut rng = stage_rng(seed, 11);
@@ -666,6 +686,12 @@ impl Context<'_> {
         place: &Placement,
     ) -> (f32, Vec2) {
         let q = corners[0] * b[0] + corners[1] * b[1] + corners[2] * b[2];
+        self.sample_at(q, splotch, place)
+    }
+
+    /// [`Self::sample`] at the flattened point `q` (surface units from the seed).
+    #[inline]
+    fn sample_at(&self, q: Vec2, splotch: &Splotch, place: &Placement) -> (f32, Vec2) {
         let a = splotch.alpha(q / self.radius);
         if a <= 0.0 {
             return (0.0, Vec2::ZERO);
@@ -781,13 +807,16 @@ impl Context<'_> {
                 f32::INFINITY
             }
         };
-        // a placement over parts of the image pasted more often than the rest scores worse, so
-        // that all of the image reaches the surface (the score is scaled, so a good match still
-        // wins over an unused part)
+        // a placement over parts of the image that more texels show than the rest scores worse,
+        // so that all of the image reaches the surface in the image's own proportions (its
+        // colour distribution): the mismatch, in units of the image's colour variance, plus the
+        // weighted use relative to the mean. Added, not multiplied: a multiplied penalty vanishes
+        // where the match is near perfect, which over flat parts of an image (pale background,
+        // mortar) it always is, and those parts then win every time.
         let core_px = self.radius * (1.0 - self.pp.wobble - self.pp.feather) / self.pixel;
         let mean_usage = canvas.usage.iter().sum::<f32>() / canvas.usage.len() as f32;
         let score = |pl: &Placement| -> f32 {
-            let s = score(pl);
+            let s = score(pl) / (2.0 * self.variance);
             if mean_usage <= 0.0 {
                 return s;
             }
@@ -798,7 +827,7 @@ impl Context<'_> {
                 pl.centre,
                 core_px,
             );
-            s * (1.0 + self.pp.usage_weight * u / mean_usage)
+            s + self.pp.usage_weight * u / mean_usage
         };
         let mut best = draw(rng);
         let mut best_score = score(&best);
@@ -824,41 +853,101 @@ impl Context<'_> {
 
     /// Step 7: composite the patch's texels over the canvas.
     fn paste(&self, patch: &Patch, splotch: &Splotch, place: &Placement, canvas: &mut Canvas) {
-        let core_px = self.radius * (1.0 - self.pp.wobble - self.pp.feather) / self.pixel;
         let (w, h) = (self.image.w as f32, self.image.h as f32);
-        for cy in 0..USAGE {
-            for cx in 0..USAGE {
-                let c = Vec2::new(
-                    (cx as f32 + 0.5) * w / USAGE as f32,
-                    (cy as f32 + 0.5) * h / USAGE as f32,
-                );
-                if c.distance(place.centre) <= core_px {
-                    canvas.usage[cy * USAGE + cx] += 1.0;
-                }
-            }
-        }
+        let cell_of = |p: Vec2| -> u16 {
+            let cx = ((p.x + 0.5) / w * USAGE as f32).clamp(0.0, USAGE as f32 - 1.0) as usize;
+            let cy = ((p.y + 0.5) / h * USAGE as f32).clamp(0.0, USAGE as f32 - 1.0) as usize;
+            (cy * USAGE + cx) as u16
+        };
+        // the patch's texels, and the seam's costs over them
+        let mut texels: Vec<PatchTexel> = Vec::new();
+        let mut costs = SeamCosts::new(SEAM_ANGLES, SEAM_RINGS, SEAM_INNER);
         for (i, &f) in patch.faces.iter().enumerate() {
+            let corners = &patch.corners[i];
             for &t in self.face_texels.row(f as usize) {
-                let t = t as usize;
-                let (_, b) = self.texels[t].expect("a layout texel");
-                let (a, p) = self.sample(&patch.corners[i], b, splotch, place);
+                let (_, b) = self.texels[t as usize].expect("a layout texel");
+                let q = corners[0] * b[0] + corners[1] * b[1] + corners[2] * b[2];
+                let (a, p) = self.sample_at(q, splotch, place);
                 if a <= 0.0 {
                     continue;
                 }
-                let c = self.image.bilinear(p.x, p.y);
-                let old = canvas.alpha[t];
-                for (dst, src) in canvas.color[t].iter_mut().zip(c) {
-                    *dst = a * src + (1.0 - a) * *dst;
+                let color = self.image.bilinear(p.x, p.y);
+                let angle = q.y.atan2(q.x);
+                let rim = splotch.rim(angle) * self.radius;
+                let s = q.length() / rim;
+                let old_a = canvas.alpha[t as usize];
+                if old_a < 0.5 {
+                    costs.force(angle, s);
+                } else {
+                    let old = canvas.color[t as usize].map(|x| x / old_a);
+                    costs.add(angle, s, (0..3).map(|k| (old[k] - color[k]).powi(2)).sum());
                 }
-                let new = a + (1.0 - a) * old;
-                if old < 0.5 && new >= 0.5 {
-                    canvas.covered += 1;
+                // the seam's ramp: about two texels (pixels) wide
+                let blend = 2.0 * self.pixel / rim;
+                texels.push(PatchTexel {
+                    texel: t,
+                    cell: cell_of(p),
+                    angle,
+                    s,
+                    blend,
+                    alpha: a,
+                    color,
+                });
+            }
+        }
+        let seam = costs.cut();
+        for pt in &texels {
+            let t = pt.texel as usize;
+            let old = canvas.alpha[t];
+            // a texel nothing covers takes the patch as the splotch shows it; a covered one
+            // only inside the seam
+            let a = if old < 0.5 {
+                pt.alpha
+            } else {
+                pt.alpha * seam.alpha(pt.angle, pt.s, pt.blend)
+            };
+            if a <= 0.0 {
+                continue;
+            }
+            for (dst, src) in canvas.color[t].iter_mut().zip(pt.color) {
+                *dst = a * src + (1.0 - a) * *dst;
+            }
+            let new = a + (1.0 - a) * old;
+            if old < 0.5 && new >= 0.5 {
+                canvas.covered += 1;
+            }
+            canvas.alpha[t] = new;
+            // the texel now shows the patch's part of the image when the patch dominates it
+            let was = canvas.source[t];
+            if (a >= 0.5 || was == NO_CELL) && new >= 0.5 && was != pt.cell {
+                if was != NO_CELL {
+                    canvas.usage[was as usize] -= 1.0;
                 }
-                canvas.alpha[t] = new;
+                canvas.usage[pt.cell as usize] += 1.0;
+                canvas.source[t] = pt.cell;
             }
         }
     }
 }
+
+/// A texel under a patch being pasted: where it lies in the patch (angle and radius relative
+/// to the rim there), the seam ramp's width there, and what the patch gives it.
+struct PatchTexel {
+    texel: u32,
+    /// The usage cell of the image point it reads.
+    cell: u16,
+    angle: f32,
+    s: f32,
+    blend: f32,
+    alpha: f32,
+    color: [f32; 3],
+}
+
+/// The seam's polar grid: angles around the seed, rings between [`SEAM_INNER`] and the rim.
+const SEAM_ANGLES: usize = 96;
+const SEAM_RINGS: usize = 24;
+/// The share of the rim's radius that always shows the new patch.
+const SEAM_INNER: f32 = 0.25;
 
 /// Opaque pixels as wide as a transparent region's antialiased fringe: they take the colour of
 /// what was cut away (a halo) and are not pasted.
@@ -924,6 +1013,23 @@ fn pattern_search(
         }
     }
     best
+}
+
+/// The colour variance of `image` summed over its channels, over the pixels `opacity` shows
+/// (all without it); a small floor keeps a flat image's scores finite.
+fn colour_variance(image: &Img, opacity: Option<&[f32]>) -> f32 {
+    let (mut w, mut sum, mut sq) = (0.0f64, [0.0f64; 3], [0.0f64; 3]);
+    for (i, c) in image.px.iter().enumerate() {
+        let a = opacity.map_or(1.0, |o| o[i]) as f64;
+        w += a;
+        for k in 0..3 {
+            sum[k] += a * c[k] as f64;
+            sq[k] += a * (c[k] as f64).powi(2);
+        }
+    }
+    let w = w.max(1e-9);
+    let var: f64 = (0..3).map(|k| sq[k] / w - (sum[k] / w).powi(2)).sum();
+    (var as f32).max(1e-4)
 }
 
 /// The mean use of the usage grid's cells within `r` pixels of `c` (the nearest cell's when none

@@ -1,0 +1,220 @@
+//! The seam where a pasted patch meets what is already on the surface: Efros & Freeman 2001's
+//! minimum-error boundary cut, closed around a disc.
+//!
+//! A feathered rim blends the new patch into the old texture over a band several pixels wide;
+//! inside the band both images show at once (ghosting), which neither the image nor its
+//! contrast has. Instead, the patch keeps its texels up to a closed seam around its seed and the
+//! old texture is kept beyond it, the seam running where the two agree best:
+//! 1. the patch's disc is divided into a polar grid over `s`, the radius as a fraction of the
+//!    splotch's rim in that direction (so the last ring follows the wobbling rim);
+//! 2. each cell sums the squared colour difference between the old texel and the new one over
+//!    its covered texels; a texel nothing covers yet forces the seam beyond its ring, so the
+//!    patch fills every hole it was started for;
+//! 3. the seam is one ring per angle, moving at most [`MAX_STEP`] rings between neighbouring
+//!    angles, closed around the disc, of least total cost (a cell's mean difference times its
+//!    ring's length, and a step across rings costs the cells it runs through radially, so the
+//!    seam does not zigzag): dynamic programming over the angles from each start ring;
+//! 4. a texel's alpha falls from 1 to 0 across the seam over about two texels, so the seam is
+//!    not aliased.
+//!
+//! Where old and new agree everywhere the seam stays at the rim, which is the feathered splotch
+//! as before.
+
+/// Rings the seam may move between neighbouring angles.
+const MAX_STEP: usize = 2;
+
+/// The polar grid of seam costs of one patch.
+pub(super) struct SeamCosts {
+    angles: usize,
+    rings: usize,
+    /// Innermost `s` the seam may reach: the core always shows the new patch.
+    inner: f32,
+    cost: Vec<f32>,
+    count: Vec<u32>,
+    /// Per angle, the outermost ring holding an uncovered texel (the seam must lie beyond it).
+    forced: Vec<i32>,
+}
+
+impl SeamCosts {
+    pub(super) fn new(angles: usize, rings: usize, inner: f32) -> SeamCosts {
+        SeamCosts {
+            angles,
+            rings,
+            inner,
+            cost: vec![0.0; angles * rings],
+            count: vec![0; angles * rings],
+            forced: vec![-1; angles],
+        }
+    }
+
+    /// The cell of a texel at `angle` (radians) and relative radius `s`; `None` inside the core.
+    fn cell(&self, angle: f32, s: f32) -> Option<(usize, usize)> {
+        if s < self.inner {
+            return None;
+        }
+        let a = angle.rem_euclid(std::f32::consts::TAU) / std::f32::consts::TAU;
+        let i = ((a * self.angles as f32) as usize).min(self.angles - 1);
+        let r = (((s - self.inner) / (1.0 - self.inner)) * self.rings as f32) as usize;
+        Some((i, r.min(self.rings - 1)))
+    }
+
+    /// A covered texel whose old and new colours differ by `diff2` (squared).
+    pub(super) fn add(&mut self, angle: f32, s: f32, diff2: f32) {
+        if let Some((i, r)) = self.cell(angle, s) {
+            self.cost[i * self.rings + r] += diff2;
+            self.count[i * self.rings + r] += 1;
+        }
+    }
+
+    /// A texel nothing covers yet: the seam passes beyond it.
+    pub(super) fn force(&mut self, angle: f32, s: f32) {
+        if let Some((i, r)) = self.cell(angle, s) {
+            self.forced[i] = self.forced[i].max(r as i32);
+        }
+    }
+
+    /// The seam: per angle, the `s` it passes at (the middle of its ring).
+    pub(super) fn cut(&self) -> Seam {
+        let (na, nr) = (self.angles, self.rings);
+        let ring_s = |r: usize| self.inner + (r as f32 + 0.5) / nr as f32 * (1.0 - self.inner);
+        // a cell's cost: its mean difference along the seam's length there; a ring's own length
+        // breaks ties toward the rim, so agreeing textures keep the whole patch
+        let cell_cost: Vec<f32> = (0..na * nr)
+            .map(|k| {
+                let r = k % nr;
+                let allowed = r as i32 > self.forced[k / nr] || r == nr - 1;
+                if !allowed {
+                    return f32::INFINITY;
+                }
+                let mean = if self.count[k] > 0 {
+                    self.cost[k] / self.count[k] as f32
+                } else {
+                    0.0
+                };
+                mean * ring_s(r) + 1e-6 * (nr - 1 - r) as f32
+            })
+            .collect();
+        let mut best: (f32, Vec<usize>) = (f32::INFINITY, Vec::new());
+        let mut acc = vec![0.0f32; nr];
+        let mut next = vec![0.0f32; nr];
+        let mut from = vec![0u16; na * nr];
+        for r0 in 0..nr {
+            if !cell_cost[r0].is_finite() {
+                continue;
+            }
+            acc.fill(f32::INFINITY);
+            acc[r0] = cell_cost[r0];
+            for i in 1..na {
+                for r in 0..nr {
+                    let lo = r.saturating_sub(MAX_STEP);
+                    let hi = (r + MAX_STEP).min(nr - 1);
+                    let here = cell_cost[i * nr + r];
+                    let (mut m, mut arg) = (f32::INFINITY, r);
+                    for (p, &v) in acc.iter().enumerate().take(hi + 1).skip(lo) {
+                        // a step across rings runs the seam radially through them too
+                        let step =
+                            p.abs_diff(r) as f32 * 0.5 * (here + cell_cost[(i - 1) * nr + p]);
+                        if v + step < m {
+                            m = v + step;
+                            arg = p;
+                        }
+                    }
+                    next[r] = m + here;
+                    from[i * nr + r] = arg as u16;
+                }
+                std::mem::swap(&mut acc, &mut next);
+            }
+            // closed: the last angle's ring within a step of the first's
+            let lo = r0.saturating_sub(MAX_STEP);
+            let hi = (r0 + MAX_STEP).min(nr - 1);
+            for (r, &total) in acc.iter().enumerate().take(hi + 1).skip(lo) {
+                if total < best.0 {
+                    let mut path = vec![0usize; na];
+                    path[na - 1] = r;
+                    for i in (1..na).rev() {
+                        path[i - 1] = from[i * nr + path[i]] as usize;
+                    }
+                    best = (total, path);
+                }
+            }
+        }
+        let rho = if best.1.is_empty() {
+            vec![1.0; na]
+        } else {
+            // the outermost ring stands for the rim itself: the splotch's feather ends the patch
+            best.1
+                .iter()
+                .map(|&r| if r == nr - 1 { 1.0 } else { ring_s(r) })
+                .collect()
+        };
+        Seam { rho }
+    }
+}
+
+/// A closed seam around a patch's seed.
+pub(super) struct Seam {
+    rho: Vec<f32>,
+}
+
+impl Seam {
+    /// How much of the new patch shows at `angle` and relative radius `s`: 1 inside the seam,
+    /// 0 beyond it, a ramp `blend` wide (in `s`) across it; the seam is interpolated between
+    /// the angles' centres.
+    pub(super) fn alpha(&self, angle: f32, s: f32, blend: f32) -> f32 {
+        let n = self.rho.len();
+        let x = angle.rem_euclid(std::f32::consts::TAU) / std::f32::consts::TAU * n as f32 - 0.5;
+        let i0 = x.floor();
+        let t = x - i0;
+        let i0 = (i0 as i64).rem_euclid(n as i64) as usize;
+        let i1 = (i0 + 1) % n;
+        let rho = self.rho[i0] * (1.0 - t) + self.rho[i1] * t;
+        if rho >= 1.0 {
+            return 1.0;
+        }
+        ((rho - s) / blend.max(1e-6) + 0.5).clamp(0.0, 1.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f32::consts::TAU;
+
+    #[test]
+    fn the_seam_runs_where_old_and_new_agree_and_beyond_every_hole() {
+        let (na, nr) = (32, 16);
+        let mut c = SeamCosts::new(na, nr, 0.25);
+        // old and new agree only on the ring at s = 0.5; everywhere else they differ
+        for i in 0..na {
+            let a = (i as f32 + 0.5) / na as f32 * TAU;
+            for r in 0..nr {
+                let s = 0.25 + (r as f32 + 0.5) / nr as f32 * 0.75;
+                let d = if (s - 0.5).abs() < 0.03 { 0.0 } else { 1.0 };
+                c.add(a, s, d);
+            }
+        }
+        // a hole at s = 0.8 in one direction pushes the seam out there
+        c.force(0.5 / na as f32 * TAU, 0.8);
+        let seam = c.cut();
+        for i in 5..na - 5 {
+            let a = (i as f32 + 0.5) / na as f32 * TAU;
+            let inside = seam.alpha(a, 0.4, 0.01);
+            let outside = seam.alpha(a, 0.7, 0.01);
+            assert!(
+                inside > 0.99 && outside < 0.01,
+                "angle {i}: {inside} {outside}"
+            );
+        }
+        assert!(seam.alpha(0.5 / na as f32 * TAU, 0.8, 0.01) > 0.99);
+    }
+
+    #[test]
+    fn agreeing_textures_keep_the_whole_patch() {
+        let mut c = SeamCosts::new(24, 12, 0.25);
+        for i in 0..24 {
+            c.add((i as f32 + 0.5) / 24.0 * TAU, 0.6, 0.0);
+        }
+        let seam = c.cut();
+        assert!((0..24).all(|i| seam.alpha(i as f32 / 24.0 * TAU, 0.999, 0.01) == 1.0));
+    }
+}
