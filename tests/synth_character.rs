@@ -209,3 +209,31 @@ fn patches_are_the_same_in_any_units() {
         }
     }
 }
+
+/// An image whose patches would be a few pixels wide on the surface (a strip 8 pixels tall at
+/// the default scale: about 140,000 of them, six minutes of placing) is refused before any
+/// work, saying why and what to do instead.
+#[test]
+fn an_image_too_small_for_patches_is_refused_at_once() {
+    let target = load("bunny/bunny.obj");
+    let strip = image::RgbImage::from_fn(256, 8, |x, _| image::Rgb([x as u8, 0, 255 - x as u8]));
+    let input = TextureInput {
+        exemplar: &strip,
+        alpha: None,
+        target: &target,
+        field: None,
+    };
+    let err = paste_patches(
+        &input,
+        &TextureParams::default(),
+        &PatchParams::default(),
+        &|_| {},
+        &CancelToken::new(),
+    )
+    .expect_err("refused");
+    let msg = err.to_string();
+    assert!(
+        msg.contains("too small against the surface") && msg.contains("--method neighbourhood"),
+        "{msg}"
+    );
+}

@@ -109,8 +109,10 @@ pub struct PatchOutput {
 /// Overlap texels a placement is scored on, at most.
 const SCORE_SAMPLES: usize = 384;
 
-/// Most patches: a scale this small against the surface is a tiling job, not patch pasting.
-const MAX_PATCHES: f64 = 200_000.0;
+/// Most patches: a scale this small against the surface is a tiling job, not patch pasting
+/// (about a minute of placing on two cores; the shared images at their default scale take
+/// 100-400).
+const MAX_PATCHES: f64 = 20_000.0;
 
 /// Synthesize the exemplar into the target's texture by pasting patches (see the module doc).
 /// Uses `params.synth`'s scale (image width in surface units, default a quarter of the
@@ -861,7 +863,12 @@ impl Context<'_> {
         };
         // the patch's texels, and the seam's costs over them
         let mut texels: Vec<PatchTexel> = Vec::new();
-        let mut costs = SeamCosts::new(SEAM_ANGLES, SEAM_RINGS, SEAM_INNER);
+        // the seam's grid: about a cell per two pixels of the rim, at most the full grid, so a
+        // small patch's seam costs no more than its texels
+        let rim_px = self.radius * (1.0 + self.pp.wobble) / self.pixel;
+        let angles = ((std::f32::consts::PI * rim_px) as usize).clamp(8, SEAM_ANGLES);
+        let rings = ((0.5 * (1.0 - SEAM_INNER) * rim_px) as usize).clamp(2, SEAM_RINGS);
+        let mut costs = SeamCosts::new(angles, rings, SEAM_INNER);
         for (i, &f) in patch.faces.iter().enumerate() {
             let corners = &patch.corners[i];
             for &t in self.face_texels.row(f as usize) {
@@ -943,7 +950,8 @@ struct PatchTexel {
     color: [f32; 3],
 }
 
-/// The seam's polar grid: angles around the seed, rings between [`SEAM_INNER`] and the rim.
+/// The seam's polar grid at most: angles around the seed, rings between [`SEAM_INNER`] and the
+/// rim.
 const SEAM_ANGLES: usize = 96;
 const SEAM_RINGS: usize = 24;
 /// The share of the rim's radius that always shows the new patch.

@@ -76,6 +76,10 @@ impl SeamCosts {
     /// The seam: per angle, the `s` it passes at (the middle of its ring).
     pub(super) fn cut(&self) -> Seam {
         let (na, nr) = (self.angles, self.rings);
+        // nothing covered under the patch: the whole patch shows, up to its feathered rim
+        if self.count.iter().all(|&c| c == 0) {
+            return Seam { rho: vec![1.0; na] };
+        }
         let ring_s = |r: usize| self.inner + (r as f32 + 0.5) / nr as f32 * (1.0 - self.inner);
         // a cell's cost: its mean difference along the seam's length there; a ring's own length
         // breaks ties toward the rim, so agreeing textures keep the whole patch
