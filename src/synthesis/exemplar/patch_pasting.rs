@@ -863,8 +863,8 @@ impl Context<'_> {
         };
         // the patch's texels, and the seam's costs over them
         let mut texels: Vec<PatchTexel> = Vec::new();
-        // the seam's grid: about a cell per two pixels of the rim, at most the full grid, so a
-        // small patch's seam costs no more than its texels
+        // the seam's grid: about a cell per two image pixels along the rim, at most the full
+        // grid, so a small patch's seam is cut on a grid of its own size
         let rim_px = self.radius * (1.0 + self.pp.wobble) / self.pixel;
         let angles = ((std::f32::consts::PI * rim_px) as usize).clamp(8, SEAM_ANGLES);
         let rings = ((0.5 * (1.0 - SEAM_INNER) * rim_px) as usize).clamp(2, SEAM_RINGS);
@@ -889,8 +889,8 @@ impl Context<'_> {
                     let old = canvas.color[t as usize].map(|x| x / old_a);
                     costs.add(angle, s, (0..3).map(|k| (old[k] - color[k]).powi(2)).sum());
                 }
-                // the seam's ramp: about two texels (pixels) wide
-                let blend = 2.0 * self.pixel / rim;
+                // the seam's ramp: two image pixels wide, at most a tenth of the rim's radius
+                let blend = (2.0 * self.pixel / rim).min(0.1);
                 texels.push(PatchTexel {
                     texel: t,
                     cell: cell_of(p),
