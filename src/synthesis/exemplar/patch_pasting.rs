@@ -428,8 +428,10 @@ const NO_CELL: u16 = u16::MAX;
 const USAGE: usize = 16;
 
 impl Canvas {
-    /// The texture: colours un-premultiplied, which texels a patch covers (the rest are left to
-    /// the gutter fill), and the share of layout texels left uncovered.
+    /// The texture: colours un-premultiplied, which texels patches cover (alpha at least one
+    /// half; the rest are left to the gutter fill, since un-premultiplying a faint rim would
+    /// show whatever it read at full strength, a hole's halo included), and the share of layout
+    /// texels left to the fill.
     fn texture(&self, texels: &[Option<(u32, [f32; 3])>]) -> (Vec<[f32; 3]>, Vec<bool>, f64) {
         let layout_texels = texels.iter().filter(|t| t.is_some()).count().max(1);
         let mut uncovered = 0usize;
@@ -438,10 +440,10 @@ impl Canvas {
             .iter()
             .zip(texels)
             .map(|(&a, t)| {
-                if t.is_some() && a <= 1e-3 {
+                if t.is_some() && a < 0.5 {
                     uncovered += 1;
                 }
-                a > 1e-3
+                a >= 0.5
             })
             .collect();
         let pixels: Vec<[f32; 3]> = self
@@ -449,7 +451,7 @@ impl Canvas {
             .par_iter()
             .zip(self.alpha.par_iter())
             .map(|(c, &a)| {
-                if a > 1e-3 {
+                if a >= 0.5 {
                     c.map(|x| (x / a).clamp(0.0, 1.0))
                 } else {
                     [0.0; 3]
