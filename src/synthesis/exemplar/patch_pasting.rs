@@ -30,8 +30,9 @@
 //! 7. **Paste**: each texel of the patch's faces reads the full-resolution image at its
 //!    coordinate (bilinear). Where something is already there, the patch shows only inside a
 //!    closed seam around its seed that runs where old and new agree best (Efros & Freeman's
-//!    boundary cut, [`super::seam`]), so patches meet at a sharp seam instead of a blended band;
-//!    where nothing is, it is composited with the splotch's feathered alpha.
+//!    boundary cut, [`super::seam`]), so patches meet at a sharp seam instead of a blended band,
+//!    feathered only where the seam has to cross a mismatch; where nothing is, it is
+//!    composited with the splotch's feathered alpha.
 //!    Transparent image pixels give alpha 0, so they never reach the surface.
 //!
 //! Texels no patch covers (faces every flattening left out) are filled from their neighbours
@@ -905,6 +906,9 @@ impl Context<'_> {
             }
         }
         let seam = costs.cut();
+        // a seam cell's mismatch in units of the image's colour variance: at one variance (half
+        // the mean difference of two random pixels) the seam is feathered fully
+        let feather_unit = 1.0 / self.variance.max(1e-12);
         for pt in &texels {
             let t = pt.texel as usize;
             let old = canvas.alpha[t];
@@ -913,7 +917,11 @@ impl Context<'_> {
             let a = if old < 0.5 {
                 pt.alpha
             } else {
-                pt.alpha * seam.alpha(pt.angle, pt.s, pt.blend)
+                // sharp where the seam runs through agreement, feathered as wide as the
+                // splotch's rim where it has to cross a mismatch (Kwatra et al. 2003)
+                let bad = (seam.mismatch(pt.angle) * feather_unit).min(1.0);
+                let blend = pt.blend + bad * (self.pp.feather - pt.blend).max(0.0);
+                pt.alpha * seam.alpha(pt.angle, pt.s, blend)
             };
             if a <= 0.0 {
                 continue;

@@ -16,7 +16,10 @@
 //!    seam does not zigzag): dynamic programming over the angles from each start ring;
 //! 4. a texel's alpha falls from 1 to 0 across the seam over about two image pixels (at most
 //!    a tenth of the rim's radius), so the seam is not aliased where texels are as fine as the
-//!    image's pixels.
+//!    image's pixels, where the seam runs through agreement; where no closed seam avoids a
+//!    mismatch (brick courses that do not line up), the ramp widens with the mismatch the seam
+//!    crosses there ([`Seam::mismatch`]) up to the splotch's feathered rim, so a break that
+//!    cannot be hidden by the cut is feathered instead (as Kwatra et al. 2003 feather seams the cut cannot hide).
 //!
 //! A cell no texel fell in costs nothing: at the default texture size a texel is finer than a
 //! cell, so that happens where the patch has no faces. Where texels are much coarser than the
@@ -86,7 +89,10 @@ impl SeamCosts {
         let (na, nr) = (self.angles, self.rings);
         // nothing covered under the patch: the whole patch shows, up to its feathered rim
         if self.count.iter().all(|&c| c == 0) {
-            return Seam { rho: vec![1.0; na] };
+            return Seam {
+                rho: vec![1.0; na],
+                mismatch: vec![0.0; na],
+            };
         }
         let ring_s = |r: usize| self.inner + (r as f32 + 0.5) / nr as f32 * (1.0 - self.inner);
         // a cell's cost: its mean difference along the seam's length there; a ring's own length
@@ -152,22 +158,37 @@ impl SeamCosts {
                 }
             }
         }
-        let rho = if best.1.is_empty() {
-            vec![1.0; na]
-        } else {
-            // the outermost ring stands for the rim itself: the splotch's feather ends the patch
-            best.1
-                .iter()
-                .map(|&r| if r == nr - 1 { 1.0 } else { ring_s(r) })
-                .collect()
-        };
-        Seam { rho }
+        if best.1.is_empty() {
+            return Seam {
+                rho: vec![1.0; na],
+                mismatch: vec![0.0; na],
+            };
+        }
+        // the outermost ring stands for the rim itself: the splotch's feather ends the patch
+        let rho = best.1.iter().map(|&r| if r == nr - 1 { 1.0 } else { ring_s(r) }).collect();
+        let mismatch = best
+            .1
+            .iter()
+            .enumerate()
+            .map(|(i, &r)| {
+                let k = i * nr + r;
+                if r == nr - 1 || self.count[k] == 0 {
+                    0.0
+                } else {
+                    self.cost[k] / self.count[k] as f32
+                }
+            })
+            .collect();
+        Seam { rho, mismatch }
     }
 }
 
 /// A closed seam around a patch's seed.
 pub(super) struct Seam {
     rho: Vec<f32>,
+    /// The mean squared colour difference between old and new in the seam's cell at each
+    /// angle (0 on the rim).
+    mismatch: Vec<f32>,
 }
 
 impl Seam {
@@ -175,17 +196,27 @@ impl Seam {
     /// 0 beyond it, a ramp `blend` wide (in `s`) across it; the seam is interpolated between
     /// the angles' centres.
     pub(super) fn alpha(&self, angle: f32, s: f32, blend: f32) -> f32 {
-        let n = self.rho.len();
-        let x = angle.rem_euclid(std::f32::consts::TAU) / std::f32::consts::TAU * n as f32 - 0.5;
-        let i0 = x.floor();
-        let t = x - i0;
-        let i0 = (i0 as i64).rem_euclid(n as i64) as usize;
-        let i1 = (i0 + 1) % n;
-        let rho = self.rho[i0] * (1.0 - t) + self.rho[i1] * t;
+        let rho = self.lerp(&self.rho, angle);
         if rho >= 1.0 {
             return 1.0;
         }
         ((rho - s) / blend.max(1e-6) + 0.5).clamp(0.0, 1.0)
+    }
+
+    /// The mean squared colour difference between old and new where the seam runs at `angle`
+    /// (0 where it runs on the rim).
+    pub(super) fn mismatch(&self, angle: f32) -> f32 {
+        self.lerp(&self.mismatch, angle)
+    }
+
+    /// A per-angle value at `angle`, interpolated between the angles' centres.
+    fn lerp(&self, v: &[f32], angle: f32) -> f32 {
+        let n = v.len();
+        let x = angle.rem_euclid(std::f32::consts::TAU) / std::f32::consts::TAU * n as f32 - 0.5;
+        let i0 = x.floor();
+        let t = x - i0;
+        let i0 = (i0 as i64).rem_euclid(n as i64) as usize;
+        v[i0] * (1.0 - t) + v[(i0 + 1) % n] * t
     }
 }
 
@@ -230,5 +261,35 @@ mod tests {
         }
         let seam = c.cut();
         assert!((0..24).all(|i| seam.alpha(i as f32 / 24.0 * TAU, 0.999, 0.01) == 1.0));
+    }
+
+    #[test]
+    fn the_seam_reports_the_mismatch_it_had_to_cross() {
+        let (na, nr) = (32, 16);
+        let mut c = SeamCosts::new(na, nr, 0.25);
+        // on one half old and new agree on a ring; on the other half they differ by 0.3
+        // inside and by 1.0 near the rim, so the seam has to cross the mismatch there
+        for i in 0..na {
+            let a = (i as f32 + 0.5) / na as f32 * TAU;
+            for r in 0..nr {
+                let s = 0.25 + (r as f32 + 0.5) / nr as f32 * 0.75;
+                let agree = i < na / 2 && (s - 0.5).abs() < 0.03;
+                let d = match (agree, s < 0.85) {
+                    (true, _) => 0.0,
+                    (false, true) => 0.3,
+                    (false, false) => 1.0,
+                };
+                c.add(a, s, d);
+            }
+        }
+        let seam = c.cut();
+        let at = |i: usize| (i as f32 + 0.5) / na as f32 * TAU;
+        for i in 4..na / 2 - 4 {
+            assert!(seam.mismatch(at(i)) < 1e-6, "angle {i}: {}", seam.mismatch(at(i)));
+        }
+        for i in na / 2 + 4..na - 4 {
+            let m = seam.mismatch(at(i));
+            assert!((m - 0.3).abs() < 1e-4, "angle {i}: {m}");
+        }
     }
 }
