@@ -165,7 +165,11 @@ impl SeamCosts {
             };
         }
         // the outermost ring stands for the rim itself: the splotch's feather ends the patch
-        let rho = best.1.iter().map(|&r| if r == nr - 1 { 1.0 } else { ring_s(r) }).collect();
+        let rho = best
+            .1
+            .iter()
+            .map(|&r| if r == nr - 1 { 1.0 } else { ring_s(r) })
+            .collect();
         let mismatch = best
             .1
             .iter()
@@ -285,7 +289,11 @@ mod tests {
         let seam = c.cut();
         let at = |i: usize| (i as f32 + 0.5) / na as f32 * TAU;
         for i in 4..na / 2 - 4 {
-            assert!(seam.mismatch(at(i)) < 1e-6, "angle {i}: {}", seam.mismatch(at(i)));
+            assert!(
+                seam.mismatch(at(i)) < 1e-6,
+                "angle {i}: {}",
+                seam.mismatch(at(i))
+            );
         }
         for i in na / 2 + 4..na - 4 {
             let m = seam.mismatch(at(i));
