@@ -3,8 +3,8 @@
 //! known correspondence. The transfer's texture read from the source at full resolution must
 //! keep what the working-vertex bake blurs: where the shapes are identical it reproduces the
 //! truth (bricks with 2-3 texel mortar: SSIM at least 0.6, edges at least 85% as strong, half
-//! the colour error or less), and on a deformed target it is as sharp as the truth and no
-//! further from it than the working-vertex bake.
+//! the colour error or less), and on a bent and moved target, found under its bend, half the
+//! working-vertex bake's colour error or less and edges at least 70% as strong.
 
 use std::sync::Arc;
 
@@ -79,33 +79,24 @@ fn spots_own_texture_on_a_retessellated_copy_keeps_its_edges() {
 }
 
 #[test]
-fn a_bent_target_is_as_sharp_as_the_truth_and_no_further_from_it() {
+fn a_bent_target_is_found_under_its_bend_and_arrives_near_the_truth() {
     let c = run(Some(TextureKind::Mixed), Deformation::BentAndMoved);
     let (full, working) = (&c.deliveries[0].scores, &c.deliveries[1].scores);
-    // Nothing coincides: the patch maps carry every texel.
-    assert!(c.coincident < 0.1, "coincident share {:.3}", c.coincident);
+    // No similarity lays the bent copy onto the source, but a smooth warp of space does: most
+    // texels are read exactly under their warped point.
+    assert!(c.coincident >= 0.9, "coincident share {:.3}", c.coincident);
     assert!(
-        full.sharpness >= 0.85,
-        "sharpness {:.2} (working vertices {:.2})",
-        full.sharpness,
-        working.sharpness
+        c.placement[0] <= 0.5,
+        "placement median {:.2} source edges",
+        c.placement[0]
     );
+    // the targets on a deformed target: half the colour error, 70% of the edges
     assert!(
-        full.sharpness > working.sharpness + 0.15,
-        "sharpness {:.2} against {:.2}",
-        full.sharpness,
-        working.sharpness
-    );
-    assert!(
-        full.delta_e <= working.delta_e * 1.05,
+        full.delta_e <= 0.5 * working.delta_e,
         "dE {:.2} against {:.2}",
         full.delta_e,
         working.delta_e
     );
-    assert!(
-        full.edges > working.edges,
-        "edges {:.2} against {:.2}",
-        full.edges,
-        working.edges
-    );
+    assert!(full.edges >= 0.7, "edges {:.2}", full.edges);
+    assert!(full.sharpness >= 0.85, "sharpness {:.2}", full.sharpness);
 }

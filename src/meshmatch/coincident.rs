@@ -50,7 +50,7 @@ pub(crate) struct Similarity {
 
 impl Similarity {
     #[inline]
-    fn apply(&self, x: Vec3) -> Vec3 {
+    pub(super) fn apply(&self, x: Vec3) -> Vec3 {
         (self.scale * (self.rot * x.as_dvec3()) + self.shift).as_vec3()
     }
 }
@@ -305,7 +305,11 @@ fn lies_on(
 
 /// The closest point of the source surface to `z`: (point, distance, face, barycentric); face
 /// `u32::MAX` when there is none.
-fn closest_on(bvh: &TriangleBvh, source: &Level, z: Vec3) -> ([f32; 3], f32, u32, [f32; 3]) {
+pub(super) fn closest_on(
+    bvh: &TriangleBvh,
+    source: &Level,
+    z: Vec3,
+) -> ([f32; 3], f32, u32, [f32; 3]) {
     match bvh.closest_point(z.to_array()) {
         Some((f, b, d)) => {
             let c = source.faces[f as usize].map(|u| Vec3::from(source.positions[u as usize]));
@@ -316,7 +320,7 @@ fn closest_on(bvh: &TriangleBvh, source: &Level, z: Vec3) -> ([f32; 3], f32, u32
     }
 }
 
-fn median(x: &[f32]) -> f32 {
+pub(super) fn median(x: &[f32]) -> f32 {
     if x.is_empty() {
         return 0.0;
     }

@@ -20,6 +20,7 @@ mod coincident;
 mod deliver;
 mod em;
 mod global_map;
+mod nonrigid;
 mod patch_map;
 mod prepare;
 mod resample;

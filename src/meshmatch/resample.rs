@@ -648,6 +648,15 @@ impl Resampler {
         } else {
             let matched = mapped_points(&src, &lt.positions, &pt.frames[0], &maps);
             super::coincident::snap_coincident(&src.level, &src.frames, lt, &pt.frames[0], &matched)
+                .or_else(|| {
+                    super::nonrigid::snap_deformed(
+                        &src.level,
+                        &src.frames,
+                        lt,
+                        &pt.frames[0],
+                        &matched,
+                    )
+                })
         };
         let mut snapped = 0;
         if let Some(snap) = snap {
