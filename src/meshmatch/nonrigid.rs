@@ -92,10 +92,10 @@ impl Warp {
 
     fn apply(&self, x: Vec3) -> Vec3 {
         let b = self.basis(x);
-        let mut d = DVec3::ZERO;
-        for k in 0..TERMS {
-            d += b[k] * self.coef[k];
-        }
+        let d = b
+            .iter()
+            .zip(&self.coef)
+            .fold(DVec3::ZERO, |acc, (bk, ck)| acc + *bk * *ck);
         (x.as_dvec3() + d).as_vec3()
     }
 
@@ -155,20 +155,19 @@ impl Warp {
 /// Solve `a c = rhs` for a symmetric positive definite `a` (Cholesky), three right-hand sides.
 fn solve_spd(mut a: [[f64; TERMS]; TERMS], rhs: [DVec3; TERMS]) -> Option<[DVec3; TERMS]> {
     for j in 0..TERMS {
-        let mut d = a[j][j];
-        for k in 0..j {
-            d -= a[j][k] * a[j][k];
-        }
-        if !(d > 0.0) {
+        let d = a[j][j] - a[j][..j].iter().map(|x| x * x).sum::<f64>();
+        if d.is_nan() || d <= 0.0 {
             return None;
         }
         let d = d.sqrt();
         a[j][j] = d;
         for i in j + 1..TERMS {
-            let mut s = a[i][j];
-            for k in 0..j {
-                s -= a[i][k] * a[j][k];
-            }
+            let s = a[i][j]
+                - a[i][..j]
+                    .iter()
+                    .zip(&a[j][..j])
+                    .map(|(x, y)| x * y)
+                    .sum::<f64>();
             a[i][j] = s / d;
         }
     }
