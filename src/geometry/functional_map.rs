@@ -449,7 +449,7 @@ fn descriptors(
 
 /// Solve the SPD system `a x = b` (`a` row-major `k × k`, its lower triangle read) by Cholesky;
 /// `None` when not PD.
-fn cholesky_solve(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
+pub(crate) fn cholesky_solve(a: &[f64], b: &[f64], k: usize) -> Option<Vec<f64>> {
     let llt = MatRef::from_row_major_slice(a, k, k)
         .llt(Side::Lower)
         .ok()?;

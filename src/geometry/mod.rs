@@ -84,6 +84,7 @@ pub use distance_transform::distance_transform;
 pub use eigen::{hks, hks_times, laplacian_eigen};
 pub use expmap::{DiscSeed, ExpMap, exp_map, tangent_direction};
 pub use frames::{FrameRule, Frames, frame_of, tangent_frames, transport_angle};
+pub(crate) use functional_map::cholesky_solve;
 pub use functional_map::{FmapParams, MapQuality, ShapeMap, Spectrum, functional_map, shape_map};
 pub use heat::HeatGeodesics;
 pub use laplacian::{cotan_laplacian, mass_matrix_barycentric, mass_matrix_voronoi};

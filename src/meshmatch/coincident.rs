@@ -25,12 +25,12 @@ use crate::geometry::TriangleBvh;
 use crate::hierarchy::Level;
 
 /// A moved target vertex is on the source surface within this many source mean edges.
-const ON_SURFACE_EDGES: f32 = 0.25;
+pub(super) const ON_SURFACE_EDGES: f32 = 0.25;
 /// ... and, for the shapes to count as coinciding, within this many source mean edges of its
 /// own match.
 const NEAR_MATCH_EDGES: f32 = 3.0;
 /// Fewest snapped vertices, as a share of all, for the shapes to count as coinciding.
-const MIN_SHARE: f64 = 0.5;
+pub(super) const MIN_SHARE: f64 = 0.5;
 /// The ICP sample's share of agreeing vertices below this fraction of [`MIN_SHARE`] settles that
 /// the shapes do not coincide (the sample is spread over the surface: its share is within a few
 /// percent of the whole's).
@@ -50,7 +50,7 @@ pub(crate) struct Similarity {
 
 impl Similarity {
     #[inline]
-    pub(super) fn apply(&self, x: Vec3) -> Vec3 {
+    fn apply(&self, x: Vec3) -> Vec3 {
         (self.scale * (self.rot * x.as_dvec3()) + self.shift).as_vec3()
     }
 }
@@ -158,8 +158,7 @@ pub(crate) fn snap_coincident(
     let sample: Vec<usize> = (0..n).step_by(stride).collect();
     let xs: Vec<[f32; 3]> = sample.iter().map(|&v| target.positions[v]).collect();
     for _ in 0..ICP_ROUNDS {
-        let c: Vec<([f32; 3], f32, u32, [f32; 3])> =
-            sample.par_iter().map(|&v| closest_of(&sim, v)).collect();
+        let c: Vec<Closest> = sample.par_iter().map(|&v| closest_of(&sim, v)).collect();
         let d: Vec<f32> = c.iter().map(|x| x.1).collect();
         let cut = 3.0 * median(&d).max(0.05 * edge);
         let keep: Vec<bool> = d.iter().map(|&x| x < cut).collect();
@@ -234,7 +233,7 @@ fn snap(
     let n = target.len();
     let edge = source.mean_edge.max(1e-12);
     let closest_of = |v: usize| closest_on(bvh, source, sim.apply(Vec3::from(target.positions[v])));
-    let c: Vec<([f32; 3], f32, u32, [f32; 3])> = (0..n).into_par_iter().map(closest_of).collect();
+    let c: Vec<Closest> = (0..n).into_par_iter().map(closest_of).collect();
     // A vertex is on the source where its moved position lies on the surface facing the same
     // way; the shapes coincide where enough of them are also near their own matches (so the
     // similarity is the NNF's, not a chance fit), and then every vertex on the source snaps,
@@ -258,58 +257,75 @@ fn snap(
     let snapped: Vec<Option<PatchMap>> = (0..n)
         .into_par_iter()
         .map(|v| {
-            let (_, _, f, b) = c[v];
             if !on[v] {
                 return None;
             }
-            let face = source.faces[f as usize];
-            let a = face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize;
-            let (t1a, t2a) = (
-                Vec3::from(source_frames.t1[a]),
-                Vec3::from(source_frames.t2[a]),
-            );
             let z = sim.apply(Vec3::from(target.positions[v]));
-            let e = z - Vec3::from(source.positions[a]);
             let lin3 = |t: Vec3| (sim.scale * (sim.rot * t.as_dvec3())).as_vec3();
             let w1 = lin3(Vec3::from(target_frames.t1[v]));
             let w2 = lin3(Vec3::from(target_frames.t2[v]));
-            let origin = Vec2::new(e.dot(t1a), e.dot(t2a));
-            Some(PatchMap {
-                anchor: a as u32,
-                origin: origin.to_array(),
-                lin: [w1.dot(t1a), w2.dot(t1a), w1.dot(t2a), w2.dot(t2a)],
-            })
+            Some(snapped_map(source, source_frames, z, &c[v], w1, w2))
         })
         .collect();
     Some(snapped)
 }
 
-/// Whether target vertex `v`, moved by `sim`, lies on the source surface (`c`, its closest
-/// point there, within a quarter of a source edge) facing the same way.
-fn lies_on(
+/// The patch map of a target vertex whose moved position `z` lies on the source at `c` (its
+/// closest point), with its tangent frame moved to `w1`, `w2`: anchored at the nearest corner of
+/// `c`'s face, in that corner's frame.
+pub(super) fn snapped_map(
     source: &Level,
-    target: &Level,
-    sim: &Similarity,
-    v: usize,
-    c: &([f32; 3], f32, u32, [f32; 3]),
-) -> bool {
-    let (_, d, f, b) = *c;
-    if f == u32::MAX || d > ON_SURFACE_EDGES * source.mean_edge.max(1e-12) {
-        return false;
+    source_frames: &Frames,
+    z: Vec3,
+    c: &Closest,
+    w1: Vec3,
+    w2: Vec3,
+) -> PatchMap {
+    let a = anchor_corner(source, c);
+    let (t1a, t2a) = (
+        Vec3::from(source_frames.t1[a]),
+        Vec3::from(source_frames.t2[a]),
+    );
+    let e = z - Vec3::from(source.positions[a]);
+    PatchMap {
+        anchor: a as u32,
+        origin: Vec2::new(e.dot(t1a), e.dot(t2a)).to_array(),
+        lin: [w1.dot(t1a), w2.dot(t1a), w1.dot(t2a), w2.dot(t2a)],
     }
-    let face = source.faces[f as usize];
-    let a = face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize;
-    let nt = (sim.rot * Vec3::from(target.normals[v]).as_dvec3()).as_vec3();
-    Vec3::from(source.normals[a]).dot(nt) >= 0.5
 }
 
-/// The closest point of the source surface to `z`: (point, distance, face, barycentric); face
-/// `u32::MAX` when there is none.
-pub(super) fn closest_on(
-    bvh: &TriangleBvh,
-    source: &Level,
-    z: Vec3,
-) -> ([f32; 3], f32, u32, [f32; 3]) {
+/// The corner of the closest point `c`'s face nearest to it (largest barycentric).
+pub(super) fn anchor_corner(source: &Level, c: &Closest) -> usize {
+    let (_, _, f, b) = *c;
+    let face = source.faces[f as usize];
+    face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize
+}
+
+/// Whether the source surface at its closest point `c` faces the way of `normal` (within 60
+/// degrees); false where there is no closest point.
+pub(super) fn facing(source: &Level, c: &Closest, normal: Vec3) -> bool {
+    if c.2 == u32::MAX || !c.1.is_finite() {
+        return false;
+    }
+    Vec3::from(source.normals[anchor_corner(source, c)]).dot(normal) >= 0.5
+}
+
+/// Whether target vertex `v`, moved by `sim`, lies on the source surface (`c`, its closest
+/// point there, within a quarter of a source edge) facing the same way.
+fn lies_on(source: &Level, target: &Level, sim: &Similarity, v: usize, c: &Closest) -> bool {
+    if c.1 > ON_SURFACE_EDGES * source.mean_edge.max(1e-12) {
+        return false;
+    }
+    let nt = (sim.rot * Vec3::from(target.normals[v]).as_dvec3()).as_vec3();
+    facing(source, c, nt)
+}
+
+/// A closest point on the source: (point, distance, face, barycentric); face `u32::MAX` when
+/// there is none.
+pub(super) type Closest = ([f32; 3], f32, u32, [f32; 3]);
+
+/// The closest point of the source surface to `z` ([`Closest`]).
+pub(super) fn closest_on(bvh: &TriangleBvh, source: &Level, z: Vec3) -> Closest {
     match bvh.closest_point(z.to_array()) {
         Some((f, b, d)) => {
             let c = source.faces[f as usize].map(|u| Vec3::from(source.positions[u as usize]));

@@ -18,13 +18,15 @@
 //!    their own matches; every vertex on the source then snaps to the point under it, its patch
 //!    map turned by the rotation between its own normal and its deformed normal.
 
-use glam::{DVec3, Quat, Vec2, Vec3};
+use glam::{DVec3, Quat, Vec3};
 use rayon::prelude::*;
 
-use super::coincident::{closest_on, median};
+use super::coincident::{
+    Closest, MIN_SHARE, ON_SURFACE_EDGES, closest_on, facing, median, snapped_map,
+};
 use super::patch_map::PatchMap;
 use crate::features::Frames;
-use crate::geometry::TriangleBvh;
+use crate::geometry::{TriangleBvh, cholesky_solve};
 use crate::hierarchy::{Level, area_weighted_normals};
 use crate::mesh::Csr;
 
@@ -42,14 +44,12 @@ const EARLY_EDGES: f32 = 1.0;
 const EARLY_SHARE: f64 = 0.4;
 /// Vertices the warp's ICP fits to.
 const WARP_SAMPLES: usize = 4096;
-/// A deformed vertex is on the source surface within this many source mean edges.
-const ON_SURFACE_EDGES: f32 = 0.25;
-/// ... and, for the shapes to count as a deformed copy, within this many of its own match (the
+/// A deformed vertex on the source surface (as [`super::coincident`] counts it) must also be
+/// within this many source mean edges of its own match for the shapes to count as a deformed
+/// copy (the
 /// global map's own error on a bend is a few edges; between different shapes most vertices
 /// are far from their matches).
 const NEAR_MATCH_EDGES: f32 = 5.0;
-/// Fewest snapped vertices, as a share of all.
-const MIN_SHARE: f64 = 0.5;
 /// Monomials of degree at most 3 in three variables.
 const TERMS: usize = 20;
 const EXPONENTS: [[u8; 3]; TERMS] = [
@@ -74,8 +74,6 @@ const EXPONENTS: [[u8; 3]; TERMS] = [
     [0, 1, 2],
     [1, 1, 1],
 ];
-
-type Closest = ([f32; 3], f32, u32, [f32; 3]);
 
 /// A cubic warp of space: `x -> x + sum_k phi_k((x - centre) / scale) c_k`.
 struct Warp {
@@ -167,7 +165,7 @@ impl Warp {
         for p in 0..DIM {
             a[p * DIM + p] += 1e-6 * wsum.max(1e-12);
         }
-        if let Some(delta) = cholesky_solve(a, rhs, DIM) {
+        if let Some(delta) = cholesky_solve(&a, &rhs, DIM) {
             for k in 0..TERMS {
                 self.coef[k] += DVec3::new(delta[3 * k], delta[3 * k + 1], delta[3 * k + 2]);
             }
@@ -176,8 +174,8 @@ impl Warp {
 
     /// The warp taking `x[i]` to `y[i]` (weights `w`) in least squares.
     fn fit(&mut self, x: &[Vec3], y: &[Vec3], w: &[f32]) {
-        let mut a = [[0.0f64; TERMS]; TERMS];
-        let mut rhs = [DVec3::ZERO; TERMS];
+        let mut a = vec![0.0f64; TERMS * TERMS];
+        let mut rhs = [[0.0f64; TERMS]; 3];
         let mut wsum = 0.0;
         for i in 0..x.len() {
             if w[i] <= 0.0 {
@@ -188,90 +186,26 @@ impl Warp {
             let wi = w[i] as f64;
             wsum += wi;
             for k in 0..TERMS {
-                rhs[k] += wi * b[k] * r;
+                for (d, rd) in rhs.iter_mut().enumerate() {
+                    rd[k] += wi * b[k] * r[d];
+                }
                 for l in 0..TERMS {
-                    a[k][l] += wi * b[k] * b[l];
+                    a[k * TERMS + l] += wi * b[k] * b[l];
                 }
             }
         }
         // a touch of ridge so a sample that does not span a term leaves it at 0
-        for (k, row) in a.iter_mut().enumerate() {
-            row[k] += 1e-6 * wsum.max(1e-12);
+        for k in 0..TERMS {
+            a[k * TERMS + k] += 1e-6 * wsum.max(1e-12);
         }
-        if let Some(c) = solve_spd(a, rhs) {
-            self.coef = c;
-        }
-    }
-}
-
-/// Solve `a c = rhs` for a symmetric positive definite `dim x dim` matrix `a` (row-major,
-/// Cholesky); `None` when `a` is not positive definite.
-fn cholesky_solve(mut a: Vec<f64>, rhs: Vec<f64>, dim: usize) -> Option<Vec<f64>> {
-    for j in 0..dim {
-        let d = a[j * dim + j] - a[j * dim..j * dim + j].iter().map(|x| x * x).sum::<f64>();
-        if d.is_nan() || d <= 0.0 {
-            return None;
-        }
-        let d = d.sqrt();
-        a[j * dim + j] = d;
-        for i in j + 1..dim {
-            let s = a[i * dim + j]
-                - a[i * dim..i * dim + j]
-                    .iter()
-                    .zip(&a[j * dim..j * dim + j])
-                    .map(|(x, y)| x * y)
-                    .sum::<f64>();
-            a[i * dim + j] = s / d;
+        let solved: Option<Vec<Vec<f64>>> =
+            rhs.iter().map(|r| cholesky_solve(&a, r, TERMS)).collect();
+        if let Some(c) = solved {
+            for (k, coef) in self.coef.iter_mut().enumerate() {
+                *coef = DVec3::new(c[0][k], c[1][k], c[2][k]);
+            }
         }
     }
-    let mut z = rhs;
-    for i in 0..dim {
-        let s = z[i] - (0..i).map(|k| a[i * dim + k] * z[k]).sum::<f64>();
-        z[i] = s / a[i * dim + i];
-    }
-    for i in (0..dim).rev() {
-        let s = z[i] - (i + 1..dim).map(|k| a[k * dim + i] * z[k]).sum::<f64>();
-        z[i] = s / a[i * dim + i];
-    }
-    Some(z)
-}
-
-/// Solve `a c = rhs` for a symmetric positive definite `a` (Cholesky), three right-hand sides.
-fn solve_spd(mut a: [[f64; TERMS]; TERMS], rhs: [DVec3; TERMS]) -> Option<[DVec3; TERMS]> {
-    for j in 0..TERMS {
-        let d = a[j][j] - a[j][..j].iter().map(|x| x * x).sum::<f64>();
-        if d.is_nan() || d <= 0.0 {
-            return None;
-        }
-        let d = d.sqrt();
-        a[j][j] = d;
-        for i in j + 1..TERMS {
-            let s = a[i][j]
-                - a[i][..j]
-                    .iter()
-                    .zip(&a[j][..j])
-                    .map(|(x, y)| x * y)
-                    .sum::<f64>();
-            a[i][j] = s / d;
-        }
-    }
-    let mut z = [DVec3::ZERO; TERMS];
-    for i in 0..TERMS {
-        let mut s = rhs[i];
-        for k in 0..i {
-            s -= a[i][k] * z[k];
-        }
-        z[i] = s / a[i][i];
-    }
-    let mut c = [DVec3::ZERO; TERMS];
-    for i in (0..TERMS).rev() {
-        let mut s = z[i];
-        for k in i + 1..TERMS {
-            s -= a[k][i] * c[k];
-        }
-        c[i] = s / a[i][i];
-    }
-    Some(c)
 }
 
 /// The snapped patch maps (see the module doc): `Some(map)` for every snapped target vertex,
@@ -409,22 +343,17 @@ pub(crate) fn snap_deformed(
                 if !on[v] {
                     return None;
                 }
-                let (q, _, f, b) = c[v];
-                let face = source.faces[f as usize];
-                let a = face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize;
-                let (t1a, t2a) = (
-                    Vec3::from(source_frames.t1[a]),
-                    Vec3::from(source_frames.t2[a]),
-                );
-                let e = Vec3::from(q) - Vec3::from(source.positions[a]);
                 let turn = Quat::from_rotation_arc(Vec3::from(target.normals[v]), normals[v]);
                 let w1 = turn * Vec3::from(target_frames.t1[v]);
                 let w2 = turn * Vec3::from(target_frames.t2[v]);
-                Some(PatchMap {
-                    anchor: a as u32,
-                    origin: Vec2::new(e.dot(t1a), e.dot(t2a)).to_array(),
-                    lin: [w1.dot(t1a), w2.dot(t1a), w1.dot(t2a), w2.dot(t2a)],
-                })
+                Some(snapped_map(
+                    source,
+                    source_frames,
+                    Vec3::from(c[v].0),
+                    &c[v],
+                    w1,
+                    w2,
+                ))
             })
             .collect(),
     )
@@ -448,17 +377,6 @@ fn closest(
         .map(|q| closest_on(bvh, source, Vec3::from(*q)))
         .collect();
     (c, normals)
-}
-
-/// Whether the source surface at `c` faces the same way as `normal`.
-fn facing(source: &Level, c: &Closest, normal: Vec3) -> bool {
-    let (_, d, f, b) = *c;
-    if f == u32::MAX || !d.is_finite() {
-        return false;
-    }
-    let face = source.faces[f as usize];
-    let a = face[(0..3).max_by(|&i, &j| b[i].total_cmp(&b[j])).unwrap_or(0)] as usize;
-    Vec3::from(source.normals[a]).dot(normal) >= 0.5
 }
 
 /// `values` weighted by `weights`, averaged `iters` times over each vertex and its neighbours,

@@ -229,19 +229,29 @@ mod tests {
     use super::*;
     use std::f32::consts::TAU;
 
-    #[test]
-    fn the_seam_runs_where_old_and_new_agree_and_beyond_every_hole() {
-        let (na, nr) = (32, 16);
+    /// A `na x nr` grid (inner radius 0.25) with difference `d(angle index, s)` at every
+    /// cell's centre.
+    fn costs(na: usize, nr: usize, d: impl Fn(usize, f32) -> f32) -> SeamCosts {
         let mut c = SeamCosts::new(na, nr, 0.25);
-        // old and new agree only on the ring at s = 0.5; everywhere else they differ
         for i in 0..na {
             let a = (i as f32 + 0.5) / na as f32 * TAU;
             for r in 0..nr {
                 let s = 0.25 + (r as f32 + 0.5) / nr as f32 * 0.75;
-                let d = if (s - 0.5).abs() < 0.03 { 0.0 } else { 1.0 };
-                c.add(a, s, d);
+                c.add(a, s, d(i, s));
             }
         }
+        c
+    }
+
+    #[test]
+    fn the_seam_runs_where_old_and_new_agree_and_beyond_every_hole() {
+        let (na, nr) = (32, 16);
+        // old and new agree only on the ring at s = 0.5; everywhere else they differ
+        let mut c = costs(
+            na,
+            nr,
+            |_, s| if (s - 0.5).abs() < 0.03 { 0.0 } else { 1.0 },
+        );
         // a hole at s = 0.8 in one direction pushes the seam out there
         c.force(0.5 / na as f32 * TAU, 0.8);
         let seam = c.cut();
@@ -270,22 +280,16 @@ mod tests {
     #[test]
     fn the_seam_reports_the_mismatch_it_had_to_cross() {
         let (na, nr) = (32, 16);
-        let mut c = SeamCosts::new(na, nr, 0.25);
         // on one half old and new agree on a ring; on the other half they differ by 0.3
         // inside and by 1.0 near the rim, so the seam has to cross the mismatch there
-        for i in 0..na {
-            let a = (i as f32 + 0.5) / na as f32 * TAU;
-            for r in 0..nr {
-                let s = 0.25 + (r as f32 + 0.5) / nr as f32 * 0.75;
-                let agree = i < na / 2 && (s - 0.5).abs() < 0.03;
-                let d = match (agree, s < 0.85) {
-                    (true, _) => 0.0,
-                    (false, true) => 0.3,
-                    (false, false) => 1.0,
-                };
-                c.add(a, s, d);
+        let c = costs(na, nr, |i, s| {
+            let agree = i < na / 2 && (s - 0.5).abs() < 0.03;
+            match (agree, s < 0.85) {
+                (true, _) => 0.0,
+                (false, true) => 0.3,
+                (false, false) => 1.0,
             }
-        }
+        });
         let seam = c.cut();
         let at = |i: usize| (i as f32 + 0.5) / na as f32 * TAU;
         for i in 4..na / 2 - 4 {
