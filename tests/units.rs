@@ -1,17 +1,13 @@
-//! Units: no system keeps a size-dependent constant. Scaling by a power of two is exact in
-//! floating point, so the same inputs 1024 times larger or smaller must give exactly the same
-//! colours and the same positions up to the scale; any difference would be a tolerance, radius
-//! or grid cell in absolute units. Each case runs the command line, as a user does, on the
-//! shared meshes written in those units, and compares the outputs with the unscaled run's:
-//! colours per vertex (sRGB, of 255), positions divided by the scale (of the bounding-box
-//! diagonal).
+//! Units: the same inputs in other units give the same output, up to the scale. Each case runs
+//! the command line, as a user does, on a shared mesh written in those units and compares the
+//! output with the unscaled run's: colours per vertex (sRGB, of 255) must be identical, positions
+//! divided by the scale the same (of the bounding-box diagonal; exactly in powers of two).
 //!
-//! In thousandths and thousands (millimetres, kilometres) the coordinates are rounded
-//! differently. Where every size-dependent order is decided in bins relative to the mesh's own
-//! size the colours stay the same but for a vertex in a hundred (asserted, `METRIC_SAME`);
-//! elsewhere the searches (nearest patches, clusters) flip between near-equal candidates in a
-//! few places, which later choices read; those differences are printed, with the numbers in
-//! docs/formats.md#units.
+//! The scaled files are written as a person converting units would write them: every
+//! coordinate multiplied in double precision and written with all its digits (OBJ). Each
+//! command reads its meshes in a working unit, the first mesh's own diagonal, at the file's
+//! precision (`cli::common::WorkingUnits`), so millimetres, metres and kilometres reach the
+//! systems as the same numbers.
 
 mod scratch;
 use scratch::Scratch;
@@ -22,7 +18,7 @@ use meshmatch::testdata::data_path;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Exact scales (asserted) and the metric ones (printed).
+/// Powers of two (exact in floating point) and the metric ones.
 const SCALES: [f64; 4] = [1024.0, 1.0 / 1024.0, 1e-3, 1e3];
 
 fn exact(s: f64) -> bool {
@@ -33,16 +29,42 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_meshmatch"))
 }
 
-/// `rel` from the shared data, scaled by `s`, written as GLB into `dir` (the unscaled copy too,
-/// so that every run reads the same format).
+/// `rel` from the shared data, scaled by `s`, written as OBJ into `dir` with every coordinate
+/// multiplied in double precision and written in full (the unscaled copy too, so that every run
+/// reads the same format).
 fn scaled(dir: &Path, rel: &str, s: f64) -> PathBuf {
-    let mut m = load(&data_path(rel)).unwrap();
-    m.positions
-        .iter_mut()
-        .for_each(|p| *p = p.map(|x| (x as f64 * s) as f32));
+    let m = load(&data_path(rel)).unwrap();
     let name = Path::new(rel).file_stem().unwrap().to_string_lossy();
-    let path = dir.join(format!("{name}_x{s}.glb"));
+    let path = dir.join(format!("{name}_x{s}.obj"));
+    // the mesh with its UVs and texture as the project writes it, then its `v` lines (written
+    // in vertex order) replaced by the scaled coordinates
     save(&m, &path).unwrap();
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut v = 0;
+    let lines: Vec<String> = text
+        .lines()
+        .map(|l| {
+            if !l.starts_with("v ") {
+                return l.to_string();
+            }
+            let p = m.positions[v];
+            v += 1;
+            let rest: Vec<&str> = l.split_ascii_whitespace().skip(4).collect();
+            let mut out = format!(
+                "v {} {} {}",
+                p[0] as f64 * s,
+                p[1] as f64 * s,
+                p[2] as f64 * s
+            );
+            for r in rest {
+                out.push(' ');
+                out.push_str(r);
+            }
+            out
+        })
+        .collect();
+    assert_eq!(v, m.positions.len());
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
     path
 }
 
@@ -96,19 +118,8 @@ fn position_difference(a: &TriMesh, b: &TriMesh, s: f64) -> f64 {
         / diag
 }
 
-/// The systems whose colours stay the same in thousandths and thousands too (up to a vertex
-/// in a hundred): every size-dependent order (collapses, candidate ties) is decided in bins
-/// relative to the mesh's own size, and nothing is refined. The others amplify the last-digit differences of
-/// the coordinates through sequential choices, and their numbers are printed.
-const METRIC_SAME: [&str; 4] = [
-    "complete",
-    "features-ao",
-    "features-curvature",
-    "features-height",
-];
-
-/// Colours of a system's output in each unit against the unscaled run's: identical in powers
-/// of two, printed in thousandths and thousands.
+/// Colours of a system's output in each unit against the unscaled run's: identical; positions
+/// scaled (exactly in powers of two).
 fn colours_follow_the_units(
     name: &str,
     inputs: &[&str],
@@ -123,33 +134,18 @@ fn colours_follow_the_units(
         let out = dir.join(format!("out_{s}.ply"));
         let got = run(&args(&ins, &out), &out);
         let (m, off) = colour_difference(&base, &got);
-        eprintln!(
-            "{name} x{s}: mean colour difference {m:.3} of 255, {off:.4} of the vertices off by more than 2"
-        );
-        // in metric units: the systems listed in METRIC_SAME give the same colours but for a
-        // vertex in a hundred (docs/formats.md#units)
-        if !exact(s) && METRIC_SAME.contains(&name) {
-            assert!(
-                m < 0.5 && off < 0.01,
-                "{name} x{s}: mean colour difference {m:.3} of 255, {off:.4} of the vertices off"
-            );
-        }
-        if exact(s) {
-            assert_eq!(
-                base.vertex_signal(),
-                got.vertex_signal(),
-                "{name}: {s} times larger (exact in floating point) changed the colours"
-            );
-            assert_eq!(
-                position_difference(&base, &got, s),
-                0.0,
-                "{name} x{s}: positions"
-            );
-        }
-        // positions scale with the units
         assert!(
-            position_difference(&base, &got, s) < 1e-6,
-            "{name} x{s}: positions"
+            base.vertex_signal() == got.vertex_signal(),
+            "{name} x{s}: mean colour difference {m:.3} of 255, {off:.4} of the vertices off by \
+             more than 2 of 255"
+        );
+        let d = position_difference(&base, &got, s);
+        if exact(s) {
+            assert_eq!(d, 0.0, "{name} x{s}: positions");
+        }
+        assert!(
+            d < 1e-6,
+            "{name} x{s}: positions differ by {d:.2e} of the diagonal"
         );
     }
 }
@@ -254,8 +250,9 @@ fn features_are_the_same_in_any_units() {
     }
 }
 
-/// Transfer and weathering: their searches read shape descriptors (a curvature is a second
-/// difference of the coordinates), so in metric units they differ most.
+/// Transfer (at its default 64K working vertices) and weathering: their searches read shape
+/// descriptors (a curvature is a second difference of the coordinates), so the last bit of a
+/// coordinate would change their choices.
 #[test]
 fn transfer_and_weathering_follow_the_units() {
     colours_follow_the_units("transfer", &["spot/spot.obj", "bunny/bunny.obj"], |i, o| {
@@ -265,14 +262,10 @@ fn transfer_and_weathering_follow_the_units() {
             &i[0],
             &"--target",
             &i[1],
-            &"--vertices",
-            &"4000",
             &"--out",
             &o,
         ])
     });
-    // weathering's clusters move with a few vertices' features: exact in power-of-two units
-    // only (the numbers are printed)
     colours_follow_the_units("weather", &["spot/spot.obj", "bunny/bunny.obj"], |i, o| {
         os(&[
             &"weather",
@@ -311,17 +304,16 @@ fn detail_and_quilting_scale_their_geometry_with_the_units() {
         )
     };
     let q1 = quilt(1.0);
-    for s in [1024.0, 1.0 / 1024.0] {
+    for s in SCALES {
         let q = quilt(s);
         assert_eq!(q.faces.len(), q1.faces.len(), "quilt x{s}");
-        assert_eq!(position_difference(&q1, &q, s), 0.0, "quilt x{s}");
-    }
-    for s in [1e-3, 1e3] {
-        let q = quilt(s);
-        eprintln!(
-            "quilt x{s}: {} faces against {}",
-            q.faces.len(),
-            q1.faces.len()
+        let d = position_difference(&q1, &q, s);
+        if exact(s) {
+            assert_eq!(d, 0.0, "quilt x{s}");
+        }
+        assert!(
+            d < 1e-6,
+            "quilt x{s}: positions differ by {d:.2e} of the diagonal"
         );
     }
     // detail: the displaced target, scaled back, where the unscaled run puts it
@@ -347,9 +339,12 @@ fn detail_and_quilting_scale_their_geometry_with_the_units() {
     let d1 = detail(1.0);
     for s in SCALES {
         let d = position_difference(&d1, &detail(s), s);
-        eprintln!("detail x{s}: largest position difference {d:.2e} of the diagonal");
         if exact(s) {
             assert_eq!(d, 0.0, "detail x{s}");
         }
+        assert!(
+            d < 1e-6,
+            "detail x{s}: positions differ by {d:.2e} of the diagonal"
+        );
     }
 }

@@ -7,7 +7,6 @@ use std::path::PathBuf;
 use super::common::*;
 use crate::error::{Error, Result};
 use crate::geometry::bake_onto;
-use crate::mesh::io;
 use crate::work::CancelToken;
 
 /// Arguments of `meshmatch bake`.
@@ -50,8 +49,9 @@ impl BakeArgs {
             &[&self.from, &self.to],
             &[("--out", &self.out, OutKind::Mesh)],
         )?;
-        let src = load_usable(&self.from)?;
-        let target = load_usable(&self.to)?;
+        let mut units = WorkingUnits::new();
+        let src = units.load(&self.from)?;
+        let target = units.load(&self.to)?;
         let t = std::time::Instant::now();
         let bar = progress_bar();
         bar.set_message("UV atlas");
@@ -69,7 +69,7 @@ impl BakeArgs {
                 "generated a UV atlas: {} charts, {:.0}% of the texture, {:.1} texels per unit",
                 a.charts,
                 100.0 * a.utilization,
-                a.texels_per_unit,
+                a.texels_per_unit / units.unit() as f32,
             );
         }
         eprintln!(
@@ -80,7 +80,7 @@ impl BakeArgs {
             self.texture_size,
             t.elapsed().as_secs_f64()
         );
-        io::save(&target, &self.out)?;
+        units.save(&target, &self.out)?;
         crate::cli::common::announce_written(&self.out);
         Ok(0)
     }

@@ -40,11 +40,106 @@ pub(crate) fn take_announced() -> Vec<String> {
 /// Load a mesh the engine can work on: `check_usable` and [`check_geometry`]. Loader warnings
 /// are printed only when every check passes, so a refused file is one line.
 pub fn load_usable(path: &Path) -> Result<TriMesh> {
-    let (m, mut warnings) = io::load_with_warnings(path)?;
+    load_usable_in(path, io::Units::File).map(|(m, _)| m)
+}
+
+/// [`load_usable`] with the coordinates read in `units`; returns what they were in the file too.
+fn load_usable_in(path: &Path, units: io::Units) -> Result<(TriMesh, io::FileCoordinates)> {
+    let (m, mut warnings, file) = io::load_with_warnings_in(path, units)?;
     let (m, more) = make_usable(m, path)?;
     warnings.extend(more);
     io::print_warnings(&warnings);
-    Ok(m)
+    Ok((m, file))
+}
+
+/// The working units of one command, so that the same inputs in millimetres, metres or inches
+/// give the same result. The first mesh the command loads fixes the unit: its own bounding-box
+/// diagonal, computed from the file's digits at the file's precision; every mesh is read in
+/// that unit (each coordinate divided by it before the rounding to single precision), lengths
+/// given on the command line are divided by it, and every mesh written is multiplied back (a
+/// vertex where an input had one gets that input's own coordinates, so a transfer's output
+/// keeps its target's positions bit for bit). The same shape scaled (the same digits) thus
+/// reaches the systems as the same numbers, and every choice a system makes is the same.
+#[derive(Debug, Default)]
+pub struct WorkingUnits {
+    unit: Option<f64>,
+    /// The file coordinates of every loaded vertex, by its working coordinates' bits.
+    file_positions: std::collections::HashMap<[u32; 3], [f32; 3]>,
+}
+
+impl WorkingUnits {
+    /// No mesh loaded yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The file length of one working unit (1 before any mesh is loaded).
+    pub fn unit(&self) -> f64 {
+        self.unit.unwrap_or(1.0)
+    }
+
+    /// [`load_usable`] in these units (the first mesh fixes them).
+    pub fn load(&mut self, path: &Path) -> Result<TriMesh> {
+        let units = match self.unit {
+            Some(u) => io::Units::Of(u),
+            None => io::Units::Own,
+        };
+        let (m, file) = load_usable_in(path, units)?;
+        self.unit.get_or_insert(file.unit);
+        if file.positions.len() == m.positions.len() {
+            for (w, f) in m.positions.iter().zip(file.positions) {
+                self.file_positions.entry(w.map(f32::to_bits)).or_insert(f);
+            }
+        }
+        Ok(m)
+    }
+
+    /// [`load_signal_source`] in these units.
+    pub fn load_signal_source(&mut self, path: &Path, texture: Option<&Path>) -> Result<TriMesh> {
+        let source = self.load(path)?;
+        with_signal(source, path, texture)
+    }
+
+    /// A length given in file units (a command-line option), in working units.
+    pub fn length(&self, x: f32) -> f32 {
+        (x as f64 / self.unit()) as f32
+    }
+
+    /// A length in working units, in file units (for messages).
+    pub fn file_length(&self, x: f32) -> f32 {
+        (x as f64 * self.unit()) as f32
+    }
+
+    /// A point in working units, in file units.
+    pub fn file_point(&self, p: [f32; 3]) -> [f32; 3] {
+        p.map(|x| self.file_length(x))
+    }
+
+    /// A point in working units, in file units: an input vertex's own coordinates where it is
+    /// one.
+    pub fn file_position(&self, p: [f32; 3]) -> [f32; 3] {
+        match self.file_positions.get(&p.map(f32::to_bits)) {
+            Some(f) => *f,
+            None => self.file_point(p),
+        }
+    }
+
+    /// `mesh` (in working units) back in file units.
+    pub fn to_file<'a>(&self, mesh: &'a TriMesh) -> std::borrow::Cow<'a, TriMesh> {
+        if self.unit() == 1.0 {
+            return std::borrow::Cow::Borrowed(mesh);
+        }
+        let mut m = mesh.clone();
+        for p in &mut m.positions {
+            *p = self.file_position(*p);
+        }
+        std::borrow::Cow::Owned(m)
+    }
+
+    /// Save `mesh` (in working units) to `path` in file units.
+    pub fn save(&self, mesh: &TriMesh, path: &Path) -> Result<()> {
+        io::save(&self.to_file(mesh), path)
+    }
 }
 
 /// A mesh made ready for the engine the way [`load_usable`] makes a file's (`check_usable`,
@@ -777,7 +872,11 @@ impl SolveArgs {
 /// Load a source that must carry a signal: its own texture or vertex colours, or `texture`
 /// (which needs UVs) in their place.
 pub fn load_signal_source(path: &Path, texture: Option<&Path>) -> Result<TriMesh> {
-    let mut source = load_usable(path)?;
+    with_signal(load_usable(path)?, path, texture)
+}
+
+/// `source` (loaded from `path`) checked to carry a signal, with `texture` in place of its own.
+fn with_signal(mut source: TriMesh, path: &Path, texture: Option<&Path>) -> Result<TriMesh> {
     if let Some(tex) = texture {
         if source.uvs.is_none() {
             return Err(Error::InvalidInput(format!(

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use super::common::*;
 use crate::error::{Error, Result};
-use crate::mesh::{TriMesh, io};
+use crate::mesh::TriMesh;
 use crate::work::{CancelToken, Event};
 
 /// Arguments of `meshmatch complete`.
@@ -50,9 +50,10 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
     }
     let inputs = input_paths(&[Some(&a.mesh), a.painted.as_ref(), a.mask.as_ref()]);
     check_outputs(&inputs, &[("--out", &a.out, OutKind::Mesh)])?;
-    let mesh = load_usable(&a.mesh)?;
+    let mut units = WorkingUnits::new();
+    let mesh = units.load(&a.mesh)?;
     let clay = a.clay.as_deref().map(parse_rgb).transpose()?;
-    let painted = a.painted.as_deref().map(load_usable).transpose()?;
+    let painted = a.painted.as_deref().map(|p| units.load(p)).transpose()?;
     let example = match (&painted, &a.mask) {
         (Some(p), _) => Example::Painted(p, clay),
         (None, Some(m)) => Example::Mask(read_mask(m, mesh.file_vertex_count)?),
@@ -83,7 +84,7 @@ fn complete(a: &CompleteArgs) -> Result<i32> {
         t.elapsed().as_secs_f64(),
         c.energy
     );
-    io::save(&c.mesh, &a.out)?;
+    units.save(&c.mesh, &a.out)?;
     crate::cli::common::announce_written(&a.out);
     Ok(0)
 }

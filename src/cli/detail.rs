@@ -4,7 +4,6 @@ use std::path::PathBuf;
 
 use super::common::*;
 use crate::error::Result;
-use crate::mesh::io;
 use crate::work::{CancelToken, Event};
 
 /// Arguments of `meshmatch detail`.
@@ -37,8 +36,9 @@ fn detail(a: &DetailArgs) -> Result<i32> {
     let params = a.solve.params(crate::applications::DETAIL_SHAPE_WEIGHT)?;
     check_strength(a.strength)?;
     check_outputs(&[&a.source, &a.target], &[("--out", &a.out, OutKind::Mesh)])?;
-    let source = load_usable(&a.source)?;
-    let target = load_usable(&a.target)?;
+    let mut units = WorkingUnits::new();
+    let source = units.load(&a.source)?;
+    let target = units.load(&a.target)?;
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);
     let t = std::time::Instant::now();
@@ -65,7 +65,7 @@ fn detail(a: &DetailArgs) -> Result<i32> {
         "detail transferred in {:.2} s: displacement (mean edge lengths) source mean {ms:.4} std {ss:.4}, result mean {mt:.4} std {st:.4}",
         t.elapsed().as_secs_f64()
     );
-    io::save(&r.mesh, &a.out)?;
+    units.save(&r.mesh, &a.out)?;
     crate::cli::common::announce(format!(
         "wrote {} ({} vertices)",
         a.out.display(),

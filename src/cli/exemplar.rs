@@ -8,7 +8,7 @@ use crate::mesh::io;
 use crate::work::CancelToken;
 
 /// Arguments of `meshmatch synth`.
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Clone, Debug)]
 pub struct SynthArgs {
     /// Exemplar image (PNG or JPEG): colours, or a grey displacement map with --displace.
     #[arg(long)]
@@ -347,7 +347,13 @@ fn synth(a: &SynthArgs) -> Result<i32> {
     check_outputs(&inputs, &outputs)?;
     let (tex, alpha) = io::load_texture_with_alpha(&a.exemplar)?;
     let (exemplar, alpha) = prepare_exemplar(a, tex.image, alpha, &a.exemplar)?;
-    let target = load_usable(&a.target)?;
+    let mut units = WorkingUnits::new();
+    let target = units.load(&a.target)?;
+    // --scale is a length in the target's file units
+    let a = &SynthArgs {
+        scale: a.scale.map(|s| units.length(s)),
+        ..a.clone()
+    };
     // The mask file numbers vertices as the file does.
     let mask = match &a.mask {
         Some(p) => Some(read_mask(p, target.file_vertex_count)?),
@@ -371,10 +377,10 @@ fn synth(a: &SynthArgs) -> Result<i32> {
         &CancelToken::new(),
     )?;
     bar.finish_and_clear();
-    io::save(&s.mesh, &a.out)?;
+    units.save(&s.mesh, &a.out)?;
     crate::cli::common::announce_written(&a.out);
     if let (Some(d), Some(dense)) = (&a.out_dense, &s.dense) {
-        io::save(dense, d)?;
+        units.save(dense, d)?;
         crate::cli::common::announce_written(d);
     }
     Ok(0)

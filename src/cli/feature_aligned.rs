@@ -41,10 +41,11 @@ impl CurvesArgs {
             &[self.mesh.as_path()],
             &[("--out", self.out.as_path(), OutKind::File)],
         )?;
-        let mesh = load_usable(&self.mesh)?;
+        let mut units = WorkingUnits::new();
+        let mesh = units.load(&self.mesh)?;
         let params = CurveParams {
             threshold: self.threshold,
-            min_length: self.min_length,
+            min_length: self.min_length.map(|l| units.length(l)),
             crease_angle_deg: self.crease_angle,
             crest_lines: !self.creases_only,
             ..CurveParams::default()
@@ -68,7 +69,7 @@ impl CurvesArgs {
             s.push_str(&format!(
                 "o curve{i}_{kind}\n# strength {:.4} length {:.6}\n",
                 c.strength,
-                c.length()
+                units.file_length(c.length())
             ));
             let pts: Vec<[f32; 3]> = if self.snapped {
                 c.vertices
@@ -78,7 +79,7 @@ impl CurvesArgs {
             } else {
                 c.points.clone()
             };
-            for p in &pts {
+            for p in pts.iter().map(|&p| units.file_position(p)) {
                 s.push_str(&format!("v {} {} {}\n", p[0], p[1], p[2]));
             }
             s.push('l');

@@ -7,7 +7,6 @@ use std::path::PathBuf;
 
 use super::common::*;
 use crate::error::{Error, Result};
-use crate::mesh::io;
 use crate::synthesis::weathering::feature_maps::{self, MapParams};
 use crate::synthesis::weathering::{self, Params, Up};
 use crate::work::CancelToken;
@@ -80,7 +79,8 @@ impl FeaturesArgs {
             return self.vertex_maps(up);
         }
         check_outputs(&[&self.mesh], &[("--out", &self.out, OutKind::Mesh)])?;
-        let mesh = load_usable(&self.mesh)?;
+        let mut units = WorkingUnits::new();
+        let mesh = units.load(&self.mesh)?;
         let params = Params {
             up,
             rays: self.rays,
@@ -116,7 +116,7 @@ impl FeaturesArgs {
         let mut out = mesh.clone();
         out.colors = Some(grey);
         out.texture = None;
-        io::save(&out, &self.out)?;
+        units.save(&out, &self.out)?;
         eprintln!(
             "feature {} in {:.2} s: range {lo:.4} .. {hi:.4}{}",
             self.feature,
@@ -176,7 +176,8 @@ impl FeaturesArgs {
         let checks: Vec<(&str, &std::path::Path, OutKind)> =
             outs.iter().map(|p| ("--out", p.as_path(), kind)).collect();
         check_outputs(&[&self.mesh], &checks)?;
-        let mesh = load_usable(&self.mesh)?;
+        let mut units = WorkingUnits::new();
+        let mesh = units.load(&self.mesh)?;
         let t = std::time::Instant::now();
         let bar = progress_bar();
         bar.set_message("feature maps");
@@ -193,7 +194,7 @@ impl FeaturesArgs {
                 "generated a UV atlas: {} charts, {:.0}% of the texture, {:.1} texels per unit",
                 a.charts,
                 100.0 * a.utilization,
-                a.texels_per_unit,
+                a.texels_per_unit / units.unit() as f32,
             );
         }
         for m in &maps.maps {
@@ -213,7 +214,7 @@ impl FeaturesArgs {
             }
         } else {
             for (m, p) in maps.maps.iter().zip(&outs) {
-                io::save(&feature_maps::textured_with(&mesh, &maps, m), p)?;
+                units.save(&feature_maps::textured_with(&mesh, &maps, m), p)?;
                 crate::cli::common::announce_written(p);
             }
         }
@@ -231,7 +232,8 @@ impl FeaturesArgs {
             .map(|p| ("--out", p.as_path(), OutKind::Mesh))
             .collect();
         check_outputs(&[&self.mesh], &checks)?;
-        let mesh = load_usable(&self.mesh)?;
+        let mut units = WorkingUnits::new();
+        let mesh = units.load(&self.mesh)?;
         let t = std::time::Instant::now();
         let vm = feature_maps::vertex_maps(&mesh, &names, &params, &CancelToken::new())?;
         eprintln!("{} map(s) in {:.2} s", vm.len(), t.elapsed().as_secs_f64());
@@ -244,7 +246,7 @@ impl FeaturesArgs {
                     .collect(),
             );
             out.texture = None;
-            io::save(&out, p)?;
+            units.save(&out, p)?;
             eprintln!("{}: {}", m.name, m.scale);
             crate::cli::common::announce_written(p);
         }

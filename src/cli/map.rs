@@ -36,8 +36,9 @@ impl MapArgs {
             self.correspondences.as_ref(),
         ]);
         check_outputs(&inputs, &[("--out", self.out.as_path(), OutKind::File)])?;
-        let source = load_usable(&self.source)?;
-        let target = load_usable(&self.target)?;
+        let mut units = WorkingUnits::new();
+        let source = units.load(&self.source)?;
+        let target = units.load(&self.target)?;
         let corr = match &self.correspondences {
             Some(p) => CorrespondenceFile::load_for(p, Some(&source), Some(&target))?,
             None => Vec::new(),

@@ -93,7 +93,11 @@ pub fn load_any_swatch(spec: &str, up: &str, seed: u64) -> Result<Swatch> {
             "--swatch {spec}: no such file, and not a built-in swatch (chain, weave, nuts, studs, scales)"
         )));
     }
-    quilting::load_swatch(io::load(path)?, up)
+    // in its own units (its bounding-box diagonal), so that a swatch modelled in millimetres
+    // and the same in metres are the same swatch; quilting sizes it by the base
+    let (mesh, warnings, _) = io::load_with_warnings_in(path, io::Units::Own)?;
+    io::print_warnings(&warnings);
+    quilting::load_swatch(mesh, up)
 }
 
 impl QuiltArgs {
@@ -109,10 +113,11 @@ impl QuiltArgs {
         positive("swatch-size", a.swatch_size)?;
         positive("thickness", a.thickness)?;
         let swatch = load_any_swatch(&a.swatch, &a.swatch_up, a.seed)?;
-        let base = load_usable(&a.base)?;
+        let mut units = WorkingUnits::new();
+        let base = units.load(&a.base)?;
         let params = Params {
-            swatch_size: a.swatch_size,
-            thickness: a.thickness,
+            swatch_size: a.swatch_size.map(|x| units.length(x)),
+            thickness: a.thickness.map(|x| units.length(x)),
             seed: a.seed,
             merge_elements: a.merge,
             nudge: !a.no_nudge,
@@ -127,7 +132,7 @@ impl QuiltArgs {
             swatch: &swatch,
             field: None,
         };
-        let out = quilting::run(&input, &params, &sink, &CancelToken::new())?;
+        let mut out = quilting::run(&input, &params, &sink, &CancelToken::new())?;
         bar.finish_and_clear();
         let s = &out.stats;
         eprintln!(
@@ -145,8 +150,8 @@ impl QuiltArgs {
             s.patches,
             s.lattice_patches,
             100.0 * s.covered_fraction,
-            s.swatch_size,
-            s.thickness,
+            units.file_length(s.swatch_size),
+            units.file_length(s.thickness),
             s.shell_stretch_before,
             s.shell_stretch
         );
@@ -165,7 +170,12 @@ impl QuiltArgs {
             .and_then(|e| e.to_str())
             .unwrap_or("")
             .to_ascii_lowercase();
-        let with_base = (!a.elements_only).then_some(&base);
+        // back in the base's file units
+        for p in &mut out.elements.positions {
+            *p = units.file_point(*p);
+        }
+        let base = units.to_file(&base);
+        let with_base = (!a.elements_only).then_some(base.as_ref());
         match ext.as_str() {
             "obj" => quilting::save_quilt_obj(&out, with_base, &a.out)?,
             "ply" => {

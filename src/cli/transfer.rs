@@ -119,8 +119,9 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         outputs.push(("--nnf-out", p, OutKind::File));
     }
     check_outputs(&inputs, &outputs)?;
-    let source = load_signal_source(&a.source, a.source_texture.as_deref())?;
-    let target = load_usable(&a.target)?;
+    let mut units = WorkingUnits::new();
+    let source = units.load_signal_source(&a.source, a.source_texture.as_deref())?;
+    let target = units.load(&a.target)?;
     let texture_size = texture_side(a.texture_size, &target);
     check_texture_size(texture_size)?;
     let corr = match &a.correspondences {
@@ -176,10 +177,10 @@ fn transfer(a: &TransferArgs) -> Result<i32> {
         eprintln!("{line}");
     }
     let out_mesh = &t.delivered;
-    io::save(&out_mesh.mesh, &a.out)?;
+    units.save(&out_mesh.mesh, &a.out)?;
     crate::cli::common::announce_written(&a.out);
     if let (Some(path), Some(d)) = (&a.out_dense, &t.dense) {
-        io::save(d, path)?;
+        units.save(d, path)?;
         crate::cli::common::announce_written(path);
     }
     if let Some(nnf) = &a.nnf_out {

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use super::common::*;
 use crate::error::{Error, Result};
-use crate::mesh::{TriMesh, io};
+use crate::mesh::TriMesh;
 use crate::work::{CancelToken, Event};
 
 /// Arguments of `meshmatch update`.
@@ -41,8 +41,9 @@ fn update(a: &UpdateArgs) -> Result<i32> {
         check_texture_size(size)?;
     }
     check_outputs(&[&a.old, &a.new], &[("--out", &a.out, OutKind::Mesh)])?;
-    let old = load_usable(&a.old)?;
-    let new = load_usable(&a.new)?;
+    let mut units = WorkingUnits::new();
+    let old = units.load(&a.old)?;
+    let new = units.load(&a.new)?;
     let bar = progress_bar();
     let sink = |e: Event| bar_sink(&bar, e);
     let t = std::time::Instant::now();
@@ -64,7 +65,7 @@ fn update(a: &UpdateArgs) -> Result<i32> {
         t.elapsed().as_secs_f64(),
         r.energy
     );
-    io::save(&out, &a.out)?;
+    units.save(&out, &a.out)?;
     crate::cli::common::announce_written(&a.out);
     Ok(0)
 }

@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use super::common::*;
 use crate::error::{Error, Result};
-use crate::mesh::io;
 use crate::synthesis::weathering::{self, Mean, Method, Params, Up};
 use crate::work::CancelToken;
 
@@ -95,8 +94,9 @@ impl WeatherArgs {
             outputs.push(("--out-dense", p, OutKind::Mesh));
         }
         check_outputs(&inputs, &outputs)?;
-        let source = load_signal_source(&a.source, a.source_texture.as_deref())?;
-        let target = load_usable(&a.target)?;
+        let mut units = WorkingUnits::new();
+        let source = units.load_signal_source(&a.source, a.source_texture.as_deref())?;
+        let target = units.load(&a.target)?;
         let mask = match &a.mask {
             Some(p) => Some(read_mask(p, source.file_vertex_count)?),
             None => None,
@@ -144,11 +144,11 @@ impl WeatherArgs {
         if let Some(line) = out_mesh.atlas_line(a.texture_size) {
             eprintln!("{line}");
         }
-        io::save(&out_mesh.mesh, &a.out)?;
+        units.save(&out_mesh.mesh, &a.out)?;
         crate::cli::common::announce_written(&a.out);
         if let Some(dense) = &a.out_dense {
             let d = crate::meshmatch::deliver_dense(&out.target.mesh, &out.colors);
-            io::save(&d, dense)?;
+            units.save(&d, dense)?;
             crate::cli::common::announce_written(dense);
         }
         Ok(0)

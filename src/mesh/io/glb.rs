@@ -356,6 +356,17 @@ struct Acc {
 /// nodes) is read with its world transform; points and lines are skipped, strips and fans
 /// converted to triangles.
 pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
+    load_gltf_bytes_in(bytes, path, super::Units::File).map(|(m, _)| m)
+}
+
+/// [`load_gltf_bytes`] with the coordinates read in `units` (glTF stores single precision, so a
+/// scaled copy's coordinates were rounded in its own units); returns what they were in the
+/// file too.
+pub(super) fn load_gltf_bytes_in(
+    bytes: &[u8],
+    path: &Path,
+    units: super::Units,
+) -> Result<(TriMesh, super::FileCoordinates)> {
     check_content(bytes, super::MeshFormat::Glb, path)?;
     let gltf = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| Error::format(path, format!("invalid glTF: {e}")))?;
@@ -476,8 +487,8 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         read_mesh(mesh, *world, &buffers, path, &mut acc, doc, &mut cache)?;
     }
     let n = acc.positions.len();
+    let raw: Vec<[f64; 3]> = acc.positions.iter().map(|p| p.map(f64::from)).collect();
     let mut mesh = TriMesh {
-        positions: acc.positions,
         faces: acc.faces,
         ..Default::default()
     };
@@ -491,7 +502,7 @@ pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         mesh.uvs = Some(acc.uvs);
     }
     mesh.texture = acc.texture;
-    finish(mesh, path)
+    finish(mesh, &raw, units, path)
 }
 
 /// One primitive's data as read from its accessors, before any node transform: read once per

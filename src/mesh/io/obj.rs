@@ -106,8 +106,22 @@ fn clip(s: &str) -> String {
 }
 
 fn parse_f32(tok: Option<&str>, line: usize, what: &str, path: &Path) -> Result<f32> {
+    parse_number(tok, line, what, path)
+}
+
+/// A coordinate at the file's precision (rounded to single precision after the units).
+fn parse_f64(tok: Option<&str>, line: usize, what: &str, path: &Path) -> Result<f64> {
+    parse_number(tok, line, what, path)
+}
+
+fn parse_number<T: std::str::FromStr>(
+    tok: Option<&str>,
+    line: usize,
+    what: &str,
+    path: &Path,
+) -> Result<T> {
     let tok = tok.ok_or_else(|| Error::format(path, format!("line {line}: {what} is missing")))?;
-    tok.parse::<f32>().map_err(|_| {
+    tok.parse::<T>().map_err(|_| {
         Error::format(
             path,
             format!("line {line}: {what} is not a number: '{}'", clip(tok)),
@@ -123,6 +137,16 @@ fn parse_f32(tok: Option<&str>, line: usize, what: &str, path: &Path) -> Result<
 /// within the file, degenerate faces), then [`assemble`] (colours, UVs, averaged normals,
 /// texture).
 pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
+    load_obj_bytes_in(bytes, path, super::Units::File).map(|(m, _)| m)
+}
+
+/// [`load_obj_bytes`] with the coordinates read in `units`; returns what they were in the file
+/// too.
+pub(super) fn load_obj_bytes_in(
+    bytes: &[u8],
+    path: &Path,
+    units: super::Units,
+) -> Result<(TriMesh, super::FileCoordinates)> {
     check_content(bytes, super::MeshFormat::Obj, path)?;
     let mut data = ObjData::default();
     // Lines end in \n, \r\n or a lone \r (files from classic Mac OS tools).
@@ -130,14 +154,16 @@ pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         read_line(&mut data, raw, li + 1, path)?;
     }
     check_references(&data, path)?;
-    let mesh = assemble(data, path);
-    finish(mesh, path)
+    let raw = std::mem::take(&mut data.pos);
+    let mesh = assemble(data, raw.len(), path);
+    finish(mesh, &raw, units, path)
 }
 
 /// What the lines of an OBJ file have given so far.
 #[derive(Default)]
 struct ObjData {
-    pos: Vec<[f32; 3]>,
+    /// Positions at the file's precision.
+    pos: Vec<[f64; 3]>,
     cols: Vec<[f32; 3]>,
     tex: Vec<[f32; 2]>,
     nrm: Vec<[f32; 3]>,
@@ -171,9 +197,9 @@ fn read_line(d: &mut ObjData, raw: &[u8], line_no: usize, path: &Path) -> Result
     };
     match key {
         "v" => {
-            let x = parse_f32(toks.next(), line_no, "x coordinate", path)?;
-            let y = parse_f32(toks.next(), line_no, "y coordinate", path)?;
-            let z = parse_f32(toks.next(), line_no, "z coordinate", path)?;
+            let x = parse_f64(toks.next(), line_no, "x coordinate", path)?;
+            let y = parse_f64(toks.next(), line_no, "y coordinate", path)?;
+            let z = parse_f64(toks.next(), line_no, "z coordinate", path)?;
             let rest: Vec<&str> = toks.collect();
             // v x y z [w] or v x y z r g b [a]
             if rest.len() >= 3 {
@@ -317,10 +343,10 @@ fn check_references(d: &ObjData, path: &Path) -> Result<()> {
 }
 
 /// The mesh: vertex colours where every vertex has one (0..255 scaled to 0..1), per-corner UVs,
-/// per-vertex normals averaged from the corners', and the texture of the materials used.
-fn assemble(d: ObjData, path: &Path) -> TriMesh {
+/// per-vertex normals averaged from the corners', and the texture of the materials used; `n`
+/// vertices, whose positions [`finish`] sets.
+fn assemble(d: ObjData, n: usize, path: &Path) -> TriMesh {
     let ObjData {
-        pos,
         mut cols,
         tex,
         nrm,
@@ -332,11 +358,9 @@ fn assemble(d: ObjData, path: &Path) -> TriMesh {
         ..
     } = d;
     let mut mesh = TriMesh {
-        positions: pos,
         faces,
         ..Default::default()
     };
-    let n = mesh.positions.len();
     if cols.len() == n && n > 0 {
         // Some writers use 0..255 colours; scale those to 0..1.
         let max = cols

@@ -389,6 +389,16 @@ fn vertex_role(name: &str) -> Role {
 /// [`store_item`] (a vertex, a face fanned into triangles or a triangle strip); then
 /// [`check_faces`] and [`assemble`] (the mesh with its normals, colours, UVs and texture).
 pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
+    load_ply_bytes_in(bytes, path, super::Units::File).map(|(m, _)| m)
+}
+
+/// [`load_ply_bytes`] with the coordinates read in `units`; returns what they were in the file
+/// too.
+pub(super) fn load_ply_bytes_in(
+    bytes: &[u8],
+    path: &Path,
+    units: super::Units,
+) -> Result<(TriMesh, super::FileCoordinates)> {
     check_content(bytes, super::MeshFormat::Ply, path)?;
     let h = parse_header(bytes, path)?;
     check_budget(&h, path)?;
@@ -422,14 +432,16 @@ pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
         }
     }
     check_faces(&data, path)?;
-    let mesh = assemble(data, h.texture_file.as_deref(), path);
-    finish(mesh, path)
+    let raw = std::mem::take(&mut data.positions);
+    let mesh = assemble(data, raw.len(), h.texture_file.as_deref(), path);
+    finish(mesh, &raw, units, path)
 }
 
 /// What the elements have given so far.
 #[derive(Default)]
 struct PlyData {
-    positions: Vec<[f32; 3]>,
+    /// Positions at the file's precision.
+    positions: Vec<[f64; 3]>,
     normals: Vec<[f32; 3]>,
     colors: Vec<[f32; 3]>,
     /// Per-vertex UVs.
@@ -448,7 +460,7 @@ struct PlyData {
 /// The values of one item of an element.
 #[derive(Default)]
 struct Item {
-    p: [f32; 3],
+    p: [f64; 3],
     nrm: [f32; 3],
     col: [f32; 3],
     uv: [f32; 2],
@@ -578,7 +590,7 @@ fn read_item(
     i: usize,
     item: &mut Item,
 ) -> Result<()> {
-    item.p = [0.0f32; 3];
+    item.p = [0.0f64; 3];
     item.nrm = [0.0f32; 3];
     item.col = [0.0f32; 3];
     item.uv = [0.0f32; 2];
@@ -598,7 +610,7 @@ fn read_item(
                     .map_err(|tok| at.not_number(i, tok))?
                     .ok_or_else(|| at.truncated(i))?;
                 match role {
-                    Role::Pos(k) => item.p[k] = v as f32,
+                    Role::Pos(k) => item.p[k] = v,
                     Role::Normal(k) => item.nrm[k] = v as f32,
                     Role::Color(k) => item.col[k] = (v * t.color_scale()) as f32,
                     Role::Uv(k) => item.uv[k] = v as f32,
@@ -735,10 +747,8 @@ fn check_faces(data: &PlyData, path: &Path) -> Result<()> {
 
 /// The mesh: normals and colours where every vertex has one, per-corner UVs from the faces'
 /// texture coordinates or else the vertices', and the `comment TextureFile` image beside `path`.
-fn assemble(data: PlyData, texture_file: Option<&str>, path: &Path) -> TriMesh {
-    let n = data.positions.len();
+fn assemble(data: PlyData, n: usize, texture_file: Option<&str>, path: &Path) -> TriMesh {
     let mut mesh = TriMesh {
-        positions: data.positions,
         faces: data.faces,
         ..Default::default()
     };

@@ -279,7 +279,11 @@ pub fn vertex_maps(
                         .iter()
                         .map(|&x| if x.is_finite() { (x / s).min(1.0) } else { 1.0 })
                         .collect(),
-                    scale: format!("mean inward distance / {s:.4} (mesh units)"),
+                    // in the mesh's own size, so that the words do not depend on its units
+                    scale: format!(
+                        "mean inward distance / {:.4} of the bounding-box diagonal",
+                        s / diagonal(mesh)
+                    ),
                 }
             }
             other => {
@@ -458,4 +462,13 @@ pub fn textured_with(mesh: &TriMesh, maps: &FeatureMaps, map: &FeatureMap) -> Tr
         path: None,
     }));
     out
+}
+
+/// The bounding-box diagonal of `mesh` (1 for a mesh without extent).
+fn diagonal(mesh: &TriMesh) -> f32 {
+    let d = mesh
+        .bounds()
+        .map(|(lo, hi)| glam::Vec3::from(hi).distance(glam::Vec3::from(lo)))
+        .unwrap_or(0.0);
+    if d > 0.0 && d.is_finite() { d } else { 1.0 }
 }
