@@ -326,7 +326,12 @@ pub(super) type Closest = ([f32; 3], f32, u32, [f32; 3]);
 
 /// The closest point of the source surface to `z` ([`Closest`]).
 pub(super) fn closest_on(bvh: &TriangleBvh, source: &Level, z: Vec3) -> Closest {
-    match bvh.closest_point(z.to_array()) {
+    closest_near(bvh, source, z, u32::MAX)
+}
+
+/// [`closest_on`] starting from face `hint` (the answer for a nearby point; `u32::MAX` for none).
+pub(super) fn closest_near(bvh: &TriangleBvh, source: &Level, z: Vec3, hint: u32) -> Closest {
+    match bvh.closest_point_near(z.to_array(), hint) {
         Some((f, b, d)) => {
             let c = source.faces[f as usize].map(|u| Vec3::from(source.positions[u as usize]));
             let q = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
