@@ -51,6 +51,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Some(TextureKind::Mixed),
             Deformation::BentAndMoved,
         ),
+        ("spot twisted", None, Deformation::TwistedAndMoved),
+        (
+            "bricks twisted",
+            Some(TextureKind::Bricks),
+            Deformation::TwistedAndMoved,
+        ),
+        ("spot posed", None, Deformation::PosedAndMoved),
+        (
+            "bricks posed",
+            Some(TextureKind::Bricks),
+            Deformation::PosedAndMoved,
+        ),
     ];
     let params = TransferParams {
         vertices,

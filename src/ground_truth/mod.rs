@@ -32,6 +32,12 @@ pub enum Deformation {
     None,
     /// Re-tessellated, bent along its longest axis and moved (rotated and translated).
     BentAndMoved,
+    /// Re-tessellated, twisted about its longest axis (60 degrees end to end) and moved.
+    TwistedAndMoved,
+    /// Re-tessellated and posed as a joint turns a limb: the last third along its longest axis
+    /// turned 35 degrees sideways about a hinge, blended over a band a tenth of the length
+    /// wide (a skinned joint), then moved.
+    PosedAndMoved,
 }
 
 /// A ground-truth task: see the module doc.
@@ -91,37 +97,83 @@ pub fn retessellate(
     (moved, faces)
 }
 
-/// A smooth deformation of the positions: a bend of about 40 degrees along the longest axis of
-/// their bounding box, then a rotation of 25 degrees about the vertical axis and a translation
-/// by a third of the box.
-pub fn deform(positions: &[[f32; 3]]) -> Vec<[f32; 3]> {
+/// The box of `positions`: its centre, its extent, and its axes from the longest.
+fn box_axes(positions: &[[f32; 3]]) -> (Vec3, Vec3, [usize; 3]) {
     let (lo, hi) = positions.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), p| (lo.min(Vec3::from(*p)), hi.max(Vec3::from(*p))),
     );
     let ext = hi - lo;
-    let c = 0.5 * (lo + hi);
-    // Bend axis: the longest; the bend turns it towards the second-longest.
     let mut axes = [0usize, 1, 2];
     axes.sort_by(|&a, &b| ext[b].total_cmp(&ext[a]));
-    let (ax, up) = (axes[0], axes[1]);
-    let len = ext[ax].max(1e-12);
-    let angle = 40f32.to_radians();
-    let radius = len / angle;
+    (0.5 * (lo + hi), ext, axes)
+}
+
+/// `f` (on positions relative to the box centre, with the box's extent and axes) applied to
+/// every position, then a rotation of 25 degrees about the vertical axis and a translation by a
+/// third of the box.
+fn deform_and_move(
+    positions: &[[f32; 3]],
+    f: impl Fn(Vec3, Vec3, [usize; 3]) -> Vec3,
+) -> Vec<[f32; 3]> {
+    let (c, ext, axes) = box_axes(positions);
     let rot = glam::Quat::from_rotation_y(25f32.to_radians());
     let shift = ext / 3.0;
     positions
         .iter()
-        .map(|p| {
-            let q = Vec3::from(*p) - c;
-            let (x, z) = (q[ax], q[up]);
-            let th = x / radius;
-            let mut out = q;
-            out[ax] = (radius - z) * th.sin();
-            out[up] = radius - (radius - z) * th.cos();
-            (rot * out + c + shift).to_array()
-        })
+        .map(|p| (rot * f(Vec3::from(*p) - c, ext, axes) + c + shift).to_array())
         .collect()
+}
+
+/// A smooth deformation of the positions: a bend of about 40 degrees along the longest axis of
+/// their bounding box (towards the second-longest), then a rotation of 25 degrees about the
+/// vertical axis and a translation by a third of the box.
+pub fn deform(positions: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    deform_and_move(positions, |q, ext, axes| {
+        let (ax, up) = (axes[0], axes[1]);
+        let radius = ext[ax].max(1e-12) / 40f32.to_radians();
+        let (x, z) = (q[ax], q[up]);
+        let th = x / radius;
+        let mut out = q;
+        out[ax] = (radius - z) * th.sin();
+        out[up] = radius - (radius - z) * th.cos();
+        out
+    })
+}
+
+/// A twist of 60 degrees end to end about the longest axis of the positions' box, then moved
+/// as [`deform`] moves.
+pub fn twist(positions: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    deform_and_move(positions, |q, ext, axes| {
+        let [ax, a, b] = axes;
+        let th = 60f32.to_radians() * q[ax] / ext[ax].max(1e-12);
+        let (s, c) = th.sin_cos();
+        let mut out = q;
+        out[a] = c * q[a] - s * q[b];
+        out[b] = s * q[a] + c * q[b];
+        out
+    })
+}
+
+/// A posed joint: the part beyond a hinge a third of the length from the end of the longest
+/// axis turned 35 degrees towards the shortest axis, with the turn blended in (smoothstep) over
+/// a band a tenth of the length wide, as a skinned joint does; then moved as [`deform`] moves.
+pub fn pose(positions: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    deform_and_move(positions, |q, ext, axes| {
+        let [ax, _, side] = axes;
+        let len = ext[ax].max(1e-12);
+        let hinge = len / 6.0; // from the centre: a third of the length from the end
+        let band = 0.1 * len;
+        let t = ((q[ax] - (hinge - 0.5 * band)) / band).clamp(0.0, 1.0);
+        let w = t * t * (3.0 - 2.0 * t);
+        let th = w * 35f32.to_radians();
+        let (s, c) = th.sin_cos();
+        let (x, y) = (q[ax] - hinge, q[side]);
+        let mut out = q;
+        out[ax] = hinge + c * x - s * y;
+        out[side] = s * x + c * y;
+        out
+    })
 }
 
 impl TexelTask {
@@ -144,6 +196,8 @@ impl TexelTask {
         let positions = match deformation {
             Deformation::None => rest.clone(),
             Deformation::BentAndMoved => deform(&rest),
+            Deformation::TwistedAndMoved => twist(&rest),
+            Deformation::PosedAndMoved => pose(&rest),
         };
         let params = AtlasParams {
             texture_size,
