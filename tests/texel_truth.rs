@@ -3,8 +3,9 @@
 //! known correspondence. The transfer's texture read from the source at full resolution must
 //! keep what the working-vertex bake blurs: where the shapes are identical it reproduces the
 //! truth (bricks with 2-3 texel mortar: SSIM at least 0.6, edges at least 85% as strong, half
-//! the colour error or less), and on a bent and moved target, found under its bend, half the
-//! working-vertex bake's colour error or less and edges at least 70% as strong.
+//! the colour error or less), and on a bent (or twisted) and moved target, found under its
+//! deformation, half the working-vertex bake's colour error or less and edges at least 70% as
+//! strong.
 
 use std::sync::Arc;
 
@@ -99,4 +100,25 @@ fn a_bent_target_is_found_under_its_bend_and_arrives_near_the_truth() {
     );
     assert!(full.edges >= 0.7, "edges {:.2}", full.edges);
     assert!(full.sharpness >= 0.85, "sharpness {:.2}", full.sharpness);
+}
+
+#[test]
+fn a_twisted_target_is_found_under_its_twist() {
+    // another deformation than the bend the warp was first measured on: 60 degrees of twist
+    // about the long axis, then moved
+    let c = run(None, Deformation::TwistedAndMoved);
+    let (full, working) = (&c.deliveries[0].scores, &c.deliveries[1].scores);
+    assert!(c.coincident >= 0.9, "coincident share {:.3}", c.coincident);
+    assert!(
+        c.placement[0] <= 0.5,
+        "placement median {:.2} source edges",
+        c.placement[0]
+    );
+    assert!(
+        full.delta_e <= 0.5 * working.delta_e,
+        "dE {:.2} against {:.2}",
+        full.delta_e,
+        working.delta_e
+    );
+    assert!(full.edges >= 0.7, "edges {:.2}", full.edges);
 }
