@@ -19,11 +19,17 @@ use crate::{OrPy, refuse};
 #[derive(Clone)]
 pub struct Mesh {
     pub(crate) inner: Arc<TriMesh>,
+    /// The coordinates as its file gives them, at the file's precision (a mesh from `load`), so
+    /// that a system's working units are the command line's.
+    pub(crate) exact: Option<Arc<Vec<[f64; 3]>>>,
 }
 
 impl Mesh {
     pub fn wrap(m: TriMesh) -> Self {
-        Mesh { inner: Arc::new(m) }
+        Mesh {
+            inner: Arc::new(m),
+            exact: None,
+        }
     }
 }
 
@@ -389,16 +395,19 @@ impl Mesh {
 /// Python's `warnings` module.
 #[pyfunction]
 pub fn load(py: Python<'_>, path: PathBuf) -> PyResult<Mesh> {
-    let (m, warnings) = py
+    let (m, warnings, exact) = py
         .detach(|| {
-            let (m, mut w) = io::load_with_warnings(&path)?;
+            let (m, mut w, file) = io::load_with_warnings_in(&path, io::Units::File)?;
             let (m, more) = meshmatch::cli::common::make_usable(m, &path)?;
             w.extend(more);
-            Ok::<_, meshmatch::Error>((m, w))
+            Ok::<_, meshmatch::Error>((m, w, file.exact))
         })
         .or_py()?;
     warn(py, &warnings)?;
-    Ok(Mesh::wrap(m))
+    Ok(Mesh {
+        inner: Arc::new(m),
+        exact: Some(Arc::new(exact)),
+    })
 }
 
 /// Pass warning lines to Python's `warnings.warn`.
@@ -423,4 +432,15 @@ pub fn usable(py: Python<'_>, m: &Mesh, name: &str) -> PyResult<TriMesh> {
     let (t, warnings) = meshmatch::cli::common::make_usable(t, Path::new(name)).or_py()?;
     warn(py, &warnings)?;
     Ok(t)
+}
+
+/// [`usable`], in a system's working units (as the command line takes its files).
+pub fn usable_in(
+    py: Python<'_>,
+    m: &Mesh,
+    name: &str,
+    units: &mut meshmatch::cli::common::WorkingUnits,
+) -> PyResult<TriMesh> {
+    let t = usable(py, m, name)?;
+    Ok(units.adopt(t, m.exact.as_ref().map(|e| e.as_slice())))
 }

@@ -13,7 +13,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::job::{self, CancelToken};
-use crate::mesh::{Mesh, usable};
+use crate::mesh::{Mesh, usable_in};
 use crate::{OrPy, refuse};
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -251,11 +251,12 @@ fn transfer(
         None => None,
     };
     params.validate().or_py()?;
-    let src = usable(py, source, "source")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let src = usable_in(py, source, "source", &mut units)?;
     if src.vertex_signal().is_none() {
         return refuse("source: carries no texture or vertex colours to transfer");
     }
-    let tgt = usable(py, target, "target")?;
+    let tgt = usable_in(py, target, "target", &mut units)?;
     let corr = match correspondences {
         Some(c) => self::correspondences(c, &src, &tgt)?,
         None => Vec::new(),
@@ -278,7 +279,7 @@ fn transfer(
             &ctx.cancel,
         )
     })?;
-    Ok(result(t.delivered.mesh))
+    Ok(result(units.to_file(&t.delivered.mesh).into_owned()))
 }
 
 /// Completion by example (`meshmatch complete`): the vertices flagged by `mask` (booleans per
@@ -321,8 +322,11 @@ fn complete(
         shape_weight,
         sharpen,
     )?;
-    let m = usable(py, mesh, "mesh")?;
-    let painted = painted.map(|p| usable(py, p, "painted")).transpose()?;
+    let mut units = cli::common::WorkingUnits::new();
+    let m = usable_in(py, mesh, "mesh", &mut units)?;
+    let painted = painted
+        .map(|p| usable_in(py, p, "painted", &mut units))
+        .transpose()?;
     let clay = clay.map(|(r, g, b)| [r as f32 / 255.0, g as f32 / 255.0, b as f32 / 255.0]);
     let example = match (&painted, mask) {
         (Some(_), Some(_)) => return refuse("complete: give mask or painted, not both"),
@@ -344,7 +348,7 @@ fn complete(
             &ctx.cancel,
         )
     })?;
-    Ok(result(c.mesh))
+    Ok(result(units.to_file(&c.mesh).into_owned()))
 }
 
 /// Texture update after a geometry edit (`meshmatch update`): `new` with `old`'s colours or
@@ -381,8 +385,9 @@ fn update(
         shape_weight,
         sharpen,
     )?;
-    let o = usable(py, old, "old")?;
-    let n = usable(py, new, "new")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let o = usable_in(py, old, "old", &mut units)?;
+    let n = usable_in(py, new, "new", &mut units)?;
     let ext = ext_for(textured, &n);
     let (out, _) = job::run(py, progress, cancel, |ctx| {
         cli::update::update_mesh(
@@ -395,7 +400,7 @@ fn update(
             &ctx.cancel,
         )
     })?;
-    Ok(result(out))
+    Ok(result(units.to_file(&out).into_owned()))
 }
 
 /// Detail transfer (`meshmatch detail`): the target at the working resolution, displaced along
@@ -432,12 +437,13 @@ fn detail(
         shape_weight,
         sharpen,
     )?;
-    let s = usable(py, source, "source")?;
-    let t = usable(py, target, "target")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let s = usable_in(py, source, "source", &mut units)?;
+    let t = usable_in(py, target, "target", &mut units)?;
     let r = job::run(py, progress, cancel, |ctx| {
         cli::detail::detail_mesh(&s, &t, strength, &params, &|e| ctx.event(e), &ctx.cancel)
     })?;
-    Ok(result(r.mesh))
+    Ok(result(units.to_file(&r.mesh).into_owned()))
 }
 
 /// Texture synthesis over a mesh from an exemplar image (`meshmatch synth`, Wei and Levoy
@@ -519,7 +525,13 @@ fn synthesize(
         }
     };
     let (rgb, alpha) = cli::exemplar::prepare_exemplar(&args, rgb, alpha, &name).or_py()?;
-    let t = usable(py, target, "target")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let t = usable_in(py, target, "target", &mut units)?;
+    // scale is a length in the target's units, as `meshmatch synth --scale`
+    let args = cli::exemplar::SynthArgs {
+        scale: args.scale.map(|s| units.length(s)),
+        ..args
+    };
     let file_mask = mask
         .map(|m| self::mask(m, t.file_vertex_count, "mask"))
         .transpose()?;
@@ -543,7 +555,7 @@ fn synthesize(
             &ctx.cancel,
         )
     })?;
-    Ok(result(s.mesh))
+    Ok(result(units.to_file(&s.mesh).into_owned()))
 }
 
 /// Geometry-correlated transfer (`meshmatch weather`, Mertens et al. 2006): weathering, dirt or
@@ -582,8 +594,9 @@ fn weather(
     if let Some(c) = &components {
         weathering::check_components(c, weathering::Params::default().cca_dims).or_py()?;
     }
-    let s = usable(py, source, "source")?;
-    let t = usable(py, target, "target")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let s = usable_in(py, source, "source", &mut units)?;
+    let t = usable_in(py, target, "target", &mut units)?;
     let mask = mask
         .map(|m| self::mask(m, s.file_vertex_count, "mask"))
         .transpose()?;
@@ -611,7 +624,7 @@ fn weather(
             &ctx.cancel,
         )
     })?;
-    Ok(result(w.delivered.mesh))
+    Ok(result(units.to_file(&w.delivered.mesh).into_owned()))
 }
 
 /// `quilt`'s swatch: a `Mesh`, or a built-in name or a file path.
@@ -663,10 +676,11 @@ fn quilt<'py>(
                 .or_py()?
         }
     };
-    let b = usable(py, base, "base")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let b = usable_in(py, base, "base", &mut units)?;
     let params = quilting::Params {
-        swatch_size,
-        thickness,
+        swatch_size: swatch_size.map(|x| units.length(x)),
+        thickness: thickness.map(|x| units.length(x)),
         seed,
         merge_elements: merge,
         nudge,
@@ -683,7 +697,11 @@ fn quilt<'py>(
         quilting::run(&input, &params, &|e| ctx.event(e), &ctx.cancel)
     })?;
     let ids: Vec<i64> = out.element_id.iter().map(|&e| e as i64).collect();
-    Ok((result(out.elements), PyArray1::from_vec(py, ids).into_any()))
+    let mut elements = out.elements;
+    for p in &mut elements.positions {
+        *p = units.file_point(*p);
+    }
+    Ok((result(elements), PyArray1::from_vec(py, ids).into_any()))
 }
 
 /// Salient curves (`meshmatch curves`: crest lines and sharp creases, Xu et al. 2009 §4.1) as a
@@ -707,10 +725,11 @@ fn curves<'py>(
 ) -> PyResult<Bound<'py, PyList>> {
     use meshmatch::geometry::{CurveKind, CurveParams, salient_curves};
     cli::feature_aligned::check_curves(threshold, min_length, crease_angle).or_py()?;
-    let m = usable(py, mesh, "mesh")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let m = usable_in(py, mesh, "mesh", &mut units)?;
     let params = CurveParams {
         threshold,
-        min_length,
+        min_length: min_length.map(|l| units.length(l)),
         crease_angle_deg: crease_angle,
         crest_lines: !creases_only,
         ..CurveParams::default()
@@ -721,7 +740,11 @@ fn curves<'py>(
     let list = PyList::empty(py);
     for c in &cs {
         let d = PyDict::new(py);
-        let flat: Vec<f32> = c.points.iter().flatten().copied().collect();
+        let flat: Vec<f32> = c
+            .points
+            .iter()
+            .flat_map(|&p| units.file_position(p))
+            .collect();
         d.set_item(
             "points",
             PyArray1::from_vec(py, flat).reshape([c.points.len(), 3])?,
@@ -741,7 +764,7 @@ fn curves<'py>(
             },
         )?;
         d.set_item("strength", c.strength)?;
-        d.set_item("length", c.length())?;
+        d.set_item("length", units.file_length(c.length()))?;
         d.set_item("closed", c.closed)?;
         list.append(d)?;
     }
@@ -766,7 +789,8 @@ fn features<'py>(
     cancel: Option<&Bound<'py, CancelToken>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let up: weathering::Up = up.parse().or_py()?;
-    let m = usable(py, mesh, "mesh")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let m = usable_in(py, mesh, "mesh", &mut units)?;
     let params = weathering::Params {
         up,
         rays,
@@ -819,7 +843,8 @@ fn feature_maps<'py>(
         new_atlas,
     };
     fm::check_map_params(&params).or_py()?;
-    let m = usable(py, mesh, "mesh")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let m = usable_in(py, mesh, "mesh", &mut units)?;
     let maps = job::run(py, progress, cancel, |ctx| {
         fm::bake_feature_maps(
             &m,
@@ -867,8 +892,9 @@ fn bake(
     cancel: Option<&Bound<'_, CancelToken>>,
 ) -> PyResult<Mesh> {
     cli::common::check_texture_size(texture_size).or_py()?;
-    let s = usable(py, source, "source")?;
-    let t = usable(py, target, "target")?;
+    let mut units = cli::common::WorkingUnits::new();
+    let s = usable_in(py, source, "source", &mut units)?;
+    let t = usable_in(py, target, "target", &mut units)?;
     let (out, _) = job::run(py, progress, cancel, |ctx| {
         cli::bake::bake_mesh(
             &t,
@@ -879,5 +905,5 @@ fn bake(
             &ctx.cancel,
         )
     })?;
-    Ok(result(out))
+    Ok(result(units.to_file(&out).into_owned()))
 }

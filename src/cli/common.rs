@@ -40,58 +40,76 @@ pub(crate) fn take_announced() -> Vec<String> {
 /// Load a mesh the engine can work on: `check_usable` and [`check_geometry`]. Loader warnings
 /// are printed only when every check passes, so a refused file is one line.
 pub fn load_usable(path: &Path) -> Result<TriMesh> {
-    load_usable_in(path, io::Units::File).map(|(m, _)| m)
+    load_usable_exact(path).map(|(m, _)| m)
 }
 
-/// [`load_usable`] with the coordinates read in `units`; returns what they were in the file too.
-fn load_usable_in(path: &Path, units: io::Units) -> Result<(TriMesh, io::FileCoordinates)> {
-    let (m, mut warnings, file) = io::load_with_warnings_in(path, units)?;
+/// [`load_usable`], with the file's coordinates at its own precision.
+pub fn load_usable_exact(path: &Path) -> Result<(TriMesh, Vec<[f64; 3]>)> {
+    let (m, mut warnings, file) = io::load_with_warnings_in(path, io::Units::File)?;
     let (m, more) = make_usable(m, path)?;
     warnings.extend(more);
     io::print_warnings(&warnings);
-    Ok((m, file))
+    Ok((m, file.exact))
 }
 
 /// The working units of one command, so that the same inputs in millimetres, metres or inches
-/// give the same result. The first mesh the command loads fixes the unit: its own bounding-box
-/// diagonal, computed from the file's digits at the file's precision; every mesh is read in
-/// that unit (each coordinate divided by it before the rounding to single precision), lengths
+/// give the same result. The first mesh the command takes fixes the unit: its own bounding-box
+/// diagonal, computed from the file's digits at the file's precision; every mesh is put in that
+/// unit (each coordinate divided by it before the rounding to single precision), lengths
 /// given on the command line are divided by it, and every mesh written is multiplied back (a
 /// vertex where an input had one gets that input's own coordinates, so a transfer's output
 /// keeps its target's positions bit for bit). The same shape scaled (the same digits) thus
-/// reaches the systems as the same numbers, and every choice a system makes is the same.
+/// reaches the systems as the same numbers, and every choice a system makes is the same. The
+/// Python package takes its meshes through the same door ([`WorkingUnits::adopt`]), so its
+/// results are the command line's.
 #[derive(Debug, Default)]
 pub struct WorkingUnits {
     unit: Option<f64>,
-    /// The file coordinates of every loaded vertex, by its working coordinates' bits.
+    /// The file coordinates of every taken vertex, by its working coordinates' bits.
     file_positions: std::collections::HashMap<[u32; 3], [f32; 3]>,
 }
 
 impl WorkingUnits {
-    /// No mesh loaded yet.
+    /// No mesh taken yet.
     pub fn new() -> Self {
         Self::default()
     }
 
-    /// The file length of one working unit (1 before any mesh is loaded).
+    /// The file length of one working unit (1 before any mesh is taken).
     pub fn unit(&self) -> f64 {
         self.unit.unwrap_or(1.0)
     }
 
     /// [`load_usable`] in these units (the first mesh fixes them).
     pub fn load(&mut self, path: &Path) -> Result<TriMesh> {
+        let (m, exact) = load_usable_exact(path)?;
+        Ok(self.adopt(m, Some(&exact)))
+    }
+
+    /// `mesh` (in file units, usable) in these units; `exact` are its coordinates at the file's
+    /// precision where known (else its own). The first mesh fixes the unit.
+    pub fn adopt(&mut self, mut mesh: TriMesh, exact: Option<&[[f64; 3]]>) -> TriMesh {
+        let own: Vec<[f64; 3]>;
+        let raw = match exact.filter(|e| e.len() == mesh.positions.len()) {
+            Some(e) => e,
+            None => {
+                own = mesh.positions.iter().map(|p| p.map(f64::from)).collect();
+                &own
+            }
+        };
         let units = match self.unit {
             Some(u) => io::Units::Of(u),
             None => io::Units::Own,
         };
-        let (m, file) = load_usable_in(path, units)?;
-        self.unit.get_or_insert(file.unit);
-        if file.positions.len() == m.positions.len() {
-            for (w, f) in m.positions.iter().zip(file.positions) {
-                self.file_positions.entry(w.map(f32::to_bits)).or_insert(f);
+        let (working, unit) = units.apply(raw);
+        self.unit.get_or_insert(unit);
+        if self.unit() != 1.0 {
+            for (w, f) in working.iter().zip(&mesh.positions) {
+                self.file_positions.entry(w.map(f32::to_bits)).or_insert(*f);
             }
         }
-        Ok(m)
+        mesh.positions = working;
+        mesh
     }
 
     /// [`load_signal_source`] in these units.

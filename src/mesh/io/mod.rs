@@ -40,16 +40,17 @@ pub enum Units {
 pub struct FileCoordinates {
     /// The file length of one unit of the mesh.
     pub unit: f64,
-    /// Each vertex's coordinates as the file's own units give them in single precision (empty
-    /// when the unit is 1): a vertex a command did not move is written back with exactly these.
-    pub positions: Vec<[f32; 3]>,
+    /// Each vertex's coordinates as the file gives them, at its precision (double for text
+    /// and double PLY): what a command's working units are computed from
+    /// (`cli::common::WorkingUnits`).
+    pub exact: Vec<[f64; 3]>,
 }
 
 impl Units {
     /// `raw` in these units, rounded to single precision, and the unit used (1 for `File`; 1 for
     /// `Own` on a mesh without extent). A coordinate beyond single precision in the file's own
     /// units stays infinite, so that the mesh is refused as before.
-    fn apply(self, raw: &[[f64; 3]]) -> (Vec<[f32; 3]>, f64) {
+    pub fn apply(self, raw: &[[f64; 3]]) -> (Vec<[f32; 3]>, f64) {
         let unit = match self {
             Units::File => 1.0,
             Units::Of(u) if u.is_finite() && u > 0.0 => u,
@@ -668,11 +669,7 @@ fn finish(
     let (positions, unit) = units.apply(raw);
     let file = FileCoordinates {
         unit,
-        positions: if unit == 1.0 {
-            Vec::new()
-        } else {
-            raw.iter().map(|p| p.map(|x| x as f32)).collect()
-        },
+        exact: raw.to_vec(),
     };
     mesh.positions = positions;
     let n = mesh.positions.len();
