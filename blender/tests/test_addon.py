@@ -71,6 +71,16 @@ def cli():
     return run
 
 
+def single(tmp_path, rel):
+    """`rel` as the add-on sees it once imported: its coordinates in single precision, written
+    as binary PLY (single precision; the vertices, UVs and texture kept), so that the CLI reads
+    the same numbers. On the OBJ itself the CLI reads the file's digits in double precision
+    (its working units, docs/formats.md#units), which a Blender mesh no longer has."""
+    out = tmp_path / (Path(rel).stem + "_single.ply")
+    meshmatch.load(DATA / rel).save(out)
+    return out
+
+
 def import_obj(rel):
     """Import an OBJ without axis conversion: world coordinates are the file's."""
     before = set(bpy.data.objects)
@@ -189,8 +199,8 @@ def test_undo_takes_each_result_back():
 
 def test_transfer_writes_the_clis_colours_as_a_colour_attribute(tmp_path, cli):
     out = tmp_path / "cli.ply"
-    cli("transfer", "--source", DATA / "spot/spot.obj", "--target", DATA / "penguin/penguin.obj",
-        "--out", out, *FAST_FLAGS)
+    cli("transfer", "--source", single(tmp_path, "spot/spot.obj"), "--target",
+        single(tmp_path, "penguin/penguin.obj"), "--out", out, *FAST_FLAGS)
     spot = import_obj("spot/spot.obj")
     penguin = import_obj("penguin/penguin.obj")
     select(spot, penguin)
@@ -205,7 +215,8 @@ def test_transfer_writes_the_clis_colours_as_a_colour_attribute(tmp_path, cli):
 
 def test_transfer_to_a_uv_mesh_wires_a_new_image_of_the_clis_texture(tmp_path, cli):
     out = tmp_path / "cli.glb"
-    cli("transfer", "--source", DATA / "spot/spot.obj", "--target", DATA / "spot/spot.obj",
+    spot_single = single(tmp_path, "spot/spot.obj")
+    cli("transfer", "--source", spot_single, "--target", spot_single,
         "--out", out, "--texture-size", "256", *FAST_FLAGS)
     src = import_obj("spot/spot.obj")
     tgt = import_obj("spot/spot.obj")
@@ -253,8 +264,8 @@ def test_complete_fills_the_clay_from_the_painted_colours_as_the_cli_does(tmp_pa
 
 def test_weather_writes_the_clis_colours(tmp_path, cli):
     out = tmp_path / "cli.ply"
-    cli("weather", "--source", DATA / "spot/spot.obj", "--target", DATA / "penguin/penguin.obj",
-        "--out", out, "--vertices", "4000", "--rays", "16")
+    cli("weather", "--source", single(tmp_path, "spot/spot.obj"), "--target",
+        single(tmp_path, "penguin/penguin.obj"), "--out", out, "--vertices", "4000", "--rays", "16")
     spot = import_obj("spot/spot.obj")
     penguin = import_obj("penguin/penguin.obj")
     select(spot, penguin)
@@ -300,7 +311,7 @@ def test_feature_maps_refuse_a_mesh_without_uvs_in_one_line():
 def test_synthesize_from_an_image_bakes_the_clis_texture(tmp_path, cli):
     ex = DATA / "textures" / "5.png"
     out = tmp_path / "cli.glb"
-    cli("synth", "--exemplar", ex, "--target", DATA / "spot/spot.obj", "--out", out,
+    cli("synth", "--exemplar", ex, "--target", single(tmp_path, "spot/spot.obj"), "--out", out,
         "--texture-size", "256")
     spot = import_obj("spot/spot.obj")
     img = bpy.data.images.load(str(ex))
