@@ -66,6 +66,34 @@ def test_transfer_colours_equal_the_clis(tmp_path, data, cli, spot, penguin):
     assert r.colors.std(axis=0).min() > 0.05
 
 
+def scaled_obj(src, dst, s):
+    """`src` with every `v` line's coordinates multiplied by `s` in double precision and written
+    with all their digits, as a script converting units writes them."""
+    lines = []
+    for line in src.read_text().splitlines():
+        t = line.split()
+        if t and t[0] == "v":
+            line = "v " + " ".join(repr(float(x) * s) for x in t[1:4])
+        lines.append(line)
+    dst.write_text("\n".join(lines) + "\n")
+    return dst
+
+
+def test_transfer_is_the_same_in_millimetres(tmp_path, data, spot, penguin):
+    # the same pair in metres and in millimetres gives identical colours (docs/formats.md#units)
+    for f in ["spot.mtl", "spot_texture.png"]:
+        (tmp_path / f).write_bytes((data / "spot" / f).read_bytes())
+    spot_mm = meshmatch.load(scaled_obj(data / "spot" / "spot.obj", tmp_path / "spot.obj", 1e3))
+    penguin_mm = meshmatch.load(
+        scaled_obj(data / "penguin" / "penguin.obj", tmp_path / "penguin.obj", 1e3))
+    assert spot_mm.texture is not None
+    metres = meshmatch.transfer(spot, penguin, **FAST)
+    millimetres = meshmatch.transfer(spot_mm, penguin_mm, **FAST)
+    np.testing.assert_array_equal(metres.colors, millimetres.colors)
+    # the result keeps the target's own coordinates
+    np.testing.assert_array_equal(millimetres.vertices, penguin_mm.vertices)
+
+
 def test_transfer_to_a_uv_target_bakes_a_texture_of_the_asked_size(spot):
     r = meshmatch.transfer(spot, spot, texture_size=256, **FAST)
     assert r.texture.shape == (256, 256, 3)
