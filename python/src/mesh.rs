@@ -397,10 +397,10 @@ impl Mesh {
 pub fn load(py: Python<'_>, path: PathBuf) -> PyResult<Mesh> {
     let (m, warnings, exact) = py
         .detach(|| {
-            let (m, mut w, file) = io::load_with_warnings_in(&path, io::Units::File)?;
+            let (m, mut w, exact) = io::load_with_warnings_exact(&path)?;
             let (m, more) = meshmatch::cli::common::make_usable(m, &path)?;
             w.extend(more);
-            Ok::<_, meshmatch::Error>((m, w, file.exact))
+            Ok::<_, meshmatch::Error>((m, w, exact))
         })
         .or_py()?;
     warn(py, &warnings)?;

@@ -44,12 +44,12 @@ pub fn load_usable(path: &Path) -> Result<TriMesh> {
 }
 
 /// [`load_usable`], with the file's coordinates at its own precision.
-pub fn load_usable_exact(path: &Path) -> Result<(TriMesh, Vec<[f64; 3]>)> {
-    let (m, mut warnings, file) = io::load_with_warnings_in(path, io::Units::File)?;
+fn load_usable_exact(path: &Path) -> Result<(TriMesh, Vec<[f64; 3]>)> {
+    let (m, mut warnings, exact) = io::load_with_warnings_exact(path)?;
     let (m, more) = make_usable(m, path)?;
     warnings.extend(more);
     io::print_warnings(&warnings);
-    Ok((m, file.exact))
+    Ok((m, exact))
 }
 
 /// The working units of one command, so that the same inputs in millimetres, metres or inches
@@ -97,12 +97,21 @@ impl WorkingUnits {
                 &own
             }
         };
-        let units = match self.unit {
-            Some(u) => io::Units::Of(u),
-            None => io::Units::Own,
-        };
-        let (working, unit) = units.apply(raw);
-        self.unit.get_or_insert(unit);
+        let unit = *self.unit.get_or_insert_with(|| {
+            let d = diagonal(raw);
+            if d.is_finite() && d > 0.0 { d } else { 1.0 }
+        });
+        // a coordinate beyond single precision in its own units stays infinite, so that
+        // `make_usable` refused the mesh already
+        let working: Vec<[f32; 3]> = raw
+            .iter()
+            .map(|p| {
+                p.map(|x| {
+                    let f = x as f32;
+                    if f.is_finite() { (x / unit) as f32 } else { f }
+                })
+            })
+            .collect();
         if self.unit() != 1.0 {
             for (w, f) in working.iter().zip(&mesh.positions) {
                 self.file_positions.entry(w.map(f32::to_bits)).or_insert(*f);
@@ -158,6 +167,26 @@ impl WorkingUnits {
     pub fn save(&self, mesh: &TriMesh, path: &Path) -> Result<()> {
         io::save(&self.to_file(mesh), path)
     }
+}
+
+/// The bounding-box diagonal of the points of `raw` finite in single precision, in double
+/// precision (0 for none).
+fn diagonal(raw: &[[f64; 3]]) -> f64 {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in raw
+        .iter()
+        .filter(|p| p.iter().all(|&x| (x as f32).is_finite()))
+    {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    if lo[0] > hi[0] {
+        return 0.0;
+    }
+    (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt()
 }
 
 /// A mesh made ready for the engine the way [`load_usable`] makes a file's (`check_usable`,

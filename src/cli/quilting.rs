@@ -95,8 +95,9 @@ pub fn load_any_swatch(spec: &str, up: &str, seed: u64) -> Result<Swatch> {
     }
     // in its own units (its bounding-box diagonal), so that a swatch modelled in millimetres
     // and the same in metres are the same swatch; quilting sizes it by the base
-    let (mesh, warnings, _) = io::load_with_warnings_in(path, io::Units::Own)?;
+    let (mesh, warnings, exact) = io::load_with_warnings_exact(path)?;
     io::print_warnings(&warnings);
+    let mesh = crate::cli::common::WorkingUnits::new().adopt(mesh, Some(&exact));
     quilting::load_swatch(mesh, up)
 }
 

@@ -89,7 +89,11 @@ impl Warp {
     }
 
     fn apply(&self, x: Vec3) -> Vec3 {
-        let b = self.basis(x);
+        self.apply_with(x, &self.basis(x))
+    }
+
+    /// [`Self::apply`] with `x`'s terms `b` already computed.
+    fn apply_with(&self, x: Vec3, b: &[f64; TERMS]) -> Vec3 {
         let d = b
             .iter()
             .zip(&self.coef)
@@ -139,7 +143,7 @@ impl Warp {
                     return acc;
                 }
                 let b = self.basis(x[i]);
-                let e = (y[i] - self.apply(x[i])).as_dvec3();
+                let e = (y[i] - self.apply_with(x[i], &b)).as_dvec3();
                 let nn = n[i].as_dvec3();
                 let wi = w[i] as f64;
                 acc.wsum += wi;

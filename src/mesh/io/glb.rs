@@ -356,17 +356,12 @@ struct Acc {
 /// nodes) is read with its world transform; points and lines are skipped, strips and fans
 /// converted to triangles.
 pub fn load_gltf_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
-    load_gltf_bytes_in(bytes, path, super::Units::File).map(|(m, _)| m)
+    load_gltf_bytes_exact(bytes, path).map(|(m, _)| m)
 }
 
-/// [`load_gltf_bytes`] with the coordinates read in `units` (glTF stores single precision, so a
-/// scaled copy's coordinates were rounded in its own units); returns what they were in the
-/// file too.
-pub(super) fn load_gltf_bytes_in(
-    bytes: &[u8],
-    path: &Path,
-    units: super::Units,
-) -> Result<(TriMesh, super::FileCoordinates)> {
+/// [`load_gltf_bytes`], with the coordinates in double precision too (glTF stores single
+/// precision, so a scaled copy's coordinates were rounded in its own units).
+pub(super) fn load_gltf_bytes_exact(bytes: &[u8], path: &Path) -> Result<(TriMesh, Vec<[f64; 3]>)> {
     check_content(bytes, super::MeshFormat::Glb, path)?;
     let gltf = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| Error::format(path, format!("invalid glTF: {e}")))?;
@@ -502,7 +497,7 @@ pub(super) fn load_gltf_bytes_in(
         mesh.uvs = Some(acc.uvs);
     }
     mesh.texture = acc.texture;
-    finish(mesh, &raw, units, path)
+    finish(mesh, raw, path)
 }
 
 /// One primitive's data as read from its accessors, before any node transform: read once per

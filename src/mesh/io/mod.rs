@@ -21,80 +21,6 @@ pub use glb::{GlbOptions, load_gltf_bytes, save_glb, save_gltf};
 pub use obj::{ObjOptions, load_obj_bytes, save_obj};
 pub use ply::{PlyOptions, load_ply_bytes, save_ply};
 
-/// The unit a mesh's coordinates are read in. Loaders read every coordinate at the file's own
-/// precision (double for text and double PLY) and divide it by the unit before rounding to the
-/// mesh's single precision, so the same shape written in millimetres and in metres (the same
-/// digits, scaled) loads as the same mesh, bit for bit, in working units.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Units {
-    /// The file's own coordinates.
-    File,
-    /// The file's coordinates divided by this length (in the file's units, positive, finite).
-    Of(f64),
-    /// The file's coordinates divided by the mesh's own bounding-box diagonal.
-    Own,
-}
-
-/// What a mesh read in working units ([`load_with_warnings_in`]) was in its file.
-#[derive(Clone, Debug, Default)]
-pub struct FileCoordinates {
-    /// The file length of one unit of the mesh.
-    pub unit: f64,
-    /// Each vertex's coordinates as the file gives them, at its precision (double for text
-    /// and double PLY): what a command's working units are computed from
-    /// (`cli::common::WorkingUnits`).
-    pub exact: Vec<[f64; 3]>,
-}
-
-impl Units {
-    /// `raw` in these units, rounded to single precision, and the unit used (1 for `File`; 1 for
-    /// `Own` on a mesh without extent). A coordinate beyond single precision in the file's own
-    /// units stays infinite, so that the mesh is refused as before.
-    pub fn apply(self, raw: &[[f64; 3]]) -> (Vec<[f32; 3]>, f64) {
-        let unit = match self {
-            Units::File => 1.0,
-            Units::Of(u) if u.is_finite() && u > 0.0 => u,
-            Units::Of(_) => 1.0,
-            Units::Own => {
-                let d = diagonal_f64(raw);
-                if d.is_finite() && d > 0.0 { d } else { 1.0 }
-            }
-        };
-        let p = if unit == 1.0 {
-            raw.iter().map(|p| p.map(|x| x as f32)).collect()
-        } else {
-            raw.iter()
-                .map(|p| {
-                    p.map(|x| {
-                        let f = x as f32;
-                        if f.is_finite() { (x / unit) as f32 } else { f }
-                    })
-                })
-                .collect()
-        };
-        (p, unit)
-    }
-}
-
-/// The bounding-box diagonal of the finite points of `raw`, in double precision (0 for none).
-fn diagonal_f64(raw: &[[f64; 3]]) -> f64 {
-    let mut lo = [f64::INFINITY; 3];
-    let mut hi = [f64::NEG_INFINITY; 3];
-    for p in raw
-        .iter()
-        .filter(|p| p.iter().all(|&x| (x as f32).is_finite()))
-    {
-        for k in 0..3 {
-            lo[k] = lo[k].min(p[k]);
-            hi[k] = hi[k].max(p[k]);
-        }
-    }
-    if lo[0] > hi[0] {
-        return 0.0;
-    }
-    (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt()
-}
-
 /// Write `bytes` to `path` atomically: a temporary file beside it, flushed to disk (`sync_all`),
 /// then a rename. On any failure the temporary file is removed and `path` is left untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
@@ -592,15 +518,13 @@ pub fn load(path: &Path) -> Result<TriMesh> {
 /// Like `load`, but returns the warnings instead of printing them, so a caller that may still
 /// fail (e.g. on `check_usable`) can print exactly one error line.
 pub fn load_with_warnings(path: &Path) -> Result<(TriMesh, Vec<String>)> {
-    load_with_warnings_in(path, Units::File).map(|(m, w, _)| (m, w))
+    load_with_warnings_exact(path).map(|(m, w, _)| (m, w))
 }
 
-/// Like [`load_with_warnings`], with the coordinates read in `units`; returns what they were in
-/// the file too.
-pub fn load_with_warnings_in(
-    path: &Path,
-    units: Units,
-) -> Result<(TriMesh, Vec<String>, FileCoordinates)> {
+/// Like [`load_with_warnings`], with every vertex's coordinates as the file gives them too, at
+/// its precision (double for OBJ, ASCII and double PLY; glTF stores single): what a command's
+/// working units are computed from (`cli::common::WorkingUnits`).
+pub fn load_with_warnings_exact(path: &Path) -> Result<(TriMesh, Vec<String>, Vec<[f64; 3]>)> {
     let fmt = MeshFormat::from_path(path)
         .ok_or_else(|| Error::UnsupportedFormat { path: path.into() })?;
     if fmt == MeshFormat::Ply
@@ -610,8 +534,8 @@ pub fn load_with_warnings_in(
     }
     let bytes =
         read_regular_file(path, MAX_MESH_FILE_BYTES, "the file").map_err(|e| Error::io(path, e))?;
-    let (res, warnings) = load_format_bytes(&bytes, fmt, path, units);
-    res.map(|(m, file)| (m, warnings, file))
+    let (res, warnings) = load_format_bytes(&bytes, fmt, path);
+    res.map(|(m, exact)| (m, warnings, exact))
 }
 
 /// Read the first 64 KiB of a regular PLY file and return the budget error of its header, if
@@ -636,42 +560,34 @@ fn ply_header_budget(path: &Path) -> Option<Error> {
 pub fn load_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
     let fmt = MeshFormat::from_path(path)
         .ok_or_else(|| Error::UnsupportedFormat { path: path.into() })?;
-    let (res, warnings) = load_format_bytes(bytes, fmt, path, Units::File);
+    let (res, warnings) = load_format_bytes(bytes, fmt, path);
     let (mesh, _) = res?;
     print_warnings(&warnings);
     Ok(mesh)
 }
 
-fn load_format_bytes(
-    bytes: &[u8],
-    fmt: MeshFormat,
-    path: &Path,
-    units: Units,
-) -> (Result<(TriMesh, FileCoordinates)>, Vec<String>) {
+/// The mesh in `bytes` and its exact coordinates, with the warnings its loader noted.
+type Loaded = (Result<(TriMesh, Vec<[f64; 3]>)>, Vec<String>);
+
+fn load_format_bytes(bytes: &[u8], fmt: MeshFormat, path: &Path) -> Loaded {
     // A UTF-8 byte order mark (some Windows tools write one) is not part of the content.
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     collect_warnings(|| match fmt {
-        MeshFormat::Obj => obj::load_obj_bytes_in(bytes, path, units),
-        MeshFormat::Ply => ply::load_ply_bytes_in(bytes, path, units),
-        MeshFormat::Gltf | MeshFormat::Glb => glb::load_gltf_bytes_in(bytes, path, units),
+        MeshFormat::Obj => obj::load_obj_bytes_exact(bytes, path),
+        MeshFormat::Ply => ply::load_ply_bytes_exact(bytes, path),
+        MeshFormat::Gltf | MeshFormat::Glb => glb::load_gltf_bytes_exact(bytes, path),
     })
 }
 
-/// Set the positions of a freshly parsed mesh from the file's coordinates `raw` in `units`, fill
-/// its bookkeeping fields and check the per-corner UV length. Returns what the coordinates were
-/// in the file.
+/// Set the positions of a freshly parsed mesh from the file's coordinates `exact` (rounded to
+/// single precision), fill its bookkeeping fields and check the per-corner UV length. Returns
+/// the mesh and `exact`.
 fn finish(
     mut mesh: TriMesh,
-    raw: &[[f64; 3]],
-    units: Units,
+    exact: Vec<[f64; 3]>,
     path: &Path,
-) -> Result<(TriMesh, FileCoordinates)> {
-    let (positions, unit) = units.apply(raw);
-    let file = FileCoordinates {
-        unit,
-        exact: raw.to_vec(),
-    };
-    mesh.positions = positions;
+) -> Result<(TriMesh, Vec<[f64; 3]>)> {
+    mesh.positions = exact.iter().map(|p| p.map(|x| x as f32)).collect();
     let n = mesh.positions.len();
     if n > u32::MAX as usize {
         return Err(Error::format(path, "more than 2^32 vertices"));
@@ -722,7 +638,7 @@ fn finish(
     mesh.file_index = (0..n as u32).collect();
     mesh.file_vertex_count = n;
     mesh.path = Some(path.to_path_buf());
-    Ok((mesh, file))
+    Ok((mesh, exact))
 }
 
 /// Load an image file (PNG or JPEG) as an sRGB RGB8 texture.

@@ -109,7 +109,7 @@ fn parse_f32(tok: Option<&str>, line: usize, what: &str, path: &Path) -> Result<
     parse_number(tok, line, what, path)
 }
 
-/// A coordinate at the file's precision (rounded to single precision after the units).
+/// A coordinate at the file's precision (rounded to single precision by `finish`).
 fn parse_f64(tok: Option<&str>, line: usize, what: &str, path: &Path) -> Result<f64> {
     parse_number(tok, line, what, path)
 }
@@ -137,16 +137,11 @@ fn parse_number<T: std::str::FromStr>(
 /// within the file, degenerate faces), then [`assemble`] (colours, UVs, averaged normals,
 /// texture).
 pub fn load_obj_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
-    load_obj_bytes_in(bytes, path, super::Units::File).map(|(m, _)| m)
+    load_obj_bytes_exact(bytes, path).map(|(m, _)| m)
 }
 
-/// [`load_obj_bytes`] with the coordinates read in `units`; returns what they were in the file
-/// too.
-pub(super) fn load_obj_bytes_in(
-    bytes: &[u8],
-    path: &Path,
-    units: super::Units,
-) -> Result<(TriMesh, super::FileCoordinates)> {
+/// [`load_obj_bytes`], with the file's coordinates in double precision too.
+pub(super) fn load_obj_bytes_exact(bytes: &[u8], path: &Path) -> Result<(TriMesh, Vec<[f64; 3]>)> {
     check_content(bytes, super::MeshFormat::Obj, path)?;
     let mut data = ObjData::default();
     // Lines end in \n, \r\n or a lone \r (files from classic Mac OS tools).
@@ -156,7 +151,7 @@ pub(super) fn load_obj_bytes_in(
     check_references(&data, path)?;
     let raw = std::mem::take(&mut data.pos);
     let mesh = assemble(data, raw.len(), path);
-    finish(mesh, &raw, units, path)
+    finish(mesh, raw, path)
 }
 
 /// What the lines of an OBJ file have given so far.

@@ -389,16 +389,12 @@ fn vertex_role(name: &str) -> Role {
 /// [`store_item`] (a vertex, a face fanned into triangles or a triangle strip); then
 /// [`check_faces`] and [`assemble`] (the mesh with its normals, colours, UVs and texture).
 pub fn load_ply_bytes(bytes: &[u8], path: &Path) -> Result<TriMesh> {
-    load_ply_bytes_in(bytes, path, super::Units::File).map(|(m, _)| m)
+    load_ply_bytes_exact(bytes, path).map(|(m, _)| m)
 }
 
-/// [`load_ply_bytes`] with the coordinates read in `units`; returns what they were in the file
-/// too.
-pub(super) fn load_ply_bytes_in(
-    bytes: &[u8],
-    path: &Path,
-    units: super::Units,
-) -> Result<(TriMesh, super::FileCoordinates)> {
+/// [`load_ply_bytes`], with the file's coordinates at its precision too (double for ASCII and
+/// double properties).
+pub(super) fn load_ply_bytes_exact(bytes: &[u8], path: &Path) -> Result<(TriMesh, Vec<[f64; 3]>)> {
     check_content(bytes, super::MeshFormat::Ply, path)?;
     let h = parse_header(bytes, path)?;
     check_budget(&h, path)?;
@@ -434,7 +430,7 @@ pub(super) fn load_ply_bytes_in(
     check_faces(&data, path)?;
     let raw = std::mem::take(&mut data.positions);
     let mesh = assemble(data, raw.len(), h.texture_file.as_deref(), path);
-    finish(mesh, &raw, units, path)
+    finish(mesh, raw, path)
 }
 
 /// What the elements have given so far.
