@@ -38,6 +38,7 @@
 
 mod basic;
 mod bvh;
+mod closest_walk;
 mod crest_lines;
 mod curvature;
 mod curve_distance;
@@ -72,6 +73,7 @@ pub use basic::{
 pub(crate) use bvh::BARY_EPS;
 pub use bvh::TriangleBvh;
 pub(crate) use bvh::closest_on_triangle;
+pub use closest_walk::closest_point_walk;
 pub use crest_lines::{Curve, CurveKind, CurveParams, salient_curves};
 pub use curvature::{PrincipalCurvatures, principal_curvatures};
 pub use curve_distance::{Polyline, distance_to_polylines};

@@ -181,11 +181,27 @@ where
                 };
                 let (x0, x1) = (lo(xs), hi(xs, w));
                 let (ya, yb) = (lo(ys).max(y0), hi(ys, h).min(y0 + rows));
+                // A texel whose distance to an edge's line exceeds the touch distance is not
+                // touched (the line bounds the triangle's distance from below), and one inside
+                // another face already cannot get nearer: neither needs the edges' distances.
+                let reach = edge_reach(&t, det);
                 for y in ya..yb {
                     for x in x0..x1 {
-                        let p = [x as f32 + 0.5, y as f32 + 0.5];
-                        let (d, bary) = locate(&t, det, p);
                         let i = (y - y0) * w + x;
+                        if best[i] <= 0.0 {
+                            continue;
+                        }
+                        let p = [x as f32 + 0.5, y as f32 + 0.5];
+                        let b = barycentric(&t, det, p);
+                        if b[0] >= 0.0 && b[1] >= 0.0 && b[2] >= 0.0 {
+                            best[i] = 0.0;
+                            hit[i] = (f as u32, b);
+                            continue;
+                        }
+                        if (0..3).any(|k| -b[k] * reach[k] > TOUCH) {
+                            continue;
+                        }
+                        let (d, bary) = nearest_on_edges(&t, p);
                         if d < best[i] && d <= TOUCH {
                             best[i] = d;
                             hit[i] = (f as u32, bary);
@@ -292,18 +308,30 @@ pub fn bake_onto(
     Ok((out, atlas))
 }
 
-/// Distance from `p` to triangle `t` (0 inside) and the barycentric coordinates of the nearest
-/// point of the triangle.
-fn locate(t: &[[f32; 2]; 3], det: f32, p: [f32; 2]) -> (f32, [f32; 3]) {
+/// Barycentric coordinates of `p` in triangle `t` (`det` its doubled signed area).
+#[inline]
+fn barycentric(t: &[[f32; 2]; 3], det: f32, p: [f32; 2]) -> [f32; 3] {
     let b1 =
         ((p[0] - t[0][0]) * (t[2][1] - t[0][1]) - (t[2][0] - t[0][0]) * (p[1] - t[0][1])) / det;
     let b2 =
         ((t[1][0] - t[0][0]) * (p[1] - t[0][1]) - (p[0] - t[0][0]) * (t[1][1] - t[0][1])) / det;
-    let b0 = 1.0 - b1 - b2;
-    if b0 >= 0.0 && b1 >= 0.0 && b2 >= 0.0 {
-        return (0.0, [b0, b1, b2]);
-    }
-    // Nearest point on the three edges.
+    [1.0 - b1 - b2, b1, b2]
+}
+
+/// Per barycentric coordinate `k`, the distance from the line of the opposite edge per unit of
+/// `-b[k]` (the triangle's height over that edge): `-b[k] * reach[k]` is a point's distance from
+/// that line on the far side, a lower bound of its distance from the triangle.
+fn edge_reach(t: &[[f32; 2]; 3], det: f32) -> [f32; 3] {
+    std::array::from_fn(|k| {
+        let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+        let len = ((b[0] - a[0]).powi(2) + (b[1] - a[1]).powi(2)).sqrt();
+        if len > 0.0 { det.abs() / len } else { 0.0 }
+    })
+}
+
+/// Distance from `p` to the nearest of triangle `t`'s edges and the barycentric coordinates of
+/// that nearest point (for a `p` outside the triangle: its distance to the triangle).
+fn nearest_on_edges(t: &[[f32; 2]; 3], p: [f32; 2]) -> (f32, [f32; 3]) {
     let mut best = (f32::INFINITY, [1.0f32, 0.0, 0.0]);
     for k in 0..3 {
         let (a, b) = (t[k], t[(k + 1) % 3]);

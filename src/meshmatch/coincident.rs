@@ -21,8 +21,9 @@ use rayon::prelude::*;
 
 use super::patch_map::PatchMap;
 use crate::features::Frames;
-use crate::geometry::TriangleBvh;
+use crate::geometry::{TriangleBvh, closest_point_walk};
 use crate::hierarchy::Level;
+use crate::mesh::Csr;
 
 /// A moved target vertex is on the source surface within this many source mean edges.
 pub(super) const ON_SURFACE_EDGES: f32 = 0.25;
@@ -123,12 +124,13 @@ pub(crate) fn umeyama(x: &[[f32; 3]], y: &[[f32; 3]], keep: &[bool]) -> Option<S
 /// or `None` when the shapes do not coincide. `matched[v]` is target vertex `v`'s source
 /// point under its fitted patch map.
 pub(crate) fn snap_coincident(
-    source: &Level,
+    search: &SurfaceSearch,
     source_frames: &Frames,
     target: &Level,
     target_frames: &Frames,
     matched: &[[f32; 3]],
 ) -> Option<Vec<Option<PatchMap>>> {
+    let source = search.level;
     let n = target.len();
     if n < 3 || matched.len() != n {
         return None;
@@ -150,15 +152,22 @@ pub(crate) fn snap_coincident(
     }
     // 2. ICP against the source surface, on a spread subset of the kept vertices (every
     //    `stride`-th: Morton-ordered working vertices are spread over the surface).
-    let bvh = TriangleBvh::new(&source.positions, &source.faces);
-    let closest_of = |sim: &Similarity, v: usize| {
-        closest_on(&bvh, source, sim.apply(Vec3::from(target.positions[v])))
-    };
+    //    Each sampled vertex's closest point is walked from its last one.
     let stride = (n / ICP_SAMPLES).max(1);
     let sample: Vec<usize> = (0..n).step_by(stride).collect();
     let xs: Vec<[f32; 3]> = sample.iter().map(|&v| target.positions[v]).collect();
+    let mut hints = vec![u32::MAX; sample.len()];
+    let mut closest_of = |sim: &Similarity| -> Vec<Closest> {
+        let c: Vec<Closest> = xs
+            .par_iter()
+            .zip(&hints)
+            .map(|(x, &h)| search.tracked(sim.apply(Vec3::from(*x)), h))
+            .collect();
+        hints.iter_mut().zip(&c).for_each(|(h, c)| *h = c.2);
+        c
+    };
     for _ in 0..ICP_ROUNDS {
-        let c: Vec<Closest> = sample.par_iter().map(|&v| closest_of(&sim, v)).collect();
+        let c = closest_of(&sim);
         let d: Vec<f32> = c.iter().map(|x| x.1).collect();
         let cut = 3.0 * median(&d).max(0.05 * edge);
         let keep: Vec<bool> = d.iter().map(|&x| x < cut).collect();
@@ -171,10 +180,10 @@ pub(crate) fn snap_coincident(
     // 3. Where the sample already shows that the shapes do not coincide (a bent or another
     //    shape), stop before the closest points of every vertex.
     let agreeing = sample
-        .par_iter()
-        .filter(|&&v| {
-            let c = closest_of(&sim, v);
-            lies_on(source, target, &sim, v, &c)
+        .iter()
+        .zip(&closest_of(&sim))
+        .filter(|&(&v, c)| {
+            lies_on(source, target, &sim, v, c)
                 && (Vec3::from(c.0) - Vec3::from(matched[v])).length() <= NEAR_MATCH_EDGES * edge
         })
         .count();
@@ -183,8 +192,7 @@ pub(crate) fn snap_coincident(
     }
     // 4. Snap.
     snap(
-        &bvh,
-        source,
+        search,
         source_frames,
         target,
         target_frames,
@@ -197,7 +205,7 @@ pub(crate) fn snap_coincident(
 /// its own painted part): every target vertex on the source surface, facing the same way, snaps
 /// to the point under it.
 pub(crate) fn snap_in_place(
-    source: &Level,
+    search: &SurfaceSearch,
     source_frames: &Frames,
     target: &Level,
     target_frames: &Frames,
@@ -207,10 +215,8 @@ pub(crate) fn snap_in_place(
         scale: 1.0,
         shift: DVec3::ZERO,
     };
-    let bvh = TriangleBvh::new(&source.positions, &source.faces);
     snap(
-        &bvh,
-        source,
+        search,
         source_frames,
         target,
         target_frames,
@@ -222,17 +228,17 @@ pub(crate) fn snap_in_place(
 /// Step 3 under the similarity `sim`: with `matched`, only when enough vertices also lie near
 /// their own matches (see the module doc).
 fn snap(
-    bvh: &TriangleBvh,
-    source: &Level,
+    search: &SurfaceSearch,
     source_frames: &Frames,
     target: &Level,
     target_frames: &Frames,
     sim: &Similarity,
     matched: Option<&[[f32; 3]]>,
 ) -> Option<Vec<Option<PatchMap>>> {
+    let source = search.level;
     let n = target.len();
     let edge = source.mean_edge.max(1e-12);
-    let closest_of = |v: usize| closest_on(bvh, source, sim.apply(Vec3::from(target.positions[v])));
+    let closest_of = |v: usize| search.closest(sim.apply(Vec3::from(target.positions[v])));
     let c: Vec<Closest> = (0..n).into_par_iter().map(closest_of).collect();
     // A vertex is on the source where its moved position lies on the surface facing the same
     // way; the shapes coincide where enough of them are also near their own matches (so the
@@ -324,20 +330,54 @@ fn lies_on(source: &Level, target: &Level, sim: &Similarity, v: usize, c: &Close
 /// there is none.
 pub(super) type Closest = ([f32; 3], f32, u32, [f32; 3]);
 
-/// The closest point of the source surface to `z` ([`Closest`]).
-pub(super) fn closest_on(bvh: &TriangleBvh, source: &Level, z: Vec3) -> Closest {
-    closest_near(bvh, source, z, u32::MAX)
+/// The source surface and its two searches for closest points: a tree for a point anywhere, a
+/// walk over the surface for a point tracked over rounds.
+pub(crate) struct SurfaceSearch<'a> {
+    pub level: &'a Level,
+    bvh: TriangleBvh,
+    faces_of: &'a Csr,
 }
 
-/// [`closest_on`] starting from face `hint` (the answer for a nearby point; `u32::MAX` for none).
-pub(super) fn closest_near(bvh: &TriangleBvh, source: &Level, z: Vec3, hint: u32) -> Closest {
-    match bvh.closest_point_near(z.to_array(), hint) {
-        Some((f, b, d)) => {
-            let c = source.faces[f as usize].map(|u| Vec3::from(source.positions[u as usize]));
-            let q = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
-            (q.to_array(), d, f, b)
+impl<'a> SurfaceSearch<'a> {
+    /// `faces_of` is `level`'s vertex-to-face CSR.
+    pub fn new(level: &'a Level, faces_of: &'a Csr) -> Self {
+        SurfaceSearch {
+            level,
+            bvh: TriangleBvh::new(&level.positions, &level.faces),
+            faces_of,
         }
-        None => (z.to_array(), f32::INFINITY, u32::MAX, [0.0; 3]),
+    }
+
+    /// The closest point of the surface to `z` ([`Closest`]).
+    pub fn closest(&self, z: Vec3) -> Closest {
+        self.closest_found(z, self.bvh.closest_point(z.to_array()))
+    }
+
+    /// The closest point of the surface to `z`, a point tracked over rounds whose closest point
+    /// in the last round was on face `hint` (`u32::MAX` for none yet): walked over the surface
+    /// from there ([`closest_point_walk`]; the point moved little, so the walk takes a step or
+    /// two where the tree's search descends from its root).
+    pub fn tracked(&self, z: Vec3, hint: u32) -> Closest {
+        if hint == u32::MAX {
+            return self.closest(z);
+        }
+        let s = self.level;
+        match closest_point_walk(&s.positions, &s.faces, self.faces_of, z, hint) {
+            Some(found) => self.closest_found(z, Some(found)),
+            None => self.closest(z),
+        }
+    }
+
+    fn closest_found(&self, z: Vec3, found: Option<(u32, [f32; 3], f32)>) -> Closest {
+        let s = self.level;
+        match found {
+            Some((f, b, d)) => {
+                let c = s.faces[f as usize].map(|u| Vec3::from(s.positions[u as usize]));
+                let q = c[0] * b[0] + c[1] * b[1] + c[2] * b[2];
+                (q.to_array(), d, f, b)
+            }
+            None => (z.to_array(), f32::INFINITY, u32::MAX, [0.0; 3]),
+        }
     }
 }
 

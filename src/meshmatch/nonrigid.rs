@@ -22,11 +22,11 @@ use glam::{DVec3, Quat, Vec3};
 use rayon::prelude::*;
 
 use super::coincident::{
-    Closest, MIN_SHARE, ON_SURFACE_EDGES, closest_near, facing, median, snapped_map,
+    Closest, MIN_SHARE, ON_SURFACE_EDGES, SurfaceSearch, facing, median, snapped_map,
 };
 use super::patch_map::PatchMap;
 use crate::features::Frames;
-use crate::geometry::{TriangleBvh, cholesky_solve};
+use crate::geometry::cholesky_solve;
 use crate::hierarchy::{Level, area_weighted_normals};
 use crate::mesh::Csr;
 
@@ -42,8 +42,10 @@ const WARP_ROUNDS: usize = 40;
 const EARLY_ROUND: usize = 20;
 const EARLY_EDGES: f32 = 1.0;
 const EARLY_SHARE: f64 = 0.4;
-/// Vertices the warp's ICP fits to.
+/// Vertices the warp's ICP fits to (a quarter of them before [`EARLY_ROUND`]).
 const WARP_SAMPLES: usize = 4096;
+/// Vertices the warp's first fit, to the matches, takes.
+const FIT_SAMPLES: usize = 16384;
 /// A deformed vertex on the source surface (as [`super::coincident`] counts it) must also be
 /// within this many source mean edges of its own match for the shapes to count as a deformed
 /// copy (the
@@ -312,18 +314,18 @@ impl Normal {
 /// The snapped patch maps (see the module doc): `Some(map)` for every snapped target vertex,
 /// or `None` when the target is not a deformed copy of the source.
 pub(crate) fn snap_deformed(
-    source: &Level,
+    search: &SurfaceSearch,
     source_frames: &Frames,
     target: &Level,
     target_frames: &Frames,
     matched: &[[f32; 3]],
 ) -> Option<Vec<Option<PatchMap>>> {
+    let source = search.level;
     let n = target.len();
     if n < 3 || matched.len() != n {
         return None;
     }
     let edge = source.mean_edge.max(1e-12);
-    let bvh = TriangleBvh::new(&source.positions, &source.faces);
     let x: Vec<Vec3> = target.positions.iter().map(|p| Vec3::from(*p)).collect();
     let (lo, hi) = x.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
@@ -335,31 +337,42 @@ pub(crate) fn snap_deformed(
         coef: [DVec3::ZERO; TERMS],
     };
     // 1. the warp: fitted to the matches (trimmed twice), then ICP on a spread sample
-    let m: Vec<Vec3> = matched.iter().map(|p| Vec3::from(*p)).collect();
-    let mut w = vec![1.0f32; n];
-    warp.fit(&x, &m, &w);
+    //    (Morton-ordered working vertices: every k-th is spread over the surface)
+    let spread = |count: usize| -> Vec<usize> { (0..n).step_by((n / count).max(1)).collect() };
+    let fit_sample = spread(FIT_SAMPLES);
+    let (xf, mf): (Vec<Vec3>, Vec<Vec3>) = fit_sample
+        .iter()
+        .map(|&v| (x[v], Vec3::from(matched[v])))
+        .unzip();
+    let mut w = vec![1.0f32; xf.len()];
+    warp.fit(&xf, &mf, &w);
     for _ in 0..2 {
-        let r: Vec<f32> = (0..n)
-            .into_par_iter()
-            .map(|v| (warp.apply(x[v]) - m[v]).length())
+        let r: Vec<f32> = xf
+            .par_iter()
+            .zip(&mf)
+            .map(|(x, m)| (warp.apply(*x) - *m).length())
             .collect();
         let cut = 3.0 * median(&r).max(0.25 * edge);
         w.iter_mut()
             .zip(&r)
             .for_each(|(w, r)| *w = if *r < cut { 1.0 } else { 0.0 });
-        warp.fit(&x, &m, &w);
+        warp.fit(&xf, &mf, &w);
     }
-    let stride = (n / WARP_SAMPLES).max(1);
-    let sample: Vec<usize> = (0..n).step_by(stride).collect();
-    let xs: Vec<Vec3> = sample.iter().map(|&v| x[v]).collect();
+    let m: Vec<Vec3> = matched.iter().map(|p| Vec3::from(*p)).collect();
+    //    (the first rounds, which settle whether the target is a deformed copy at all, on a
+    //    quarter of the sample)
+    let samples = [spread(WARP_SAMPLES / 4), spread(WARP_SAMPLES)];
+    let xss: [Vec<Vec3>; 2] = std::array::from_fn(|k| samples[k].iter().map(|&v| x[v]).collect());
     // each query starts from the face the last one found (the warp moves a point little)
     let mut hints = vec![u32::MAX; n];
     for round in 0..WARP_ROUNDS {
+        let fine = (round >= EARLY_ROUND) as usize;
+        let (sample, xs) = (&samples[fine], &xss[fine]);
         let c: Vec<(Closest, Vec3)> = sample
             .par_iter()
             .map(|&v| {
                 (
-                    closest_near(&bvh, source, warp.apply(x[v]), hints[v]),
+                    search.tracked(warp.apply(x[v]), hints[v]),
                     warp.normal(x[v], Vec3::from(target.normals[v])),
                 )
             })
@@ -373,7 +386,7 @@ pub(crate) fn snap_deformed(
         if round == EARLY_ROUND {
             let near = c
                 .iter()
-                .zip(&sample)
+                .zip(sample)
                 .filter(|((c, nrm), v)| {
                     c.1 <= EARLY_EDGES * edge
                         && facing(source, c, *nrm)
@@ -409,11 +422,11 @@ pub(crate) fn snap_deformed(
                     .normalize_or(Vec3::Z)
             })
             .collect();
-        warp.step_to_planes(&xs, &ys, &ns, &ws);
+        warp.step_to_planes(xs, &ys, &ns, &ws);
     }
     // 2. local rounds
     let mut u: Vec<Vec3> = x.iter().map(|p| warp.apply(*p) - *p).collect();
-    let mut state = closest(&bvh, source, target, &x, &u, &mut hints);
+    let mut state = closest(search, target, &x, &u, &mut hints);
     for &iters in &LOCAL_ROUNDS {
         let (c, normals) = &state;
         let d: Vec<f32> = c.iter().map(|c| c.1).collect();
@@ -429,7 +442,7 @@ pub(crate) fn snap_deformed(
             .unzip();
         let step = smooth(&target.adjacency, &pull, &w, iters);
         u.iter_mut().zip(&step).for_each(|(a, b)| *a += *b);
-        state = closest(&bvh, source, target, &x, &u, &mut hints);
+        state = closest(search, target, &x, &u, &mut hints);
     }
     // 3. the gate, then the snap
     let (c, normals) = &state;
@@ -471,8 +484,7 @@ pub(crate) fn snap_deformed(
 /// The closest source point of every displaced target vertex, and the displaced normals; each
 /// query starts from its vertex's face in `hints`, which it updates.
 fn closest(
-    bvh: &TriangleBvh,
-    source: &Level,
+    search: &SurfaceSearch,
     target: &Level,
     x: &[Vec3],
     u: &[Vec3],
@@ -486,7 +498,7 @@ fn closest(
     let c: Vec<Closest> = p
         .par_iter()
         .zip(hints.par_iter())
-        .map(|(q, &h)| closest_near(bvh, source, Vec3::from(*q), h))
+        .map(|(q, &h)| search.tracked(Vec3::from(*q), h))
         .collect();
     hints.iter_mut().zip(&c).for_each(|(h, c)| *h = c.2);
     (c, normals)

@@ -28,6 +28,7 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 use super::PreparedMesh;
+use super::coincident::SurfaceSearch;
 use super::patch_map::PatchMap;
 use crate::features::{ANGLE_STEP_DEG, FAN_ANGLES, Frames};
 use crate::geometry::closest_on_triangle;
@@ -121,7 +122,11 @@ impl Mip {
 fn mip_chain(img: &image::RgbImage) -> Vec<Mip> {
     let lut: [f32; 256] = std::array::from_fn(|i| crate::color::srgb_to_linear(i as f32 / 255.0));
     let (w, h) = (img.width() as usize, img.height() as usize);
-    let px: Vec<[f32; 3]> = img.pixels().map(|p| p.0.map(|c| lut[c as usize])).collect();
+    let px: Vec<[f32; 3]> = img
+        .as_raw()
+        .par_chunks_exact(3)
+        .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]])
+        .collect();
     let mut levels = vec![Mip { w, h, px }];
     while let Some(top) = levels.last() {
         if top.w <= 1 && top.h <= 1 {
@@ -444,6 +449,8 @@ struct CornerImage {
     uv: [[f32; 2]; 3],
     /// Area of the UV triangle they span, in source texels (the footprint of the face there).
     texel_area: f32,
+    /// Half its base-2 logarithm (where it is positive).
+    half_log2_area: f32,
     /// Their linear-light colours on a vertex-coloured source (whose colours are linear over
     /// working faces of about a target face's size, so a texel blends these three).
     col: [[f32; 3]; 3],
@@ -458,6 +465,9 @@ pub struct Resampler {
     /// Per working target face, per corner.
     images: Vec<[CornerImage; 3]>,
     agree: f32,
+    /// Per working face, whether its three maps agree all over it and read one chart of a
+    /// texture ([`Resampler::sample`]'s single reading everywhere on it).
+    agreeing: Vec<bool>,
     /// Target vertices where the shapes coincide, read exactly ([`super::coincident`]).
     snapped: usize,
     /// Seconds of each step of [`Resampler::new`].
@@ -539,6 +549,7 @@ fn corner_images(
                     let area =
                         ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1])).abs() * 0.5;
                     img.texel_area = area * w * h;
+                    img.half_log2_area = 0.5 * img.texel_area.log2();
                 }
                 img
             })
@@ -643,14 +654,15 @@ impl Resampler {
         let mut maps = fit_patch_maps(ps, pt, nnf);
         timings.push(("patch maps", watch.secs()));
         cancel.check()?;
+        let search = SurfaceSearch::new(&src.level, &src.faces_of);
         let snap = if in_place {
-            super::coincident::snap_in_place(&src.level, &src.frames, lt, &pt.frames[0])
+            super::coincident::snap_in_place(&search, &src.frames, lt, &pt.frames[0])
         } else {
             let matched = mapped_points(&src, &lt.positions, &pt.frames[0], &maps);
-            super::coincident::snap_coincident(&src.level, &src.frames, lt, &pt.frames[0], &matched)
+            super::coincident::snap_coincident(&search, &src.frames, lt, &pt.frames[0], &matched)
                 .or_else(|| {
                     super::nonrigid::snap_deformed(
-                        &src.level,
+                        &search,
                         &src.frames,
                         lt,
                         &pt.frames[0],
@@ -676,7 +688,7 @@ impl Resampler {
             timings[i].1 -= timings[i - 1].1;
         }
         let agree = AGREE_EDGES * src.level.mean_edge;
-        Ok(Some(Resampler {
+        let mut resampler = Resampler {
             src,
             target_positions: lt.positions.clone(),
             target_frames: pt.frames[0].clone(),
@@ -685,7 +697,27 @@ impl Resampler {
             agree,
             snapped,
             timings,
-        }))
+            agreeing: Vec::new(),
+        };
+        // The distance between two maps' images is a norm of an affine function over the face,
+        // so it is largest at a corner: where the corners agree, every point agrees.
+        resampler.agreeing = resampler
+            .images
+            .par_iter()
+            .map(|imgs| {
+                let spread = (0..3)
+                    .map(|j| {
+                        let g = imgs.map(|im| Vec3::from(im.goal[j]));
+                        (g[0] - g[1])
+                            .length()
+                            .max((g[1] - g[2]).length())
+                            .max((g[0] - g[2]).length())
+                    })
+                    .fold(0.0f32, f32::max);
+                spread < agree && resampler.one_texture_chart(imgs)
+            })
+            .collect();
+        Ok(Some(resampler))
     }
 
     /// sRGB colour of the point with barycentric `bary` in working target face `wf`, read from
@@ -693,18 +725,14 @@ impl Resampler {
     /// output texels (it picks the source's mip level; 0 = the finest).
     pub fn sample(&self, wf: usize, bary: [f32; 3], texel_area: f32) -> [f32; 3] {
         let imgs = &self.images[wf];
-        let goal = |k: usize| {
-            let g = &imgs[k].goal;
-            Vec3::from(g[0]) * bary[0] + Vec3::from(g[1]) * bary[1] + Vec3::from(g[2]) * bary[2]
+        let half_log2 = if texel_area > 0.0 {
+            0.5 * texel_area.log2()
+        } else {
+            0.0
         };
-        let g = [goal(0), goal(1), goal(2)];
-        let spread = (g[0] - g[1])
-            .length()
-            .max((g[1] - g[2]).length())
-            .max((g[0] - g[2]).length());
         let lod = |k: usize| {
             if texel_area > 0.0 && imgs[k].texel_area > 0.0 {
-                0.5 * (imgs[k].texel_area / texel_area).log2()
+                imgs[k].half_log2_area - half_log2
             } else {
                 0.0
             }
@@ -715,22 +743,31 @@ impl Resampler {
         };
         // Inside a patch the three maps agree: one lookup at their blended UV (the sharpest
         // reading, and the exact one where the shapes coincide).
-        if let Look::Texture { .. } = self.src.look
-            && spread < self.agree
-        {
-            let chart = self.src.chart(&imgs[0].at[0]);
-            if (0..3).all(|k| imgs[k].one_chart && self.src.chart(&imgs[k].at[0]) == chart) {
-                let (mut uv, mut l) = (Vec2::ZERO, 0.0f32);
-                for (k, &w) in bary.iter().enumerate() {
-                    uv += w * at_uv(k);
-                    l += w * lod(k);
-                }
-                return self
-                    .src
-                    .texel(uv.to_array(), l)
-                    .to_array()
-                    .map(linear_to_srgb);
+        let one_reading = || {
+            let (mut uv, mut l) = (Vec2::ZERO, 0.0f32);
+            for (k, &w) in bary.iter().enumerate() {
+                uv += w * at_uv(k);
+                l += w * lod(k);
             }
+            self.src
+                .texel(uv.to_array(), l)
+                .to_array()
+                .map(linear_to_srgb)
+        };
+        if self.agreeing[wf] {
+            return one_reading();
+        }
+        let goal = |k: usize| {
+            let g = &imgs[k].goal;
+            Vec3::from(g[0]) * bary[0] + Vec3::from(g[1]) * bary[1] + Vec3::from(g[2]) * bary[2]
+        };
+        let g = [goal(0), goal(1), goal(2)];
+        let spread = (g[0] - g[1])
+            .length()
+            .max((g[1] - g[2]).length())
+            .max((g[0] - g[2]).length());
+        if spread < self.agree && self.one_texture_chart(imgs) {
+            return one_reading();
         }
         // Across a patch border (or a chart border of the source) each corner reads the source
         // through its own map and the readings are blended with barycentric weights:
@@ -767,6 +804,16 @@ impl Resampler {
             return [0.0; 3];
         }
         (acc / wsum).to_array().map(linear_to_srgb)
+    }
+
+    /// Whether a face's three corner maps read a texture within one of its charts.
+    fn one_texture_chart(&self, imgs: &[CornerImage; 3]) -> bool {
+        if let Look::Texture { .. } = self.src.look {
+            let chart = self.src.chart(&imgs[0].at[0]);
+            (0..3).all(|k| imgs[k].one_chart && self.src.chart(&imgs[k].at[0]) == chart)
+        } else {
+            false
+        }
     }
 
     /// The source surface point of every working target vertex under its patch map (where
