@@ -51,7 +51,7 @@ pub(crate) struct Similarity {
 
 impl Similarity {
     #[inline]
-    fn apply(&self, x: Vec3) -> Vec3 {
+    pub(super) fn apply(&self, x: Vec3) -> Vec3 {
         (self.scale * (self.rot * x.as_dvec3()) + self.shift).as_vec3()
     }
 }

@@ -10,10 +10,20 @@
 //!    against the source surface on a spread sample of vertices (closest points facing the same
 //!    way, trimmed, with a tenth of the point-to-point distance beside the planes'). A polynomial warp of space cannot slide the surface along itself as a free
 //!    per-vertex displacement can, so the shape's own features pull the warp into place.
-//! 2. **Local rounds**: each deformed vertex's pull to its closest source point, smoothed over
+//! 2. **Rigid parts**, where the warp leaves a sizeable share of the sample (5%) more than an
+//!    edge off the source: a limb turned at a joint, which no smooth warp of the whole shape
+//!    turns rigidly against the rest. A similarity is fitted to the rest (to the closest points
+//!    the warp found for it) and one to the part (to the part's matches, trimmed); each is
+//!    refined by ICP on its own vertices, alternately, a vertex belonging to the part where the
+//!    part's similarity lays it on the source and moves it nearer its own match than the rest's
+//!    does (the matches are a few edges off, the two similarities many edges apart across the
+//!    part). Kept where the two lay more of the sample on the source than the warp did; each
+//!    vertex then starts from the rest's similarity, turned into the part's by its smoothed
+//!    membership, so the two blend across the joint.
+//! 3. **Local rounds**: each deformed vertex's pull to its closest source point, smoothed over
 //!    the target (Jacobi averages over the vertex adjacency, weighted by which vertices
 //!    pulled), narrowing round by round, lays the warped target onto the source.
-//! 3. **Gate and snap**: the shapes count as a deformed copy where at least half the vertices lie
+//! 4. **Gate and snap**: the shapes count as a deformed copy where at least half the vertices lie
 //!    on the source surface (within a quarter of a source edge), facing the same way, near
 //!    their own matches; every vertex on the source then snaps to the point under it, its patch
 //!    map turned by the rotation between its own normal and its deformed normal.
@@ -22,7 +32,8 @@ use glam::{DVec3, Quat, Vec3};
 use rayon::prelude::*;
 
 use super::coincident::{
-    Closest, MIN_SHARE, ON_SURFACE_EDGES, SurfaceSearch, facing, median, snapped_map,
+    Closest, MIN_SHARE, ON_SURFACE_EDGES, Similarity, SurfaceSearch, facing, median, snapped_map,
+    umeyama,
 };
 use super::patch_map::PatchMap;
 use crate::features::Frames;
@@ -46,6 +57,17 @@ const EARLY_SHARE: f64 = 0.4;
 const WARP_SAMPLES: usize = 4096;
 /// Vertices the warp's first fit, to the matches, takes.
 const FIT_SAMPLES: usize = 16384;
+/// A sample vertex farther than this many source mean edges from the source under the warp
+/// (or facing away) is left off by it.
+const PART_OFF_EDGES: f32 = 1.0;
+/// The least share of the sample the warp must leave off for rigid parts to be tried.
+const PART_SHARE: f64 = 0.05;
+/// ICP rounds of each part's similarity per alternation.
+const PART_ROUNDS: usize = 30;
+/// Alternations between the part's similarity and the rest's.
+const PART_ALTERNATIONS: usize = 3;
+/// Jacobi iterations smoothing each vertex's choice between the two.
+const BLEND_ITERS: usize = 32;
 /// A deformed vertex on the source surface (as [`super::coincident`] counts it) must also be
 /// within this many source mean edges of its own match for the shapes to count as a deformed
 /// copy (the
@@ -365,6 +387,7 @@ pub(crate) fn snap_deformed(
     let xss: [Vec<Vec3>; 2] = std::array::from_fn(|k| samples[k].iter().map(|&v| x[v]).collect());
     // each query starts from the face the last one found (the warp moves a point little)
     let mut hints = vec![u32::MAX; n];
+    let mut last = Vec::new();
     for round in 0..WARP_ROUNDS {
         let fine = (round >= EARLY_ROUND) as usize;
         let (sample, xs) = (&samples[fine], &xss[fine]);
@@ -423,9 +446,15 @@ pub(crate) fn snap_deformed(
             })
             .collect();
         warp.step_to_planes(xs, &ys, &ns, &ws);
+        last = c;
     }
-    // 2. local rounds
-    let mut u: Vec<Vec3> = x.iter().map(|p| warp.apply(*p) - *p).collect();
+    // 2. rigid parts, where the warp leaves a part off (a limb turned at a joint)
+    let parts = rigid_parts(search, target, &x, &m, &samples[1], &last);
+    // 3. local rounds
+    let mut u: Vec<Vec3> = match &parts {
+        Some(p) => p.displacement(search, target, &x, &m),
+        None => x.iter().map(|p| warp.apply(*p) - *p).collect(),
+    };
     let mut state = closest(search, target, &x, &u, &mut hints);
     for &iters in &LOCAL_ROUNDS {
         let (c, normals) = &state;
@@ -444,7 +473,7 @@ pub(crate) fn snap_deformed(
         u.iter_mut().zip(&step).for_each(|(a, b)| *a += *b);
         state = closest(search, target, &x, &u, &mut hints);
     }
-    // 3. the gate, then the snap
+    // 4. the gate, then the snap
     let (c, normals) = &state;
     let on: Vec<bool> = (0..n)
         .map(|v| c[v].1 <= ON_SURFACE_EDGES * edge && facing(source, &c[v], normals[v]))
@@ -479,6 +508,178 @@ pub(crate) fn snap_deformed(
             })
             .collect(),
     )
+}
+
+/// A target laid on the source by two similarities blended: the rest of the shape, and a part
+/// turned rigidly against it (a posed limb), which no smooth warp of the whole shape follows.
+struct RigidParts {
+    rest: Similarity,
+    part: Similarity,
+}
+
+/// One ICP round of a similarity on the sample vertices `take` selects: each one's closest source
+/// point under it (walked from `hints`, which it updates) and moved normal, then the similarity
+/// refitted (Umeyama) to those facing the same way within three times the median distance.
+/// Returns the closest points and normals before the refit.
+fn rigid_round(
+    sim: &mut Similarity,
+    search: &SurfaceSearch,
+    target: &Level,
+    x: &[Vec3],
+    sample: &[usize],
+    take: &[bool],
+    hints: &mut [u32],
+) -> Vec<(Closest, Vec3)> {
+    let source = search.level;
+    let edge = source.mean_edge.max(1e-12);
+    let c: Vec<(Closest, Vec3)> = sample
+        .par_iter()
+        .map(|&v| {
+            let nrm = (sim.rot * Vec3::from(target.normals[v]).as_dvec3()).as_vec3();
+            (search.tracked(sim.apply(x[v]), hints[v]), nrm)
+        })
+        .collect();
+    for (&v, c) in sample.iter().zip(&c) {
+        hints[v] = c.0.2;
+    }
+    let d: Vec<f32> = c
+        .iter()
+        .zip(take)
+        .filter(|(_, t)| **t)
+        .map(|(c, _)| c.0.1)
+        .collect();
+    let cut = 3.0 * median(&d).max(0.05 * edge);
+    let keep: Vec<bool> = c
+        .iter()
+        .zip(take)
+        .map(|((c, nrm), t)| *t && c.1 < cut && facing(source, c, *nrm))
+        .collect();
+    let xs: Vec<[f32; 3]> = sample.iter().map(|&v| x[v].to_array()).collect();
+    let ys: Vec<[f32; 3]> = c.iter().map(|c| c.0.0).collect();
+    if let Some(s) = umeyama(&xs, &ys, &keep) {
+        *sim = s;
+    }
+    c
+}
+
+/// Whether a vertex belongs to the turned part: the part's similarity lays it on the source
+/// (`p`, its closest point and moved normal there), and moves it nearer its own match `m` than
+/// the rest's does (`by_part`, `by_rest`: the vertex moved by each).
+fn in_part(by_rest: Vec3, by_part: Vec3, p: &(Closest, Vec3), source: &Level, m: Vec3) -> bool {
+    let edge = source.mean_edge.max(1e-12);
+    facing(source, &p.0, p.1)
+        && p.0.1 <= EARLY_EDGES * edge
+        && (by_part - m).length() < (by_rest - m).length()
+}
+
+/// The rigid parts (see [`RigidParts`]), where the warp's last round (`last`, on `sample`) left
+/// a sizeable share of the sample off the source: a similarity fitted to the rest (to the
+/// closest points the warp found for it) and one to the part (to its matches, trimmed), each
+/// refined by ICP on its own vertices, alternately, as the vertices move between them. Kept
+/// where the two lay more of the sample on the source than the warp did.
+fn rigid_parts(
+    search: &SurfaceSearch,
+    target: &Level,
+    x: &[Vec3],
+    m: &[Vec3],
+    sample: &[usize],
+    last: &[(Closest, Vec3)],
+) -> Option<RigidParts> {
+    let source = search.level;
+    let edge = source.mean_edge.max(1e-12);
+    // a similarity has seven degrees of freedom: a quarter of the sample is plenty
+    let sample: Vec<usize> = sample.iter().step_by(4).copied().collect();
+    let last: Vec<(Closest, Vec3)> = last.iter().step_by(4).copied().collect();
+    let (sample, last) = (&sample[..], &last[..]);
+    let on = |c: &(Closest, Vec3), within: f32| c.0.1 <= within * edge && facing(source, &c.0, c.1);
+    let mut member: Vec<bool> = last.iter().map(|c| !on(c, PART_OFF_EDGES)).collect();
+    let off = member.iter().filter(|&&b| b).count();
+    if (off as f64) < PART_SHARE * sample.len() as f64 {
+        return None;
+    }
+    let xs: Vec<[f32; 3]> = sample.iter().map(|&v| x[v].to_array()).collect();
+    let ys: Vec<[f32; 3]> = last.iter().map(|c| c.0.0).collect();
+    let ms: Vec<[f32; 3]> = sample.iter().map(|&v| m[v].to_array()).collect();
+    let not: Vec<bool> = member.iter().map(|b| !b).collect();
+    let mut rest = umeyama(&xs, &ys, &not)?;
+    let mut part = umeyama(&xs, &ms, &member)?;
+    for _ in 0..2 {
+        let r: Vec<f32> = (0..xs.len())
+            .map(|i| (part.apply(Vec3::from(xs[i])) - Vec3::from(ms[i])).length())
+            .collect();
+        let inside: Vec<f32> = r
+            .iter()
+            .zip(&member)
+            .filter(|(_, b)| **b)
+            .map(|(r, _)| *r)
+            .collect();
+        let cut = 3.0 * median(&inside).max(0.25 * edge);
+        let keep: Vec<bool> = r.iter().zip(&member).map(|(r, b)| *b && *r < cut).collect();
+        part = umeyama(&xs, &ms, &keep)?;
+    }
+    let n = x.len();
+    let (mut rest_hints, mut part_hints) = (vec![u32::MAX; n], vec![u32::MAX; n]);
+    let (mut cr, mut cp) = (Vec::new(), Vec::new());
+    for _ in 0..PART_ALTERNATIONS {
+        let not: Vec<bool> = member.iter().map(|b| !b).collect();
+        for _ in 0..PART_ROUNDS {
+            cp = rigid_round(
+                &mut part,
+                search,
+                target,
+                x,
+                sample,
+                &member,
+                &mut part_hints,
+            );
+        }
+        for _ in 0..PART_ROUNDS {
+            cr = rigid_round(&mut rest, search, target, x, sample, &not, &mut rest_hints);
+        }
+        for i in 0..sample.len() {
+            let v = sample[i];
+            member[i] = in_part(rest.apply(x[v]), part.apply(x[v]), &cp[i], source, m[v]);
+        }
+    }
+    let laid = (0..sample.len())
+        .filter(|&i| on(&cr[i], ON_SURFACE_EDGES) || on(&cp[i], ON_SURFACE_EDGES))
+        .count();
+    let by_warp = last.iter().filter(|c| on(c, ON_SURFACE_EDGES)).count();
+    (laid > by_warp).then_some(RigidParts { rest, part })
+}
+
+impl RigidParts {
+    /// Every target vertex's displacement: the rest's similarity, turned into the part's where
+    /// the part lays the vertex on the source ([`in_part`]), the choice smoothed over the target so
+    /// the two blend across the joint.
+    fn displacement(
+        &self,
+        search: &SurfaceSearch,
+        target: &Level,
+        x: &[Vec3],
+        m: &[Vec3],
+    ) -> Vec<Vec3> {
+        let source = search.level;
+        let n = x.len();
+        let choice: Vec<Vec3> = (0..n)
+            .into_par_iter()
+            .map(|v| {
+                let nv = Vec3::from(target.normals[v]).as_dvec3();
+                let (a, b) = (self.rest.apply(x[v]), self.part.apply(x[v]));
+                let p = (search.closest(b), (self.part.rot * nv).as_vec3());
+                Vec3::splat(in_part(a, b, &p, source, m[v]) as u8 as f32)
+            })
+            .collect();
+        let weight = smooth(&target.adjacency, &choice, &vec![1.0f32; n], BLEND_ITERS);
+        (0..n)
+            .into_par_iter()
+            .map(|v| {
+                let a = self.rest.apply(x[v]);
+                let b = self.part.apply(x[v]);
+                a + weight[v].x * (b - a) - x[v]
+            })
+            .collect()
+    }
 }
 
 /// The closest source point of every displaced target vertex, and the displaced normals; each
