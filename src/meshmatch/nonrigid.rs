@@ -664,8 +664,12 @@ impl RigidParts {
         let choice: Vec<Vec3> = (0..n)
             .into_par_iter()
             .map(|v| {
-                let nv = Vec3::from(target.normals[v]).as_dvec3();
                 let (a, b) = (self.rest.apply(x[v]), self.part.apply(x[v]));
+                // the part's closest point only where the part moves the vertex nearer its match
+                if (b - m[v]).length() >= (a - m[v]).length() {
+                    return Vec3::ZERO;
+                }
+                let nv = Vec3::from(target.normals[v]).as_dvec3();
                 let p = (search.closest(b), (self.part.rot * nv).as_vec3());
                 Vec3::splat(in_part(a, b, &p, source, m[v]) as u8 as f32)
             })
