@@ -30,8 +30,6 @@ pub struct TriangleBvh {
     order: Vec<u32>,
     /// Corner positions of each slot.
     tris: Vec<[Vec3; 3]>,
-    /// Slot of each face (`u32::MAX` for a face left out).
-    slot_of: Vec<u32>,
 }
 
 /// Deepest traversal stack a query keeps on the stack before spilling to the heap: a median
@@ -208,43 +206,17 @@ impl TriangleBvh {
         let (nodes, order) = median_split(positions, faces, LEAF_SIZE);
         let corner = |f: u32| faces[f as usize].map(|v| Vec3::from(positions[v as usize]));
         let tris = order.iter().map(|&f| corner(f)).collect();
-        let mut slot_of = vec![u32::MAX; faces.len()];
-        for (slot, &f) in order.iter().enumerate() {
-            slot_of[f as usize] = slot as u32;
-        }
-        TriangleBvh {
-            nodes,
-            order,
-            tris,
-            slot_of,
-        }
+        TriangleBvh { nodes, order, tris }
     }
 
     /// The closest point of the surface to `p`: `(face, barycentric coordinates of the point in
     /// that face's corner order, distance)`; `None` for an empty mesh or a non-finite `p`.
     pub fn closest_point(&self, p: [f32; 3]) -> Option<(u32, [f32; 3], f32)> {
-        self.closest_point_near(p, u32::MAX)
-    }
-
-    /// [`Self::closest_point`], starting from face `hint` (a query near the previous one: the
-    /// last answer bounds the search, so most of the tree is never visited). The answer is the
-    /// same but where two faces are equally close; `u32::MAX` for no hint.
-    pub fn closest_point_near(&self, p: [f32; 3], hint: u32) -> Option<(u32, [f32; 3], f32)> {
         let p = Vec3::from(p);
         if self.nodes.is_empty() || !p.is_finite() {
             return None;
         }
         let mut best = (u32::MAX, [0.0; 3], f32::INFINITY);
-        if let Some(&slot) = self.slot_of.get(hint as usize)
-            && slot != u32::MAX
-        {
-            let [a, b, c] = self.tris[slot as usize];
-            let bc = closest_on_triangle(p, a, b, c);
-            let q = a * bc[0] + b * bc[1] + c * bc[2];
-            // strictly closer faces replace it; an equal one found first in the tree order
-            // would have won without the hint
-            best = (hint, bc, q.distance_squared(p));
-        }
         let mut stack = Stack::default();
         stack.push((0, box_dist2(self.nodes[0].lo, self.nodes[0].hi, p)));
         while let Some((ni, d2)) = stack.pop() {
@@ -416,11 +388,6 @@ mod tests {
                 (k % 7) as f32 * 0.3 - 1.0,
             );
             let (f, bc, d) = bvh.closest_point(p.to_array()).unwrap();
-            // from any face as a hint (near or far, or none in range): the same distance
-            for hint in [f, (k * 131) % faces.len() as u32, u32::MAX, 1 << 30] {
-                let (_, _, dh) = bvh.closest_point_near(p.to_array(), hint).unwrap();
-                assert!((dh - d).abs() < 1e-6, "{k}, hint {hint}: {dh} vs {d}");
-            }
             let bf = faces
                 .iter()
                 .map(|t| {

@@ -76,23 +76,9 @@ mod tests {
 
     /// A bumpy grid: 60 x 60 vertices over the unit square, heights a few waves.
     fn bumpy() -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let n = 60;
-        let mut pos = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let (x, y) = (i as f32 / (n - 1) as f32, j as f32 / (n - 1) as f32);
-                let z = 0.05 * (7.0 * x).sin() * (5.0 * y).cos();
-                pos.push([x, y, z]);
-            }
-        }
-        let mut faces = Vec::new();
-        for j in 0..n - 1 {
-            for i in 0..n - 1 {
-                let v = (j * n + i) as u32;
-                let n = n as u32;
-                faces.push([v, v + 1, v + n + 1]);
-                faces.push([v, v + n + 1, v + n]);
-            }
+        let (mut pos, faces) = crate::testdata::grid_cells(59, 59, 1.0 / 59.0);
+        for p in &mut pos {
+            p[2] = 0.05 * (7.0 * p[0]).sin() * (5.0 * p[1]).cos();
         }
         (pos, faces)
     }

@@ -120,6 +120,38 @@ pub(crate) fn umeyama(x: &[[f32; 3]], y: &[[f32; 3]], keep: &[bool]) -> Option<S
     })
 }
 
+/// [`umeyama`] over the pairs `allowed` selects, refitted twice to those within three times
+/// the median residual (at least `floor`).
+pub(crate) fn umeyama_trimmed(
+    x: &[[f32; 3]],
+    y: &[[f32; 3]],
+    allowed: &[bool],
+    floor: f32,
+) -> Option<Similarity> {
+    let mut sim = umeyama(x, y, allowed)?;
+    for _ in 0..2 {
+        let res: Vec<f32> = x
+            .par_iter()
+            .zip(y)
+            .map(|(x, y)| (sim.apply(Vec3::from(*x)) - Vec3::from(*y)).length())
+            .collect();
+        let inside: Vec<f32> = res
+            .iter()
+            .zip(allowed)
+            .filter(|(_, a)| **a)
+            .map(|(r, _)| *r)
+            .collect();
+        let cut = 3.0 * median(&inside).max(floor);
+        let keep: Vec<bool> = res
+            .iter()
+            .zip(allowed)
+            .map(|(r, a)| *a && *r < cut)
+            .collect();
+        sim = umeyama(x, y, &keep)?;
+    }
+    Some(sim)
+}
+
 /// The snapped patch maps (see the module doc): `Some(map)` for every snapped target vertex,
 /// or `None` when the shapes do not coincide. `matched[v]` is target vertex `v`'s source
 /// point under its fitted patch map.
@@ -137,19 +169,7 @@ pub(crate) fn snap_coincident(
     }
     let edge = source.mean_edge.max(1e-12);
     // 1. The similarity to the matches, trimmed twice.
-    let mut keep = vec![true; n];
-    let mut sim = umeyama(&target.positions, matched, &keep)?;
-    for _ in 0..2 {
-        let res: Vec<f32> = (0..n)
-            .into_par_iter()
-            .map(|v| (sim.apply(Vec3::from(target.positions[v])) - Vec3::from(matched[v])).length())
-            .collect();
-        let cut = 3.0 * median(&res).max(0.25 * edge);
-        for (k, r) in keep.iter_mut().zip(&res) {
-            *k = *r < cut;
-        }
-        sim = umeyama(&target.positions, matched, &keep)?;
-    }
+    let mut sim = umeyama_trimmed(&target.positions, matched, &vec![true; n], 0.25 * edge)?;
     // 2. ICP against the source surface, on a spread subset of the kept vertices (every
     //    `stride`-th: Morton-ordered working vertices are spread over the surface).
     //    Each sampled vertex's closest point is walked from its last one.

@@ -33,7 +33,7 @@ use rayon::prelude::*;
 
 use super::coincident::{
     Closest, MIN_SHARE, ON_SURFACE_EDGES, Similarity, SurfaceSearch, facing, median, snapped_map,
-    umeyama,
+    umeyama, umeyama_trimmed,
 };
 use super::patch_map::PatchMap;
 use crate::features::Frames;
@@ -517,7 +517,8 @@ struct RigidParts {
     part: Similarity,
 }
 
-/// One ICP round of a similarity on the sample vertices `take` selects: each one's closest source
+/// One ICP round of a similarity on the sample vertices (`sample`, their positions `xs`) that
+/// `take` selects: each one's closest source
 /// point under it (walked from `hints`, which it updates) and moved normal, then the similarity
 /// refitted (Umeyama) to those facing the same way within three times the median distance.
 /// Returns the closest points and normals before the refit.
@@ -525,8 +526,7 @@ fn rigid_round(
     sim: &mut Similarity,
     search: &SurfaceSearch,
     target: &Level,
-    x: &[Vec3],
-    sample: &[usize],
+    (sample, xs): (&[usize], &[[f32; 3]]),
     take: &[bool],
     hints: &mut [u32],
 ) -> Vec<(Closest, Vec3)> {
@@ -534,9 +534,10 @@ fn rigid_round(
     let edge = source.mean_edge.max(1e-12);
     let c: Vec<(Closest, Vec3)> = sample
         .par_iter()
-        .map(|&v| {
+        .enumerate()
+        .map(|(i, &v)| {
             let nrm = (sim.rot * Vec3::from(target.normals[v]).as_dvec3()).as_vec3();
-            (search.tracked(sim.apply(x[v]), hints[v]), nrm)
+            (search.tracked(sim.apply(Vec3::from(xs[i])), hints[v]), nrm)
         })
         .collect();
     for (&v, c) in sample.iter().zip(&c) {
@@ -554,9 +555,8 @@ fn rigid_round(
         .zip(take)
         .map(|((c, nrm), t)| *t && c.1 < cut && facing(source, c, *nrm))
         .collect();
-    let xs: Vec<[f32; 3]> = sample.iter().map(|&v| x[v].to_array()).collect();
     let ys: Vec<[f32; 3]> = c.iter().map(|c| c.0.0).collect();
-    if let Some(s) = umeyama(&xs, &ys, &keep) {
+    if let Some(s) = umeyama(xs, &ys, &keep) {
         *sim = s;
     }
     c
@@ -602,21 +602,7 @@ fn rigid_parts(
     let ms: Vec<[f32; 3]> = sample.iter().map(|&v| m[v].to_array()).collect();
     let not: Vec<bool> = member.iter().map(|b| !b).collect();
     let mut rest = umeyama(&xs, &ys, &not)?;
-    let mut part = umeyama(&xs, &ms, &member)?;
-    for _ in 0..2 {
-        let r: Vec<f32> = (0..xs.len())
-            .map(|i| (part.apply(Vec3::from(xs[i])) - Vec3::from(ms[i])).length())
-            .collect();
-        let inside: Vec<f32> = r
-            .iter()
-            .zip(&member)
-            .filter(|(_, b)| **b)
-            .map(|(r, _)| *r)
-            .collect();
-        let cut = 3.0 * median(&inside).max(0.25 * edge);
-        let keep: Vec<bool> = r.iter().zip(&member).map(|(r, b)| *b && *r < cut).collect();
-        part = umeyama(&xs, &ms, &keep)?;
-    }
+    let mut part = umeyama_trimmed(&xs, &ms, &member, 0.25 * edge)?;
     let n = x.len();
     let (mut rest_hints, mut part_hints) = (vec![u32::MAX; n], vec![u32::MAX; n]);
     let (mut cr, mut cp) = (Vec::new(), Vec::new());
@@ -627,14 +613,20 @@ fn rigid_parts(
                 &mut part,
                 search,
                 target,
-                x,
-                sample,
+                (sample, &xs),
                 &member,
                 &mut part_hints,
             );
         }
         for _ in 0..PART_ROUNDS {
-            cr = rigid_round(&mut rest, search, target, x, sample, &not, &mut rest_hints);
+            cr = rigid_round(
+                &mut rest,
+                search,
+                target,
+                (sample, &xs),
+                &not,
+                &mut rest_hints,
+            );
         }
         for i in 0..sample.len() {
             let v = sample[i];

@@ -434,6 +434,15 @@ pub(crate) fn fit_patch_maps(
         .collect()
 }
 
+/// How far apart three maps' images of one point are: the largest of their distances.
+#[inline]
+fn spread(g: [Vec3; 3]) -> f32 {
+    (g[0] - g[1])
+        .length()
+        .max((g[1] - g[2]).length())
+        .max((g[0] - g[2]).length())
+}
+
 /// The images of one working face's three corners under one corner's patch map.
 #[derive(Clone, Copy, Debug, Default)]
 struct CornerImage {
@@ -706,13 +715,7 @@ impl Resampler {
             .par_iter()
             .map(|imgs| {
                 let spread = (0..3)
-                    .map(|j| {
-                        let g = imgs.map(|im| Vec3::from(im.goal[j]));
-                        (g[0] - g[1])
-                            .length()
-                            .max((g[1] - g[2]).length())
-                            .max((g[0] - g[2]).length())
-                    })
+                    .map(|j| spread(imgs.map(|im| Vec3::from(im.goal[j]))))
                     .fold(0.0f32, f32::max);
                 spread < agree && resampler.one_texture_chart(imgs)
             })
@@ -762,11 +765,7 @@ impl Resampler {
             Vec3::from(g[0]) * bary[0] + Vec3::from(g[1]) * bary[1] + Vec3::from(g[2]) * bary[2]
         };
         let g = [goal(0), goal(1), goal(2)];
-        let spread = (g[0] - g[1])
-            .length()
-            .max((g[1] - g[2]).length())
-            .max((g[0] - g[2]).length());
-        if spread < self.agree && self.one_texture_chart(imgs) {
+        if spread(g) < self.agree && self.one_texture_chart(imgs) {
             return one_reading();
         }
         // Across a patch border (or a chart border of the source) each corner reads the source
