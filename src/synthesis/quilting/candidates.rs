@@ -89,6 +89,67 @@ impl Mapper<'_> {
     }
 }
 
+impl Mapper<'_> {
+    /// Every vertex of swatch element `e` shifted by `shift`, mapped into the shell as [`map`]
+    /// maps it; `None` for a vertex off the flattened base or on a face distorted past twice
+    /// `max_distortion`, and for both ends of an edge a lattice chart tears (stretched past
+    /// twice its length). What [`super::trim`] cuts a thread's clear part from.
+    ///
+    /// [`map`]: Mapper::map
+    pub(super) fn map_vertices(&self, e: usize, shift: Vec2) -> Vec<Option<[f32; 3]>> {
+        let Mapper {
+            setup,
+            base,
+            patch,
+            rot,
+        } = *self;
+        let (params, sw, s, hscale) = (setup.params, setup.sw, setup.s, setup.hscale);
+        let (r_elem, tau) = (setup.r_elem, setup.tau);
+        let (flat, rho) = (&patch.flat, &patch.rho);
+        let qs = sw.element_positions(e);
+        let mut ps: Vec<Option<[f32; 3]>> = qs
+            .iter()
+            .map(|q| {
+                let uv = rot.rotate((Vec2::new(q[0], q[1]) + shift) * s);
+                let (f, b, _) = flat.locate(uv, r_elem + tau)?;
+                (rho[flat.index[&f] as usize] <= 2.0 * params.max_distortion)
+                    .then(|| base.shell_point(f, b, q[2] * hscale).to_array())
+            })
+            .collect();
+        if patch.lattice_t.is_some() {
+            for f in &setup.elem_faces[e] {
+                for k in 0..3 {
+                    let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
+                    let (Some(pa), Some(pb)) = (ps[a], ps[b]) else {
+                        continue;
+                    };
+                    let d = Vec3::from(qs[a]) - Vec3::from(qs[b]);
+                    let want = Vec3::new(d.x * s, d.y * s, d.z * hscale).length();
+                    if Vec3::from(pa).distance(Vec3::from(pb)) > 2.0 * want + tau {
+                        ps[a] = None;
+                        ps[b] = None;
+                    }
+                }
+            }
+        }
+        ps
+    }
+
+    /// The base face and barycentric coordinates under swatch point `q` (x-y, swatch units)
+    /// shifted by `shift`, and the 3D direction of the swatch's +x axis there.
+    pub(super) fn anchor(&self, q: Vec2, shift: Vec2) -> Option<((u32, [f32; 3]), Vec3)> {
+        let (flat, s) = (&self.patch.flat, self.setup.s);
+        let uv = self.rot.rotate((q + shift) * s);
+        let (f, b, true) = flat.locate(uv, 0.0)? else {
+            return None;
+        };
+        let corners = self.base.faces[f as usize].map(|v| Vec3::from(self.base.p[v as usize]));
+        let k = flat.index[&f] as usize;
+        let dir = uv_to_3d(&flat.faces[k].1, corners, self.rot).normalize_or_zero();
+        Some(((f, b), dir))
+    }
+}
+
 /// The patch's candidates at translation `t` (swatch units): each element within the disc,
 /// with its copies one period apart when the tile repeats.
 pub(super) fn candidates(mapper: &Mapper, t: Vec2, stats: &mut QuiltStats) -> Vec<Candidate> {
@@ -102,9 +163,21 @@ pub(super) fn candidates_within(
     rp: f32,
     stats: &mut QuiltStats,
 ) -> Vec<Candidate> {
+    let mut cands: Vec<Candidate> = Vec::new();
+    for (e, shift) in copies_within(mapper, t, rp) {
+        if let Some(cand) = mapper.map(e, shift, stats) {
+            cands.push(cand);
+        }
+    }
+    cands
+}
+
+/// The tile's elements and copies at translation `t` (swatch units) centred within `rp`
+/// (base units) of the patch's seed: `(element, its swatch translation)`.
+pub(super) fn copies_within(mapper: &Mapper, t: Vec2, rp: f32) -> Vec<(usize, Vec2)> {
     let (sw, s, period) = (mapper.setup.sw, mapper.setup.s, mapper.setup.period);
     let lattice_t = mapper.patch.lattice_t;
-    let mut cands: Vec<Candidate> = Vec::new();
+    let mut copies = Vec::new();
     let rs = rp / s;
     for (e, el) in sw.elements.iter().enumerate() {
         let c = Vec2::new(el.centre[0], el.centre[1]) + t;
@@ -127,11 +200,9 @@ pub(super) fn candidates_within(
                 if ((c + off) * s).length() > rp {
                     continue;
                 }
-                if let Some(cand) = mapper.map(e, t + off, stats) {
-                    cands.push(cand);
-                }
+                copies.push((e, t + off));
             }
         }
     }
-    cands
+    copies
 }

@@ -24,6 +24,9 @@ pub(super) struct Placed {
     pub(super) faces: Option<Vec<[u32; 3]>>,
     pub(super) pieces: Vec<Piece>,
     pub(super) alive: bool,
+    /// The share of its swatch element it holds: 1, or less for a thread cut short
+    /// ([`super::trim`]).
+    pub(super) share: f32,
 }
 
 impl Placed {
@@ -225,6 +228,28 @@ impl Placement {
                 dir: c.dir,
             }],
             alive: true,
+            share: 1.0,
+        });
+    }
+
+    /// Places a thread cut short ([`super::trim`]) as an element of its own.
+    pub(super) fn place_trimmed(&mut self, t: super::trim::Trimmed) {
+        self.out_faces += t.faces.len();
+        self.anchored[t.anchor.0 as usize].push((self.placed.len() as u32, 0));
+        self.centres
+            .insert(self.placed.len() as u32, &[t.centre.to_array()]);
+        self.max_radius = self.max_radius.max(t.radius);
+        self.placed.push(Placed {
+            source: t.source,
+            positions: t.positions,
+            faces: Some(t.faces),
+            pieces: vec![Piece {
+                centre: t.centre,
+                anchor: t.anchor,
+                dir: t.dir,
+            }],
+            alive: true,
+            share: t.share,
         });
     }
 

@@ -19,7 +19,7 @@ use glam::{Vec2, Vec3};
 use rand::rngs::SmallRng;
 
 use super::QuiltStats;
-use super::candidates::{Mapper, candidates_within};
+use super::candidates::{Mapper, candidates_within, copies_within};
 use super::crossing;
 use super::elements::{Candidate, Placement, VertexHash};
 use super::flatten;
@@ -27,13 +27,15 @@ use super::lattice::Lattice;
 use super::matching;
 use super::setup::Setup;
 use super::shell::Base;
+use super::trim;
 use crate::error::Result;
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
 /// Fills the gaps wider than `reach` (base units) between the placed elements, with at most
 /// twice `patches` tries (each costs what a patch of the covering pass costs), as many for a
 /// tile of threads alone (long elements, costly to map and test, which rarely fit a gap);
-/// returns how many elements were added.
+/// returns how many elements were added, and how many of them are threads cut short
+/// ([`trim`]).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn fill(
     setup: &Setup,
@@ -44,10 +46,10 @@ pub(super) fn fill(
     patches: usize,
     rng: &mut SmallRng,
     (sink, clock, cancel): (&dyn Fn(Event), &Stopwatch, &CancelToken),
-) -> Result<usize> {
+) -> Result<(usize, usize)> {
     let sw = setup.sw;
     if reach.is_nan() || reach <= 0.0 || !setup.min_spacing.is_finite() {
-        return Ok(0);
+        return Ok((0, 0));
     }
     let mut verts = VertexHash::new(reach);
     for (k, pe) in elements.placed.iter().enumerate() {
@@ -108,6 +110,8 @@ pub(super) fn fill(
     };
     // the tries' counters stay out of the run's
     let mut scratch = QuiltStats::default();
+    let axes = trim::Axes::new(setup);
+    let mut trimmed = 0;
     let mut added = 0;
     let mut tries = 0;
     let mut failed = VertexHash::new(reach);
@@ -139,7 +143,13 @@ pub(super) fn fill(
             patch: &patch,
             rot,
         };
-        let near = Neighbours::around(setup, elements, c0, around(elements));
+        let near = Neighbours::around(
+            setup,
+            elements,
+            c0,
+            around(elements),
+            axes.soft_cell(setup.s),
+        );
         let mut found = None;
         'tries: for d in &offsets {
             for c in candidates_within(&mapper, t + *d, setup.r_elem + reach, &mut scratch) {
@@ -158,22 +168,40 @@ pub(super) fn fill(
             verts.insert(id, &c.positions);
             elements.place_one(c, sw);
             added += 1;
+        } else if let Some(piece) = axes
+            .any()
+            .then(|| near.trimmed(setup, elements, &axes, &mapper, t, &offsets, c0, reach))
+            .flatten()
+        {
+            let id = elements.placed.len() as u32;
+            verts.insert(id, &piece.positions);
+            elements.place_trimmed(piece);
+            added += 1;
+            trimmed += 1;
         } else {
             failed.insert(0, &[c0.to_array()]);
         }
     }
-    Ok(added)
+    Ok((added, trimmed))
 }
 
-/// The alive elements around a gap, with their vertices hashed for the clearance test.
+/// The alive elements around a gap, with their vertices hashed for the clearance test (and
+/// for a thread piece's crowding test, [`trim`]).
 struct Neighbours {
     ids: Vec<u32>,
     hash: VertexHash,
+    soft: VertexHash,
 }
 
 impl Neighbours {
     /// The alive elements centred within `r` of `c`.
-    fn around(setup: &Setup, elements: &Placement, c: Vec3, r: f32) -> Neighbours {
+    fn around(
+        setup: &Setup,
+        elements: &Placement,
+        c: Vec3,
+        r: f32,
+        soft_cell: f32,
+    ) -> Neighbours {
         let ids: Vec<u32> = elements
             .centres
             .within(c, r)
@@ -181,10 +209,55 @@ impl Neighbours {
             .filter(|&e| elements.placed[e as usize].alive)
             .collect();
         let mut hash = VertexHash::new(setup.tau);
+        let mut soft = VertexHash::new(soft_cell.max(setup.tau));
         for (k, &e) in ids.iter().enumerate() {
             hash.insert(k as u32, &elements.placed[e as usize].positions);
+            if soft_cell > 0.0 {
+                soft.insert(k as u32, &elements.placed[e as usize].positions);
+            }
         }
-        Neighbours { ids, hash }
+        Neighbours { ids, hash, soft }
+    }
+
+    /// The longest clear piece of a thread copy reaching the gap at `c0` ([`trim`]): the
+    /// copies at the registered translation `t` first, then moved by `offsets`.
+    #[allow(clippy::too_many_arguments)]
+    fn trimmed(
+        &self,
+        setup: &Setup,
+        elements: &Placement,
+        axes: &trim::Axes,
+        mapper: &Mapper,
+        t: Vec2,
+        offsets: &[Vec2],
+        c0: Vec3,
+        reach: f32,
+    ) -> Option<trim::Trimmed> {
+        let around = trim::Around {
+            elements,
+            ids: &self.ids,
+            hash: &self.hash,
+            soft: &self.soft,
+        };
+        // a thread's copies reach a gap from as far as half its length
+        let rp = setup.r_elem + reach;
+        for d in offsets {
+            let mut best: Option<trim::Trimmed> = None;
+            for (e, shift) in copies_within(mapper, t + *d, rp) {
+                if !axes.passes_near_seed(e, shift, reach / setup.s) {
+                    continue;
+                }
+                if let Some(p) = trim::trim(axes, mapper, e, shift, &around, c0, reach)
+                    && best.as_ref().is_none_or(|b| p.share > b.share)
+                {
+                    best = Some(p);
+                }
+            }
+            if best.is_some() {
+                return best;
+            }
+        }
+        None
     }
 
     /// Whether `c` clears every neighbour: no vertex within the clearance, centres at least

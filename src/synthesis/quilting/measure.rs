@@ -3,7 +3,8 @@
 //!
 //! - **Density**: elements per unit of area. The swatch's is its tile's count over the tile's
 //!   area ([`super::periodicity`]); the output's is its element count over the base's area,
-//!   in swatch units (divided by `s^2`). Also split by the sign of the base's Gaussian curvature
+//!   in swatch units (divided by `s^2`), a thread cut short ([`super::trim`]) counting for the
+//!   share of its faces it kept. Also split by the sign of the base's Gaussian curvature
 //!   (angle defects summed over a ball half a swatch wide around each face): convex and saddle.
 //!   An element counts for the base face nearest its centre.
 //! - **Links per element**: twice the number of linked pairs ([`super::links`]) over the
@@ -197,8 +198,11 @@ pub fn quilt_measures(
     let total: f64 = area.iter().sum();
     let ne = out.num_elements();
     let expected = sw.density as f64 / (s as f64 * s as f64);
+    // a thread cut short counts for the share of its element it holds
+    let share = |e: usize| out.element_share.get(e).map_or(1.0, |&x| x as f64);
+    let counted: f64 = (0..ne).map(share).sum();
     let density_ratio = if total > 0.0 && expected > 0.0 {
-        (ne as f64 / total / expected) as f32
+        (counted / total / expected) as f32
     } else {
         0.0
     };
@@ -213,12 +217,13 @@ pub fn quilt_measures(
         if a < 0.02 * total || expected <= 0.0 {
             return None;
         }
-        let n = home
+        let n: f64 = home
             .iter()
-            .flatten()
-            .filter(|&&f| sign[f as usize] == want)
-            .count();
-        Some((n as f64 / a / expected) as f32)
+            .enumerate()
+            .filter(|(_, f)| f.is_some_and(|f| sign[f as usize] == want))
+            .map(|(e, _)| share(e))
+            .sum();
+        Some((n / a / expected) as f32)
     };
     // coverage: face centroids within the swatch's largest gap of an output vertex
     let covered = covered_area(out, base, &area, (sw.largest_gap * s).max(1e-9));

@@ -171,6 +171,7 @@ mod seed;
 mod setup;
 mod shell;
 mod swatch;
+mod trim;
 
 pub use crossing::crossing_pairs;
 pub use finite_patch::{PatchKind, finite_patch};
@@ -313,6 +314,8 @@ pub struct QuiltStats {
     pub nudged: usize,
     /// Elements placed in gaps after the patches ([`Params::fill`]).
     pub filled: usize,
+    /// Of those, threads cut short to fit their gap ([`trim`]).
+    pub trimmed: usize,
     /// Candidates dropped because part of them fell off the flattened base.
     pub dropped_unmapped: usize,
     /// Elements dropped at the end because a vertex lay outside the shell (distorted or
@@ -386,6 +389,9 @@ pub struct QuiltOutput {
     /// Swatch copies joined in each output element: 1 for a (deformed) copy, more for an
     /// element merged across patch seams ([`merging`]).
     pub element_pieces: Vec<u32>,
+    /// The share of its swatch element each output element holds: 1 for a whole copy, less
+    /// for a thread cut short to fit a gap ([`trim`]); densities count elements by it.
+    pub element_share: Vec<f32>,
     /// Counters.
     pub stats: QuiltStats,
 }
@@ -638,7 +644,7 @@ fn run_unit(
     // the gaps the seams left
     if params.fill {
         let reach = swatch_measures.largest_gap * size.s;
-        stats.filled = fill::fill(
+        (stats.filled, stats.trimmed) = fill::fill(
             &setup,
             &base,
             &mut lattice,

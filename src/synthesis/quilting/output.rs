@@ -26,6 +26,7 @@ pub(super) fn assemble(
     let mut element_id = Vec::new();
     let mut element_source = Vec::new();
     let mut element_pieces = Vec::new();
+    let mut element_share = Vec::new();
     // Shell guard: an element mapped through a strongly distorted or extrapolated patch (thin
     // parts such as ears, legs and a giraffe's horns) can be flung away from the surface; keep
     // only elements whose every vertex lies within the shell, at most 1.5 H (plus a twentieth
@@ -48,6 +49,7 @@ pub(super) fn assemble(
         out_f.extend(pe.faces(elem_faces).iter().map(|f| f.map(|v| v + v0)));
         element_source.push(pe.source);
         element_pieces.push(pe.pieces.len() as u32);
+        element_share.push(pe.share);
     }
     stats.elements = element_source.len();
     let mut out = QuiltOutput {
@@ -55,6 +57,7 @@ pub(super) fn assemble(
         element_id,
         element_source,
         element_pieces,
+        element_share,
         stats,
     };
     if let Some(p) = found {

@@ -1,0 +1,398 @@
+//! Thread trimming (the cut of Zhou et al. 2006 §2.7 for threads, simplified; part of
+//! [`super::Params::fill`]): a gap that no whole copy of a thread fits (a strand longer than a
+//! limb is round, strands that meet end to end where the lattice's period drifts) gets the
+//! clear part of one, cut across the thread and capped.
+//!
+//! 1. **Axis.** Each thread of the tile (an elongated element, [`super::setup::Setup`]'s
+//!    `elongated`) gets its principal axis in the swatch's x-y plane, each vertex its
+//!    coordinate along it in [`BINS`] equal slices, and its width across it.
+//! 2. **Clear slices.** The copy is mapped vertex by vertex ([`Mapper::map_vertices`]); a slice
+//!    is blocked when one of its vertices falls off the flattened base, on a torn or too
+//!    distorted face, or within the clearance of an element already placed.
+//! 3. **The run.** The longest run of clear slices holding a vertex within the gap, less one
+//!    slice at each end that borders a blocked slice, is kept when it spans at least
+//!    [`MIN_SHARE`] of the thread and not all of it (a whole copy is the fill's to place).
+//!    The faces with all three corners in the run are kept and every boundary loop the cut
+//!    opened on a closed thread is capped by a fan around its centroid.
+//! 4. **Checks.** The piece must cross no element's surface, and must not lie closer to the
+//!    elements around it than the thread does in the swatch: the share of its vertices within
+//!    half the thread's width of another element's is at most [`CROWD_SLACK`] times the
+//!    thread's own share in the tile (with its copies around it) plus 0.05. That keeps a piece
+//!    from sliding in beside a parallel thread, which the vertex clearance alone would allow
+//!    (a woven strand's own clearance is the hair between it and the strands it crosses).
+//!    Each crossing found shortens the run by two slices at both ends, twice at most.
+//!
+//! A piece counts for the share of its element's faces it kept in the density
+//! ([`super::measure`]).
+
+use glam::{Vec2, Vec3};
+
+use super::candidates::Mapper;
+use super::crossing;
+use super::elements::{Placement, VertexHash, centre_and_radius};
+use super::setup::Setup;
+
+/// Slices along a thread.
+pub const BINS: usize = 32;
+/// Smallest share of a thread's length a piece keeps.
+pub const MIN_SHARE: f32 = 1.0 / 3.0;
+/// How much more crowded than in the swatch a piece may lie.
+pub const CROWD_SLACK: f32 = 1.25;
+
+/// A thread cut short, ready to place.
+pub(super) struct Trimmed {
+    pub(super) source: u32,
+    pub(super) positions: Vec<[f32; 3]>,
+    pub(super) faces: Vec<[u32; 3]>,
+    /// Kept faces over the element's.
+    pub(super) share: f32,
+    pub(super) centre: Vec3,
+    pub(super) radius: f32,
+    pub(super) anchor: (u32, [f32; 3]),
+    pub(super) dir: Vec3,
+}
+
+/// One thread's axis in swatch units.
+struct Axis {
+    /// Unit direction in x-y, and the point `t = 0` on it.
+    dir: Vec2,
+    mid: Vec2,
+    /// Each vertex's slice along the axis.
+    slice: Vec<u16>,
+    /// The slices' `t` bounds.
+    lo: f32,
+    step: f32,
+    /// Width across the axis.
+    width: f32,
+    /// Share of its vertices within half its width of another element's in the tile.
+    crowd: f32,
+    /// Whether the thread is closed (every edge used by two faces).
+    closed: bool,
+}
+
+/// The axes of the tile's threads (`None` for compact elements).
+pub(super) struct Axes {
+    per: Vec<Option<Axis>>,
+}
+
+impl Axes {
+    /// Measured on the tile of `setup`; empty when the tile has no thread.
+    pub(super) fn new(setup: &Setup) -> Axes {
+        let sw = setup.sw;
+        let mut per: Vec<Option<Axis>> = (0..sw.num_elements())
+            .map(|e| {
+                if !setup.elongated[e] {
+                    return None;
+                }
+                axis(sw.element_positions(e), &setup.elem_faces[e])
+            })
+            .collect();
+        // the swatch's own crowding: its vertices (copies around the tile included) hashed
+        // once, each thread's vertices tested against the other elements'
+        let widest = per.iter().flatten().map(|a| a.width).fold(0.0f32, f32::max);
+        if widest > 0.0 {
+            let mut hash = VertexHash::new(0.5 * widest);
+            let mut id = 0u32;
+            for im in sw.images() {
+                for e in 0..sw.num_elements() {
+                    let ps: Vec<[f32; 3]> = sw
+                        .element_positions(e)
+                        .iter()
+                        .map(|p| [p[0] + im[0], p[1] + im[1], p[2]])
+                        .collect();
+                    hash.insert(id, &ps);
+                    id += 1;
+                }
+            }
+            let ne = sw.num_elements() as u32;
+            // the tile itself is the image at offset (0, 0)
+            let own = sw
+                .images()
+                .iter()
+                .position(|im| *im == [0.0, 0.0])
+                .unwrap_or(0) as u32;
+            for (e, a) in per.iter_mut().enumerate() {
+                if let Some(a) = a {
+                    let me = own * ne + e as u32;
+                    let ps = sw.element_positions(e);
+                    let near = ps
+                        .iter()
+                        .filter(|p| hash.any_near(&[**p], 0.5 * a.width, |k| k != me))
+                        .count();
+                    a.crowd = near as f32 / ps.len().max(1) as f32;
+                }
+            }
+        }
+        Axes { per }
+    }
+
+    /// The cell (base units, at swatch scale `s`) a hash needs for the crowding test: half
+    /// the widest thread's width.
+    pub(super) fn soft_cell(&self, s: f32) -> f32 {
+        0.5 * s * self.per.iter().flatten().map(|a| a.width).fold(0.0f32, f32::max)
+    }
+
+    /// Whether the tile has a thread to trim.
+    pub(super) fn any(&self) -> bool {
+        self.per.iter().any(|a| a.is_some())
+    }
+
+    /// Whether copy `e` at swatch translation `shift` passes within `reach` (swatch units,
+    /// plus half its width) of the patch's seed (the swatch point `-shift`).
+    pub(super) fn passes_near_seed(&self, e: usize, shift: Vec2, reach: f32) -> bool {
+        let Some(a) = &self.per[e] else {
+            return false;
+        };
+        let p = -shift - a.mid;
+        let t = p.dot(a.dir).clamp(a.lo, a.lo + a.step * BINS as f32);
+        (p - a.dir * t).length() <= reach + 0.5 * a.width
+    }
+}
+
+/// The principal axis of a thread's vertices in x-y, its slices and width.
+fn axis(ps: &[[f32; 3]], faces: &[[u32; 3]]) -> Option<Axis> {
+    if ps.len() < 3 {
+        return None;
+    }
+    let n = ps.len() as f32;
+    let mid = ps.iter().map(|p| Vec2::new(p[0], p[1])).sum::<Vec2>() / n;
+    let (mut cxx, mut cxy, mut cyy) = (0.0f32, 0.0f32, 0.0f32);
+    for p in ps {
+        let d = Vec2::new(p[0], p[1]) - mid;
+        cxx += d.x * d.x;
+        cxy += d.x * d.y;
+        cyy += d.y * d.y;
+    }
+    // the larger eigenvector of [[cxx, cxy], [cxy, cyy]]
+    let angle = 0.5 * (2.0 * cxy).atan2(cxx - cyy);
+    let dir = Vec2::new(angle.cos(), angle.sin());
+    let ts: Vec<f32> = ps.iter().map(|p| (Vec2::new(p[0], p[1]) - mid).dot(dir)).collect();
+    let (lo, hi) = ts
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
+    let across = ps.iter().map(|p| (Vec2::new(p[0], p[1]) - mid).perp_dot(dir));
+    let (wlo, whi) = across.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), w| (a.min(w), b.max(w)));
+    if !(hi > lo) || !(whi >= wlo) {
+        return None;
+    }
+    let step = (hi - lo) / BINS as f32;
+    let slice = ts
+        .iter()
+        .map(|&t| (((t - lo) / step) as usize).min(BINS - 1) as u16)
+        .collect();
+    let mut uses = std::collections::HashMap::<(u32, u32), u32>::new();
+    for f in faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let closed = !faces.is_empty() && uses.values().all(|&c| c == 2);
+    Some(Axis {
+        dir,
+        mid,
+        slice,
+        lo,
+        step,
+        width: (whi - wlo).max(1e-6),
+        crowd: 0.0,
+        closed,
+    })
+}
+
+/// What a piece must keep clear of: the elements around the gap.
+pub(super) struct Around<'a> {
+    pub(super) elements: &'a Placement,
+    /// Alive elements near the gap.
+    pub(super) ids: &'a [u32],
+    /// Their vertices, hashed in cells of at least the clearance.
+    pub(super) hash: &'a VertexHash,
+    /// The same, in cells of at least [`Axes::soft_cell`].
+    pub(super) soft: &'a VertexHash,
+}
+
+/// The clear part of thread copy `e` at `shift` that reaches within `reach` of `gap` (base
+/// units), cut and capped; `None` when no run long enough is clear (module documentation).
+pub(super) fn trim(
+    axes: &Axes,
+    mapper: &Mapper,
+    e: usize,
+    shift: Vec2,
+    around: &Around,
+    gap: Vec3,
+    reach: f32,
+) -> Option<Trimmed> {
+    let a = axes.per[e].as_ref()?;
+    let setup = mapper.setup;
+    let (tau, s) = (setup.tau, setup.s);
+    let soft = 0.5 * a.width * s;
+    let mapped = mapper.map_vertices(e, shift);
+    let mut blocked = [false; BINS];
+    let mut covers = [false; BINS];
+    for (v, p) in mapped.iter().enumerate() {
+        let b = a.slice[v] as usize;
+        match p {
+            None => blocked[b] = true,
+            Some(p) => {
+                if around.hash.any_near(&[*p], tau, |_| true) {
+                    blocked[b] = true;
+                }
+                if Vec3::from(*p).distance(gap) <= reach {
+                    covers[b] = true;
+                }
+            }
+        }
+    }
+    let min_bins = (MIN_SHARE * BINS as f32).ceil() as usize;
+    // the longest clear run holding a covering slice, less a slice beside each blocked one
+    let mut best: Option<(usize, usize)> = None;
+    let mut i = 0;
+    while i < BINS {
+        if blocked[i] {
+            i += 1;
+            continue;
+        }
+        let mut j = i;
+        while j < BINS && !blocked[j] {
+            j += 1;
+        }
+        let (lo, hi) = (i + (i > 0) as usize, j - (j < BINS) as usize);
+        if hi > lo
+            && hi - lo >= min_bins
+            && hi - lo < BINS
+            && covers[lo..hi].iter().any(|&c| c)
+            && best.is_none_or(|(l, h)| hi - lo > h - l)
+        {
+            best = Some((lo, hi));
+        }
+        i = j;
+    }
+    let (mut lo, mut hi) = best?;
+    let faces = &setup.elem_faces[e];
+    for _ in 0..3 {
+        let piece = cut(a, faces, &mapped, lo, hi)?;
+        let (positions, pfaces, kept) = piece;
+        // not more crowded than the swatch has it
+        let crowded = positions[..kept]
+            .iter()
+            .filter(|p| around.soft.any_near(&[**p], soft, |_| true))
+            .count();
+        if crowded as f32 > (CROWD_SLACK * a.crowd + 0.05) * kept as f32 {
+            return None;
+        }
+        let (centre, radius) = centre_and_radius(&positions);
+        let crosses = around.ids.iter().any(|&id| {
+            let o = &around.elements.placed[id as usize];
+            o.centre_distance(centre) < 2.0 * (radius + around.elements.max_radius)
+                && crossing::surfaces_cross(
+                    &o.positions,
+                    o.faces(&setup.elem_faces),
+                    &positions,
+                    &pfaces,
+                )
+        });
+        if !crosses {
+            let t_mid = a.lo + a.step * 0.5 * (lo + hi) as f32;
+            let (anchor, dir) = mapper.anchor(a.mid + a.dir * t_mid, shift)?;
+            let share = pfaces.len().min(faces.len()) as f32 / faces.len().max(1) as f32;
+            let share = share.min((hi - lo) as f32 / BINS as f32).max(0.0);
+            return Some(Trimmed {
+                source: e as u32,
+                positions,
+                faces: pfaces,
+                share,
+                centre,
+                radius,
+                anchor,
+                dir,
+            });
+        }
+        if hi - lo < min_bins + 4 {
+            return None;
+        }
+        lo += 2;
+        hi -= 2;
+    }
+    None
+}
+
+/// The faces of the thread with all corners in slices `lo..hi`, its vertices compacted (the
+/// kept ones first) and the loops the cut opened capped; `None` when nothing is left.
+/// Returns `(positions, faces, kept vertices)`.
+#[allow(clippy::type_complexity)]
+fn cut(
+    a: &Axis,
+    faces: &[[u32; 3]],
+    mapped: &[Option<[f32; 3]>],
+    lo: usize,
+    hi: usize,
+) -> Option<(Vec<[f32; 3]>, Vec<[u32; 3]>, usize)> {
+    let inside = |v: u32| {
+        let b = a.slice[v as usize] as usize;
+        b >= lo && b < hi && mapped[v as usize].is_some()
+    };
+    let mut map = vec![u32::MAX; mapped.len()];
+    let mut positions = Vec::new();
+    let mut out = Vec::new();
+    for f in faces {
+        if f.iter().all(|&v| inside(v)) {
+            let g = f.map(|v| {
+                if map[v as usize] == u32::MAX {
+                    map[v as usize] = positions.len() as u32;
+                    positions.push(mapped[v as usize].expect("inside"));
+                }
+                map[v as usize]
+            });
+            out.push(g);
+        }
+    }
+    if out.is_empty() {
+        return None;
+    }
+    let kept = positions.len();
+    if a.closed {
+        // directed boundary edges a -> b (as in their face) of edges used once, walked into
+        // loops; each loop gets a fan [b, a, centroid]
+        let mut uses = std::collections::HashMap::<(u32, u32), u32>::new();
+        for f in &out {
+            for k in 0..3 {
+                let (x, y) = (f[k], f[(k + 1) % 3]);
+                *uses.entry((x.min(y), x.max(y))).or_default() += 1;
+            }
+        }
+        let mut next = std::collections::BTreeMap::<u32, u32>::new();
+        for f in &out {
+            for k in 0..3 {
+                let (x, y) = (f[k], f[(k + 1) % 3]);
+                if uses[&(x.min(y), x.max(y))] == 1 {
+                    next.insert(x, y);
+                }
+            }
+        }
+        let mut caps = Vec::new();
+        while let Some((&start, _)) = next.iter().next() {
+            let mut lp = vec![start];
+            let mut cur = start;
+            while let Some(n) = next.remove(&cur) {
+                if n == start {
+                    break;
+                }
+                lp.push(n);
+                cur = n;
+            }
+            if lp.len() < 3 {
+                continue;
+            }
+            let c = lp.iter().map(|&v| Vec3::from(positions[v as usize])).sum::<Vec3>()
+                / lp.len() as f32;
+            let cv = positions.len() as u32;
+            positions.push(c.to_array());
+            for k in 0..lp.len() {
+                let (x, y) = (lp[k], lp[(k + 1) % lp.len()]);
+                caps.push([y, x, cv]);
+            }
+        }
+        out.extend(caps);
+    }
+    Some((positions, out, kept))
+}
