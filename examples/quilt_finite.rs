@@ -61,6 +61,7 @@ fn main() {
                 detect_period: !std::env::var("DETECT").is_ok_and(|v| v == "0"),
                 lattice: !std::env::var("LATTICE").is_ok_and(|v| v == "0"),
                 fill: !std::env::var("FILL").is_ok_and(|v| v == "0"),
+                trim: !std::env::var("TRIM").is_ok_and(|v| v == "0"),
                 ..Params::default()
             };
             let input = Input {

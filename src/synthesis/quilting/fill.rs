@@ -42,6 +42,7 @@ pub(super) fn fill(
     base: &Base,
     lattice: &mut Lattice,
     elements: &mut Placement,
+    axes: &trim::Axes,
     reach: f32,
     patches: usize,
     rng: &mut SmallRng,
@@ -110,7 +111,6 @@ pub(super) fn fill(
     };
     // the tries' counters stay out of the run's
     let mut scratch = QuiltStats::default();
-    let axes = trim::Axes::new(setup);
     let mut trimmed = 0;
     let mut added = 0;
     let mut tries = 0;
@@ -143,7 +143,7 @@ pub(super) fn fill(
             patch: &patch,
             rot,
         };
-        let near = Neighbours::around(
+        let near = Neighbours::new(
             setup,
             elements,
             c0,
@@ -168,9 +168,8 @@ pub(super) fn fill(
             verts.insert(id, &c.positions);
             elements.place_one(c, sw);
             added += 1;
-        } else if let Some(piece) = axes
-            .any()
-            .then(|| near.trimmed(setup, elements, &axes, &mapper, t, &offsets, c0, reach))
+        } else if let Some(piece) = (setup.params.trim && axes.any())
+            .then(|| near.trimmed(setup, elements, axes, &mapper, t, &offsets, c0, reach))
             .flatten()
         {
             let id = elements.placed.len() as u32;
@@ -182,43 +181,16 @@ pub(super) fn fill(
             failed.insert(0, &[c0.to_array()]);
         }
     }
+    if std::env::var("MM_DEBUG").is_ok() {
+        eprintln!("fill: {n} gaps, {tries} tries of {budget}, {added} added, {trimmed} trimmed");
+    }
     Ok((added, trimmed))
 }
 
-/// The alive elements around a gap, with their vertices hashed for the clearance test (and
-/// for a thread piece's crowding test, [`trim`]).
-struct Neighbours {
-    ids: Vec<u32>,
-    hash: VertexHash,
-    soft: VertexHash,
-}
+/// The alive elements around a gap ([`trim::Nearby`]), and what a copy must keep clear of them.
+type Neighbours = trim::Nearby;
 
 impl Neighbours {
-    /// The alive elements centred within `r` of `c`.
-    fn around(
-        setup: &Setup,
-        elements: &Placement,
-        c: Vec3,
-        r: f32,
-        soft_cell: f32,
-    ) -> Neighbours {
-        let ids: Vec<u32> = elements
-            .centres
-            .within(c, r)
-            .into_iter()
-            .filter(|&e| elements.placed[e as usize].alive)
-            .collect();
-        let mut hash = VertexHash::new(setup.tau);
-        let mut soft = VertexHash::new(soft_cell.max(setup.tau));
-        for (k, &e) in ids.iter().enumerate() {
-            hash.insert(k as u32, &elements.placed[e as usize].positions);
-            if soft_cell > 0.0 {
-                soft.insert(k as u32, &elements.placed[e as usize].positions);
-            }
-        }
-        Neighbours { ids, hash, soft }
-    }
-
     /// The longest clear piece of a thread copy reaching the gap at `c0` ([`trim`]): the
     /// copies at the registered translation `t` first, then moved by `offsets`.
     #[allow(clippy::too_many_arguments)]
@@ -233,12 +205,7 @@ impl Neighbours {
         c0: Vec3,
         reach: f32,
     ) -> Option<trim::Trimmed> {
-        let around = trim::Around {
-            elements,
-            ids: &self.ids,
-            hash: &self.hash,
-            soft: &self.soft,
-        };
+        let around = self.view(elements);
         // a thread's copies reach a gap from as far as half its length
         let rp = setup.r_elem + reach;
         for d in offsets {
@@ -247,7 +214,8 @@ impl Neighbours {
                 if !axes.passes_near_seed(e, shift, reach / setup.s) {
                     continue;
                 }
-                if let Some(p) = trim::trim(axes, mapper, e, shift, &around, c0, reach)
+                let mapped = mapper.map_vertices(e, shift);
+                if let Some(p) = trim::trim(axes, mapper, e, shift, &mapped, &around, Some((c0, reach)))
                     && best.as_ref().is_none_or(|b| p.share > b.share)
                 {
                     best = Some(p);

@@ -233,6 +233,10 @@ pub struct Params {
     /// copy of a tile element, registered with its neighbours or moved by up to half the
     /// tile's spacing, that clears every element ([`fill`]).
     pub fill: bool,
+    /// Keep the clear part of a thread that no whole copy fits (the cut dropped it, or a gap
+    /// is too small for it): cut across the thread and capped, at least a third of its
+    /// length ([`trim`]; the paper's cut, §2.7). Compact elements are never cut.
+    pub trim: bool,
     /// Place every patch on one global lattice: two stripe patterns along the orientation field
     /// and across it (Knöppel et al. 2015, period one swatch) give each patch its flattening,
     /// so that neighbouring patches lay their copies on the same lattice and threads meet
@@ -276,6 +280,7 @@ impl Default for Params {
             merge_elements: false,
             nudge: true,
             fill: true,
+            trim: true,
             lattice: true,
             lattice_scale: 1.25,
             merge_min_aspect: 3.0,
@@ -314,7 +319,8 @@ pub struct QuiltStats {
     pub nudged: usize,
     /// Elements placed in gaps after the patches ([`Params::fill`]).
     pub filled: usize,
-    /// Of those, threads cut short to fit their gap ([`trim`]).
+    /// Threads cut short to fit where no whole copy fits ([`Params::trim`]), after a patch's
+    /// cut or in a gap (then also counted in `filled`).
     pub trimmed: usize,
     /// Candidates dropped because part of them fell off the flattened base.
     pub dropped_unmapped: usize,
@@ -591,6 +597,7 @@ fn run_unit(
     let mut lattice = lattice::Lattice::solve(&setup, &base, field.is_some(), sink, &clock);
     cancel.check()?;
 
+    let axes = trim::Axes::new(&setup);
     let mut rng = SmallRng::seed_from_u64(params.seed);
     let mut coverage = seed::Coverage::new(&base);
     let mut elements = elements::Placement::new(base.faces.len(), setup.centre_cell);
@@ -628,7 +635,18 @@ fn run_unit(
         if params.nudge {
             nudge::nudge(&mapper, &elements, &mut selection, &mut cands, &mut stats);
         }
+        // threads the cut dropped keep their clear part
+        let dropped: Vec<usize> = if params.trim && axes.any() {
+            let mut taken = vec![false; cands.len()];
+            for &j in &selection.accepted {
+                taken[j] = true;
+            }
+            (0..cands.len()).filter(|&j| !taken[j]).collect()
+        } else {
+            Vec::new()
+        };
         elements.place(&mut cands, &selection, sw, params.max_faces)?;
+        stats.trimmed += trim::after_cut(&axes, &mapper, &mut elements, &cands, dropped);
         // the patch's disc is covered
         stats.covered_fraction = coverage.cover(&base, &patch, &lattice);
         stats.patches += 1;
@@ -644,16 +662,19 @@ fn run_unit(
     // the gaps the seams left
     if params.fill {
         let reach = swatch_measures.largest_gap * size.s;
-        (stats.filled, stats.trimmed) = fill::fill(
+        let (filled, trimmed) = fill::fill(
             &setup,
             &base,
             &mut lattice,
             &mut elements,
+            &axes,
             reach,
             stats.patches,
             &mut rng,
             (sink, &clock, cancel),
         )?;
+        stats.filled = filled;
+        stats.trimmed += trimmed;
     }
 
     // the output: the shell guard, then the arrangement measured

@@ -200,7 +200,53 @@ fn axis(ps: &[[f32; 3]], faces: &[[u32; 3]]) -> Option<Axis> {
     })
 }
 
-/// What a piece must keep clear of: the elements around the gap.
+/// The alive elements around a point, with their vertices hashed for the clearance test and
+/// for the crowding test.
+pub(super) struct Nearby {
+    pub(super) ids: Vec<u32>,
+    pub(super) hash: VertexHash,
+    pub(super) soft: VertexHash,
+}
+
+impl Nearby {
+    /// The alive elements centred within `r` of `c`; `soft_cell` ([`Axes::soft_cell`], 0 for
+    /// none) sizes the crowding test's hash.
+    pub(super) fn new(
+        setup: &Setup,
+        elements: &Placement,
+        c: Vec3,
+        r: f32,
+        soft_cell: f32,
+    ) -> Nearby {
+        let ids: Vec<u32> = elements
+            .centres
+            .within(c, r)
+            .into_iter()
+            .filter(|&e| elements.placed[e as usize].alive)
+            .collect();
+        let mut hash = VertexHash::new(setup.tau);
+        let mut soft = VertexHash::new(soft_cell.max(setup.tau));
+        for (k, &e) in ids.iter().enumerate() {
+            hash.insert(k as u32, &elements.placed[e as usize].positions);
+            if soft_cell > 0.0 {
+                soft.insert(k as u32, &elements.placed[e as usize].positions);
+            }
+        }
+        Nearby { ids, hash, soft }
+    }
+
+    /// The view [`trim`] reads.
+    pub(super) fn view<'a>(&'a self, elements: &'a Placement) -> Around<'a> {
+        Around {
+            elements,
+            ids: &self.ids,
+            hash: &self.hash,
+            soft: &self.soft,
+        }
+    }
+}
+
+/// What a piece must keep clear of: the elements around it.
 pub(super) struct Around<'a> {
     pub(super) elements: &'a Placement,
     /// Alive elements near the gap.
@@ -211,24 +257,26 @@ pub(super) struct Around<'a> {
     pub(super) soft: &'a VertexHash,
 }
 
-/// The clear part of thread copy `e` at `shift` that reaches within `reach` of `gap` (base
-/// units), cut and capped; `None` when no run long enough is clear (module documentation).
+/// The clear part of thread copy `e` at `shift` (its vertices `mapped` into the shell, `None`
+/// where they do not map), cut and capped; with `gap = Some((point, reach))` only a run
+/// reaching within `reach` of the point. `None` when no run long enough is clear (module
+/// documentation).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn trim(
     axes: &Axes,
     mapper: &Mapper,
     e: usize,
     shift: Vec2,
+    mapped: &[Option<[f32; 3]>],
     around: &Around,
-    gap: Vec3,
-    reach: f32,
+    gap: Option<(Vec3, f32)>,
 ) -> Option<Trimmed> {
     let a = axes.per[e].as_ref()?;
     let setup = mapper.setup;
     let (tau, s) = (setup.tau, setup.s);
     let soft = 0.5 * a.width * s;
-    let mapped = mapper.map_vertices(e, shift);
     let mut blocked = [false; BINS];
-    let mut covers = [false; BINS];
+    let mut covers = [gap.is_none(); BINS];
     for (v, p) in mapped.iter().enumerate() {
         let b = a.slice[v] as usize;
         match p {
@@ -237,14 +285,88 @@ pub(super) fn trim(
                 if around.hash.any_near(&[*p], tau, |_| true) {
                     blocked[b] = true;
                 }
-                if Vec3::from(*p).distance(gap) <= reach {
+                if let Some((g, reach)) = gap
+                    && Vec3::from(*p).distance(g) <= reach
+                {
                     covers[b] = true;
                 }
             }
         }
     }
+    let faces = &setup.elem_faces[e];
+    // a run that crosses an element loses the slices whose faces cross it, and is chosen again
+    for _ in 0..4 {
+        let (lo, hi) = longest_run(&blocked, &covers)?;
+        let piece = cut(a, faces, mapped, lo, hi)?;
+        // not more crowded than the swatch has it
+        let crowded = piece.positions[..piece.kept_vertices]
+            .iter()
+            .filter(|p| around.soft.any_near(&[**p], soft, |_| true))
+            .count();
+        if crowded as f32 > (CROWD_SLACK * a.crowd + 0.05) * piece.kept_vertices as f32 {
+            return None;
+        }
+        let (centre, radius) = centre_and_radius(&piece.positions);
+        let crossed: Vec<&super::elements::Placed> = around
+            .ids
+            .iter()
+            .map(|&id| &around.elements.placed[id as usize])
+            .filter(|o| {
+                o.centre_distance(centre) < 2.0 * (radius + around.elements.max_radius)
+                    && crossing::surfaces_cross(
+                        &o.positions,
+                        o.faces(&setup.elem_faces),
+                        &piece.positions,
+                        &piece.faces,
+                    )
+            })
+            .collect();
+        if crossed.is_empty() {
+            let t_mid = a.lo + a.step * 0.5 * (lo + hi) as f32;
+            let (anchor, dir) = mapper.anchor(a.mid + a.dir * t_mid, shift)?;
+            return Some(Trimmed {
+                source: e as u32,
+                share: piece.kept_faces as f32 / faces.len().max(1) as f32,
+                positions: piece.positions,
+                faces: piece.faces,
+                centre,
+                radius,
+                anchor,
+                dir,
+            });
+        }
+        // block the pairs of slices whose faces cross
+        let mut any = false;
+        for c in (lo..hi).step_by(2) {
+            let Some(part) = cut(a, faces, mapped, c, (c + 2).min(hi)) else {
+                continue;
+            };
+            let hit = crossed.iter().any(|o| {
+                crossing::surfaces_cross(
+                    &o.positions,
+                    o.faces(&setup.elem_faces),
+                    &part.positions,
+                    &part.faces,
+                )
+            });
+            if hit {
+                blocked[c..(c + 2).min(hi)].fill(true);
+                any = true;
+            }
+        }
+        if !any {
+            // the crossing is at a cap, or between slices: shorten the run at both ends
+            blocked[lo] = true;
+            blocked[hi - 1] = true;
+        }
+    }
+    None
+}
+
+/// The longest run of clear slices holding a covering one, less a slice beside each blocked
+/// slice, when it spans at least [`MIN_SHARE`] of the thread and not all of it.
+fn longest_run(blocked: &[bool; BINS], covers: &[bool; BINS]) -> Option<(usize, usize)> {
     let min_bins = (MIN_SHARE * BINS as f32).ceil() as usize;
-    // the longest clear run holding a covering slice, less a slice beside each blocked one
     let mut best: Option<(usize, usize)> = None;
     let mut i = 0;
     while i < BINS {
@@ -267,66 +389,26 @@ pub(super) fn trim(
         }
         i = j;
     }
-    let (mut lo, mut hi) = best?;
-    let faces = &setup.elem_faces[e];
-    for _ in 0..3 {
-        let piece = cut(a, faces, &mapped, lo, hi)?;
-        let (positions, pfaces, kept) = piece;
-        // not more crowded than the swatch has it
-        let crowded = positions[..kept]
-            .iter()
-            .filter(|p| around.soft.any_near(&[**p], soft, |_| true))
-            .count();
-        if crowded as f32 > (CROWD_SLACK * a.crowd + 0.05) * kept as f32 {
-            return None;
-        }
-        let (centre, radius) = centre_and_radius(&positions);
-        let crosses = around.ids.iter().any(|&id| {
-            let o = &around.elements.placed[id as usize];
-            o.centre_distance(centre) < 2.0 * (radius + around.elements.max_radius)
-                && crossing::surfaces_cross(
-                    &o.positions,
-                    o.faces(&setup.elem_faces),
-                    &positions,
-                    &pfaces,
-                )
-        });
-        if !crosses {
-            let t_mid = a.lo + a.step * 0.5 * (lo + hi) as f32;
-            let (anchor, dir) = mapper.anchor(a.mid + a.dir * t_mid, shift)?;
-            let share = pfaces.len().min(faces.len()) as f32 / faces.len().max(1) as f32;
-            let share = share.min((hi - lo) as f32 / BINS as f32).max(0.0);
-            return Some(Trimmed {
-                source: e as u32,
-                positions,
-                faces: pfaces,
-                share,
-                centre,
-                radius,
-                anchor,
-                dir,
-            });
-        }
-        if hi - lo < min_bins + 4 {
-            return None;
-        }
-        lo += 2;
-        hi -= 2;
-    }
-    None
+    best
+}
+
+/// A cut piece of a thread: its kept vertices first, then the caps' centres.
+struct Piece {
+    positions: Vec<[f32; 3]>,
+    faces: Vec<[u32; 3]>,
+    kept_vertices: usize,
+    kept_faces: usize,
 }
 
 /// The faces of the thread with all corners in slices `lo..hi`, its vertices compacted (the
 /// kept ones first) and the loops the cut opened capped; `None` when nothing is left.
-/// Returns `(positions, faces, kept vertices)`.
-#[allow(clippy::type_complexity)]
 fn cut(
     a: &Axis,
     faces: &[[u32; 3]],
     mapped: &[Option<[f32; 3]>],
     lo: usize,
     hi: usize,
-) -> Option<(Vec<[f32; 3]>, Vec<[u32; 3]>, usize)> {
+) -> Option<Piece> {
     let inside = |v: u32| {
         let b = a.slice[v as usize] as usize;
         b >= lo && b < hi && mapped[v as usize].is_some()
@@ -349,7 +431,7 @@ fn cut(
     if out.is_empty() {
         return None;
     }
-    let kept = positions.len();
+    let (kept_vertices, kept_faces) = (positions.len(), out.len());
     if a.closed {
         // directed boundary edges a -> b (as in their face) of edges used once, walked into
         // loops; each loop gets a fan [b, a, centroid]
@@ -394,5 +476,48 @@ fn cut(
         }
         out.extend(caps);
     }
-    Some((positions, out, kept))
+    Some(Piece {
+        positions,
+        faces: out,
+        kept_vertices,
+        kept_faces,
+    })
+}
+
+
+/// After a patch's cut: each thread candidate it dropped (`dropped`, indices into `cands`),
+/// nearest to the seed first, keeps its longest clear part ([`trim`]); returns how many
+/// pieces were placed.
+pub(super) fn after_cut(
+    axes: &Axes,
+    mapper: &Mapper,
+    elements: &mut Placement,
+    cands: &[super::elements::Candidate],
+    mut dropped: Vec<usize>,
+) -> usize {
+    let setup = mapper.setup;
+    dropped.retain(|&j| axes.per[cands[j].source as usize].is_some());
+    dropped.sort_by(|&a, &b| cands[a].seed_dist.total_cmp(&cands[b].seed_dist).then(a.cmp(&b)));
+    let soft_cell = axes.soft_cell(setup.s);
+    let mut placed = 0;
+    for j in dropped {
+        let c = &cands[j];
+        let r = c.radius + elements.max_radius + setup.tau;
+        let near = Nearby::new(setup, elements, c.centre, r, soft_cell);
+        let mapped: Vec<Option<[f32; 3]>> = c.positions.iter().copied().map(Some).collect();
+        let piece = trim(
+            axes,
+            mapper,
+            c.source as usize,
+            c.shift,
+            &mapped,
+            &near.view(elements),
+            None,
+        );
+        if let Some(p) = piece {
+            elements.place_trimmed(p);
+            placed += 1;
+        }
+    }
+    placed
 }
