@@ -98,6 +98,24 @@ fn main() {
             if let Some(dir) = &out_dir {
                 let path = std::path::Path::new(dir).join(format!("{}_{name}.obj", kind.as_str()));
                 quilting::save_quilt_obj(&out, Some(&base), &path).expect("write");
+                if std::env::var("CENTRES").is_ok_and(|v| v == "1") {
+                    // each element's vertex centroid and share, for density maps
+                    let mut sum = vec![(Vec3::ZERO, 0usize); out.num_elements()];
+                    for (v, &e) in out.element_id.iter().enumerate() {
+                        sum[e as usize].0 += Vec3::from(out.elements.positions[v]);
+                        sum[e as usize].1 += 1;
+                    }
+                    let text: String = sum
+                        .iter()
+                        .zip(&out.element_share)
+                        .map(|((c, n), w)| {
+                            let c = *c / (*n).max(1) as f32;
+                            format!("{} {} {} {w}\n", c.x, c.y, c.z)
+                        })
+                        .collect();
+                    let path = std::path::Path::new(dir).join(format!("{}_{name}_centres.txt", kind.as_str()));
+                    std::fs::write(path, text).expect("write");
+                }
                 if let Ok(c) = std::env::var("CROP") {
                     let c: Vec<f32> = c.split(',').filter_map(|x| x.parse().ok()).collect();
                     let c = Vec3::new(c[0], c[1], c[2]);

@@ -150,6 +150,8 @@ pub(super) fn fill(
             around(elements),
             axes.soft_cell(setup.s),
         );
+        // at each move: a whole copy, else (threads) the clear part of one
+        let trims = setup.params.trim && axes.any();
         let mut found = None;
         'tries: for d in &offsets {
             for c in candidates_within(&mapper, t + *d, setup.r_elem + reach, &mut scratch) {
@@ -158,25 +160,31 @@ pub(super) fn fill(
                     .iter()
                     .any(|p| Vec3::from(*p).distance(c0) <= reach);
                 if covers && near.clears(setup, elements, &c) {
-                    found = Some(c);
+                    found = Some(Filler::Whole(c));
                     break 'tries;
                 }
             }
+            if trims
+                && let Some(p) = near.trimmed(setup, elements, axes, &mapper, t + *d, c0, reach)
+            {
+                found = Some(Filler::Trimmed(p));
+                break;
+            }
         }
-        if let Some(c) = found {
+        if let Some(filler) = found {
             let id = elements.placed.len() as u32;
-            verts.insert(id, &c.positions);
-            elements.place_one(c, sw);
+            match filler {
+                Filler::Whole(c) => {
+                    verts.insert(id, &c.positions);
+                    elements.place_one(c, sw);
+                }
+                Filler::Trimmed(p) => {
+                    verts.insert(id, &p.positions);
+                    elements.place_trimmed(p);
+                    trimmed += 1;
+                }
+            }
             added += 1;
-        } else if let Some(piece) = (setup.params.trim && axes.any())
-            .then(|| near.trimmed(setup, elements, axes, &mapper, t, &offsets, c0, reach))
-            .flatten()
-        {
-            let id = elements.placed.len() as u32;
-            verts.insert(id, &piece.positions);
-            elements.place_trimmed(piece);
-            added += 1;
-            trimmed += 1;
         } else {
             failed.insert(0, &[c0.to_array()]);
         }
@@ -187,12 +195,18 @@ pub(super) fn fill(
     Ok((added, trimmed))
 }
 
+/// What fills a gap: a whole copy, or a thread cut short.
+enum Filler {
+    Whole(Candidate),
+    Trimmed(trim::Trimmed),
+}
+
 /// The alive elements around a gap ([`trim::Nearby`]), and what a copy must keep clear of them.
 type Neighbours = trim::Nearby;
 
 impl Neighbours {
-    /// The longest clear piece of a thread copy reaching the gap at `c0` ([`trim`]): the
-    /// copies at the registered translation `t` first, then moved by `offsets`.
+    /// The longest clear piece of a thread copy at translation `t` reaching the gap at `c0`
+    /// ([`trim`]).
     #[allow(clippy::too_many_arguments)]
     fn trimmed(
         &self,
@@ -201,31 +215,24 @@ impl Neighbours {
         axes: &trim::Axes,
         mapper: &Mapper,
         t: Vec2,
-        offsets: &[Vec2],
         c0: Vec3,
         reach: f32,
     ) -> Option<trim::Trimmed> {
         let around = self.view(elements);
         // a thread's copies reach a gap from as far as half its length
-        let rp = setup.r_elem + reach;
-        for d in offsets {
-            let mut best: Option<trim::Trimmed> = None;
-            for (e, shift) in copies_within(mapper, t + *d, rp) {
-                if !axes.passes_near_seed(e, shift, reach / setup.s) {
-                    continue;
-                }
-                let mapped = mapper.map_vertices(e, shift);
-                if let Some(p) = trim::trim(axes, mapper, e, shift, &mapped, &around, Some((c0, reach)))
-                    && best.as_ref().is_none_or(|b| p.share > b.share)
-                {
-                    best = Some(p);
-                }
+        let mut best: Option<trim::Trimmed> = None;
+        for (e, shift) in copies_within(mapper, t, setup.r_elem + reach) {
+            if !axes.passes_near_seed(e, shift, reach / setup.s) {
+                continue;
             }
-            if best.is_some() {
-                return best;
+            let mapped = mapper.map_vertices(e, shift);
+            if let Some(p) = trim::trim(axes, mapper, e, shift, &mapped, &around, Some((c0, reach)))
+                && best.as_ref().is_none_or(|b| p.share > b.share)
+            {
+                best = Some(p);
             }
         }
-        None
+        best
     }
 
     /// Whether `c` clears every neighbour: no vertex within the clearance, centres at least

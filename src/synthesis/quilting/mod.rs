@@ -645,6 +645,9 @@ fn run_unit(
         } else {
             Vec::new()
         };
+        if std::env::var("MM_DEBUG").is_ok() {
+            eprintln!("patch {} lattice {} cands {} accepted {} old {} kept_old {}", stats.patches, patch.lattice_t.is_some(), cands.len(), selection.accepted.len(), selection.old.len(), selection.keep_old.iter().filter(|&&k| k).count());
+        }
         elements.place(&mut cands, &selection, sw, params.max_faces)?;
         stats.trimmed += trim::after_cut(&axes, &mapper, &mut elements, &cands, dropped);
         // the patch's disc is covered

@@ -35,7 +35,7 @@ use super::setup::Setup;
 /// Slices along a thread.
 pub const BINS: usize = 32;
 /// Smallest share of a thread's length a piece keeps.
-pub const MIN_SHARE: f32 = 1.0 / 3.0;
+pub const MIN_SHARE: f32 = 0.25;
 /// How much more crowded than in the swatch a piece may lie.
 pub const CROWD_SLACK: f32 = 1.25;
 
@@ -206,6 +206,8 @@ pub(super) struct Nearby {
     pub(super) ids: Vec<u32>,
     pub(super) hash: VertexHash,
     pub(super) soft: VertexHash,
+    /// Whether `soft` is kept (the tile has threads).
+    soft_on: bool,
 }
 
 impl Nearby {
@@ -232,7 +234,22 @@ impl Nearby {
                 soft.insert(k as u32, &elements.placed[e as usize].positions);
             }
         }
-        Nearby { ids, hash, soft }
+        Nearby {
+            ids,
+            hash,
+            soft,
+            soft_on: soft_cell > 0.0,
+        }
+    }
+
+    /// Adds element `id` (just placed) with its vertices.
+    pub(super) fn add(&mut self, id: u32, positions: &[[f32; 3]]) {
+        let k = self.ids.len() as u32;
+        self.ids.push(id);
+        self.hash.insert(k, positions);
+        if self.soft_on {
+            self.soft.insert(k, positions);
+        }
     }
 
     /// The view [`trim`] reads.
@@ -498,12 +515,20 @@ pub(super) fn after_cut(
     let setup = mapper.setup;
     dropped.retain(|&j| axes.per[cands[j].source as usize].is_some());
     dropped.sort_by(|&a, &b| cands[a].seed_dist.total_cmp(&cands[b].seed_dist).then(a.cmp(&b)));
-    let soft_cell = axes.soft_cell(setup.s);
+    if dropped.is_empty() {
+        return 0;
+    }
+    // one neighbourhood for the patch: every element that may touch a dropped thread
+    let mid = dropped.iter().map(|&j| cands[j].centre).sum::<Vec3>() / dropped.len() as f32;
+    let reach = dropped
+        .iter()
+        .map(|&j| cands[j].centre.distance(mid) + cands[j].radius)
+        .fold(0.0f32, f32::max);
+    let r = reach + elements.max_radius + setup.tau;
+    let mut near = Nearby::new(setup, elements, mid, r, axes.soft_cell(setup.s));
     let mut placed = 0;
     for j in dropped {
         let c = &cands[j];
-        let r = c.radius + elements.max_radius + setup.tau;
-        let near = Nearby::new(setup, elements, c.centre, r, soft_cell);
         let mapped: Vec<Option<[f32; 3]>> = c.positions.iter().copied().map(Some).collect();
         let piece = trim(
             axes,
@@ -515,6 +540,8 @@ pub(super) fn after_cut(
             None,
         );
         if let Some(p) = piece {
+            let id = elements.placed.len() as u32;
+            near.add(id, &p.positions);
             elements.place_trimmed(p);
             placed += 1;
         }
