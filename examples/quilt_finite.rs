@@ -113,7 +113,8 @@ fn main() {
                             format!("{} {} {} {w}\n", c.x, c.y, c.z)
                         })
                         .collect();
-                    let path = std::path::Path::new(dir).join(format!("{}_{name}_centres.txt", kind.as_str()));
+                    let path = std::path::Path::new(dir)
+                        .join(format!("{}_{name}_centres.txt", kind.as_str()));
                     std::fs::write(path, text).expect("write");
                 }
                 if let Ok(c) = std::env::var("CROP") {

@@ -41,7 +41,9 @@ fn quilt(base: &TriMesh, sw: &Swatch, params: &Params) -> QuiltOutput {
 /// the same faces up to an index offset, one connected component), or, for an element merged
 /// from several copies, one connected, consistently oriented component, closed when its swatch
 /// element is, with its swatch element's Euler characteristic and no fewer than half the
-/// smallest swatch element's faces (no fragment).
+/// smallest swatch element's faces (no fragment); for a thread cut short, one connected,
+/// consistently oriented component, closed when its element is, with its element's Euler
+/// characteristic.
 fn check_integrity(out: &QuiltOutput, sw: &Swatch) {
     let m = &out.elements;
     let mut v0 = 0usize;
@@ -64,11 +66,27 @@ fn check_integrity(out: &QuiltOutput, sw: &Swatch) {
             .collect();
         assert!(faces.iter().flatten().all(|&v| (v as usize) < nv));
         let source_faces = sw.element_faces(src as usize);
-        if out.element_pieces[e] == 1 {
+        let closed = meshmatch::mesh::boundary_loops(&source_faces).is_empty();
+        if out.element_share[e] < 1.0 {
+            // a thread cut short: one oriented manifold piece, closed (capped) when its
+            // element is, of the element's topology, at least a quarter of it
+            assert!(
+                quilting::merging::oriented_manifold(&faces, closed),
+                "trimmed element {e} is not an oriented manifold"
+            );
+            assert_eq!(
+                quilting::merging::euler_characteristic(nv, &faces),
+                quilting::merging::euler_characteristic(el.vertices.len(), &source_faces),
+                "trimmed element {e} changed topology"
+            );
+            assert!(
+                out.element_share[e] >= 0.2,
+                "trimmed element {e} is a fragment"
+            );
+        } else if out.element_pieces[e] == 1 {
             assert_eq!(nv, el.vertices.len(), "element {e}");
             assert_eq!(faces, source_faces, "element {e}");
         } else {
-            let closed = meshmatch::mesh::boundary_loops(&source_faces).is_empty();
             assert!(
                 quilting::merging::oriented_manifold(&faces, closed),
                 "merged element {e} is not an oriented manifold"
@@ -1113,6 +1131,49 @@ fn a_limb_thinner_than_a_patch_is_covered_and_its_gaps_filled() {
     );
     // the filling adds elements in the gaps, never denser than the swatch allows
     assert!(b.filled > 0 && b.coverage > a.coverage);
+    assert!(
+        (0.85..=1.15).contains(&b.density_ratio),
+        "{}",
+        b.arrangement_summary()
+    );
+    assert_eq!(quilting::crossing_pairs(&out).len(), 0);
+}
+
+#[test]
+fn a_weave_over_a_limb_keeps_the_clear_parts_of_its_strands() {
+    // a finite weave whose strands are longer than the limb is wide (as on a horse's legs at
+    // a tenth of its diagonal): whole strands wrapped around it tear off the patch's chart or
+    // cross their neighbours and are dropped; the cut keeps their clear parts, capped
+    let weave = load_swatch(
+        quilting::finite_patch(quilting::PatchKind::Weave, 1),
+        Axis::Z,
+    )
+    .unwrap();
+    let (p, f) = meshmatch::testdata::cylinder(1.0, 12.0, 64, 200);
+    let limb = TriMesh::new(p, f);
+    let params = Params {
+        swatch_size: Some(1.85), // strands 1.8 long, the limb 2 wide
+        ..Default::default()
+    };
+    let whole = quilt(
+        &limb,
+        &weave,
+        &Params {
+            trim: false,
+            ..params.clone()
+        },
+    );
+    let out = quilt(&limb, &weave, &params);
+    check_integrity(&out, &weave);
+    let (a, b) = (&whole.stats, &out.stats);
+    eprintln!(
+        "limb: {}, {} trimmed\n  whole strands only: {}",
+        b.arrangement_summary(),
+        b.trimmed,
+        a.arrangement_summary()
+    );
+    assert!(b.trimmed > 0 && b.coverage > a.coverage && b.density_ratio > a.density_ratio);
+    assert!(b.coverage >= 0.95, "{}", b.arrangement_summary());
     assert!(
         (0.85..=1.15).contains(&b.density_ratio),
         "{}",

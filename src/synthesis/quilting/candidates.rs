@@ -91,7 +91,8 @@ impl Mapper<'_> {
 
 impl Mapper<'_> {
     /// Every vertex of swatch element `e` shifted by `shift`, mapped into the shell as [`map`]
-    /// maps it; `None` for a vertex off the flattened base or on a face distorted past twice
+    /// maps it; `None` for a vertex off the flattened base (past its border too, where `map`
+    /// extrapolates a little) or on a face distorted past twice
     /// `max_distortion`, and for both ends of an edge a lattice chart tears (stretched past
     /// twice its length). What [`super::trim`] cuts a thread's clear part from.
     ///
@@ -111,7 +112,9 @@ impl Mapper<'_> {
             .iter()
             .map(|q| {
                 let uv = rot.rotate((Vec2::new(q[0], q[1]) + shift) * s);
-                let (f, b, _) = flat.locate(uv, r_elem + tau)?;
+                let (f, b, true) = flat.locate(uv, r_elem + tau)? else {
+                    return None;
+                };
                 (rho[flat.index[&f] as usize] <= 2.0 * params.max_distortion)
                     .then(|| base.shell_point(f, b, q[2] * hscale).to_array())
             })
@@ -151,9 +154,25 @@ impl Mapper<'_> {
 }
 
 /// The patch's candidates at translation `t` (swatch units): each element within the disc,
-/// with its copies one period apart when the tile repeats.
-pub(super) fn candidates(mapper: &Mapper, t: Vec2, stats: &mut QuiltStats) -> Vec<Candidate> {
-    candidates_within(mapper, t, mapper.patch.rp, stats)
+/// with its copies one period apart when the tile repeats; and the copies of threads
+/// (`elongated`) that did not map whole, `(element, swatch translation)`, for
+/// [`super::trim`].
+pub(super) fn candidates(
+    mapper: &Mapper,
+    t: Vec2,
+    elongated: &[bool],
+    stats: &mut QuiltStats,
+) -> (Vec<Candidate>, Vec<(usize, Vec2)>) {
+    let mut cands = Vec::new();
+    let mut unmapped = Vec::new();
+    for (e, shift) in copies_within(mapper, t, mapper.patch.rp) {
+        match mapper.map(e, shift, stats) {
+            Some(c) => cands.push(c),
+            None if elongated[e] => unmapped.push((e, shift)),
+            None => {}
+        }
+    }
+    (cands, unmapped)
 }
 
 /// [`candidates`] centred within `rp` (base units) of the patch's seed.

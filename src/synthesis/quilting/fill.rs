@@ -9,7 +9,8 @@
 //! neighbours' lattice (and their links) where the seams allow it. Where a try fails, the gap
 //! faces within half the gap width (threads: the whole width) are not tried again.
 //!
-//! Gaps within reach of an open base's border are left as the covering pass leaves them.
+//! Gaps within reach of an open base's border are left as the covering pass leaves them, but
+//! for threads cut short ([`trim`]), which stop at the border.
 //!
 //! Where patches meet, the cut keeps whole elements and drops the copies that clash, which
 //! leaves holes along the seams: on the horse, with the ring patch a tenth of its diagonal
@@ -74,10 +75,11 @@ pub(super) fn fill(
     for (f, _) in base.on_boundary.iter().enumerate().filter(|x| *x.1) {
         border.insert(0, &[centroid(f).to_array()]);
     }
+    // threads cut short stop at the border: their gaps there are filled too, with pieces only
+    let trims = setup.params.trim && axes.any();
+    let near_border = |f: usize| border.any_near(&[centroid(f).to_array()], border_reach, |_| true);
     let gaps: Vec<usize> = (0..base.faces.len())
-        .filter(|&f| {
-            gap(&verts, f) && !border.any_near(&[centroid(f).to_array()], border_reach, |_| true)
-        })
+        .filter(|&f| gap(&verts, f) && (trims || !near_border(f)))
         .collect();
     // compact elements are tried on a fine ring of moves; threads (long, costly to map and
     // to test) on the nudge's coarse one
@@ -150,11 +152,17 @@ pub(super) fn fill(
             around(elements),
             axes.soft_cell(setup.s),
         );
-        // at each move: a whole copy, else (threads) the clear part of one
-        let trims = setup.params.trim && axes.any();
+        // at each move: a whole copy (away from the border), else (threads) the clear part
+        // of one
+        let whole = !near_border(f);
         let mut found = None;
         'tries: for d in &offsets {
-            for c in candidates_within(&mapper, t + *d, setup.r_elem + reach, &mut scratch) {
+            let copies = if whole {
+                candidates_within(&mapper, t + *d, setup.r_elem + reach, &mut scratch)
+            } else {
+                Vec::new()
+            };
+            for c in copies {
                 let covers = c
                     .positions
                     .iter()
@@ -188,9 +196,6 @@ pub(super) fn fill(
         } else {
             failed.insert(0, &[c0.to_array()]);
         }
-    }
-    if std::env::var("MM_DEBUG").is_ok() {
-        eprintln!("fill: {n} gaps, {tries} tries of {budget}, {added} added, {trimmed} trimmed");
     }
     Ok((added, trimmed))
 }

@@ -630,12 +630,13 @@ fn run_unit(
             patch: &patch,
             rot,
         };
-        let mut cands = candidates::candidates(&mapper, t, &mut stats);
+        let (mut cands, unmapped) =
+            candidates::candidates(&mapper, t, &setup.elongated, &mut stats);
         let mut selection = cut::select(&setup, &mut elements, &cands, &mut stats);
         if params.nudge {
             nudge::nudge(&mapper, &elements, &mut selection, &mut cands, &mut stats);
         }
-        // threads the cut dropped keep their clear part
+        // threads the cut dropped, or that did not map whole, keep their clear part
         let dropped: Vec<usize> = if params.trim && axes.any() {
             let mut taken = vec![false; cands.len()];
             for &j in &selection.accepted {
@@ -645,11 +646,11 @@ fn run_unit(
         } else {
             Vec::new()
         };
-        if std::env::var("MM_DEBUG").is_ok() {
-            eprintln!("patch {} lattice {} cands {} accepted {} old {} kept_old {}", stats.patches, patch.lattice_t.is_some(), cands.len(), selection.accepted.len(), selection.old.len(), selection.keep_old.iter().filter(|&&k| k).count());
-        }
         elements.place(&mut cands, &selection, sw, params.max_faces)?;
-        stats.trimmed += trim::after_cut(&axes, &mapper, &mut elements, &cands, dropped);
+        if params.trim && axes.any() {
+            stats.trimmed +=
+                trim::after_cut(&axes, &mapper, &mut elements, &cands, dropped, unmapped);
+        }
         // the patch's disc is covered
         stats.covered_fraction = coverage.cover(&base, &patch, &lattice);
         stats.patches += 1;

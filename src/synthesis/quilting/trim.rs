@@ -129,7 +129,13 @@ impl Axes {
     /// The cell (base units, at swatch scale `s`) a hash needs for the crowding test: half
     /// the widest thread's width.
     pub(super) fn soft_cell(&self, s: f32) -> f32 {
-        0.5 * s * self.per.iter().flatten().map(|a| a.width).fold(0.0f32, f32::max)
+        0.5 * s
+            * self
+                .per
+                .iter()
+                .flatten()
+                .map(|a| a.width)
+                .fold(0.0f32, f32::max)
     }
 
     /// Whether the tile has a thread to trim.
@@ -166,12 +172,21 @@ fn axis(ps: &[[f32; 3]], faces: &[[u32; 3]]) -> Option<Axis> {
     // the larger eigenvector of [[cxx, cxy], [cxy, cyy]]
     let angle = 0.5 * (2.0 * cxy).atan2(cxx - cyy);
     let dir = Vec2::new(angle.cos(), angle.sin());
-    let ts: Vec<f32> = ps.iter().map(|p| (Vec2::new(p[0], p[1]) - mid).dot(dir)).collect();
+    let ts: Vec<f32> = ps
+        .iter()
+        .map(|p| (Vec2::new(p[0], p[1]) - mid).dot(dir))
+        .collect();
     let (lo, hi) = ts
         .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &t| (a.min(t), b.max(t)));
-    let across = ps.iter().map(|p| (Vec2::new(p[0], p[1]) - mid).perp_dot(dir));
-    let (wlo, whi) = across.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), w| (a.min(w), b.max(w)));
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &t| {
+            (a.min(t), b.max(t))
+        });
+    let across = ps
+        .iter()
+        .map(|p| (Vec2::new(p[0], p[1]) - mid).perp_dot(dir));
+    let (wlo, whi) = across.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), w| {
+        (a.min(w), b.max(w))
+    });
     if !(hi > lo) || !(whi >= wlo) {
         return None;
     }
@@ -482,7 +497,10 @@ fn cut(
             if lp.len() < 3 {
                 continue;
             }
-            let c = lp.iter().map(|&v| Vec3::from(positions[v as usize])).sum::<Vec3>()
+            let c = lp
+                .iter()
+                .map(|&v| Vec3::from(positions[v as usize]))
+                .sum::<Vec3>()
                 / lp.len() as f32;
             let cv = positions.len() as u32;
             positions.push(c.to_array());
@@ -501,44 +519,64 @@ fn cut(
     })
 }
 
-
-/// After a patch's cut: each thread candidate it dropped (`dropped`, indices into `cands`),
-/// nearest to the seed first, keeps its longest clear part ([`trim`]); returns how many
-/// pieces were placed.
+/// After a patch's cut: each thread candidate it dropped (`dropped`, indices into `cands`) and
+/// each copy of a thread that did not map whole (`unmapped`: torn, distorted or off the
+/// flattened disc), nearest to the seed first, keeps its longest clear part ([`trim`]);
+/// returns how many pieces were placed.
 pub(super) fn after_cut(
     axes: &Axes,
     mapper: &Mapper,
     elements: &mut Placement,
     cands: &[super::elements::Candidate],
-    mut dropped: Vec<usize>,
+    dropped: Vec<usize>,
+    unmapped: Vec<(usize, Vec2)>,
 ) -> usize {
     let setup = mapper.setup;
-    dropped.retain(|&j| axes.per[cands[j].source as usize].is_some());
-    dropped.sort_by(|&a, &b| cands[a].seed_dist.total_cmp(&cands[b].seed_dist).then(a.cmp(&b)));
-    if dropped.is_empty() {
+    let min_mapped = |m: &[Option<[f32; 3]>]| {
+        m.iter().filter(|p| p.is_some()).count() as f32 >= MIN_SHARE * m.len() as f32
+    };
+    // (distance from the seed, element, translation, mapped vertices, centre, radius)
+    let mut tries: Vec<(f32, usize, Vec2, Vec<Option<[f32; 3]>>, Vec3, f32)> = Vec::new();
+    for j in dropped {
+        let c = &cands[j];
+        if axes.per[c.source as usize].is_some() {
+            let mapped = c.positions.iter().copied().map(Some).collect();
+            tries.push((
+                c.seed_dist,
+                c.source as usize,
+                c.shift,
+                mapped,
+                c.centre,
+                c.radius,
+            ));
+        }
+    }
+    for (e, shift) in unmapped {
+        let mapped = mapper.map_vertices(e, shift);
+        if !min_mapped(&mapped) {
+            continue;
+        }
+        let some: Vec<[f32; 3]> = mapped.iter().flatten().copied().collect();
+        let (centre, radius) = centre_and_radius(&some);
+        let el = &setup.sw.elements[e];
+        let seed_dist = ((Vec2::new(el.centre[0], el.centre[1]) + shift) * setup.s).length();
+        tries.push((seed_dist, e, shift, mapped, centre, radius));
+    }
+    if tries.is_empty() {
         return 0;
     }
-    // one neighbourhood for the patch: every element that may touch a dropped thread
-    let mid = dropped.iter().map(|&j| cands[j].centre).sum::<Vec3>() / dropped.len() as f32;
-    let reach = dropped
+    tries.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    // one neighbourhood for the patch: every element that may touch a thread tried
+    let mid = tries.iter().map(|x| x.4).sum::<Vec3>() / tries.len() as f32;
+    let reach = tries
         .iter()
-        .map(|&j| cands[j].centre.distance(mid) + cands[j].radius)
+        .map(|x| x.4.distance(mid) + x.5)
         .fold(0.0f32, f32::max);
     let r = reach + elements.max_radius + setup.tau;
     let mut near = Nearby::new(setup, elements, mid, r, axes.soft_cell(setup.s));
     let mut placed = 0;
-    for j in dropped {
-        let c = &cands[j];
-        let mapped: Vec<Option<[f32; 3]>> = c.positions.iter().copied().map(Some).collect();
-        let piece = trim(
-            axes,
-            mapper,
-            c.source as usize,
-            c.shift,
-            &mapped,
-            &near.view(elements),
-            None,
-        );
+    for (_, e, shift, mapped, _, _) in tries {
+        let piece = trim(axes, mapper, e, shift, &mapped, &near.view(elements), None);
         if let Some(p) = piece {
             let id = elements.placed.len() as u32;
             near.add(id, &p.positions);
