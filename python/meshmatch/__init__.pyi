@@ -210,6 +210,7 @@ def quilt(
     merge: bool = False,
     nudge: bool = True,
     fill: bool = True,
+    trim: bool = True,
     lattice: bool = True,
     progress: Progress | None = None,
     cancel: CancelToken | None = None,

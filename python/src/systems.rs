@@ -641,7 +641,7 @@ enum SwatchArg {
 #[pyfunction]
 #[pyo3(signature = (base, swatch=SwatchArg::Spec(PathBuf::from("chain")), *, swatch_size=None, thickness=None,
     swatch_up="z".to_string(), seed=quilting::Params::default().seed, merge=false, nudge=true,
-    fill=true, lattice=true, progress=None, cancel=None))]
+    fill=true, trim=true, lattice=true, progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn quilt<'py>(
     py: Python<'py>,
@@ -654,6 +654,7 @@ fn quilt<'py>(
     merge: bool,
     nudge: bool,
     fill: bool,
+    trim: bool,
     lattice: bool,
     progress: Option<&Bound<'py, PyAny>>,
     cancel: Option<&Bound<'py, CancelToken>>,
@@ -685,6 +686,7 @@ fn quilt<'py>(
         merge_elements: merge,
         nudge,
         fill,
+        trim,
         lattice,
         ..quilting::Params::default()
     };

@@ -39,6 +39,8 @@ pub struct QuiltDialog {
     /// Move elements the cut drops into the gaps between patches.
     pub nudge: bool,
     pub fill: bool,
+    /// Keep the clear part of a thread no whole copy fits.
+    pub trim: bool,
     /// Place patches on one global lattice.
     pub lattice: bool,
 }
@@ -53,6 +55,7 @@ impl Default for QuiltDialog {
             merge: Params::default().merge_elements,
             nudge: Params::default().nudge,
             fill: Params::default().fill,
+            trim: Params::default().trim,
             lattice: Params::default().lattice,
         }
     }
@@ -128,6 +131,12 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
                  gets the first copy of a swatch element, lined up with its neighbours or moved \
                  by up to half a spacing, that clears every other element",
             );
+        ui.checkbox(&mut self.trim, "cut threads short where no whole one fits")
+            .on_hover_text(
+                "A thread (elongated element) dropped at a seam, torn off around a thin part \
+                 or too long for a gap keeps its longest clear part, cut across and capped \
+                 (at least a quarter of it); compact elements are never cut",
+            );
         ui.checkbox(&mut self.lattice, "one lattice over the surface")
             .on_hover_text(
                 "Patches are laid on one global lattice (two stripe patterns along the \
@@ -168,6 +177,7 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
             merge_elements: self.merge,
             nudge: self.nudge,
             fill: self.fill,
+            trim: self.trim,
             lattice: self.lattice,
             ..Params::default()
         };

@@ -54,6 +54,12 @@ pub struct QuiltArgs {
     /// that clears every other element).
     #[arg(long)]
     pub no_fill: bool,
+    /// Do not cut threads short: a thread (elongated element) that no whole copy fits (dropped
+    /// at a seam, torn off a patch, or too long for a gap) is otherwise kept in part, its
+    /// longest clear run cut across and capped (on by default; compact elements are never
+    /// cut).
+    #[arg(long)]
+    pub no_trim: bool,
     /// Match every patch to its neighbours as the paper does instead of placing patches on one
     /// global lattice (two stripe patterns along the orientation field and across it). The
     /// lattice, on by default, lines up threads and crossings across seams.
@@ -123,6 +129,7 @@ impl QuiltArgs {
             merge_elements: a.merge,
             nudge: !a.no_nudge,
             fill: !a.no_fill,
+            trim: !a.no_trim,
             lattice: !a.no_lattice,
             ..Params::default()
         };
@@ -138,7 +145,7 @@ impl QuiltArgs {
         let s = &out.stats;
         eprintln!(
             "quilted {} elements ({} faces; {} copies merged into others, {} moved into gaps, {} \
-             placed in gaps after the patches) in \
+             placed in gaps after the patches, {} threads cut short) in \
              {:.2} s: {} patches ({} on the global lattice), \
              {:.1}% of the base covered, swatch {:.4} wide, shell {:.4} thick, shell stretch L2 \
              {:.3} -> {:.3}",
@@ -147,6 +154,7 @@ impl QuiltArgs {
             s.merged,
             s.nudged,
             s.filled,
+            s.trimmed,
             s.seconds,
             s.patches,
             s.lattice_patches,

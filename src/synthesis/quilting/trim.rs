@@ -187,7 +187,9 @@ fn axis(ps: &[[f32; 3]], faces: &[[u32; 3]]) -> Option<Axis> {
     let (wlo, whi) = across.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), w| {
         (a.min(w), b.max(w))
     });
-    if !(hi > lo) || !(whi >= wlo) {
+    // (false for NaN bounds too)
+    let spans = hi > lo && whi >= wlo;
+    if !spans {
         return None;
     }
     let step = (hi - lo) / BINS as f32;
@@ -519,6 +521,17 @@ fn cut(
     })
 }
 
+/// A thread copy [`after_cut`] tries: its distance from the seed, element, swatch translation,
+/// vertices mapped (where they map) and the mapped part's centre and radius.
+struct Try {
+    seed_dist: f32,
+    e: usize,
+    shift: Vec2,
+    mapped: Vec<Option<[f32; 3]>>,
+    centre: Vec3,
+    radius: f32,
+}
+
 /// After a patch's cut: each thread candidate it dropped (`dropped`, indices into `cands`) and
 /// each copy of a thread that did not map whole (`unmapped`: torn, distorted or off the
 /// flattened disc), nearest to the seed first, keeps its longest clear part ([`trim`]);
@@ -532,51 +545,61 @@ pub(super) fn after_cut(
     unmapped: Vec<(usize, Vec2)>,
 ) -> usize {
     let setup = mapper.setup;
-    let min_mapped = |m: &[Option<[f32; 3]>]| {
-        m.iter().filter(|p| p.is_some()).count() as f32 >= MIN_SHARE * m.len() as f32
-    };
-    // (distance from the seed, element, translation, mapped vertices, centre, radius)
-    let mut tries: Vec<(f32, usize, Vec2, Vec<Option<[f32; 3]>>, Vec3, f32)> = Vec::new();
+    let mut tries: Vec<Try> = Vec::new();
     for j in dropped {
         let c = &cands[j];
         if axes.per[c.source as usize].is_some() {
-            let mapped = c.positions.iter().copied().map(Some).collect();
-            tries.push((
-                c.seed_dist,
-                c.source as usize,
-                c.shift,
-                mapped,
-                c.centre,
-                c.radius,
-            ));
+            tries.push(Try {
+                seed_dist: c.seed_dist,
+                e: c.source as usize,
+                shift: c.shift,
+                mapped: c.positions.iter().copied().map(Some).collect(),
+                centre: c.centre,
+                radius: c.radius,
+            });
         }
     }
     for (e, shift) in unmapped {
         let mapped = mapper.map_vertices(e, shift);
-        if !min_mapped(&mapped) {
+        let some: Vec<[f32; 3]> = mapped.iter().flatten().copied().collect();
+        if (some.len() as f32) < MIN_SHARE * mapped.len() as f32 {
             continue;
         }
-        let some: Vec<[f32; 3]> = mapped.iter().flatten().copied().collect();
         let (centre, radius) = centre_and_radius(&some);
         let el = &setup.sw.elements[e];
         let seed_dist = ((Vec2::new(el.centre[0], el.centre[1]) + shift) * setup.s).length();
-        tries.push((seed_dist, e, shift, mapped, centre, radius));
+        tries.push(Try {
+            seed_dist,
+            e,
+            shift,
+            mapped,
+            centre,
+            radius,
+        });
     }
     if tries.is_empty() {
         return 0;
     }
-    tries.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    tries.sort_by(|a, b| a.seed_dist.total_cmp(&b.seed_dist).then(a.e.cmp(&b.e)));
     // one neighbourhood for the patch: every element that may touch a thread tried
-    let mid = tries.iter().map(|x| x.4).sum::<Vec3>() / tries.len() as f32;
+    let mid = tries.iter().map(|x| x.centre).sum::<Vec3>() / tries.len() as f32;
     let reach = tries
         .iter()
-        .map(|x| x.4.distance(mid) + x.5)
+        .map(|x| x.centre.distance(mid) + x.radius)
         .fold(0.0f32, f32::max);
     let r = reach + elements.max_radius + setup.tau;
     let mut near = Nearby::new(setup, elements, mid, r, axes.soft_cell(setup.s));
     let mut placed = 0;
-    for (_, e, shift, mapped, _, _) in tries {
-        let piece = trim(axes, mapper, e, shift, &mapped, &near.view(elements), None);
+    for x in tries {
+        let piece = trim(
+            axes,
+            mapper,
+            x.e,
+            x.shift,
+            &x.mapped,
+            &near.view(elements),
+            None,
+        );
         if let Some(p) = piece {
             let id = elements.placed.len() as u32;
             near.add(id, &p.positions);
@@ -585,4 +608,64 @@ pub(super) fn after_cut(
         }
     }
     placed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthesis::quilting::merging::{euler_characteristic, oriented_manifold};
+    use crate::synthesis::quilting::{Axis, PatchKind, finite_patch, load_swatch};
+
+    #[test]
+    fn a_strand_cut_short_is_a_closed_piece_of_its_share() {
+        // the first strand of the finite weave: a closed tube along x
+        let sw = load_swatch(finite_patch(PatchKind::Weave, 1), Axis::Z).unwrap();
+        let (ps, faces) = (sw.element_positions(0), sw.element_faces(0));
+        let a = axis(ps, &faces).expect("a strand has an axis");
+        assert!(a.closed && a.dir.x.abs() > 0.99, "axis {:?}", a.dir);
+        let mapped: Vec<Option<[f32; 3]>> = ps.iter().copied().map(Some).collect();
+        let piece = cut(&a, &faces, &mapped, 8, 24).expect("a piece");
+        // half the strand, capped at both ends: a closed oriented manifold of the strand's
+        // topology
+        assert!(oriented_manifold(&piece.faces, true));
+        assert_eq!(
+            euler_characteristic(piece.positions.len(), &piece.faces),
+            euler_characteristic(ps.len(), &faces)
+        );
+        assert_eq!(piece.positions.len(), piece.kept_vertices + 2, "two caps");
+        let share = piece.kept_faces as f32 / faces.len() as f32;
+        assert!((0.4..0.55).contains(&share), "share {share}");
+        // every kept vertex lies within the run's slices
+        let (lo, hi) = (a.lo + 8.0 * a.step, a.lo + 24.0 * a.step);
+        for p in &piece.positions[..piece.kept_vertices] {
+            let t = (Vec2::new(p[0], p[1]) - a.mid).dot(a.dir);
+            assert!(t >= lo - 1e-4 && t <= hi + 1e-4, "t {t} outside {lo}..{hi}");
+        }
+        // a vertex that does not map takes its faces out
+        let mut torn = mapped.clone();
+        let v = (0..ps.len()).find(|&v| a.slice[v] == 20).unwrap();
+        torn[v] = None;
+        let holed = cut(&a, &faces, &torn, 8, 24).expect("a piece");
+        assert!(holed.kept_faces < piece.kept_faces);
+    }
+
+    #[test]
+    fn the_run_is_the_longest_clear_one_reaching_the_gap() {
+        let mut blocked = [false; BINS];
+        let covers = [true; BINS];
+        // a whole clear thread is not a piece (the fill places whole copies)
+        assert_eq!(longest_run(&blocked, &covers), None);
+        blocked[10] = true;
+        // 0..10 less its slice beside the block: 0..9; 11..32 less one: 12..32
+        assert_eq!(longest_run(&blocked, &covers), Some((12, BINS)));
+        // the run must reach the gap
+        let mut near_start = [false; BINS];
+        near_start[3] = true;
+        assert_eq!(longest_run(&blocked, &near_start), Some((0, 9)));
+        // and span a quarter of the thread at least
+        blocked[5] = true;
+        blocked[20] = true;
+        assert_eq!(longest_run(&blocked, &near_start), None);
+        assert_eq!(longest_run(&blocked, &covers), Some((22, BINS)));
+    }
 }
