@@ -12,8 +12,9 @@
 //! 3. **The run.** The longest run of clear slices holding a vertex within the gap, less one
 //!    slice at each end that borders a blocked slice, is kept when it spans at least
 //!    [`MIN_SHARE`] of the thread and not all of it (a whole copy is the fill's to place).
-//!    The faces with all three corners in the run are kept and every boundary loop the cut
-//!    opened on a closed thread is capped by a fan around its centroid.
+//!    The faces with all three corners in the run are kept (their largest connected part,
+//!    should the thread bend back into its own slices) and every boundary loop the cut opened
+//!    on a closed thread is capped by a fan around its centroid.
 //! 4. **Checks.** The piece must cross no element's surface, and must not lie closer to the
 //!    elements around it than the thread does in the swatch: the share of its vertices within
 //!    half the thread's width of another element's is at most [`CROWD_SLACK`] times the
@@ -465,6 +466,31 @@ fn cut(
     if out.is_empty() {
         return None;
     }
+    // a thread that bends back (a hairpin) can leave several parts in the slices: the largest
+    let (label, parts) = crate::mesh::connected_components(positions.len(), &out);
+    if parts > 1 {
+        let mut size = std::collections::HashMap::<u32, usize>::new();
+        for f in &out {
+            *size.entry(label[f[0] as usize]).or_default() += 1;
+        }
+        let (&keep, _) = size
+            .iter()
+            .max_by_key(|&(&l, &n)| (n, std::cmp::Reverse(l)))
+            .expect("faces");
+        let mut remap = vec![u32::MAX; positions.len()];
+        let mut kept = Vec::new();
+        out.retain(|f| label[f[0] as usize] == keep);
+        for f in &mut out {
+            for v in f.iter_mut() {
+                if remap[*v as usize] == u32::MAX {
+                    remap[*v as usize] = kept.len() as u32;
+                    kept.push(positions[*v as usize]);
+                }
+                *v = remap[*v as usize];
+            }
+        }
+        positions = kept;
+    }
     let (kept_vertices, kept_faces) = (positions.len(), out.len());
     if a.closed {
         // directed boundary edges a -> b (as in their face) of edges used once, walked into
@@ -647,6 +673,34 @@ mod tests {
         torn[v] = None;
         let holed = cut(&a, &faces, &torn, 8, 24).expect("a piece");
         assert!(holed.kept_faces < piece.kept_faces);
+    }
+
+    #[test]
+    fn a_hairpin_cut_across_both_legs_keeps_one_piece() {
+        // a thread bent back on itself: its slices away from the bend hold both legs
+        let mut path = Vec::new();
+        for i in 0..=20 {
+            path.push(Vec3::new(4.0 * i as f32 / 20.0, 0.0, 0.0));
+        }
+        for i in 1..12 {
+            let a = std::f32::consts::PI * i as f32 / 12.0;
+            path.push(Vec3::new(4.0 + 0.5 * a.sin(), 0.0, 0.5 - 0.5 * a.cos()));
+        }
+        for i in 0..=20 {
+            path.push(Vec3::new(4.0 - 4.0 * i as f32 / 20.0, 0.0, 1.0));
+        }
+        let mut b = super::super::swatch::Builder::default();
+        b.strand(&path, 0.1, 0.05, 8, |p| Vec3::new(p.x, p.z, p.y + 0.1));
+        let a = axis(&b.positions, &b.faces).expect("an axis");
+        let mapped: Vec<Option<[f32; 3]>> = b.positions.iter().copied().map(Some).collect();
+        let piece = cut(&a, &b.faces, &mapped, 0, 16).expect("a piece");
+        let (_, parts) = crate::mesh::connected_components(piece.positions.len(), &piece.faces);
+        assert_eq!(parts, 1);
+        assert!(oriented_manifold(&piece.faces, true));
+        assert!(
+            piece.kept_faces * 3 < b.faces.len(),
+            "one leg's part, not both"
+        );
     }
 
     #[test]
