@@ -145,6 +145,7 @@ pub fn run_system(system: &str, sizes: &[usize], json: bool) -> Result<()> {
             quilt_finite_row(crate::synthesis::quilting::PatchKind::Rings, false)?,
             quilt_finite_row(crate::synthesis::quilting::PatchKind::Rings, true)?,
             quilt_finite_row(crate::synthesis::quilting::PatchKind::Weave, false)?,
+            quilt_finite_row(crate::synthesis::quilting::PatchKind::Weave, true)?,
             quilt_finite_row(crate::synthesis::quilting::PatchKind::Pebbles, false)?,
         ],
         "texture" => texture_rows(sizes.first().copied().unwrap_or(64_000))?,

@@ -315,7 +315,7 @@ fn read_regular_file(file: &Path, limit: u64, what: &str) -> std::io::Result<Vec
     out.try_reserve_exact(meta.len() as usize).map_err(|_| {
         IoError::new(
             ErrorKind::OutOfMemory,
-            format!("{what} of {} bytes does not fit in memory", meta.len()),
+            format!("not enough memory to read {what} ({} bytes)", meta.len()),
         )
     })?;
     // The size may change while reading: never take more than the limit.

@@ -232,27 +232,6 @@ impl Placement {
         });
     }
 
-    /// Places a thread cut short ([`super::trim`]) as an element of its own.
-    pub(super) fn place_trimmed(&mut self, t: super::trim::Trimmed) {
-        self.out_faces += t.faces.len();
-        self.anchored[t.anchor.0 as usize].push((self.placed.len() as u32, 0));
-        self.centres
-            .insert(self.placed.len() as u32, &[t.centre.to_array()]);
-        self.max_radius = self.max_radius.max(t.radius);
-        self.placed.push(Placed {
-            source: t.source,
-            positions: t.positions,
-            faces: Some(t.faces),
-            pieces: vec![Piece {
-                centre: t.centre,
-                anchor: t.anchor,
-                dir: t.dir,
-            }],
-            alive: true,
-            share: t.share,
-        });
-    }
-
     /// Places the candidates the patch accepted on their own (not merged into an old
     /// element); errors when the quilt now has more than `max_faces` faces.
     pub(super) fn place(

@@ -188,7 +188,7 @@ pub(super) fn fill(
                 }
                 Filler::Trimmed(p) => {
                     verts.insert(id, &p.positions);
-                    elements.place_trimmed(p);
+                    trim::place(elements, p);
                     trimmed += 1;
                 }
             }

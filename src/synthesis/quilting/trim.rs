@@ -30,7 +30,7 @@ use glam::{Vec2, Vec3};
 
 use super::candidates::Mapper;
 use super::crossing;
-use super::elements::{Placement, VertexHash, centre_and_radius};
+use super::elements::{Piece, Placed, Placement, VertexHash, centre_and_radius};
 use super::setup::Setup;
 
 /// Slices along a thread.
@@ -428,7 +428,7 @@ fn longest_run(blocked: &[bool; BINS], covers: &[bool; BINS]) -> Option<(usize, 
 }
 
 /// A cut piece of a thread: its kept vertices first, then the caps' centres.
-struct Piece {
+struct Cut {
     positions: Vec<[f32; 3]>,
     faces: Vec<[u32; 3]>,
     kept_vertices: usize,
@@ -443,7 +443,7 @@ fn cut(
     mapped: &[Option<[f32; 3]>],
     lo: usize,
     hi: usize,
-) -> Option<Piece> {
+) -> Option<Cut> {
     let inside = |v: u32| {
         let b = a.slice[v as usize] as usize;
         b >= lo && b < hi && mapped[v as usize].is_some()
@@ -539,12 +539,34 @@ fn cut(
         }
         out.extend(caps);
     }
-    Some(Piece {
+    Some(Cut {
         positions,
         faces: out,
         kept_vertices,
         kept_faces,
     })
+}
+
+/// Places a thread cut short as an element of its own.
+pub(super) fn place(elements: &mut Placement, t: Trimmed) {
+    elements.out_faces += t.faces.len();
+    elements.anchored[t.anchor.0 as usize].push((elements.placed.len() as u32, 0));
+    elements
+        .centres
+        .insert(elements.placed.len() as u32, &[t.centre.to_array()]);
+    elements.max_radius = elements.max_radius.max(t.radius);
+    elements.placed.push(Placed {
+        source: t.source,
+        positions: t.positions,
+        faces: Some(t.faces),
+        pieces: vec![Piece {
+            centre: t.centre,
+            anchor: t.anchor,
+            dir: t.dir,
+        }],
+        alive: true,
+        share: t.share,
+    });
 }
 
 /// A thread copy [`after_cut`] tries: its distance from the seed, element, swatch translation,
@@ -629,7 +651,7 @@ pub(super) fn after_cut(
         if let Some(p) = piece {
             let id = elements.placed.len() as u32;
             near.add(id, &p.positions);
-            elements.place_trimmed(p);
+            place(elements, p);
             placed += 1;
         }
     }
