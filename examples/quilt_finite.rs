@@ -5,8 +5,9 @@
 //! reproduced, element pairs whose surfaces cross, coverage and run time.
 //! `cargo run --release --example quilt_finite` (`KIND=rings-patch|weave-patch|pebbles`,
 //! `BASE=bunny|horse|saddle|cylinder` (a limb of radius 1 and length 12, only when named), `DETECT=0` for the box tiling without detection, `LATTICE=0` for the
-//! paper's matching on every patch, `FILL=0` without the gap filling, `OUT=dir` to write each quilt as OBJ, with `CROP=x,y,z` also the elements and base faces within
-//! 1.2 swatch widths of that point, for close-up renders).
+//! paper's matching on every patch, `FILL=0` without the gap filling, `TRIM=0` with whole threads only, `OUT=dir` to write each quilt as OBJ, with `CROP=x,y,z` also the elements and base faces within
+//! 1.2 swatch widths of that point, for close-up renders, and with `CENTRES=1` each element's
+//! vertex centroid and share of its swatch element, for density maps).
 use glam::Vec3;
 use meshmatch::synthesis::quilting::{self, Input, Params, PatchKind, finite_patch, load_swatch};
 use meshmatch::work::{CancelToken, no_events};
