@@ -1,7 +1,9 @@
-//! Thread trimming (the cut of Zhou et al. 2006 §2.7 for threads, simplified; part of
-//! [`super::Params::fill`]): a gap that no whole copy of a thread fits (a strand longer than a
-//! limb is round, strands that meet end to end where the lattice's period drifts) gets the
-//! clear part of one, cut across the thread and capped.
+//! Thread trimming (the cut of Zhou et al. 2006 §2.7 for threads, simplified;
+//! [`super::Params::trim`]): a thread that no whole copy fits keeps its clear part, cut across
+//! and capped. Three places ask for one: [`after_cut`], for the threads a patch's cut dropped
+//! and the copies that tore off its chart (a strand longer than a limb is round) or lay on too
+//! distorted faces; and the gap filling ([`super::fill`]), where no whole copy fits a gap or
+//! the gap lies by an open base's border.
 //!
 //! 1. **Axis.** Each thread of the tile (an elongated element, [`super::setup::Setup`]'s
 //!    `elongated`) gets its principal axis in the swatch's x-y plane, each vertex its
@@ -21,7 +23,8 @@
 //!    thread's own share in the tile (with its copies around it) plus 0.05. That keeps a piece
 //!    from sliding in beside a parallel thread, which the vertex clearance alone would allow
 //!    (a woven strand's own clearance is the hair between it and the strands it crosses).
-//!    Each crossing found shortens the run by two slices at both ends, twice at most.
+//!    Where the piece crosses an element, the pairs of slices whose faces cross it are blocked
+//!    and the run is chosen again (four rounds at most).
 //!
 //! A piece counts for the share of its element's faces it kept in the density
 //! ([`super::measure`]).
