@@ -1094,31 +1094,34 @@ fn a_finite_ring_patch_keeps_its_links_and_density_on_convex_and_saddle_bases() 
     }
 }
 
+/// A finite patch quilted `swatch_size` wide over a limb (a cylinder of radius 1 and length
+/// 12): the swatch, the quilt with the defaults changed by `without`, and with the defaults.
+fn on_a_limb(
+    kind: quilting::PatchKind,
+    swatch_size: f32,
+    without: impl Fn(&mut Params),
+) -> (Swatch, QuiltOutput, QuiltOutput) {
+    let sw = load_swatch(quilting::finite_patch(kind, 1), Axis::Z).unwrap();
+    let (p, f) = meshmatch::testdata::cylinder(1.0, 12.0, 64, 200);
+    let limb = TriMesh::new(p, f);
+    let params = Params {
+        swatch_size: Some(swatch_size),
+        ..Default::default()
+    };
+    let mut changed = params.clone();
+    without(&mut changed);
+    let before = quilt(&limb, &sw, &changed);
+    let out = quilt(&limb, &sw, &params);
+    (sw, before, out)
+}
+
 #[test]
 fn a_limb_thinner_than_a_patch_is_covered_and_its_gaps_filled() {
     // a limb (a horse's leg) whose half girth is the patch's radius: the exponential map wraps
     // around it and tears along the far side; the faces straddling the tear once spanned the
     // whole chart, so every element seemed distorted and the limb stayed bare
-    let rings = load_swatch(
-        quilting::finite_patch(quilting::PatchKind::Rings, 1),
-        Axis::Z,
-    )
-    .unwrap();
-    let (p, f) = meshmatch::testdata::cylinder(1.0, 12.0, 64, 200);
-    let limb = TriMesh::new(p, f);
-    let params = Params {
-        swatch_size: Some(6.2), // patch radius 3.1, half the girth pi
-        ..Default::default()
-    };
-    let unfilled = quilt(
-        &limb,
-        &rings,
-        &Params {
-            fill: false,
-            ..params.clone()
-        },
-    );
-    let out = quilt(&limb, &rings, &params);
+    // patch radius 3.1, half the girth pi
+    let (rings, unfilled, out) = on_a_limb(quilting::PatchKind::Rings, 6.2, |p| p.fill = false);
     check_integrity(&out, &rings);
     let (a, b) = (&unfilled.stats, &out.stats);
     eprintln!(
@@ -1146,26 +1149,8 @@ fn a_weave_over_a_limb_keeps_the_clear_parts_of_its_strands() {
     // a finite weave whose strands are longer than the limb is wide (as on a horse's legs at
     // a tenth of its diagonal): whole strands wrapped around it tear off the patch's chart or
     // cross their neighbours and are dropped; the cut keeps their clear parts, capped
-    let weave = load_swatch(
-        quilting::finite_patch(quilting::PatchKind::Weave, 1),
-        Axis::Z,
-    )
-    .unwrap();
-    let (p, f) = meshmatch::testdata::cylinder(1.0, 12.0, 64, 200);
-    let limb = TriMesh::new(p, f);
-    let params = Params {
-        swatch_size: Some(1.85), // strands 1.8 long, the limb 2 wide
-        ..Default::default()
-    };
-    let whole = quilt(
-        &limb,
-        &weave,
-        &Params {
-            trim: false,
-            ..params.clone()
-        },
-    );
-    let out = quilt(&limb, &weave, &params);
+    // strands 1.8 long, the limb 2 wide
+    let (weave, whole, out) = on_a_limb(quilting::PatchKind::Weave, 1.85, |p| p.trim = false);
     check_integrity(&out, &weave);
     let (a, b) = (&whole.stats, &out.stats);
     eprintln!(

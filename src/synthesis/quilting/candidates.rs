@@ -26,25 +26,18 @@ impl Mapper<'_> {
     /// faces, or tears across a lattice chart's sheets.
     pub(super) fn map(&self, e: usize, shift: Vec2, stats: &mut QuiltStats) -> Option<Candidate> {
         let Mapper {
-            setup,
-            base,
-            patch,
-            rot,
+            setup, base, patch, ..
         } = *self;
-        let (params, sw, s, hscale) = (setup.params, setup.sw, setup.s, setup.hscale);
+        let (params, sw, hscale) = (setup.params, setup.sw, setup.hscale);
         let (r_elem, tau, elem_faces) = (setup.r_elem, setup.tau, &setup.elem_faces);
-        let (flat, rho, lattice_t) = (&patch.flat, &patch.rho, patch.lattice_t);
-        let corners = |f: u32| base.faces[f as usize].map(|v| Vec3::from(base.p[v as usize]));
+        let (flat, rho) = (&patch.flat, &patch.rho);
         let el = &sw.elements[e];
-        let uvc = rot.rotate((Vec2::new(el.centre[0], el.centre[1]) + shift) * s);
-        let (af, ab, true) = flat.locate(uvc, 0.0)? else {
-            return None;
-        };
+        let c = Vec2::new(el.centre[0], el.centre[1]);
+        let (anchor, dir) = self.anchor(c, shift)?;
         let mut ps = Vec::with_capacity(el.vertices.len());
         let mut worst = 1.0f32;
         for q in sw.element_positions(e) {
-            let uv = rot.rotate((Vec2::new(q[0], q[1]) + shift) * s);
-            let Some((f, b, _)) = flat.locate(uv, r_elem + tau) else {
+            let Some((f, b, _)) = flat.locate(self.uv(q, shift), r_elem + tau) else {
                 stats.dropped_unmapped += 1;
                 return None;
             };
@@ -55,16 +48,12 @@ impl Mapper<'_> {
             stats.dropped_distorted += 1;
             return None;
         }
-        // a lattice chart that overlaps itself past a singularity can send part of an
-        // element to the other sheet: no edge may come out stretched to twice its length
-        if lattice_t.is_some() {
+        if patch.lattice_t.is_some() {
             let qs = sw.element_positions(e);
             let torn = elem_faces[e].iter().any(|f| {
                 (0..3).any(|k| {
                     let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
-                    let d = Vec3::from(qs[a]) - Vec3::from(qs[b]);
-                    let want = Vec3::new(d.x * s, d.y * s, d.z * hscale).length();
-                    Vec3::from(ps[a]).distance(Vec3::from(ps[b])) > 2.0 * want + tau
+                    self.torn((qs[a], qs[b]), (ps[a], ps[b]))
                 })
             });
             if torn {
@@ -74,61 +63,47 @@ impl Mapper<'_> {
         }
         stats.max_element_distortion = stats.max_element_distortion.max(worst);
         let (centre, radius) = centre_and_radius(&ps);
-        let k = flat.index[&af] as usize;
-        let dir = uv_to_3d(&flat.faces[k].1, corners(af), rot).normalize_or_zero();
         Some(Candidate {
             source: e as u32,
             positions: ps,
             centre,
             radius,
-            anchor: (af, ab),
+            anchor,
             dir,
-            seed_dist: uvc.length(),
+            seed_dist: self.uv(&el.centre, shift).length(),
             shift,
         })
     }
-}
 
-impl Mapper<'_> {
     /// Every vertex of swatch element `e` shifted by `shift`, mapped into the shell as [`map`]
     /// maps it; `None` for a vertex off the flattened base (past its border too, where `map`
-    /// extrapolates a little) or on a face distorted past twice
-    /// `max_distortion`, and for both ends of an edge a lattice chart tears (stretched past
-    /// twice its length). What [`super::trim`] cuts a thread's clear part from.
+    /// extrapolates a little) or on a face distorted past twice `max_distortion`, and for both
+    /// ends of an edge a lattice chart tears. What [`super::trim`] cuts a thread's clear part
+    /// from.
     ///
     /// [`map`]: Mapper::map
     pub(super) fn map_vertices(&self, e: usize, shift: Vec2) -> Vec<Option<[f32; 3]>> {
         let Mapper {
-            setup,
-            base,
-            patch,
-            rot,
+            setup, base, patch, ..
         } = *self;
-        let (params, sw, s, hscale) = (setup.params, setup.sw, setup.s, setup.hscale);
-        let (r_elem, tau) = (setup.r_elem, setup.tau);
         let (flat, rho) = (&patch.flat, &patch.rho);
-        let qs = sw.element_positions(e);
+        let limit = 2.0 * setup.params.max_distortion;
+        let qs = setup.sw.element_positions(e);
         let mut ps: Vec<Option<[f32; 3]>> = qs
             .iter()
             .map(|q| {
-                let uv = rot.rotate((Vec2::new(q[0], q[1]) + shift) * s);
-                let (f, b, true) = flat.locate(uv, r_elem + tau)? else {
-                    return None;
-                };
-                (rho[flat.index[&f] as usize] <= 2.0 * params.max_distortion)
-                    .then(|| base.shell_point(f, b, q[2] * hscale).to_array())
+                let (f, b, _) = flat.locate(self.uv(q, shift), 0.0)?;
+                (rho[flat.index[&f] as usize] <= limit)
+                    .then(|| base.shell_point(f, b, q[2] * setup.hscale).to_array())
             })
             .collect();
         if patch.lattice_t.is_some() {
             for f in &setup.elem_faces[e] {
                 for k in 0..3 {
                     let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
-                    let (Some(pa), Some(pb)) = (ps[a], ps[b]) else {
-                        continue;
-                    };
-                    let d = Vec3::from(qs[a]) - Vec3::from(qs[b]);
-                    let want = Vec3::new(d.x * s, d.y * s, d.z * hscale).length();
-                    if Vec3::from(pa).distance(Vec3::from(pb)) > 2.0 * want + tau {
+                    if let (Some(pa), Some(pb)) = (ps[a], ps[b])
+                        && self.torn((qs[a], qs[b]), (pa, pb))
+                    {
                         ps[a] = None;
                         ps[b] = None;
                     }
@@ -138,12 +113,27 @@ impl Mapper<'_> {
         ps
     }
 
+    /// The patch's uv of swatch point `q` (x-y read, swatch units) shifted by `shift`.
+    fn uv(&self, q: &[f32; 3], shift: Vec2) -> Vec2 {
+        self.rot
+            .rotate((Vec2::new(q[0], q[1]) + shift) * self.setup.s)
+    }
+
+    /// Whether the swatch edge `q` came out as `p` stretched past twice its length: a lattice
+    /// chart that overlaps itself past a singularity sends part of an element to the other
+    /// sheet.
+    fn torn(&self, q: ([f32; 3], [f32; 3]), p: ([f32; 3], [f32; 3])) -> bool {
+        let (s, hscale) = (self.setup.s, self.setup.hscale);
+        let d = Vec3::from(q.0) - Vec3::from(q.1);
+        let want = Vec3::new(d.x * s, d.y * s, d.z * hscale).length();
+        Vec3::from(p.0).distance(Vec3::from(p.1)) > 2.0 * want + self.setup.tau
+    }
+
     /// The base face and barycentric coordinates under swatch point `q` (x-y, swatch units)
     /// shifted by `shift`, and the 3D direction of the swatch's +x axis there.
     pub(super) fn anchor(&self, q: Vec2, shift: Vec2) -> Option<((u32, [f32; 3]), Vec3)> {
-        let (flat, s) = (&self.patch.flat, self.setup.s);
-        let uv = self.rot.rotate((q + shift) * s);
-        let (f, b, true) = flat.locate(uv, 0.0)? else {
+        let flat = &self.patch.flat;
+        let (f, b, true) = flat.locate(self.uv(&[q.x, q.y, 0.0], shift), 0.0)? else {
             return None;
         };
         let corners = self.base.faces[f as usize].map(|v| Vec3::from(self.base.p[v as usize]));

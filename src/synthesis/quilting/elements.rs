@@ -213,22 +213,41 @@ impl Placement {
 
     /// Places one candidate as an element of its own.
     pub(super) fn place_one(&mut self, c: Candidate, sw: &Swatch) {
-        self.out_faces += sw.elements[c.source as usize].faces.len();
-        self.anchored[c.anchor.0 as usize].push((self.placed.len() as u32, 0));
-        self.centres
-            .insert(self.placed.len() as u32, &[c.centre.to_array()]);
-        self.max_radius = self.max_radius.max(c.radius);
+        let faces = sw.elements[c.source as usize].faces.len();
+        let piece = Piece {
+            centre: c.centre,
+            anchor: c.anchor,
+            dir: c.dir,
+        };
+        self.push(c.source, c.positions, None, piece, c.radius, faces, 1.0);
+    }
+
+    /// Adds an element of one piece (`faces`: its own triangles, `None` for its source
+    /// element's, `n_faces` of them) with the indexes over it: anchor face, centre, largest
+    /// radius, face count.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn push(
+        &mut self,
+        source: u32,
+        positions: Vec<[f32; 3]>,
+        faces: Option<Vec<[u32; 3]>>,
+        piece: Piece,
+        radius: f32,
+        n_faces: usize,
+        share: f32,
+    ) {
+        let id = self.placed.len() as u32;
+        self.out_faces += n_faces;
+        self.anchored[piece.anchor.0 as usize].push((id, 0));
+        self.centres.insert(id, &[piece.centre.to_array()]);
+        self.max_radius = self.max_radius.max(radius);
         self.placed.push(Placed {
-            source: c.source,
-            positions: c.positions,
-            faces: None,
-            pieces: vec![Piece {
-                centre: c.centre,
-                anchor: c.anchor,
-                dir: c.dir,
-            }],
+            source,
+            positions,
+            faces,
+            pieces: vec![piece],
             alive: true,
-            share: 1.0,
+            share,
         });
     }
 

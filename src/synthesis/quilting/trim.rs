@@ -33,7 +33,7 @@ use glam::{Vec2, Vec3};
 
 use super::candidates::Mapper;
 use super::crossing;
-use super::elements::{Piece, Placed, Placement, VertexHash, centre_and_radius};
+use super::elements::{Piece, Placement, VertexHash, centre_and_radius};
 use super::setup::Setup;
 
 /// Slices along a thread.
@@ -201,14 +201,7 @@ fn axis(ps: &[[f32; 3]], faces: &[[u32; 3]]) -> Option<Axis> {
         .iter()
         .map(|&t| (((t - lo) / step) as usize).min(BINS - 1) as u16)
         .collect();
-    let mut uses = std::collections::HashMap::<(u32, u32), u32>::new();
-    for f in faces {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            *uses.entry((a.min(b), a.max(b))).or_default() += 1;
-        }
-    }
-    let closed = !faces.is_empty() && uses.values().all(|&c| c == 2);
+    let closed = !faces.is_empty() && crate::mesh::boundary_loops(faces).is_empty();
     Some(Axis {
         dir,
         mid,
@@ -496,35 +489,9 @@ fn cut(
     }
     let (kept_vertices, kept_faces) = (positions.len(), out.len());
     if a.closed {
-        // directed boundary edges a -> b (as in their face) of edges used once, walked into
-        // loops; each loop gets a fan [b, a, centroid]
-        let mut uses = std::collections::HashMap::<(u32, u32), u32>::new();
-        for f in &out {
-            for k in 0..3 {
-                let (x, y) = (f[k], f[(k + 1) % 3]);
-                *uses.entry((x.min(y), x.max(y))).or_default() += 1;
-            }
-        }
-        let mut next = std::collections::BTreeMap::<u32, u32>::new();
-        for f in &out {
-            for k in 0..3 {
-                let (x, y) = (f[k], f[(k + 1) % 3]);
-                if uses[&(x.min(y), x.max(y))] == 1 {
-                    next.insert(x, y);
-                }
-            }
-        }
+        // the loops the cut opened, along their faces' orientation: a fan [b, a, centroid] each
         let mut caps = Vec::new();
-        while let Some((&start, _)) = next.iter().next() {
-            let mut lp = vec![start];
-            let mut cur = start;
-            while let Some(n) = next.remove(&cur) {
-                if n == start {
-                    break;
-                }
-                lp.push(n);
-                cur = n;
-            }
+        for lp in crate::mesh::boundary_loops(&out) {
             if lp.len() < 3 {
                 continue;
             }
@@ -552,24 +519,21 @@ fn cut(
 
 /// Places a thread cut short as an element of its own.
 pub(super) fn place(elements: &mut Placement, t: Trimmed) {
-    elements.out_faces += t.faces.len();
-    elements.anchored[t.anchor.0 as usize].push((elements.placed.len() as u32, 0));
-    elements
-        .centres
-        .insert(elements.placed.len() as u32, &[t.centre.to_array()]);
-    elements.max_radius = elements.max_radius.max(t.radius);
-    elements.placed.push(Placed {
-        source: t.source,
-        positions: t.positions,
-        faces: Some(t.faces),
-        pieces: vec![Piece {
-            centre: t.centre,
-            anchor: t.anchor,
-            dir: t.dir,
-        }],
-        alive: true,
-        share: t.share,
-    });
+    let piece = Piece {
+        centre: t.centre,
+        anchor: t.anchor,
+        dir: t.dir,
+    };
+    let n_faces = t.faces.len();
+    elements.push(
+        t.source,
+        t.positions,
+        Some(t.faces),
+        piece,
+        t.radius,
+        n_faces,
+        t.share,
+    );
 }
 
 /// A thread copy [`after_cut`] tries: its distance from the seed, element, swatch translation,
