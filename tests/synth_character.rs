@@ -237,3 +237,52 @@ fn an_image_too_small_for_patches_is_refused_at_once() {
         "{msg}"
     );
 }
+
+/// The patch distance reads a faithful copy of the image as the image, and a blurred copy as
+/// further from it: an image laid on a plane at a turn (its texture magnified as a bake would,
+/// the texel grid at 30 degrees to the image's) measures near zero, the same texture blurred by
+/// one image pixel well above. A measure that compared the texture only with the image's
+/// patches on a coarse grid of positions and turns would find no exact match for sharp content
+/// and score the blurred copy nearer.
+#[test]
+fn the_patch_distance_reads_a_faithful_copy_as_the_image_and_a_blurred_one_as_further() {
+    use meshmatch::synthesis::exemplar::character::measure_with;
+    let (tex, _) = meshmatch::mesh::io::load_texture_with_alpha(&data_path("textures/3.jpg"))
+        .expect("the bark image");
+    let img = &tex.image;
+    let (pos, faces) = meshmatch::testdata::grid(33);
+    let mut plane = meshmatch::mesh::TriMesh::new(pos.clone(), faces.clone());
+    // the plane shows the middle 0.6 of the texture, turned by 30 degrees
+    let (s, c) = 30f32.to_radians().sin_cos();
+    let uvs = faces
+        .iter()
+        .flat_map(|f| f.iter().map(|&v| pos[v as usize]))
+        .map(|p| {
+            let (x, y) = (p[0] - 0.5, p[1] - 0.5);
+            [0.5 + 0.6 * (c * x - s * y), 0.5 + 0.6 * (s * x + c * y)]
+        })
+        .collect();
+    plane.uvs = Some(uvs);
+    let ex = Exemplar {
+        image: img,
+        alpha: None,
+        scale: 1.0 / 0.6,
+    };
+    let size = (img.width() as f32 * 1.95) as u32;
+    let sharp = image::imageops::resize(img, size, size, image::imageops::FilterType::Triangle);
+    let blurred = image::imageops::blur(&sharp, 1.95);
+    let a = measure_with(&plane, &sharp, &ex, 3, 200).expect("a measure");
+    let b = measure_with(&plane, &blurred, &ex, 3, 200).expect("a measure");
+    eprintln!("faithful copy {a:?}\n  blurred {b:?}");
+    assert!(
+        a.patch_distance < 3.0,
+        "a faithful copy is {:.2} from the image",
+        a.patch_distance
+    );
+    assert!(
+        b.patch_distance > a.patch_distance + 3.0,
+        "blurred {:.2}, faithful {:.2}",
+        b.patch_distance,
+        a.patch_distance
+    );
+}

@@ -14,7 +14,9 @@
 //! Both patch distances are root-mean-square sRGB differences in 0-255 units per pixel and
 //! channel; the search is exact, on candidates pre-filtered by a 24-dimensional PCA projection.
 
-use glam::{Vec2, Vec3};
+use std::f32::consts::TAU;
+
+use glam::{Mat2, Vec2, Vec3};
 use rand::Rng;
 use rayon::prelude::*;
 
@@ -25,10 +27,19 @@ use crate::mesh::TriMesh;
 pub const PATCH: usize = 11;
 /// Patches compared each way by [`measure`].
 pub const SAMPLES: usize = 300;
-/// PCA dimensions of the pre-filter.
-const PCA_DIMS: usize = 24;
+/// PCA dimensions of the pre-filter (of patches smoothed by a one-pixel Gaussian, whose energy
+/// lies in few directions).
+const PCA_DIMS: usize = 12;
+/// Image positions read (each also mirrored): every pixel of an image of up to about 410²,
+/// evenly spaced beyond. A sample grid half a pixel off a thin line reads it at half its
+/// contrast, so a sparser set misses the copy a texture patch is.
+const IMAGE_POSITIONS: usize = 170_000;
+/// Texture patches the reverse distance searches.
+const TEXTURE_PATCHES: usize = 96_000;
 /// Exact distances computed per query, from the PCA's nearest.
 const RERANK: usize = 12;
+/// Of those (over every rotation of a query), how many are refined in position and angle.
+const REFINED: usize = 3;
 
 /// A texture's character against its image.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
@@ -169,14 +180,11 @@ pub fn measure_with(
 
     let (contrast, lab_w1) = colour_character(&tex, &covered, &img, &opaque)?;
 
-    // texels per image pixel: the layout's mean surface length per texel against the image's
-    let mut uv_area = 0.0f64;
-    for f in 0..mesh.faces.len() {
-        let t = [0, 1, 2].map(|k| Vec2::from(uvs[3 * f + k]).as_dvec2());
-        uv_area += 0.5 * (t[1] - t[0]).perp_dot(t[2] - t[0]).abs();
-    }
-    let texel_len = (mesh.area() / (uv_area.max(1e-12) * (tw * th) as f64)).sqrt();
-    let step = (ex.scale as f64 / iw as f64 / texel_len) as f32;
+    // per face, the texel offsets one image pixel apart along two orthogonal directions of
+    // the surface: a patch of the texture is read at the image's pixel size wherever its chart
+    // is stretched or sheared
+    let pixel = ex.scale / iw as f32;
+    let frames = texel_frames(mesh, uvs, tw, th, pixel);
     let tex_img = Grid {
         w: tw,
         h: th,
@@ -191,35 +199,50 @@ pub fn measure_with(
     };
     let mut rng = stage_rng(seed, 41);
 
-    // image patches (with a mirror) and texture patches (8 rotations)
-    let stride = ((iw * ih) as f64 / 40_000.0).sqrt().ceil().max(1.0) as usize;
-    let mut image_patches: Vec<Vec<f32>> = Vec::new();
+    // image patches (with a mirror) at every pixel up to IMAGE_POSITIONS, and texture patches
+    // (8 rotations)
+    let stride = ((iw * ih) as f64 / IMAGE_POSITIONS as f64)
+        .sqrt()
+        .ceil()
+        .max(1.0) as usize;
+    let mut image_poses: Vec<Pose> = Vec::new();
     for y in (PATCH / 2..ih.saturating_sub(PATCH / 2)).step_by(stride) {
         for x in (PATCH / 2..iw.saturating_sub(PATCH / 2)).step_by(stride) {
             for mirror in [false, true] {
-                if let Some(p) = img_grid.patch(Vec2::new(x as f32, y as f32), 1.0, 0.0, mirror) {
-                    image_patches.push(p);
-                }
+                image_poses.push(Pose {
+                    c: Vec2::new(x as f32, y as f32),
+                    angle: 0.0,
+                    mirror,
+                    frame: Mat2::IDENTITY,
+                });
             }
         }
     }
     let centres: Vec<usize> = (0..tw * th).filter(|&i| covered[i]).collect();
-    if centres.is_empty() || image_patches.is_empty() {
+    if centres.is_empty() || image_poses.is_empty() {
         return None;
     }
-    let mut texture_patches: Vec<Vec<f32>> = Vec::new();
+    let mut texture_poses: Vec<Pose> = Vec::new();
     let mut queries: Vec<Vec<Vec<f32>>> = Vec::new(); // per sample, its 16 rotations
     let mut tries = 0;
-    while (texture_patches.len() < 96_000 || queries.len() < samples)
+    while (texture_poses.len() < TEXTURE_PATCHES || queries.len() < samples)
         && tries < 400_000.max(4 * samples)
     {
         tries += 1;
         let c = centres[rng.random_range(0..centres.len())];
         let at = Vec2::new((c % tw) as f32, (c / tw) as f32);
+        let Some(frame) = texels[c].and_then(|(f, _)| frames[f as usize]) else {
+            continue;
+        };
         if queries.len() < samples {
             let rots: Vec<Vec<f32>> = (0..16)
                 .filter_map(|r| {
-                    tex_img.patch(at, step, r as f32 * std::f32::consts::TAU / 16.0, false)
+                    tex_img.read(Pose {
+                        c: at,
+                        angle: r as f32 * TAU / 16.0,
+                        mirror: false,
+                        frame,
+                    })
                 })
                 .collect();
             if rots.len() == 16 {
@@ -227,43 +250,78 @@ pub fn measure_with(
                 continue;
             }
         }
-        if texture_patches.len() < 96_000 {
+        if texture_poses.len() < TEXTURE_PATCHES {
             let a = rng.random::<f32>() * std::f32::consts::TAU;
             for r in 0..8 {
-                if let Some(p) =
-                    tex_img.patch(at, step, a + r as f32 * std::f32::consts::TAU / 8.0, false)
-                {
-                    texture_patches.push(p);
-                }
+                let pose = Pose {
+                    c: at,
+                    angle: a + r as f32 * std::f32::consts::TAU / 8.0,
+                    mirror: false,
+                    frame,
+                };
+                texture_poses.push(pose);
             }
         }
     }
-    if queries.is_empty() || texture_patches.is_empty() {
+    if queries.is_empty() || texture_poses.is_empty() {
         return None;
     }
-    let image_queries: Vec<Vec<f32>> = (0..samples)
+    // each image patch as it is and mirrored: a chart may show the surface either way round
+    let image_queries: Vec<[Vec<f32>; 2]> = (0..samples)
         .filter_map(|_| {
             let x = rng.random_range(PATCH / 2..iw.saturating_sub(PATCH / 2).max(PATCH / 2 + 1));
             let y = rng.random_range(PATCH / 2..ih.saturating_sub(PATCH / 2).max(PATCH / 2 + 1));
-            img_grid.patch(Vec2::new(x as f32, y as f32), 1.0, 0.0, false)
+            let read = |mirror| {
+                img_grid.read(Pose {
+                    c: Vec2::new(x as f32, y as f32),
+                    angle: 0.0,
+                    mirror,
+                    frame: Mat2::IDENTITY,
+                })
+            };
+            Some([read(false)?, read(true)?])
         })
         .collect();
 
-    let basis = pca_basis(&image_patches);
-    let forward = Index::new(&image_patches, &basis);
-    let patch_distance = queries
+    let basis = pca_basis(&img_grid, &image_poses)?;
+    let forward = Index::new(&image_poses, &basis, &img_grid);
+    // the image's patches lie `stride` pixels apart and the queries' rotations a sixteenth of
+    // a turn: the nearest is refined within those gaps
+    let per: Vec<f64> = queries
         .par_iter()
         .map(|rots| {
-            rots.iter()
-                .map(|q| forward.nearest(q))
+            let mut found: Vec<(f32, usize, usize)> = rots
+                .iter()
+                .enumerate()
+                .flat_map(|(r, q)| forward.nearest(q).into_iter().map(move |(d, i)| (d, i, r)))
+                .collect();
+            found.sort_by(|a, b| a.0.total_cmp(&b.0));
+            found
+                .iter()
+                .take(REFINED)
+                .map(|&(d, i, r)| forward.refine(&rots[r], i, d, stride as f32 / 2.0, TAU / 32.0))
                 .fold(f32::INFINITY, f32::min) as f64
         })
-        .sum::<f64>()
-        / queries.len() as f64;
-    let reverse = Index::new(&texture_patches, &basis);
+        .collect();
+    let patch_distance = per.iter().sum::<f64>() / queries.len() as f64;
+    let reverse = Index::new(&texture_poses, &basis, &tex_img);
     let reverse_distance = image_queries
         .par_iter()
-        .map(|q| reverse.nearest(q) as f64)
+        .map(|both| {
+            let mut found: Vec<(f32, usize, &Vec<f32>)> = both
+                .iter()
+                .flat_map(|q| reverse.nearest(q).into_iter().map(move |(d, i)| (d, i, q)))
+                .collect();
+            found.sort_by(|a, b| a.0.total_cmp(&b.0));
+            found
+                .iter()
+                .take(REFINED)
+                .map(|&(d, i, q)| {
+                    let dp = 0.5 * reverse.poses[i].frame.determinant().abs().sqrt();
+                    reverse.refine(q, i, d, dp, TAU / 16.0)
+                })
+                .fold(f32::INFINITY, f32::min) as f64
+        })
         .sum::<f64>()
         / image_queries.len().max(1) as f64;
     Some(Character {
@@ -316,6 +374,42 @@ fn colour_character(
     Some((contrast, lab_w1))
 }
 
+/// Per face, the texel offset of a step of `pixel` surface units along each of two orthogonal
+/// directions in its plane (the first along its first edge), in the `tw × th` texture's pixel
+/// grid (x right, y down); `None` for a face degenerate in space or in UV.
+fn texel_frames(
+    mesh: &TriMesh,
+    uvs: &[[f32; 2]],
+    tw: usize,
+    th: usize,
+    pixel: f32,
+) -> Vec<Option<Mat2>> {
+    (0..mesh.faces.len())
+        .map(|f| {
+            let p = mesh.faces[f].map(|v| Vec3::from(mesh.positions[v as usize]));
+            let t = [0, 1, 2].map(|k| {
+                let u = uvs[3 * f + k];
+                Vec2::new(u[0] * tw as f32, (1.0 - u[1]) * th as f32)
+            });
+            let (e1, e2) = (p[1] - p[0], p[2] - p[0]);
+            let n = e1.cross(e2);
+            let (a, b) = (e1.normalize_or_zero(), n.cross(e1).normalize_or_zero());
+            // the face's edges in its own orthonormal frame, and in texels
+            let surface = Mat2::from_cols(
+                Vec2::new(e1.dot(a), e1.dot(b)),
+                Vec2::new(e2.dot(a), e2.dot(b)),
+            );
+            let texels = Mat2::from_cols(t[1] - t[0], t[2] - t[0]);
+            if n.length_squared() <= 1e-30 || texels.determinant().abs() <= 1e-12 {
+                return None;
+            }
+            // texel offset per surface offset, times the pixel's length
+            let m = texels * surface.inverse() * pixel;
+            m.is_finite().then_some(m)
+        })
+        .collect()
+}
+
 /// An image with a validity mask.
 struct Grid<'a> {
     w: usize,
@@ -324,23 +418,39 @@ struct Grid<'a> {
     ok: &'a [bool],
 }
 
+/// Where a patch is read in a [`Grid`]: its centre in pixels, the angle its axes are turned
+/// by, whether it is mirrored in x, and the grid offset of a step of one image pixel along each
+/// axis (the identity in the image; the chart's local stretch in a texture).
+#[derive(Clone, Copy, Debug)]
+struct Pose {
+    c: Vec2,
+    angle: f32,
+    mirror: bool,
+    frame: Mat2,
+}
+
 impl Grid<'_> {
-    /// The `PATCH²` patch centred at `c`, its samples `step` pixels apart along axes turned by
-    /// `angle` (mirrored in x when asked), bilinear; `None` when a sample's nearest pixels are
-    /// not all valid.
-    fn patch(&self, c: Vec2, step: f32, angle: f32, mirror: bool) -> Option<Vec<f32>> {
+    /// The `PATCH²` patch at `pose`, bilinear; `None` when a sample's nearest pixels are not
+    /// all valid.
+    fn read(&self, pose: Pose) -> Option<Vec<f32>> {
+        let Pose {
+            c,
+            angle,
+            mirror,
+            frame,
+        } = pose;
         let (s, co) = angle.sin_cos();
         let mut out = Vec::with_capacity(PATCH * PATCH * 3);
         let r = (PATCH / 2) as f32;
         for j in 0..PATCH {
             for i in 0..PATCH {
-                let mut u = (i as f32 - r) * step;
-                let v = (j as f32 - r) * step;
+                let mut u = i as f32 - r;
+                let v = j as f32 - r;
                 if mirror {
                     u = -u;
                 }
-                let x = c.x + co * u - s * v;
-                let y = c.y + s * u + co * v;
+                let at = c + frame * Vec2::new(co * u - s * v, s * u + co * v);
+                let (x, y) = (at.x, at.y);
                 let (x0, y0) = (x.floor(), y.floor());
                 if x0 < 0.0 || y0 < 0.0 || x0 + 1.0 >= self.w as f32 || y0 + 1.0 >= self.h as f32 {
                     return None;
@@ -378,10 +488,15 @@ struct Basis {
     dirs: Vec<Vec<f32>>,
 }
 
-fn pca_basis(patches: &[Vec<f32>]) -> Basis {
-    let d = patches[0].len();
-    let step = (patches.len() / 4000).max(1);
-    let sample: Vec<&Vec<f32>> = patches.iter().step_by(step).collect();
+fn pca_basis(grid: &Grid, poses: &[Pose]) -> Option<Basis> {
+    let step = (poses.len() / 4000).max(1);
+    let sample: Vec<Vec<f32>> = poses
+        .iter()
+        .step_by(step)
+        .filter_map(|&p| grid.read(p))
+        .map(|p| smoothed(&p))
+        .collect();
+    let d = sample.first()?.len();
     let mut mean = vec![0.0f32; d];
     for p in &sample {
         for k in 0..d {
@@ -428,31 +543,84 @@ fn pca_basis(patches: &[Vec<f32>]) -> Basis {
         }
         dirs.push(v.iter().map(|&x| x as f32).collect());
     }
-    Basis { mean, dirs }
+    Some(Basis { mean, dirs })
 }
 
-/// Patches with their PCA coordinates, for nearest-patch queries.
+/// Patches read from a grid, with their poses and PCA coordinates, for nearest-patch queries.
 struct Index<'a> {
-    patches: &'a [Vec<f32>],
+    /// The patches that can be read; each is read again when its exact distance is asked.
+    poses: Vec<Pose>,
     coords: Vec<f32>,
     basis: &'a Basis,
+    grid: &'a Grid<'a>,
 }
 
 impl<'a> Index<'a> {
-    fn new(patches: &'a [Vec<f32>], basis: &'a Basis) -> Index<'a> {
-        let coords = patches
+    fn new(poses: &[Pose], basis: &'a Basis, grid: &'a Grid<'a>) -> Index<'a> {
+        let read: Vec<(Pose, Vec<f32>)> = poses
             .par_iter()
-            .flat_map_iter(|p| project(basis, p))
+            .filter_map(|&pose| Some((pose, project(basis, &grid.read(pose)?))))
             .collect();
+        let coords = read.iter().flat_map(|(_, c)| c.iter().copied()).collect();
         Index {
-            patches,
+            poses: read.into_iter().map(|(p, _)| p).collect(),
             coords,
             basis,
+            grid,
         }
     }
 
-    /// RMS distance (per element, in [0, 1] units) of `q` to its nearest patch.
-    fn nearest(&self, q: &[f32]) -> f32 {
+    /// RMS distance (per element, in [0, 1] units) of `q` to the patch read at `pose`;
+    /// infinite where it cannot be read.
+    fn distance_at(&self, q: &[f32], pose: Pose) -> f32 {
+        self.grid.read(pose).map_or(f32::INFINITY, |p| rms(&p, q))
+    }
+
+    /// The distance of `q` to the grid's patch nearest it in position and angle, starting from
+    /// stored patch `i` at distance `d`: a pattern search in the centre (from `dp` pixels) and
+    /// the angle (from `da`), each halved four times. The stored patches are samples of a
+    /// continuum; a texture that is an exact copy of the image at some offset and turn should
+    /// read as such, not as far as the nearest sample happens to be.
+    fn refine(&self, q: &[f32], i: usize, d: f32, dp: f32, da: f32) -> f32 {
+        let mut pose = self.poses[i];
+        let mut best = d;
+        let (mut dp, mut da) = (dp, da);
+        for _ in 0..5 {
+            loop {
+                let mut moved = false;
+                for (dx, dy, dt) in [
+                    (dp, 0.0, 0.0),
+                    (-dp, 0.0, 0.0),
+                    (0.0, dp, 0.0),
+                    (0.0, -dp, 0.0),
+                    (0.0, 0.0, da),
+                    (0.0, 0.0, -da),
+                ] {
+                    let p = Pose {
+                        c: pose.c + Vec2::new(dx, dy),
+                        angle: pose.angle + dt,
+                        ..pose
+                    };
+                    let e = self.distance_at(q, p);
+                    if e < best {
+                        best = e;
+                        pose = p;
+                        moved = true;
+                    }
+                }
+                if !moved {
+                    break;
+                }
+            }
+            dp *= 0.5;
+            da *= 0.5;
+        }
+        best
+    }
+
+    /// The stored patches nearest `q` by their smoothed PCA coordinates, each with its RMS
+    /// distance to `q` (per element, in [0, 1] units).
+    fn nearest(&self, q: &[f32]) -> Vec<(f32, usize)> {
         let pq = project(self.basis, q);
         let k = pq.len();
         let mut best: Vec<(f32, usize)> = Vec::with_capacity(RERANK + 1);
@@ -465,21 +633,51 @@ impl<'a> Index<'a> {
             }
         }
         best.iter()
-            .map(|&(_, i)| {
-                self.patches[i]
-                    .iter()
-                    .zip(q)
-                    .map(|(a, b)| (a - b) * (a - b))
-                    .sum::<f32>()
-            })
-            .fold(f32::INFINITY, f32::min)
-            .max(0.0)
-            .sqrt()
-            / (q.len() as f32).sqrt()
+            .map(|&(_, i)| (self.distance_at(q, self.poses[i]), i))
+            .collect()
     }
 }
 
+/// RMS difference of two patches, per element.
+fn rms(a: &[f32], b: &[f32]) -> f32 {
+    (a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f32>() / b.len().max(1) as f32)
+        .max(0.0)
+        .sqrt()
+}
+
+/// `p` smoothed by a [1 4 6 4 1] binomial (a Gaussian of one pixel) in each direction, its
+/// border clamped: sharp content that a sampling grid half a pixel or a few degrees off
+/// misreads stays near in these coordinates, so the exact search that follows starts from the
+/// right place.
+fn smoothed(p: &[f32]) -> Vec<f32> {
+    const K: [f32; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
+    let at = |i: isize| i.clamp(0, PATCH as isize - 1) as usize;
+    let mut rows = vec![0.0f32; p.len()];
+    for j in 0..PATCH {
+        for i in 0..PATCH {
+            for ch in 0..3 {
+                rows[(j * PATCH + i) * 3 + ch] = (0..5)
+                    .map(|k| K[k] * p[(j * PATCH + at(i as isize + k as isize - 2)) * 3 + ch])
+                    .sum();
+            }
+        }
+    }
+    let mut out = vec![0.0f32; p.len()];
+    for j in 0..PATCH {
+        for i in 0..PATCH {
+            for ch in 0..3 {
+                out[(j * PATCH + i) * 3 + ch] = (0..5)
+                    .map(|k| K[k] * rows[(at(j as isize + k as isize - 2) * PATCH + i) * 3 + ch])
+                    .sum();
+            }
+        }
+    }
+    out
+}
+
+/// PCA coordinates of `p` smoothed.
 fn project(basis: &Basis, p: &[f32]) -> Vec<f32> {
+    let p = smoothed(p);
     basis
         .dirs
         .iter()

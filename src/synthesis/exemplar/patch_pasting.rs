@@ -13,7 +13,10 @@
 //!    texel of the output texture is a surface point.
 //! 2. **Orientation** of each patch: random for isotropic images, else the field the image's
 //!    anisotropy asks for (a smooth direction field, projected up, or the salient curves'),
-//!    read at the patch's seed, with the field's symmetry.
+//!    read at the patch's seed, with the field's symmetry. A field drawn towards up stands the
+//!    image upright (its up along the field's branch nearest up, or upside down for a line
+//!    field), never on its side, where the surface is steep enough for up to have a direction:
+//!    brick courses stay level on a standing figure, as on a wall.
 //! 3. **Seeds**: texels in a random order; the next one not yet covered starts a patch.
 //! 4. **Flatten**: the discrete exponential map ([`crate::geometry::exp_map`]) of the geodesic
 //!    disc around the seed gives every vertex within reach a 2D coordinate in surface units;
@@ -216,6 +219,11 @@ struct Turn {
     field: Option<Vec<[f32; 3]>>,
     /// 0: patches turn freely (no field); else the field's symmetry.
     symmetry: usize,
+    /// Whether the field was drawn towards "up" (`up`, `relax2`, `relax4`): each patch then
+    /// stands the image upright along the field's branch nearest up (or upside down, for a
+    /// 2- or 4-fold field; never on its side), where the surface is steep enough for up to
+    /// have a direction, as a photograph of a wall or bark is seen.
+    upright: bool,
 }
 
 /// Step 2: the orientation patches follow.
@@ -242,12 +250,19 @@ fn patch_orientation(
         (_, Orientation::Relax2 | Orientation::Features) => 2,
         _ => 1,
     };
+    let upright = field.is_some()
+        && input.field.is_none()
+        && matches!(
+            orientation,
+            Orientation::Up | Orientation::Relax2 | Orientation::Relax4
+        );
     cancel.check()?;
     Ok(Turn {
         orientation,
         anisotropy: anis,
         field,
         symmetry,
+        upright,
     })
 }
 
@@ -344,11 +359,11 @@ fn orientation_field(
     }
     Ok(match orientation {
         Orientation::Random | Orientation::Auto => None,
-        Orientation::Up => Some(vec![[0.0, 1.0, 0.0]; surface.positions.len()]),
+        Orientation::Up => Some(vec![UP.to_array(); surface.positions.len()]),
         Orientation::Features => Some(feature_field(input.target, cancel)?),
         Orientation::Relax2 | Orientation::Relax4 => {
             // the smoothest field nearest "up", smooth at the patches' size
-            let guide = vec![[0.0, 1.0, 0.0]; surface.positions.len()];
+            let guide = vec![UP.to_array(); surface.positions.len()];
             Some(crate::geometry::smooth_direction_field(
                 surface.positions,
                 &surface.faces,
@@ -383,6 +398,31 @@ fn seed_direction(
     let b = n.cross(a);
     let angle = rng.random::<f32>() * std::f32::consts::TAU;
     a * angle.cos() + b * angle.sin()
+}
+
+/// Up, for fields drawn towards it (the guide of [`orientation_field`]).
+const UP: Vec3 = Vec3::Y;
+
+/// Least share of up in the tangent plane for a patch to stand upright: surfaces within 60
+/// degrees of vertical. On flatter ones up has no direction to give.
+const UPRIGHT_MIN: f32 = 0.5;
+
+/// The `e1` that stands the image upright (its up, the patch's `n × e1`, along the branch of
+/// the `symmetry`-fold field `dir` nearest up), or `None` where the surface at normal `n` is too
+/// flat for up to have a direction.
+fn upright(dir: Vec3, n: Vec3, symmetry: usize) -> Option<Vec3> {
+    let up = UP - n * n.dot(UP);
+    if up.length() < UPRIGHT_MIN || symmetry == 0 {
+        return None;
+    }
+    let side = n.cross(dir);
+    let best = (0..symmetry)
+        .map(|k| {
+            let a = k as f32 * std::f32::consts::TAU / symmetry as f32;
+            dir * a.cos() + side * a.sin()
+        })
+        .max_by(|a, b| a.dot(up).total_cmp(&b.dot(up)))?;
+    Some(best.cross(n).normalize_or_zero()).filter(|e| e.length_squared() > 0.5)
 }
 
 /// What every patch reads.
@@ -592,11 +632,16 @@ impl Context<'_> {
             let (face, bary) = texels[seed_texel as usize].expect("a layout texel");
             let n = s.normal(face, bary);
             let e1 = seed_direction(s, turn.field.as_deref(), face, bary, n, &mut rng);
+            // upright, or upside down where the field is a line field: not on its side
+            let (e1, symmetry) = match turn.upright.then(|| upright(e1, n, turn.symmetry)) {
+                Some(Some(e1)) => (e1, turn.symmetry.min(2)),
+                _ => (e1, turn.symmetry),
+            };
             let Some(patch) = self.flatten(face, bary, n, e1, &mut scratch) else {
                 continue;
             };
             let splotch = Splotch::random(&mut rng, self.pp);
-            let place = self.place(&patch, &splotch, &canvas, turn.symmetry, &mut rng);
+            let place = self.place(&patch, &splotch, &canvas, symmetry, &mut rng);
             self.paste(&patch, &splotch, &place, &mut canvas);
             patches += 1;
             if last_report.secs() > 0.1 {
@@ -1117,4 +1162,30 @@ fn bilinear_scalar(v: &[f32], w: usize, h: usize, p: Vec2) -> f32 {
     };
     (at(x0, y0) * (1.0 - fx) + at(x0 + 1.0, y0) * fx) * (1.0 - fy)
         + (at(x0, y0 + 1.0) * (1.0 - fx) + at(x0 + 1.0, y0 + 1.0) * fx) * fy
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_patch_stands_upright_on_a_wall_and_turns_freely_on_a_floor() {
+        let wall = Vec3::Z;
+        for (dir, symmetry) in [(Vec3::Y, 4), (Vec3::X, 4), (-Vec3::X, 4), (-Vec3::Y, 2)] {
+            let e1 = upright(dir, wall, symmetry).expect("a wall has an up");
+            // the image's up is the patch's n × e1
+            let image_up = wall.cross(e1);
+            assert!(
+                image_up.dot(Vec3::Y).abs() > 0.999,
+                "{dir} ({symmetry}-fold): the image's up is {image_up}"
+            );
+        }
+        // a 2-fold field across a wall stays as the field says: up is not one of its branches
+        let across = upright(Vec3::X, wall, 2).expect("a wall has an up");
+        assert!(wall.cross(across).dot(Vec3::X).abs() > 0.999);
+        // a floor gives no up, nor a tilted roof beyond 60 degrees from vertical
+        assert!(upright(Vec3::X, Vec3::Y, 4).is_none());
+        let roof = Vec3::new(0.0, 70f32.to_radians().sin(), 70f32.to_radians().cos());
+        assert!(upright(Vec3::X, roof, 4).is_none());
+    }
 }
