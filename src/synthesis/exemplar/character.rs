@@ -293,38 +293,17 @@ pub fn measure_with(
     // a turn: the nearest is refined within those gaps
     let patch_distance = queries
         .par_iter()
-        .map(|rots| {
-            let mut found: Vec<(f32, usize, usize)> = rots
-                .iter()
-                .enumerate()
-                .flat_map(|(r, q)| forward.nearest(q).into_iter().map(move |(d, i)| (d, i, r)))
-                .collect();
-            found.sort_by(|a, b| a.0.total_cmp(&b.0));
-            found
-                .iter()
-                .take(REFINED)
-                .map(|&(d, i, r)| forward.refine(&rots[r], i, d, stride as f32 / 2.0, TAU / 32.0))
-                .fold(f32::INFINITY, f32::min) as f64
-        })
+        .map(|rots| forward.distance(rots, |_| stride as f32 / 2.0, TAU / 32.0) as f64)
         .sum::<f64>()
         / queries.len() as f64;
+    // the texture's patches lie at random texels, eight turns each: refined from half an image
+    // pixel (in texels, through the patch's frame) and a sixteenth of a turn
     let reverse = Index::new(&texture_poses, &basis, &tex_img);
     let reverse_distance = image_queries
         .par_iter()
         .map(|both| {
-            let mut found: Vec<(f32, usize, &Vec<f32>)> = both
-                .iter()
-                .flat_map(|q| reverse.nearest(q).into_iter().map(move |(d, i)| (d, i, q)))
-                .collect();
-            found.sort_by(|a, b| a.0.total_cmp(&b.0));
-            found
-                .iter()
-                .take(REFINED)
-                .map(|&(d, i, q)| {
-                    let dp = 0.5 * reverse.poses[i].frame.determinant().abs().sqrt();
-                    reverse.refine(q, i, d, dp, TAU / 16.0)
-                })
-                .fold(f32::INFINITY, f32::min) as f64
+            let half_pixel = |p: Pose| 0.5 * p.frame.determinant().abs().sqrt();
+            reverse.distance(both, half_pixel, TAU / 16.0) as f64
         })
         .sum::<f64>()
         / image_queries.len().max(1) as f64;
@@ -620,6 +599,23 @@ impl<'a> Index<'a> {
             da *= 0.5;
         }
         best
+    }
+
+    /// The distance of the nearest of `readings` (a patch's rotations, or it and its mirror)
+    /// to the grid: the stored candidates of every reading, the best [`REFINED`] of them
+    /// refined from `dp(pose)` pixels and `da` radians.
+    fn distance(&self, readings: &[Vec<f32>], dp: impl Fn(Pose) -> f32, da: f32) -> f32 {
+        let mut found: Vec<(f32, usize, usize)> = readings
+            .iter()
+            .enumerate()
+            .flat_map(|(r, q)| self.nearest(q).into_iter().map(move |(d, i)| (d, i, r)))
+            .collect();
+        found.sort_by(|a, b| a.0.total_cmp(&b.0));
+        found
+            .iter()
+            .take(REFINED)
+            .map(|&(d, i, r)| self.refine(&readings[r], i, d, dp(self.poses[i]), da))
+            .fold(f32::INFINITY, f32::min)
     }
 
     /// The stored patches nearest `q` by their smoothed PCA coordinates, each with its RMS
