@@ -633,9 +633,13 @@ impl Context<'_> {
             let n = s.normal(face, bary);
             let e1 = seed_direction(s, turn.field.as_deref(), face, bary, n, &mut rng);
             // upright, or upside down where the field is a line field: not on its side
-            let (e1, symmetry) = match turn.upright.then(|| upright(e1, n, turn.symmetry)) {
-                Some(Some(e1)) => (e1, turn.symmetry.min(2)),
-                _ => (e1, turn.symmetry),
+            let (e1, symmetry) = match turn
+                .upright
+                .then(|| upright(e1, n, turn.symmetry))
+                .flatten()
+            {
+                Some(up) => (up, turn.symmetry.min(2)),
+                None => (e1, turn.symmetry),
             };
             let Some(patch) = self.flatten(face, bary, n, e1, &mut scratch) else {
                 continue;
