@@ -21,7 +21,9 @@
 //! 4. **Flatten**: the discrete exponential map ([`crate::geometry::exp_map`]) of the geodesic
 //!    disc around the seed gives every vertex within reach a 2D coordinate in surface units;
 //!    faces whose flattened edges stretch by more than 2x (where the disc wraps around a thin
-//!    part and meets itself) or flip are left out of the patch, for another patch to cover.
+//!    part and meets itself) or flip are left out of the patch, for another patch to cover,
+//!    and so is whatever lies beyond them, out of reach of the seed's face across kept faces'
+//!    edges (the far side of a nose, the next finger), which pasted would leave shards.
 //! 5. **Splotch**: the patch's shape is a disc whose rim wobbles (a few random harmonics, as
 //!    lapped textures' hand-drawn splotch), with a feathered edge.
 //! 6. **Place**: among random image positions (and rotations, when the field allows), the one
@@ -29,6 +31,8 @@
 //!    footprint (sum of squared differences weighted by both alphas, over the image's colour
 //!    variance), plus a penalty for parts of the image that more texels already show than the
 //!    average (counted texel by texel, so the texture keeps the image's colour distribution),
+//!    and one for the transparent share of the disc in an image with holes (a disc that is
+//!    mostly hole leaves a crescent, and a surface pieced from crescents is all seams),
 //!    refined by a pattern search.
 //! 7. **Paste**: each texel of the patch's faces reads the full-resolution image at its
 //!    coordinate (bilinear). Where something is already there, the patch shows only inside a
@@ -73,6 +77,10 @@ pub struct PatchParams {
     /// it, relative to the mean over the image), against its mismatch in units of the image's
     /// colour variance, so that all of the image reaches the surface in its own proportions.
     pub usage_weight: f32,
+    /// How much a placement's score grows with the transparent share of its disc (an image with
+    /// holes): patches carry the image's opaque parts across their whole disc instead of
+    /// leaving crescents around a hole for other patches to fill.
+    pub transparency_weight: f32,
 }
 
 impl Default for PatchParams {
@@ -83,6 +91,7 @@ impl Default for PatchParams {
             wobble: 0.18,
             candidates: 192,
             usage_weight: 0.5,
+            transparency_weight: 4.0,
         }
     }
 }
@@ -508,6 +517,9 @@ struct Scratch {
     uv: Vec<[f32; 2]>,
     stamp: Vec<u32>,
     fstamp: Vec<u32>,
+    /// Per face: its index in the patch being built, valid where `member` is `now`.
+    slot: Vec<u32>,
+    member: Vec<u32>,
     now: u32,
 }
 
@@ -620,6 +632,8 @@ impl Context<'_> {
             uv: vec![[0.0; 2]; s.positions.len()],
             stamp: vec![0; s.positions.len()],
             fstamp: vec![0; s.faces.len()],
+            slot: vec![0; s.faces.len()],
+            member: vec![0; s.faces.len()],
             now: 0,
         };
         let mut patches = 0usize;
@@ -688,6 +702,7 @@ impl Context<'_> {
         if sc.now == 0 {
             sc.stamp.fill(0);
             sc.fstamp.fill(0);
+            sc.member.fill(0);
             sc.now = 1;
         }
         let now = sc.now;
@@ -726,7 +741,11 @@ impl Context<'_> {
                 patch.corners.push(q);
             }
         }
-        seed_kept.then_some(patch)
+        if !seed_kept {
+            return None;
+        }
+        keep_seed_component(&s.faces, &self.vertex_faces, &mut patch, face, sc);
+        Some(patch)
     }
 
     /// Alpha and image point of a texel at barycentric `b` of a patch face with flattened
@@ -870,7 +889,8 @@ impl Context<'_> {
         let core_px = self.radius * (1.0 - self.pp.wobble - self.pp.feather) / self.pixel;
         let mean_usage = canvas.usage.iter().sum::<f32>() / canvas.usage.len() as f32;
         let score = |pl: &Placement| -> f32 {
-            let s = score(pl) / (2.0 * self.variance);
+            let s = score(pl) / (2.0 * self.variance)
+                + self.pp.transparency_weight * self.transparent_share(pl.centre);
             if mean_usage <= 0.0 {
                 return s;
             }
@@ -903,6 +923,14 @@ impl Context<'_> {
             bounds,
             score,
         )
+    }
+
+    /// The transparent share of a patch's disc centred at image point `c` (0 for an opaque
+    /// image).
+    fn transparent_share(&self, c: Vec2) -> f32 {
+        self.opacity.map_or(0.0, |op| {
+            transparent_share(op, self.image.w, self.image.h, c, self.radius / self.pixel)
+        })
     }
 
     /// Step 7: composite the patch's texels over the canvas.
@@ -1121,6 +1149,71 @@ fn usage_under(usage: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
     usage[cy * USAGE + cx]
 }
 
+/// Keeps the faces of `patch` reached from `seed_face` across edges shared by kept faces: where
+/// a torn or folded face was left out, what lies beyond it (the far side of a nose, the next
+/// finger) is a separate piece of the flattening, and pasted it would leave shards among other
+/// patches.
+fn keep_seed_component(
+    faces: &[[u32; 3]],
+    vertex_faces: &Csr,
+    patch: &mut Patch,
+    seed_face: u32,
+    sc: &mut Scratch,
+) {
+    let now = sc.now;
+    for (i, &f) in patch.faces.iter().enumerate() {
+        sc.member[f as usize] = now;
+        sc.slot[f as usize] = i as u32;
+    }
+    let mut keep = vec![false; patch.faces.len()];
+    let mut stack = vec![seed_face];
+    keep[sc.slot[seed_face as usize] as usize] = true;
+    while let Some(f) = stack.pop() {
+        let c = faces[f as usize];
+        for &v in &c {
+            for &g in vertex_faces.row(v as usize) {
+                if sc.member[g as usize] != now {
+                    continue;
+                }
+                let i = sc.slot[g as usize] as usize;
+                if keep[i] {
+                    continue;
+                }
+                let shared = faces[g as usize].iter().filter(|w| c.contains(w)).count();
+                if shared >= 2 {
+                    keep[i] = true;
+                    stack.push(g);
+                }
+            }
+        }
+    }
+    let mut kept = keep.iter();
+    patch
+        .faces
+        .retain(|_| *kept.next().expect("a flag per face"));
+    let mut kept = keep.iter();
+    patch
+        .corners
+        .retain(|_| *kept.next().expect("a flag per face"));
+}
+
+/// The transparent share of a disc of radius `r` pixels centred at image point `c` under the
+/// `w` x `h` opacity `op`, read at the centre and on two rings at 0.4 and 0.75 of the radius: a
+/// disc that is mostly hole covers only a crescent of its seed's surroundings, and a surface
+/// pieced together from crescents is all seams and fades.
+fn transparent_share(op: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
+    let last = Vec2::new(w as f32 - 1.0, h as f32 - 1.0);
+    let mut opaque = bilinear_scalar(op, w, h, c);
+    for k in 0..8 {
+        let dir = Vec2::from_angle(k as f32 * std::f32::consts::TAU / 8.0);
+        for ring in [0.4, 0.75] {
+            let p = (c + dir * ring * r).clamp(Vec2::ZERO, last);
+            opaque += bilinear_scalar(op, w, h, p);
+        }
+    }
+    1.0 - opaque / 17.0
+}
+
 /// Whether a face's flattening is faithful: not flipped, and no edge stretched or shrunk by more
 /// than 2x (where a disc wraps around a thin part its two fronts meet with unrelated
 /// coordinates).
@@ -1171,6 +1264,68 @@ fn bilinear_scalar(v: &[f32], w: usize, h: usize, p: Vec2) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_disc_over_a_hole_reads_as_mostly_transparent() {
+        // a 100 x 100 image with a round hole of radius 30 in the middle
+        let (w, h) = (100, 100);
+        let op: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let p = Vec2::new((i % w) as f32, (i / w) as f32);
+                if p.distance(Vec2::splat(50.0)) < 30.0 {
+                    0.0
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let share = |c: Vec2| transparent_share(&op, w, h, c, 20.0);
+        assert!(
+            share(Vec2::splat(50.0)) > 0.99,
+            "{}",
+            share(Vec2::splat(50.0))
+        );
+        assert!(
+            share(Vec2::splat(15.0)) < 0.01,
+            "{}",
+            share(Vec2::splat(15.0))
+        );
+        // a disc on the hole's rim: about half hole
+        let rim = share(Vec2::new(80.0, 50.0));
+        assert!((0.3..0.7).contains(&rim), "{rim}");
+    }
+
+    #[test]
+    fn a_patch_keeps_only_the_piece_its_seed_is_on() {
+        // a strip of three faces (0-1-2 across edges), a face touching it at a corner only (3),
+        // and face 5, whose only edge-neighbour (4) was left out of the patch as torn
+        let faces = [
+            [0, 1, 2],
+            [1, 3, 2],
+            [2, 3, 4],
+            [4, 5, 6],
+            [7, 8, 9],
+            [8, 10, 9],
+        ];
+        let vertex_faces = crate::mesh::vertex_faces(11, &faces);
+        let mut patch = Patch {
+            faces: vec![0, 3, 2, 1, 5],
+            corners: (1..6).map(|i| [Vec2::splat(i as f32); 3]).collect(),
+        };
+        let mut sc = Scratch {
+            uv: Vec::new(),
+            stamp: Vec::new(),
+            fstamp: Vec::new(),
+            slot: vec![0; faces.len()],
+            member: vec![0; faces.len()],
+            now: 1,
+        };
+        keep_seed_component(&faces, &vertex_faces, &mut patch, 1, &mut sc);
+        assert_eq!(patch.faces, vec![0, 2, 1]);
+        // each face keeps its own corners
+        assert_eq!(patch.corners[1][0], Vec2::splat(3.0));
+        assert_eq!(patch.corners.len(), 3);
+    }
 
     #[test]
     fn a_patch_stands_upright_on_a_wall_and_turns_freely_on_a_floor() {
