@@ -21,9 +21,7 @@
 //! 4. **Flatten**: the discrete exponential map ([`crate::geometry::exp_map`]) of the geodesic
 //!    disc around the seed gives every vertex within reach a 2D coordinate in surface units;
 //!    faces whose flattened edges stretch by more than 2x (where the disc wraps around a thin
-//!    part and meets itself) or flip are left out of the patch, for another patch to cover,
-//!    and so is whatever lies beyond them, out of reach of the seed's face across kept faces'
-//!    edges (the far side of a nose, the next finger), which pasted would leave shards.
+//!    part and meets itself) or flip are left out of the patch, for another patch to cover.
 //! 5. **Splotch**: the patch's shape is a disc whose rim wobbles (a few random harmonics, as
 //!    lapped textures' hand-drawn splotch), with a feathered edge.
 //! 6. **Place**: among random image positions (and rotations, when the field allows), the one
@@ -517,9 +515,6 @@ struct Scratch {
     uv: Vec<[f32; 2]>,
     stamp: Vec<u32>,
     fstamp: Vec<u32>,
-    /// Per face: its index in the patch being built, valid where `member` is `now`.
-    slot: Vec<u32>,
-    member: Vec<u32>,
     now: u32,
 }
 
@@ -632,8 +627,6 @@ impl Context<'_> {
             uv: vec![[0.0; 2]; s.positions.len()],
             stamp: vec![0; s.positions.len()],
             fstamp: vec![0; s.faces.len()],
-            slot: vec![0; s.faces.len()],
-            member: vec![0; s.faces.len()],
             now: 0,
         };
         let mut patches = 0usize;
@@ -702,7 +695,6 @@ impl Context<'_> {
         if sc.now == 0 {
             sc.stamp.fill(0);
             sc.fstamp.fill(0);
-            sc.member.fill(0);
             sc.now = 1;
         }
         let now = sc.now;
@@ -741,11 +733,7 @@ impl Context<'_> {
                 patch.corners.push(q);
             }
         }
-        if !seed_kept {
-            return None;
-        }
-        keep_seed_component(&s.faces, &self.vertex_faces, &mut patch, face, sc);
-        Some(patch)
+        seed_kept.then_some(patch)
     }
 
     /// Alpha and image point of a texel at barycentric `b` of a patch face with flattened
@@ -1149,54 +1137,6 @@ fn usage_under(usage: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
     usage[cy * USAGE + cx]
 }
 
-/// Keeps the faces of `patch` reached from `seed_face` across edges shared by kept faces: where
-/// a torn or folded face was left out, what lies beyond it (the far side of a nose, the next
-/// finger) is a separate piece of the flattening, and pasted it would leave shards among other
-/// patches.
-fn keep_seed_component(
-    faces: &[[u32; 3]],
-    vertex_faces: &Csr,
-    patch: &mut Patch,
-    seed_face: u32,
-    sc: &mut Scratch,
-) {
-    let now = sc.now;
-    for (i, &f) in patch.faces.iter().enumerate() {
-        sc.member[f as usize] = now;
-        sc.slot[f as usize] = i as u32;
-    }
-    let mut keep = vec![false; patch.faces.len()];
-    let mut stack = vec![seed_face];
-    keep[sc.slot[seed_face as usize] as usize] = true;
-    while let Some(f) = stack.pop() {
-        let c = faces[f as usize];
-        for &v in &c {
-            for &g in vertex_faces.row(v as usize) {
-                if sc.member[g as usize] != now {
-                    continue;
-                }
-                let i = sc.slot[g as usize] as usize;
-                if keep[i] {
-                    continue;
-                }
-                let shared = faces[g as usize].iter().filter(|w| c.contains(w)).count();
-                if shared >= 2 {
-                    keep[i] = true;
-                    stack.push(g);
-                }
-            }
-        }
-    }
-    let mut kept = keep.iter();
-    patch
-        .faces
-        .retain(|_| *kept.next().expect("a flag per face"));
-    let mut kept = keep.iter();
-    patch
-        .corners
-        .retain(|_| *kept.next().expect("a flag per face"));
-}
-
 /// The transparent share of a disc of radius `r` pixels centred at image point `c` under the
 /// `w` x `h` opacity `op`, read at the centre and on two rings at 0.4 and 0.75 of the radius: a
 /// disc that is mostly hole covers only a crescent of its seed's surroundings, and a surface
@@ -1293,38 +1233,6 @@ mod tests {
         // a disc on the hole's rim: about half hole
         let rim = share(Vec2::new(80.0, 50.0));
         assert!((0.3..0.7).contains(&rim), "{rim}");
-    }
-
-    #[test]
-    fn a_patch_keeps_only_the_piece_its_seed_is_on() {
-        // a strip of three faces (0-1-2 across edges), a face touching it at a corner only (3),
-        // and face 5, whose only edge-neighbour (4) was left out of the patch as torn
-        let faces = [
-            [0, 1, 2],
-            [1, 3, 2],
-            [2, 3, 4],
-            [4, 5, 6],
-            [7, 8, 9],
-            [8, 10, 9],
-        ];
-        let vertex_faces = crate::mesh::vertex_faces(11, &faces);
-        let mut patch = Patch {
-            faces: vec![0, 3, 2, 1, 5],
-            corners: (1..6).map(|i| [Vec2::splat(i as f32); 3]).collect(),
-        };
-        let mut sc = Scratch {
-            uv: Vec::new(),
-            stamp: Vec::new(),
-            fstamp: Vec::new(),
-            slot: vec![0; faces.len()],
-            member: vec![0; faces.len()],
-            now: 1,
-        };
-        keep_seed_component(&faces, &vertex_faces, &mut patch, 1, &mut sc);
-        assert_eq!(patch.faces, vec![0, 2, 1]);
-        // each face keeps its own corners
-        assert_eq!(patch.corners[1][0], Vec2::splat(3.0));
-        assert_eq!(patch.corners.len(), 3);
     }
 
     #[test]
