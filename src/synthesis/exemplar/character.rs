@@ -255,11 +255,11 @@ pub fn measure_with(
             }
         }
         if texture_poses.len() < TEXTURE_PATCHES {
-            let a = rng.random::<f32>() * std::f32::consts::TAU;
+            let a = rng.random::<f32>() * TAU;
             for r in 0..8 {
                 let pose = Pose {
                     c: at,
-                    angle: a + r as f32 * std::f32::consts::TAU / 8.0,
+                    angle: a + r as f32 * TAU / 8.0,
                     mirror: false,
                     frame,
                 };

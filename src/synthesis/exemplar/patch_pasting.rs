@@ -1140,15 +1140,14 @@ fn usage_under(usage: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
 /// The transparent share of a disc of radius `r` pixels centred at image point `c` under the
 /// `w` x `h` opacity `op`, read at the centre and on two rings at 0.4 and 0.75 of the radius: a
 /// disc that is mostly hole covers only a crescent of its seed's surroundings, and a surface
-/// pieced together from crescents is all seams and fades.
+/// pieced together from crescents is all seams and fades. Points past the image's border read
+/// its edge.
 fn transparent_share(op: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
-    let last = Vec2::new(w as f32 - 1.0, h as f32 - 1.0);
     let mut opaque = bilinear_scalar(op, w, h, c);
     for k in 0..8 {
         let dir = Vec2::from_angle(k as f32 * std::f32::consts::TAU / 8.0);
         for ring in [0.4, 0.75] {
-            let p = (c + dir * ring * r).clamp(Vec2::ZERO, last);
-            opaque += bilinear_scalar(op, w, h, p);
+            opaque += bilinear_scalar(op, w, h, c + dir * ring * r);
         }
     }
     1.0 - opaque / 17.0
