@@ -209,14 +209,19 @@ fn app_starts_on_the_demo_scene_and_streams_the_transfer() {
     );
 }
 
-/// Whether `xdotool` (pointer and keyboard input for a test under X) is installed.
+/// Whether `xdotool` (pointer and keyboard input for a test under X) is installed. Installed
+/// but unable to reach the X server named by `DISPLAY` is a failure, not a reason to skip.
 fn have_xdotool() -> bool {
-    Command::new("xdotool")
-        .arg("version")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
+    let Ok(out) = Command::new("xdotool").arg("getdisplaygeometry").output() else {
+        return false;
+    };
+    assert!(
+        out.status.success(),
+        "DISPLAY={:?} is set but xdotool cannot reach it: {}",
+        std::env::var_os("DISPLAY").unwrap_or_default(),
+        String::from_utf8_lossy(&out.stderr).trim()
+    );
+    true
 }
 
 fn xdotool(args: &[&str]) {
