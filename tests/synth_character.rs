@@ -286,3 +286,80 @@ fn the_patch_distance_reads_a_faithful_copy_as_the_image_and_a_blurred_one_as_fu
         a.patch_distance
     );
 }
+
+/// A disc laid over a part rounder than itself (a hand, a foot, a head) flattens with its
+/// pixels stretched and, past the part's far side, torn: such a patch is made smaller until
+/// little of it is distorted. A flat sheet keeps every patch's radius, and so does a thin tube,
+/// fine or coarse: a disc wraps round a cylinder without distortion and meets itself along one
+/// line, a single seam, where smaller patches would only add seams. On a ball a third of the
+/// disc's radius every patch shrinks, and the texture is then much nearer the image's patches
+/// than with shrinking off.
+#[test]
+fn patches_shrink_on_parts_rounder_than_a_disc_and_only_there() {
+    use meshmatch::mesh::TriMesh;
+    use meshmatch::testdata::{cylinder, grid_cells, icosphere};
+    let (tex, _) =
+        meshmatch::mesh::io::load_texture_with_alpha(&data_path("textures/3.jpg")).unwrap();
+    // the image a unit wide on the surface: discs of radius 0.3 (0.3 of its side)
+    let run = |mesh: &TriMesh, pp: &PatchParams| {
+        let input = TextureInput {
+            exemplar: &tex.image,
+            alpha: None,
+            target: mesh,
+            field: None,
+        };
+        let mut params = TextureParams {
+            texture_size: 512,
+            ..Default::default()
+        };
+        params.synth.scale = Some(1.0);
+        paste_patches(&input, &params, pp, &|_| {}, &CancelToken::new()).unwrap()
+    };
+    let (p, f) = grid_cells(60, 60, 1.0 / 20.0);
+    let sheet = run(&TriMesh::new(p, f), &PatchParams::default());
+    assert!(sheet.patches > 5, "{} patches", sheet.patches);
+    assert_eq!(sheet.shrunk, 0, "a flat sheet distorts no disc");
+    // circumference 0.38: a disc 0.6 across wraps round it
+    for around in [48, 6] {
+        let (p, f) = cylinder(0.06, 2.0, around, 160);
+        let tube = run(&TriMesh::new(p, f), &PatchParams::default());
+        assert_eq!(
+            tube.shrunk, 0,
+            "a tube {around} faces round: {} of {} patches shrunk",
+            tube.shrunk, tube.patches
+        );
+    }
+
+    let (p, f) = icosphere(4);
+    let ball = TriMesh::new(p.iter().map(|x| x.map(|c| 0.1 * c)).collect(), f);
+    let shrinking = run(&ball, &PatchParams::default());
+    let whole = run(
+        &ball,
+        &PatchParams {
+            distortion_limit: 1.0,
+            ..Default::default()
+        },
+    );
+    assert_eq!(whole.shrunk, 0);
+    assert!(
+        shrinking.shrunk == shrinking.patches && shrinking.patches > 0,
+        "{} of {} patches shrunk on a small ball",
+        shrinking.shrunk,
+        shrinking.patches
+    );
+    let ex = Exemplar {
+        image: &tex.image,
+        alpha: None,
+        scale: 1.0,
+    };
+    let distance = |r: &meshmatch::synthesis::exemplar::patch_pasting::PatchOutput| {
+        let texture = &r.mesh.texture.as_ref().unwrap().image;
+        measure(&r.mesh, texture, &ex, 1).unwrap().patch_distance
+    };
+    let (ours, before) = (distance(&shrinking), distance(&whole));
+    eprintln!("small ball: patch distance {ours:.2} shrinking, {before:.2} without");
+    assert!(
+        ours < 0.8 * before,
+        "patch distance {ours:.2} with shrinking against {before:.2} without"
+    );
+}

@@ -22,6 +22,13 @@
 //!    disc around the seed gives every vertex within reach a 2D coordinate in surface units;
 //!    faces whose flattened edges stretch by more than 2x (where the disc wraps around a thin
 //!    part and meets itself) or flip are left out of the patch, for another patch to cover.
+//!    Where the flattening distorts more than a tenth of the disc's surface (edges stretched or
+//!    shrunk by more than a quarter: the disc covers a part rounder than itself, a hand, a
+//!    foot, a head), the disc is shrunk a quarter at a time until it fits, down to a quarter of
+//!    the radius: the image's pixels keep their size and shape on a smaller patch, where a
+//!    large one would show them stretched and torn. A disc wrapped round a limb (a cylinder,
+//!    flattened without distortion) keeps its size: it meets itself along one line, a single
+//!    seam, and smaller patches would only add seams.
 //! 5. **Splotch**: the patch's shape is a disc whose rim wobbles (a few random harmonics, as
 //!    lapped textures' hand-drawn splotch), with a feathered edge.
 //! 6. **Place**: among random image positions (and rotations, when the field allows), the one
@@ -79,6 +86,13 @@ pub struct PatchParams {
     /// holes): patches carry the image's opaque parts across their whole disc instead of
     /// leaving crescents around a hole for other patches to fill.
     pub transparency_weight: f32,
+    /// The share of a disc's surface its flattening may distort (edges stretched or shrunk by
+    /// more than a quarter, where the disc covers a part rounder than itself: a hand, a foot, a
+    /// head) before the patch is made smaller, a quarter at a time, down to
+    /// [`PatchParams::smallest`]. 1 never shrinks.
+    pub distortion_limit: f32,
+    /// The smallest patch radius, as a fraction of [`PatchParams::radius`].
+    pub smallest: f32,
 }
 
 impl Default for PatchParams {
@@ -90,6 +104,8 @@ impl Default for PatchParams {
             candidates: 192,
             usage_weight: 0.5,
             transparency_weight: 4.0,
+            distortion_limit: 0.1,
+            smallest: 0.25,
         }
     }
 }
@@ -107,6 +123,8 @@ pub struct PatchOutput {
     pub patches: usize,
     /// Patch radius in surface units.
     pub radius: f32,
+    /// Patches made smaller than `radius` to fit a part thinner than a disc.
+    pub shrunk: usize,
     /// Share of the layout's texels no patch reached (filled from their neighbours).
     pub uncovered: f64,
     /// The orientation used (`Auto` resolved).
@@ -116,6 +134,14 @@ pub struct PatchOutput {
     /// Wall-clock seconds of the whole call.
     pub seconds: f64,
 }
+
+/// The factor a distorted patch's radius shrinks by per try: a quarter at a time, so that a
+/// disc loses no more than it must (halving gave up whole structures for more seams).
+const SHRINK: f32 = 0.75;
+
+/// The stretch beyond which a kept face counts as distorted: an edge flattened more than a
+/// quarter longer or shorter than it is.
+const DISTORTED: f32 = 1.25;
 
 /// Overlap texels a placement is scored on, at most.
 const SCORE_SAMPLES: usize = 384;
@@ -170,12 +196,13 @@ pub fn paste_patches(
         opacity: opacity.as_deref(),
         pixel,
         radius,
-        reach: radius * (1.0 + pp.wobble) * 1.1 + longest_edge(&surface),
+        edge: longest_edge(&surface),
         border_fade,
         variance: colour_variance(&image, opacity.as_deref()),
         pp,
     };
-    let (canvas, patches) = ctx.paste_all(&turn, params.synth.seed, &total, sink, cancel)?;
+    let (canvas, patches, shrunk) =
+        ctx.paste_all(&turn, params.synth.seed, &total, sink, cancel)?;
 
     let (pixels, covered, uncovered) = canvas.texture(&texels);
     set_texture(&mut mesh, size, pixels, covered);
@@ -185,6 +212,7 @@ pub fn paste_patches(
         atlas_reason,
         patches,
         radius,
+        shrunk,
         uncovered,
         orientation_used: turn.orientation,
         anisotropy: turn.anisotropy,
@@ -303,13 +331,24 @@ fn check_inputs(input: &TextureInput, params: &TextureParams, pp: &PatchParams) 
     if !(ok(pp.radius, 0.05, 0.5)
         && ok(pp.feather, 0.01, 0.5)
         && ok(pp.wobble, 0.0, 0.5)
-        && ok(pp.usage_weight, 0.0, 10.0))
+        && ok(pp.usage_weight, 0.0, 10.0)
+        && ok(pp.transparency_weight, 0.0, 100.0)
+        && ok(pp.distortion_limit, 0.0, 1.0)
+        && ok(pp.smallest, 0.05, 1.0))
         || pp.candidates == 0
     {
         return Err(Error::InvalidInput(format!(
             "patch parameters out of range: radius {} (0.05-0.5), feather {} (0.01-0.5), wobble \
-             {} (0-0.5), usage weight {} (0-10), candidates {} (1 or more)",
-            pp.radius, pp.feather, pp.wobble, pp.usage_weight, pp.candidates
+             {} (0-0.5), usage weight {} (0-10), transparency weight {} (0-100), tear limit {} \
+             (0-1), smallest {} (0.05-1), candidates {} (1 or more)",
+            pp.radius,
+            pp.feather,
+            pp.wobble,
+            pp.usage_weight,
+            pp.transparency_weight,
+            pp.distortion_limit,
+            pp.smallest,
+            pp.candidates
         )));
     }
     Ok(())
@@ -445,8 +484,8 @@ struct Context<'a> {
     pixel: f32,
     /// Patch radius in surface units.
     radius: f32,
-    /// How far a flattening reaches.
-    reach: f32,
+    /// The longest edge: how far beyond a disc's rim a flattening reaches.
+    edge: f32,
     /// Image pixels over which a patch fades out at the image's border.
     border_fade: f32,
     /// The image's colour variance (summed over the channels, opaque pixels): half the mean
@@ -528,10 +567,12 @@ struct Patch {
 struct Splotch {
     harmonics: [(f32, f32); 4],
     feather: f32,
+    /// The patch's radius in surface units.
+    radius: f32,
 }
 
 impl Splotch {
-    fn random(rng: &mut impl Rng, pp: &PatchParams) -> Splotch {
+    fn random(rng: &mut impl Rng, pp: &PatchParams, radius: f32) -> Splotch {
         let mut harmonics = [(0.0, 0.0); 4];
         let mut total = 0.0;
         for (k, h) in harmonics.iter_mut().enumerate() {
@@ -546,6 +587,7 @@ impl Splotch {
         Splotch {
             harmonics,
             feather: pp.feather,
+            radius,
         }
     }
 
@@ -600,7 +642,8 @@ impl Placement {
 
 impl Context<'_> {
     /// Steps 3-7 for every patch: seeds in a random order, each not yet covered starting a
-    /// patch that is flattened, shaped, placed and pasted. Returns the canvas and the count.
+    /// patch that is flattened, shaped, placed and pasted. Returns the canvas, the patches'
+    /// count and how many of them were made smaller.
     fn paste_all(
         &self,
         turn: &Turn,
@@ -608,7 +651,7 @@ impl Context<'_> {
         total: &Stopwatch,
         sink: &dyn Fn(Event),
         cancel: &CancelToken,
-    ) -> Result<(Canvas, usize)> {
+    ) -> Result<(Canvas, usize, usize)> {
         let (s, texels) = (self.surface, self.texels);
         let mut canvas = Canvas {
             color: vec![[0.0; 3]; texels.len()],
@@ -629,7 +672,7 @@ impl Context<'_> {
             fstamp: vec![0; s.faces.len()],
             now: 0,
         };
-        let mut patches = 0usize;
+        let (mut patches, mut shrunk) = (0usize, 0usize);
         let mut last_report = Stopwatch::start();
         for &seed_texel in &order {
             if canvas.alpha[seed_texel as usize] >= 0.5 {
@@ -648,10 +691,12 @@ impl Context<'_> {
                 Some(up) => (up, turn.symmetry.min(2)),
                 None => (e1, turn.symmetry),
             };
-            let Some(patch) = self.flatten(face, bary, n, e1, &mut scratch) else {
+            let Some((patch, radius)) = self.flatten_fitting(face, bary, n, e1, &mut scratch)
+            else {
                 continue;
             };
-            let splotch = Splotch::random(&mut rng, self.pp);
+            shrunk += usize::from(radius < self.radius);
+            let splotch = Splotch::random(&mut rng, self.pp, radius);
             let place = self.place(&patch, &splotch, &canvas, symmetry, &mut rng);
             self.paste(&patch, &splotch, &place, &mut canvas);
             patches += 1;
@@ -668,19 +713,48 @@ impl Context<'_> {
                 }));
             }
         }
-        Ok((canvas, patches))
+        Ok((canvas, patches, shrunk))
     }
 
-    /// Step 4: the faces around the seed flattened by the exponential map, without the faces
-    /// the flattening stretches or flips; `None` when the seed's own face is among those.
-    fn flatten(
+    /// Step 4 at the largest radius whose disc the surface holds: the full radius, shrunk by
+    /// [`SHRINK`] while the flattening distorts more than [`PatchParams::distortion_limit`] of
+    /// the disc (down to [`PatchParams::smallest`]). The patch and its radius; `None` when even the smallest
+    /// leaves out the seed's own face.
+    fn flatten_fitting(
         &self,
         face: u32,
         bary: [f32; 3],
         n: Vec3,
         e1: Vec3,
         sc: &mut Scratch,
-    ) -> Option<Patch> {
+    ) -> Option<(Patch, f32)> {
+        let smallest = self.radius * self.pp.smallest.min(1.0);
+        let mut radius = self.radius;
+        loop {
+            let flat = self.flatten(face, bary, n, e1, radius, sc);
+            let fits = flat
+                .as_ref()
+                .is_some_and(|(_, distortion)| *distortion <= self.pp.distortion_limit);
+            if fits || SHRINK * radius < smallest * 0.999 {
+                return flat.map(|(patch, _)| (patch, radius));
+            }
+            radius *= SHRINK;
+        }
+    }
+
+    /// Step 4: the faces around the seed within a disc of `radius` flattened by the exponential
+    /// map, without the faces the flattening stretches or flips, and the share of the disc's
+    /// surface area it distorts (kept faces with an edge stretched or shrunk by more than
+    /// [`DISTORTED`]); `None` when the seed's own face is left out.
+    fn flatten(
+        &self,
+        face: u32,
+        bary: [f32; 3],
+        n: Vec3,
+        e1: Vec3,
+        radius: f32,
+        sc: &mut Scratch,
+    ) -> Option<(Patch, f32)> {
         let s = self.surface;
         let corners = s.faces[face as usize];
         let seed = crate::geometry::DiscSeed {
@@ -689,8 +763,9 @@ impl Context<'_> {
             normal: n.to_array(),
             e1: e1.to_array(),
         };
-        let em =
-            crate::geometry::exp_map(s.positions, &s.normals, &self.adjacency, &seed, self.reach);
+        let rim = radius * (1.0 + self.pp.wobble);
+        let reach = rim * 1.1 + self.edge;
+        let em = crate::geometry::exp_map(s.positions, &s.normals, &self.adjacency, &seed, reach);
         sc.now = sc.now.wrapping_add(1);
         if sc.now == 0 {
             sc.stamp.fill(0);
@@ -702,12 +777,13 @@ impl Context<'_> {
             sc.stamp[v as usize] = now;
             sc.uv[v as usize] = *uv;
         }
-        let rim = self.radius * (1.0 + self.pp.wobble);
         let mut patch = Patch {
             faces: Vec::new(),
             corners: Vec::new(),
         };
         let mut seed_kept = false;
+        // the surface area of the disc's faces: kept, kept but distorted, and left out
+        let (mut kept_area, mut distorted_area, mut torn_area) = (0.0f32, 0.0f32, 0.0f32);
         for &v in &em.vertices {
             for &f in self.vertex_faces.row(v as usize) {
                 if sc.fstamp[f as usize] == now {
@@ -725,15 +801,26 @@ impl Context<'_> {
                     || segment_meets_disc(q[1], q[2], rim)
                     || segment_meets_disc(q[2], q[0], rim)
                     || contains_origin(&q);
-                if !near || !faithful(s, c, &q) {
+                if !near {
                     continue;
+                }
+                let p = c.map(|w| Vec3::from(s.positions[w as usize]));
+                let area = (p[1] - p[0]).cross(p[2] - p[0]).length();
+                if !faithful(&p, &q) {
+                    torn_area += area;
+                    continue;
+                }
+                kept_area += area;
+                if !within_stretch(&p, &q, DISTORTED) {
+                    distorted_area += area;
                 }
                 seed_kept |= f == face;
                 patch.faces.push(f);
                 patch.corners.push(q);
             }
         }
-        seed_kept.then_some(patch)
+        let distortion = distorted_area / (kept_area + torn_area).max(f32::MIN_POSITIVE);
+        seed_kept.then_some((patch, distortion))
     }
 
     /// Alpha and image point of a texel at barycentric `b` of a patch face with flattened
@@ -753,7 +840,7 @@ impl Context<'_> {
     /// [`Self::sample`] at the flattened point `q` (surface units from the seed).
     #[inline]
     fn sample_at(&self, q: Vec2, splotch: &Splotch, place: &Placement) -> (f32, Vec2) {
-        let a = splotch.alpha(q / self.radius);
+        let a = splotch.alpha(q / splotch.radius);
         if a <= 0.0 {
             return (0.0, Vec2::ZERO);
         }
@@ -808,7 +895,7 @@ impl Context<'_> {
         let (w, h) = (self.image.w as f32, self.image.h as f32);
         // centres within half a radius of the border: a patch may run off the image (it fades
         // there and other patches cover the rest), so every part of the image can be a core
-        let margin = 0.5 * self.radius / self.pixel;
+        let margin = 0.5 * splotch.radius / self.pixel;
         let span = |len: f32| -> (f32, f32) {
             if len > 2.0 * margin {
                 (margin, len - margin)
@@ -874,11 +961,11 @@ impl Context<'_> {
         // weighted use relative to the mean. Added, not multiplied: a multiplied penalty vanishes
         // where the match is near perfect, which over flat parts of an image (pale background,
         // mortar) it always is, and those parts then win every time.
-        let core_px = self.radius * (1.0 - self.pp.wobble - self.pp.feather) / self.pixel;
+        let core_px = splotch.radius * (1.0 - self.pp.wobble - self.pp.feather) / self.pixel;
         let mean_usage = canvas.usage.iter().sum::<f32>() / canvas.usage.len() as f32;
         let score = |pl: &Placement| -> f32 {
             let s = score(pl) / (2.0 * self.variance)
-                + self.pp.transparency_weight * self.transparent_share(pl.centre);
+                + self.pp.transparency_weight * self.transparent_share(pl.centre, splotch.radius);
             if mean_usage <= 0.0 {
                 return s;
             }
@@ -915,9 +1002,9 @@ impl Context<'_> {
 
     /// The transparent share of a patch's disc centred at image point `c` (0 for an opaque
     /// image).
-    fn transparent_share(&self, c: Vec2) -> f32 {
+    fn transparent_share(&self, c: Vec2, radius: f32) -> f32 {
         self.opacity.map_or(0.0, |op| {
-            transparent_share(op, self.image.w, self.image.h, c, self.radius / self.pixel)
+            transparent_share(op, self.image.w, self.image.h, c, radius / self.pixel)
         })
     }
 
@@ -933,7 +1020,7 @@ impl Context<'_> {
         let mut texels: Vec<PatchTexel> = Vec::new();
         // the seam's grid: about a cell per two image pixels along the rim, at most the full
         // grid, so a small patch's seam is cut on a grid of its own size
-        let rim_px = self.radius * (1.0 + self.pp.wobble) / self.pixel;
+        let rim_px = splotch.radius * (1.0 + self.pp.wobble) / self.pixel;
         let angles = ((std::f32::consts::PI * rim_px) as usize).clamp(8, SEAM_ANGLES);
         let rings = ((0.5 * (1.0 - SEAM_INNER) * rim_px) as usize).clamp(2, SEAM_RINGS);
         let mut costs = SeamCosts::new(angles, rings, SEAM_INNER);
@@ -948,7 +1035,7 @@ impl Context<'_> {
                 }
                 let color = self.image.bilinear(p.x, p.y);
                 let angle = q.y.atan2(q.x);
-                let rim = splotch.rim(angle) * self.radius;
+                let rim = splotch.rim(angle) * splotch.radius;
                 let s = q.length() / rim;
                 let old_a = canvas.alpha[t as usize];
                 if old_a < 0.5 {
@@ -1156,16 +1243,18 @@ fn transparent_share(op: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
 /// Whether a face's flattening is faithful: not flipped, and no edge stretched or shrunk by more
 /// than 2x (where a disc wraps around a thin part its two fronts meet with unrelated
 /// coordinates).
-fn faithful(s: &Surface, c: [u32; 3], q: &[Vec2; 3]) -> bool {
+fn faithful(p: &[Vec3; 3], q: &[Vec2; 3]) -> bool {
     let area2 = (q[1] - q[0]).perp_dot(q[2] - q[0]);
-    if area2 <= 0.0 {
-        return false;
-    }
-    let p = c.map(|v| Vec3::from(s.positions[v as usize]));
+    area2 > 0.0 && within_stretch(p, q, 2.0)
+}
+
+/// Whether no edge of a face (corners `p` on the surface) is flattened (to `q`) more than
+/// `limit` times longer or shorter than it is.
+fn within_stretch(p: &[Vec3; 3], q: &[Vec2; 3], limit: f32) -> bool {
     (0..3).all(|k| {
         let l3 = p[k].distance(p[(k + 1) % 3]);
         let l2 = q[k].distance(q[(k + 1) % 3]);
-        l3 <= 1e-20 || (l2 <= 2.0 * l3 && l2 >= 0.5 * l3)
+        l3 <= 1e-20 || (l2 <= limit * l3 && l2 * limit >= l3)
     })
 }
 
