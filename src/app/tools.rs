@@ -670,9 +670,10 @@ fn texture_job(
                 side,
                 r.mesh,
                 format!(
-                    "{side:?} textured with {name}: {} patches pasted into a {TEXTURE_SIDE}x\
-                     {TEXTURE_SIDE} texture in {:.1} s{atlas} (Ctrl+Z undoes)",
-                    r.patches, r.seconds
+                    "{side:?} textured with {name}: {} patches pasted ({} made smaller to fit \
+                     round parts) into a {TEXTURE_SIDE}x{TEXTURE_SIDE} texture in {:.1} \
+                     s{atlas} (Ctrl+Z undoes)",
+                    r.patches, r.shrunk, r.seconds
                 ),
             ));
         }

@@ -787,7 +787,7 @@ fn synth_patches(
     print_anisotropy(r.anisotropy, r.orientation_used);
     print_atlas(r.atlas.as_ref(), r.atlas_reason.as_deref());
     eprintln!(
-        "pasted {} patches of radius {:.4} ({} made smaller to fit thin parts; orientation {}) \
+        "pasted {} patches of radius {:.4} ({} made smaller to fit round parts; orientation {}) \
          in {:.2} s; {:.2}% of the texels filled from their neighbours; texture {}x{}",
         r.patches,
         r.radius,
