@@ -123,7 +123,7 @@ pub struct PatchOutput {
     pub patches: usize,
     /// Patch radius in surface units.
     pub radius: f32,
-    /// Patches made smaller than `radius` to fit a part thinner than a disc.
+    /// Patches made smaller than `radius` to fit a part rounder than a disc.
     pub shrunk: usize,
     /// Share of the layout's texels no patch reached (filled from their neighbours).
     pub uncovered: f64,
@@ -197,6 +197,7 @@ pub fn paste_patches(
         pixel,
         radius,
         edge: longest_edge(&surface),
+        face_area: crate::geometry::face_areas(surface.positions, &surface.faces),
         border_fade,
         variance: colour_variance(&image, opacity.as_deref()),
         pp,
@@ -339,8 +340,8 @@ fn check_inputs(input: &TextureInput, params: &TextureParams, pp: &PatchParams) 
     {
         return Err(Error::InvalidInput(format!(
             "patch parameters out of range: radius {} (0.05-0.5), feather {} (0.01-0.5), wobble \
-             {} (0-0.5), usage weight {} (0-10), transparency weight {} (0-100), tear limit {} \
-             (0-1), smallest {} (0.05-1), candidates {} (1 or more)",
+             {} (0-0.5), usage weight {} (0-10), transparency weight {} (0-100), distortion \
+             limit {} (0-1), smallest {} (0.05-1), candidates {} (1 or more)",
             pp.radius,
             pp.feather,
             pp.wobble,
@@ -486,6 +487,8 @@ struct Context<'a> {
     radius: f32,
     /// The longest edge: how far beyond a disc's rim a flattening reaches.
     edge: f32,
+    /// Each face's area.
+    face_area: Vec<f64>,
     /// Image pixels over which a patch fades out at the image's border.
     border_fade: f32,
     /// The image's colour variance (summed over the channels, opaque pixels): half the mean
@@ -718,8 +721,8 @@ impl Context<'_> {
 
     /// Step 4 at the largest radius whose disc the surface holds: the full radius, shrunk by
     /// [`SHRINK`] while the flattening distorts more than [`PatchParams::distortion_limit`] of
-    /// the disc (down to [`PatchParams::smallest`]). The patch and its radius; `None` when even the smallest
-    /// leaves out the seed's own face.
+    /// the disc (down to [`PatchParams::smallest`]). The patch and its radius; `None` when even
+    /// the smallest leaves out the seed's own face.
     fn flatten_fitting(
         &self,
         face: u32,
@@ -728,7 +731,7 @@ impl Context<'_> {
         e1: Vec3,
         sc: &mut Scratch,
     ) -> Option<(Patch, f32)> {
-        let smallest = self.radius * self.pp.smallest.min(1.0);
+        let smallest = self.radius * self.pp.smallest;
         let mut radius = self.radius;
         loop {
             let flat = self.flatten(face, bary, n, e1, radius, sc);
@@ -805,7 +808,7 @@ impl Context<'_> {
                     continue;
                 }
                 let p = c.map(|w| Vec3::from(s.positions[w as usize]));
-                let area = (p[1] - p[0]).cross(p[2] - p[0]).length();
+                let area = self.face_area[f as usize] as f32;
                 if !faithful(&p, &q) {
                     torn_area += area;
                     continue;
