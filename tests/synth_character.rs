@@ -363,3 +363,83 @@ fn patches_shrink_on_parts_rounder_than_a_disc_and_only_there() {
         "patch distance {ours:.2} with shrinking against {before:.2} without"
     );
 }
+
+/// A diagonal gradient from deep blue to yellow under a fine deterministic grain: an image
+/// whose colours differ from one end to the other, the ends holding colours nothing else has.
+fn gradient_image(size: u32) -> image::RgbImage {
+    image::RgbImage::from_fn(size, size, |x, y| {
+        let t = (x + y) as f32 / (2 * (size - 1)) as f32;
+        let h =
+            (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663)).wrapping_mul(2_654_435_761);
+        let grain = ((h >> 24) as f32 / 255.0 - 0.5) * 0.08;
+        let blue = [0.12, 0.20, 0.55];
+        let yellow = [0.92, 0.78, 0.25];
+        image::Rgb(std::array::from_fn(|k| {
+            ((blue[k] + t * (yellow[k] - blue[k]) + grain).clamp(0.0, 1.0) * 255.0).round() as u8
+        }))
+    })
+}
+
+#[test]
+fn a_gradient_keeps_its_ends_and_its_colour_distribution() {
+    let target = load("bunny/bunny.obj");
+    let image = gradient_image(256);
+    let run = |pp: &PatchParams| {
+        let input = TextureInput {
+            exemplar: &image,
+            alpha: None,
+            target: &target,
+            field: None,
+        };
+        let params = TextureParams {
+            texture_size: 1024,
+            ..Default::default()
+        };
+        paste_patches(&input, &params, pp, &|_| {}, &CancelToken::new()).unwrap()
+    };
+    let balanced = run(&PatchParams::default());
+    let unbalanced = run(&PatchParams {
+        colour_weight: 0.0,
+        ..Default::default()
+    });
+    let (lo, hi) = target.bounds().unwrap();
+    let ex = Exemplar {
+        image: &image,
+        alpha: None,
+        scale: glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) / 4.0,
+    };
+    let w1 = |r: &meshmatch::synthesis::exemplar::patch_pasting::PatchOutput| {
+        let texture = &r.mesh.texture.as_ref().unwrap().image;
+        measure(&r.mesh, texture, &ex, 1).unwrap()
+    };
+    let (ours, without) = (w1(&balanced), w1(&unbalanced));
+    let texture = &balanced.mesh.texture.as_ref().unwrap().image;
+    let projected = triplanar_texture(&balanced.mesh, &ex, texture.width() as usize).unwrap();
+    let base = measure(&balanced.mesh, &projected, &ex, 1).unwrap();
+    eprintln!(
+        "gradient on the bunny: {ours:?}\n  without colour balance {without:?}\n  triplanar {base:?}"
+    );
+    assert!(
+        ours.lab_w1 < base.lab_w1,
+        "Lab W1 {:.2} against triplanar's {:.2}",
+        ours.lab_w1,
+        base.lab_w1
+    );
+    assert!(
+        ours.lab_w1 < 0.8 * without.lab_w1,
+        "Lab W1 {:.2} against {:.2} without colour balance",
+        ours.lab_w1,
+        without.lab_w1
+    );
+    assert!(
+        (0.85..=1.15).contains(&ours.contrast),
+        "contrast {:.2} of the image's",
+        ours.contrast
+    );
+    assert!(
+        ours.patch_distance < base.patch_distance,
+        "patch distance {:.2} against triplanar's {:.2}",
+        ours.patch_distance,
+        base.patch_distance
+    );
+}

@@ -12,6 +12,7 @@
 
 pub mod anisotropy;
 pub mod character;
+mod colour_balance;
 mod levels;
 mod metrics;
 mod neigh;

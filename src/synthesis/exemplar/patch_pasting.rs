@@ -35,10 +35,13 @@
 //!    whose image colours best match the texels already covered under the new patch's
 //!    footprint (sum of squared differences weighted by both alphas, over the image's colour
 //!    variance), plus a penalty for parts of the image that more texels already show than the
-//!    average (counted texel by texel, so the texture keeps the image's colour distribution),
-//!    and one for the transparent share of the disc in an image with holes (a disc that is
-//!    mostly hole leaves a crescent, and a surface pieced from crescents is all seams),
-//!    refined by a pattern search.
+//!    average (counted texel by texel, so every part of the image reaches the surface), one for
+//!    colours the texture already shows more of than the image has
+//!    ([`super::colour_balance`]: a non-stationary image's extremes, a gradient's ends, which
+//!    overlap matching alone drifts away from, are drawn in until the texture's colour
+//!    distribution is the image's), and one for the transparent share of the disc in an image
+//!    with holes (a disc that is mostly hole leaves a crescent, and a surface pieced from
+//!    crescents is all seams), refined by a pattern search.
 //! 7. **Paste**: each texel of the patch's faces reads the full-resolution image at its
 //!    coordinate (bilinear). Where something is already there, the patch shows only inside a
 //!    closed seam around its seed that runs where old and new agree best (Efros & Freeman's
@@ -55,6 +58,7 @@ use rand::Rng;
 use rand::seq::SliceRandom;
 use rayon::prelude::*;
 
+use super::colour_balance::ColourBalance;
 use super::pyramid::{Img, stage_rng};
 use super::seam::SeamCosts;
 use super::texture_space::{
@@ -82,6 +86,11 @@ pub struct PatchParams {
     /// it, relative to the mean over the image), against its mismatch in units of the image's
     /// colour variance, so that all of the image reaches the surface in its own proportions.
     pub usage_weight: f32,
+    /// How much a placement's score grows with how much the texture already shows the colours
+    /// its part of the image holds, relative to the image's share of them (below 1 where the
+    /// texture lacks them): parts of the image whose colours nothing else has (a gradient's
+    /// ends, a sky's deepest blue) are drawn in until the texture's colours are the image's.
+    pub colour_weight: f32,
     /// How much a placement's score grows with the transparent share of its disc (an image with
     /// holes): patches carry the image's opaque parts across their whole disc instead of
     /// leaving crescents around a hole for other patches to fill.
@@ -103,6 +112,7 @@ impl Default for PatchParams {
             wobble: 0.18,
             candidates: 192,
             usage_weight: 0.5,
+            colour_weight: 1.0,
             transparency_weight: 4.0,
             distortion_limit: 0.1,
             smallest: 0.25,
@@ -186,6 +196,7 @@ pub fn paste_patches(
     let turn = patch_orientation(input, &surface, params.synth.orientation, radius, cancel)?;
 
     // 3.-7. seeds, flatten, splotch, place, paste
+    let variance = colour_variance(&image, opacity.as_deref());
     let ctx = Context {
         surface: &surface,
         adjacency: crate::mesh::vertex_adjacency(surface.positions.len(), &surface.faces),
@@ -199,8 +210,9 @@ pub fn paste_patches(
         edge: longest_edge(&surface),
         face_area: crate::geometry::face_areas(surface.positions, &surface.faces),
         border_fade,
-        variance: colour_variance(&image, opacity.as_deref()),
+        variance,
         pp,
+        balance: ColourBalance::new(&image, opacity.as_deref(), USAGE, variance),
     };
     let (canvas, patches, shrunk) =
         ctx.paste_all(&turn, params.synth.seed, &total, sink, cancel)?;
@@ -333,6 +345,7 @@ fn check_inputs(input: &TextureInput, params: &TextureParams, pp: &PatchParams) 
         && ok(pp.feather, 0.01, 0.5)
         && ok(pp.wobble, 0.0, 0.5)
         && ok(pp.usage_weight, 0.0, 10.0)
+        && ok(pp.colour_weight, 0.0, 10.0)
         && ok(pp.transparency_weight, 0.0, 100.0)
         && ok(pp.distortion_limit, 0.0, 1.0)
         && ok(pp.smallest, 0.05, 1.0))
@@ -340,12 +353,13 @@ fn check_inputs(input: &TextureInput, params: &TextureParams, pp: &PatchParams) 
     {
         return Err(Error::InvalidInput(format!(
             "patch parameters out of range: radius {} (0.05-0.5), feather {} (0.01-0.5), wobble \
-             {} (0-0.5), usage weight {} (0-10), transparency weight {} (0-100), distortion \
-             limit {} (0-1), smallest {} (0.05-1), candidates {} (1 or more)",
+             {} (0-0.5), usage weight {} (0-10), colour weight {} (0-10), transparency weight {} \
+             (0-100), distortion limit {} (0-1), smallest {} (0.05-1), candidates {} (1 or more)",
             pp.radius,
             pp.feather,
             pp.wobble,
             pp.usage_weight,
+            pp.colour_weight,
             pp.transparency_weight,
             pp.distortion_limit,
             pp.smallest,
@@ -495,6 +509,8 @@ struct Context<'a> {
     /// squared difference of two random pixels, the scale of a placement's colour mismatch.
     variance: f32,
     pp: &'a PatchParams,
+    /// The texture's colour make-up against the image's, by usage cell.
+    balance: ColourBalance,
 }
 
 /// The composited texture so far: premultiplied colour and alpha per texel, and how often each
@@ -966,6 +982,11 @@ impl Context<'_> {
         // mortar) it always is, and those parts then win every time.
         let core_px = splotch.radius * (1.0 - self.pp.wobble - self.pp.feather) / self.pixel;
         let mean_usage = canvas.usage.iter().sum::<f32>() / canvas.usage.len() as f32;
+        // and one for colours the texture already shows more of than the image has
+        let mut lacking = Vec::new();
+        if self.pp.colour_weight > 0.0 {
+            self.balance.ratios(&canvas.usage, &mut lacking);
+        }
         let score = |pl: &Placement| -> f32 {
             let s = score(pl) / (2.0 * self.variance)
                 + self.pp.transparency_weight * self.transparent_share(pl.centre, splotch.radius);
@@ -979,7 +1000,13 @@ impl Context<'_> {
                 pl.centre,
                 core_px,
             );
-            s + self.pp.usage_weight * u / mean_usage
+            let c = if lacking.is_empty() {
+                0.0
+            } else {
+                let (w, h) = (self.image.w, self.image.h);
+                self.pp.colour_weight * usage_under(&lacking, w, h, pl.centre, core_px)
+            };
+            s + self.pp.usage_weight * u / mean_usage + c
         };
         let mut best = draw(rng);
         let mut best_score = score(&best);
