@@ -983,9 +983,9 @@ impl Context<'_> {
         let core_px = splotch.radius * (1.0 - self.pp.wobble - self.pp.feather) / self.pixel;
         let mean_usage = canvas.usage.iter().sum::<f32>() / canvas.usage.len() as f32;
         // and one for colours the texture already shows more of than the image has
-        let mut lacking = Vec::new();
+        let mut colour_ratio = Vec::new();
         if self.pp.colour_weight > 0.0 {
-            self.balance.ratios(&canvas.usage, &mut lacking);
+            self.balance.ratios(&canvas.usage, &mut colour_ratio);
         }
         let score = |pl: &Placement| -> f32 {
             let s = score(pl) / (2.0 * self.variance)
@@ -1000,11 +1000,11 @@ impl Context<'_> {
                 pl.centre,
                 core_px,
             );
-            let c = if lacking.is_empty() {
+            let c = if colour_ratio.is_empty() {
                 0.0
             } else {
                 let (w, h) = (self.image.w, self.image.h);
-                self.pp.colour_weight * usage_under(&lacking, w, h, pl.centre, core_px)
+                self.pp.colour_weight * usage_under(&colour_ratio, w, h, pl.centre, core_px)
             };
             s + self.pp.usage_weight * u / mean_usage + c
         };
@@ -1232,8 +1232,8 @@ fn colour_variance(image: &Img, opacity: Option<&[f32]>) -> f32 {
     (var as f32).max(1e-4)
 }
 
-/// The mean use of the usage grid's cells within `r` pixels of `c` (the nearest cell's when none
-/// is).
+/// The mean of a `USAGE²` grid's values (the cells' use, or their colour ratios) over the cells
+/// within `r` pixels of `c` (the nearest cell's when none is).
 fn usage_under(usage: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
     let (cw, ch) = (w as f32 / USAGE as f32, h as f32 / USAGE as f32);
     let (mut sum, mut n) = (0.0, 0);
