@@ -993,7 +993,7 @@ impl Context<'_> {
             if mean_usage <= 0.0 {
                 return s;
             }
-            let u = usage_under(
+            let u = grid_mean_under(
                 &canvas.usage,
                 self.image.w,
                 self.image.h,
@@ -1004,7 +1004,7 @@ impl Context<'_> {
                 0.0
             } else {
                 let (w, h) = (self.image.w, self.image.h);
-                self.pp.colour_weight * usage_under(&colour_ratio, w, h, pl.centre, core_px)
+                self.pp.colour_weight * grid_mean_under(&colour_ratio, w, h, pl.centre, core_px)
             };
             s + self.pp.usage_weight * u / mean_usage + c
         };
@@ -1234,7 +1234,7 @@ fn colour_variance(image: &Img, opacity: Option<&[f32]>) -> f32 {
 
 /// The mean of a `USAGE²` grid's values (the cells' use, or their colour ratios) over the cells
 /// within `r` pixels of `c` (the nearest cell's when none is).
-fn usage_under(usage: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
+fn grid_mean_under(usage: &[f32], w: usize, h: usize, c: Vec2, r: f32) -> f32 {
     let (cw, ch) = (w as f32 / USAGE as f32, h as f32 / USAGE as f32);
     let (mut sum, mut n) = (0.0, 0);
     for cy in 0..USAGE {
