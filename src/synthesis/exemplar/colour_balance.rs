@@ -32,6 +32,10 @@ const MIN_OPAQUE: f64 = 0.05;
 /// image.
 pub(super) struct ColourBalance {
     cells: usize,
+    /// The cells' mean colours.
+    mean: Vec<[f32; 3]>,
+    /// The kernel's bandwidth squared.
+    h2: f32,
     /// `cells⁴` Gaussian weights between the cells' mean colours (row-major, symmetric).
     kernel: Vec<f32>,
     /// The image's colour density at each cell's mean colour (0: a neutral cell).
@@ -88,15 +92,18 @@ impl ColourBalance {
             .collect();
         ColourBalance {
             cells,
+            mean,
+            h2,
             kernel,
             image_density,
         }
     }
 
     /// Per cell, the texture's colour density at the cell's colour over the image's, given the
-    /// texels showing each cell (`usage`), into `out`: 1 for a neutral cell, and for all while
-    /// nothing is shown.
-    pub(super) fn ratios(&self, usage: &[f32], out: &mut Vec<f32>) {
+    /// texels showing each cell (`usage`) and the sum of the colour offsets those texels carry
+    /// (`shift`, [`super::membrane`]: a cell's texels show its mean colour plus their mean
+    /// offset), into `out`: 1 for a neutral cell, and for all while nothing is shown.
+    pub(super) fn ratios(&self, usage: &[f32], shift: &[[f32; 3]], out: &mut Vec<f32>) {
         let n = self.cells * self.cells;
         out.clear();
         let total: f32 = usage.iter().sum();
@@ -104,14 +111,28 @@ impl ColourBalance {
             out.resize(n, 1.0);
             return;
         }
+        // the cells whose texels show colours off their mean: their colour as shown
+        let shown: Vec<(usize, [f32; 3])> = (0..n)
+            .filter(|&b| usage[b] > 0.0 && shift[b] != [0.0; 3])
+            .map(|b| {
+                (
+                    b,
+                    [0, 1, 2].map(|k| self.mean[b][k] + shift[b][k] / usage[b]),
+                )
+            })
+            .collect();
         out.extend((0..n).map(|a| {
             let img = self.image_density[a];
             if img <= 0.0 {
                 return 1.0;
             }
             let row = &self.kernel[a * n..(a + 1) * n];
-            let tex: f32 = row.iter().zip(usage).map(|(k, u)| k * u).sum::<f32>() / total;
-            tex / img
+            let mut tex: f32 = row.iter().zip(usage).map(|(k, u)| k * u).sum::<f32>();
+            for &(b, c) in &shown {
+                let d: f32 = (0..3).map(|k| (self.mean[a][k] - c[k]).powi(2)).sum();
+                tex += usage[b] * ((-0.5 * d / self.h2).exp() - row[b]);
+            }
+            tex.max(0.0) / total / img
         }));
     }
 }
@@ -135,6 +156,7 @@ mod tests {
         let variance = 2.0 * (1.0f32 / 12.0);
         let cells = 8;
         let balance = ColourBalance::new(&image, None, cells, variance);
+        let no_shift = vec![[0.0; 3]; cells * cells];
         let mut usage = vec![0.0; cells * cells];
         for row in 3..5 {
             for c in 0..cells {
@@ -142,12 +164,12 @@ mod tests {
             }
         }
         let mut ratios = Vec::new();
-        balance.ratios(&usage, &mut ratios);
+        balance.ratios(&usage, &no_shift, &mut ratios);
         let row_mean = |r: usize| ratios[r * cells..(r + 1) * cells].iter().sum::<f32>() / 8.0;
         assert!(row_mean(0) < 0.1 && row_mean(7) < 0.1, "{ratios:?}");
         assert!(row_mean(3) > 2.0 && row_mean(4) > 2.0, "{ratios:?}");
         // all of the image in use: balanced everywhere
-        balance.ratios(&vec![1.0; cells * cells], &mut ratios);
+        balance.ratios(&vec![1.0; cells * cells], &no_shift, &mut ratios);
         assert!(ratios.iter().all(|r| (r - 1.0).abs() < 0.2), "{ratios:?}");
     }
 
@@ -169,10 +191,41 @@ mod tests {
         let image = Img { w, h, px };
         let cells = 8;
         let balance = ColourBalance::new(&image, None, cells, 0.2);
+        let no_shift = vec![[0.0; 3]; cells * cells];
         let mut usage = vec![0.0; cells * cells];
         usage[9] = 100.0;
         let mut ratios = Vec::new();
-        balance.ratios(&usage, &mut ratios);
+        balance.ratios(&usage, &no_shift, &mut ratios);
         assert!(ratios.iter().all(|r| (r - 1.0).abs() < 0.05), "{ratios:?}");
+    }
+
+    /// The ends of a gradient in use, but their texels shifted towards the middle's colour (a
+    /// seam's offset carried into them): the texture shows the middle, and lacks the ends.
+    #[test]
+    fn texels_shifted_off_their_cells_colour_count_as_the_colour_they_show() {
+        let (w, h) = (64, 64);
+        let px = (0..w * h)
+            .map(|i| {
+                let t = (i / w) as f32 / (h - 1) as f32;
+                [t, 0.5, 1.0 - t]
+            })
+            .collect();
+        let image = Img { w, h, px };
+        let cells = 8;
+        let balance = ColourBalance::new(&image, None, cells, 2.0 * (1.0f32 / 12.0));
+        let usage = vec![1.0; cells * cells];
+        let mut shift = vec![[0.0; 3]; cells * cells];
+        let mut ratios = Vec::new();
+        balance.ratios(&usage, &shift, &mut ratios);
+        assert!(ratios.iter().all(|r| (r - 1.0).abs() < 0.2), "{ratios:?}");
+        // rows 0 and 7 shown as rows 3 and 4
+        for c in 0..cells {
+            shift[c] = [3.0 / 7.0, 0.0, -3.0 / 7.0];
+            shift[7 * cells + c] = [-3.0 / 7.0, 0.0, 3.0 / 7.0];
+        }
+        balance.ratios(&usage, &shift, &mut ratios);
+        let row_mean = |r: usize| ratios[r * cells..(r + 1) * cells].iter().sum::<f32>() / 8.0;
+        assert!(row_mean(0) < 0.7 && row_mean(7) < 0.7, "{ratios:?}");
+        assert!(row_mean(3) > 1.2 && row_mean(4) > 1.2, "{ratios:?}");
     }
 }

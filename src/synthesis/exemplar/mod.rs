@@ -14,6 +14,7 @@ pub mod anisotropy;
 pub mod character;
 mod colour_balance;
 mod levels;
+mod membrane;
 mod metrics;
 mod neigh;
 mod orient;

@@ -59,6 +59,7 @@ use rand::seq::SliceRandom;
 use rayon::prelude::*;
 
 use super::colour_balance::ColourBalance;
+use super::membrane::Membrane;
 use super::pyramid::{Img, stage_rng};
 use super::seam::SeamCosts;
 use super::texture_space::{
@@ -102,6 +103,10 @@ pub struct PatchParams {
     pub distortion_limit: f32,
     /// The smallest patch radius, as a fraction of [`PatchParams::radius`].
     pub smallest: f32,
+    /// Carry the low-frequency colour step across each seam into the patch's rim
+    /// ([`super::membrane`]), so that patches of an image whose colour changes across it (a
+    /// gradient, a sky) meet without a visible step.
+    pub membrane: bool,
 }
 
 impl Default for PatchParams {
@@ -116,6 +121,7 @@ impl Default for PatchParams {
             transparency_weight: 4.0,
             distortion_limit: 0.1,
             smallest: 0.25,
+            membrane: true,
         }
     }
 }
@@ -213,6 +219,7 @@ pub fn paste_patches(
         variance,
         pp,
         balance: ColourBalance::new(&image, opacity.as_deref(), USAGE, variance),
+        image_step: super::membrane::image_step(&image, opacity.as_deref()),
     };
     let (canvas, patches, shrunk) =
         ctx.paste_all(&turn, params.synth.seed, &total, sink, cancel)?;
@@ -508,6 +515,9 @@ struct Context<'a> {
     /// The image's colour variance (summed over the channels, opaque pixels): half the mean
     /// squared difference of two random pixels, the scale of a placement's colour mismatch.
     variance: f32,
+    /// The image's own steps ([`super::membrane::image_step`]): an offset across a seam no
+    /// larger may be the image's.
+    image_step: f32,
     pp: &'a PatchParams,
     /// The texture's colour make-up against the image's, by usage cell.
     balance: ColourBalance,
@@ -525,6 +535,10 @@ struct Canvas {
     usage: Vec<f32>,
     /// The usage cell each texel shows ([`NO_CELL`]: none yet).
     source: Vec<u16>,
+    /// Per usage cell, the sum of the colour offsets ([`super::membrane`]) its texels carry.
+    shift: Vec<[f32; 3]>,
+    /// The offset each texel carries (empty without the membrane).
+    texel_shift: Vec<[f32; 3]>,
 }
 
 /// A texel no patch has shown yet.
@@ -678,6 +692,12 @@ impl Context<'_> {
             covered: 0,
             usage: vec![0.0; USAGE * USAGE],
             source: vec![NO_CELL; texels.len()],
+            shift: vec![[0.0; 3]; USAGE * USAGE],
+            texel_shift: if self.pp.membrane {
+                vec![[0.0; 3]; texels.len()]
+            } else {
+                Vec::new()
+            },
         };
         let layout_texels = texels.iter().filter(|t| t.is_some()).count().max(1);
         let mut rng = stage_rng(seed, 11);
@@ -881,6 +901,29 @@ impl Context<'_> {
         (a, p)
     }
 
+    /// Where the patch ends at `angle` (in `s`, the radius over the rim's) because its ray
+    /// there leaves the image: half-way through the fade over the image's border; beyond 1
+    /// where the ray stays on the image up to the rim.
+    fn image_reach(&self, splotch: &Splotch, place: &Placement, angle: f32) -> f32 {
+        let d = place.image_point(Vec2::new(angle.cos(), angle.sin())) - place.centre;
+        let inset = 0.5 * self.border_fade - 0.5;
+        let (lo, hi) = (
+            Vec2::splat(inset),
+            Vec2::new(self.image.w as f32, self.image.h as f32) - 1.0 - inset,
+        );
+        let along = |c: f32, d: f32, lo: f32, hi: f32| -> f32 {
+            if d > 1e-9 {
+                (hi - c) / d
+            } else if d < -1e-9 {
+                (lo - c) / d
+            } else {
+                f32::INFINITY
+            }
+        };
+        let t = along(place.centre.x, d.x, lo.x, hi.x).min(along(place.centre.y, d.y, lo.y, hi.y));
+        (t.max(0.0) * self.pixel / (splotch.rim(angle) * splotch.radius)).min(2.0)
+    }
+
     /// The texels already covered under the patch (texel, patch face), a spread subset of at
     /// most [`SCORE_SAMPLES`].
     fn overlap(&self, patch: &Patch, canvas: &Canvas) -> Vec<(u32, usize)> {
@@ -985,7 +1028,8 @@ impl Context<'_> {
         // and one for colours the texture already shows more of than the image has
         let mut colour_ratio = Vec::new();
         if self.pp.colour_weight > 0.0 {
-            self.balance.ratios(&canvas.usage, &mut colour_ratio);
+            self.balance
+                .ratios(&canvas.usage, &canvas.shift, &mut colour_ratio);
         }
         let score = |pl: &Placement| -> f32 {
             let s = score(pl) / (2.0 * self.variance)
@@ -1088,6 +1132,23 @@ impl Context<'_> {
             }
         }
         let seam = costs.cut();
+        // the low-frequency step across the seam, carried into the patch's rim
+        // where the new patch meets the old texture: at the seam, or nearer where the patch
+        // runs off the image
+        let edge = |angle: f32| seam.rho(angle).min(self.image_reach(splotch, place, angle));
+        let offsets = self.pp.membrane.then(|| {
+            let mut m = Membrane::new(angles);
+            for pt in &texels {
+                if Membrane::measures(pt.s, edge(pt.angle)) {
+                    let t = pt.texel as usize;
+                    let old_a = canvas.alpha[t];
+                    let diff = (old_a >= 0.5)
+                        .then(|| [0, 1, 2].map(|k| canvas.color[t][k] / old_a - pt.color[k]));
+                    m.add(pt.angle, diff);
+                }
+            }
+            m.solve(self.image_step)
+        });
         // a seam cell's mismatch in units of the image's colour variance: at one variance (half
         // the mean difference of two random pixels) the seam is feathered fully
         let feather_unit = 1.0 / self.variance.max(1e-12);
@@ -1108,7 +1169,14 @@ impl Context<'_> {
             if a <= 0.0 {
                 continue;
             }
-            for (dst, src) in canvas.color[t].iter_mut().zip(pt.color) {
+            let mut color = pt.color;
+            if let Some(o) = &offsets {
+                let d = o.at(pt.angle, pt.s, edge(pt.angle));
+                for (c, d) in color.iter_mut().zip(d) {
+                    *c = (*c + d).clamp(0.0, 1.0);
+                }
+            }
+            for (dst, src) in canvas.color[t].iter_mut().zip(color) {
                 *dst = a * src + (1.0 - a) * *dst;
             }
             let new = a + (1.0 - a) * old;
@@ -1124,6 +1192,20 @@ impl Context<'_> {
                 }
                 canvas.usage[pt.cell as usize] += 1.0;
                 canvas.source[t] = pt.cell;
+                // and the colour it shows, its cell's plus the offset it carries
+                if !canvas.texel_shift.is_empty() {
+                    let applied: [f32; 3] = std::array::from_fn(|k| color[k] - pt.color[k]);
+                    if was != NO_CELL {
+                        let old = canvas.texel_shift[t];
+                        for (s, o) in canvas.shift[was as usize].iter_mut().zip(old) {
+                            *s -= o;
+                        }
+                    }
+                    for (s, a) in canvas.shift[pt.cell as usize].iter_mut().zip(applied) {
+                        *s += a;
+                    }
+                    canvas.texel_shift[t] = applied;
+                }
             }
         }
     }

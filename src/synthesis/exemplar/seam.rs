@@ -207,6 +207,11 @@ impl Seam {
         ((rho - s) / blend.max(1e-6) + 0.5).clamp(0.0, 1.0)
     }
 
+    /// The relative radius the seam passes at `angle` (1 on the rim).
+    pub(super) fn rho(&self, angle: f32) -> f32 {
+        self.lerp(&self.rho, angle)
+    }
+
     /// The mean squared colour difference between old and new where the seam runs at `angle`
     /// (0 where it runs on the rim).
     pub(super) fn mismatch(&self, angle: f32) -> f32 {
