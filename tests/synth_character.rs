@@ -384,63 +384,67 @@ fn gradient_image(size: u32, grain: f32) -> image::RgbImage {
 fn a_gradient_keeps_its_ends_and_its_colour_distribution() {
     let target = load("bunny/bunny.obj");
     let image = gradient_image(256, 0.08);
-    let run = |pp: &PatchParams| {
-        let input = TextureInput {
-            exemplar: &image,
-            alpha: None,
-            target: &target,
-            field: None,
-        };
-        let params = TextureParams {
-            texture_size: 1024,
-            ..Default::default()
-        };
-        paste_patches(&input, &params, pp, &|_| {}, &CancelToken::new()).unwrap()
-    };
-    let balanced = run(&PatchParams::default());
-    let unbalanced = run(&PatchParams {
-        colour_weight: 0.0,
-        ..Default::default()
-    });
     let (lo, hi) = target.bounds().unwrap();
     let ex = Exemplar {
         image: &image,
         alpha: None,
         scale: glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) / 4.0,
     };
-    let w1 = |r: &meshmatch::synthesis::exemplar::patch_pasting::PatchOutput| {
-        let texture = &r.mesh.texture.as_ref().unwrap().image;
-        measure(&r.mesh, texture, &ex, 1).unwrap()
-    };
-    let (ours, without) = (w1(&balanced), w1(&unbalanced));
-    let texture = &balanced.mesh.texture.as_ref().unwrap().image;
-    let projected = triplanar_texture(&balanced.mesh, &ex, texture.width() as usize).unwrap();
-    let base = measure(&balanced.mesh, &projected, &ex, 1).unwrap();
-    eprintln!(
-        "gradient on the bunny: {ours:?}\n  without colour balance {without:?}\n  triplanar {base:?}"
+    // means over three seeds: one run's W1 varies by a fifth of triplanar's from seed to seed
+    let (mut ours, mut without, mut base) = ([0.0; 3], 0.0, [0.0; 2]);
+    for seed in 1..=3 {
+        let run = |pp: &PatchParams| {
+            let input = TextureInput {
+                exemplar: &image,
+                alpha: None,
+                target: &target,
+                field: None,
+            };
+            let mut params = TextureParams {
+                texture_size: 1024,
+                ..Default::default()
+            };
+            params.synth.seed = seed;
+            let out = paste_patches(&input, &params, pp, &|_| {}, &CancelToken::new()).unwrap();
+            let texture = &out.mesh.texture.as_ref().unwrap().image;
+            let character = measure(&out.mesh, texture, &ex, 1).unwrap();
+            let projected = triplanar_texture(&out.mesh, &ex, texture.width() as usize).unwrap();
+            (character, measure(&out.mesh, &projected, &ex, 1).unwrap())
+        };
+        let (balanced, projected) = run(&PatchParams::default());
+        let (unbalanced, _) = run(&PatchParams {
+            colour_weight: 0.0,
+            ..Default::default()
+        });
+        eprintln!(
+            "gradient on the bunny, seed {seed}: {balanced:?}\n  without colour balance \
+             {unbalanced:?}\n  triplanar {projected:?}"
+        );
+        ours[0] += balanced.lab_w1 / 3.0;
+        ours[1] += balanced.contrast / 3.0;
+        ours[2] += balanced.patch_distance / 3.0;
+        without += unbalanced.lab_w1 / 3.0;
+        base[0] += projected.lab_w1 / 3.0;
+        base[1] += projected.patch_distance / 3.0;
+    }
+    let [w1, contrast, patch] = ours;
+    assert!(
+        w1 < base[0],
+        "Lab W1 {w1:.2} against triplanar's {:.2}",
+        base[0]
     );
     assert!(
-        ours.lab_w1 < base.lab_w1,
-        "Lab W1 {:.2} against triplanar's {:.2}",
-        ours.lab_w1,
-        base.lab_w1
+        w1 < 0.8 * without,
+        "Lab W1 {w1:.2} against {without:.2} without colour balance"
     );
     assert!(
-        ours.lab_w1 < 0.8 * without.lab_w1,
-        "Lab W1 {:.2} against {:.2} without colour balance",
-        ours.lab_w1,
-        without.lab_w1
+        (0.85..=1.15).contains(&contrast),
+        "contrast {contrast:.2} of the image's"
     );
     assert!(
-        (0.85..=1.15).contains(&ours.contrast),
-        "contrast {:.2} of the image's",
-        ours.contrast
-    );
-    assert!(
-        ours.patch_distance < base.patch_distance,
-        "patch distance {:.2} against triplanar's {:.2}",
-        ours.patch_distance,
-        base.patch_distance
+        patch < base[1],
+        "patch distance {patch:.2} against triplanar's {:.2}",
+        base[1]
     );
 }
 
