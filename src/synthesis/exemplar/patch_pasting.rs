@@ -47,7 +47,9 @@
 //!    closed seam around its seed that runs where old and new agree best (Efros & Freeman's
 //!    boundary cut, [`super::seam`]), so patches meet at a sharp seam instead of a blended band,
 //!    feathered only where the seam has to cross a mismatch; where nothing is, it is
-//!    composited with the splotch's feathered alpha.
+//!    composited with the splotch's feathered alpha. Where old and new differ by more than the
+//!    image's own steps in their low frequencies (a gradient, a sky), that offset is carried
+//!    into the patch's rim ([`super::membrane`]), so the seam shows no step.
 //!    Transparent image pixels give alpha 0, so they never reach the surface.
 //!
 //! Texels no patch covers (faces every flattening left out) are filled from their neighbours
@@ -1132,9 +1134,8 @@ impl Context<'_> {
             }
         }
         let seam = costs.cut();
-        // the low-frequency step across the seam, carried into the patch's rim
-        // where the new patch meets the old texture: at the seam, or nearer where the patch
-        // runs off the image
+        // the low-frequency step where the new patch meets the old texture (at the seam, or
+        // nearer where the patch runs off the image), carried into the patch's rim
         let edge = |angle: f32| seam.rho(angle).min(self.image_reach(splotch, place, angle));
         let offsets = self.pp.membrane.then(|| {
             let mut m = Membrane::new(angles);
