@@ -25,9 +25,9 @@
 //!
 //! Unlike Poisson compositing the patch's core keeps its own colours: an offset carried into
 //! the whole patch would pull every patch toward its neighbours' mean and flatten the image's
-//! range. On an image with edges of its own (every shared photograph and pattern) step 3
-//! leaves the result as it was; on a smooth one (a gradient, a sky) the seams' steps become
-//! ramps as wide as a patch's rim.
+//! range. On an image with edges of its own (bricks, bark, dots, stones) step 3 leaves the
+//! result as it was, and on one with soft features (ink clouds) lets a few seams through; on a
+//! smooth one (a gradient, a sky) the seams' steps become ramps as wide as a patch's rim.
 
 use std::f32::consts::TAU;
 
