@@ -380,32 +380,50 @@ fn gradient_image(size: u32, grain: f32) -> image::RgbImage {
     })
 }
 
+/// `image` pasted on `target` at 1024² with `pp` and synthesis seed `seed`.
+fn paste_at_1024(
+    target: &meshmatch::mesh::TriMesh,
+    image: &image::RgbImage,
+    pp: &PatchParams,
+    seed: u64,
+) -> meshmatch::synthesis::exemplar::patch_pasting::PatchOutput {
+    let input = TextureInput {
+        exemplar: image,
+        alpha: None,
+        target,
+        field: None,
+    };
+    let mut params = TextureParams {
+        texture_size: 1024,
+        ..Default::default()
+    };
+    params.synth.seed = seed;
+    paste_patches(&input, &params, pp, &|_| {}, &CancelToken::new()).unwrap()
+}
+
+/// `image` at a quarter of `target`'s bounding-box diagonal, as `synth` scales it by default.
+fn quarter_diagonal<'a>(
+    target: &meshmatch::mesh::TriMesh,
+    image: &'a image::RgbImage,
+) -> Exemplar<'a> {
+    let (lo, hi) = target.bounds().unwrap();
+    Exemplar {
+        image,
+        alpha: None,
+        scale: glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) / 4.0,
+    }
+}
+
 #[test]
 fn a_gradient_keeps_its_ends_and_its_colour_distribution() {
     let target = load("bunny/bunny.obj");
     let image = gradient_image(256, 0.08);
-    let (lo, hi) = target.bounds().unwrap();
-    let ex = Exemplar {
-        image: &image,
-        alpha: None,
-        scale: glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) / 4.0,
-    };
+    let ex = quarter_diagonal(&target, &image);
     // means over three seeds: one run's W1 varies by a fifth of triplanar's from seed to seed
     let (mut ours, mut without, mut base) = ([0.0; 3], 0.0, [0.0; 2]);
     for seed in 1..=3 {
         let run = |pp: &PatchParams| {
-            let input = TextureInput {
-                exemplar: &image,
-                alpha: None,
-                target: &target,
-                field: None,
-            };
-            let mut params = TextureParams {
-                texture_size: 1024,
-                ..Default::default()
-            };
-            params.synth.seed = seed;
-            let out = paste_patches(&input, &params, pp, &|_| {}, &CancelToken::new()).unwrap();
+            let out = paste_at_1024(&target, &image, pp, seed);
             let texture = &out.mesh.texture.as_ref().unwrap().image;
             let character = measure(&out.mesh, texture, &ex, 1).unwrap();
             let projected = triplanar_texture(&out.mesh, &ex, texture.width() as usize).unwrap();
@@ -510,29 +528,13 @@ fn patches_of_a_smooth_gradient_meet_without_a_step() {
     let target = load("bunny/bunny.obj");
     let image = gradient_image(256, 0.0);
     let floor = largest_neighbour_step(&image);
-    let (lo, hi) = target.bounds().unwrap();
-    let ex = Exemplar {
-        image: &image,
-        alpha: None,
-        scale: glam::Vec3::from(hi).distance(glam::Vec3::from(lo)) / 4.0,
-    };
+    let ex = quarter_diagonal(&target, &image);
     // over three seeds: where the steps fall, and so their sum, varies from run to run
     let (mut ours, mut without) = (0.0, 0.0);
     let (mut w1, mut w1_base, mut patch, mut patch0) = (0.0, 0.0, 0.0, 0.0);
     for seed in 1..=3 {
         let run = |pp: &PatchParams| {
-            let input = TextureInput {
-                exemplar: &image,
-                alpha: None,
-                target: &target,
-                field: None,
-            };
-            let mut params = TextureParams {
-                texture_size: 1024,
-                ..Default::default()
-            };
-            params.synth.seed = seed;
-            let out = paste_patches(&input, &params, pp, &|_| {}, &CancelToken::new()).unwrap();
+            let out = paste_at_1024(&target, &image, pp, seed);
             let texture = out.mesh.texture.as_ref().unwrap().image.clone();
             (out.mesh, texture)
         };

@@ -141,10 +141,8 @@ impl ColourBalance {
 mod tests {
     use super::*;
 
-    /// A vertical gradient: its rows are distinct colours, so a texture that shows only the
-    /// middle rows lacks the top's and bottom's colours and over-shows the middle's.
-    #[test]
-    fn a_texture_showing_only_the_middle_of_a_gradient_lacks_its_ends() {
+    /// A 64² vertical gradient: its rows are distinct colours.
+    fn vertical_gradient() -> Img {
         let (w, h) = (64, 64);
         let px = (0..w * h)
             .map(|i| {
@@ -152,7 +150,14 @@ mod tests {
                 [t, 0.5, 1.0 - t]
             })
             .collect();
-        let image = Img { w, h, px };
+        Img { w, h, px }
+    }
+
+    /// A vertical gradient: its rows are distinct colours, so a texture that shows only the
+    /// middle rows lacks the top's and bottom's colours and over-shows the middle's.
+    #[test]
+    fn a_texture_showing_only_the_middle_of_a_gradient_lacks_its_ends() {
+        let image = vertical_gradient();
         let variance = 2.0 * (1.0f32 / 12.0);
         let cells = 8;
         let balance = ColourBalance::new(&image, None, cells, variance);
@@ -203,14 +208,7 @@ mod tests {
     /// seam's offset carried into them): the texture shows the middle, and lacks the ends.
     #[test]
     fn texels_shifted_off_their_cells_colour_count_as_the_colour_they_show() {
-        let (w, h) = (64, 64);
-        let px = (0..w * h)
-            .map(|i| {
-                let t = (i / w) as f32 / (h - 1) as f32;
-                [t, 0.5, 1.0 - t]
-            })
-            .collect();
-        let image = Img { w, h, px };
+        let image = vertical_gradient();
         let cells = 8;
         let balance = ColourBalance::new(&image, None, cells, 2.0 * (1.0f32 / 12.0));
         let usage = vec![1.0; cells * cells];

@@ -151,7 +151,7 @@ impl Offsets {
 pub(super) fn image_step(image: &Img, opacity: Option<&[f32]>) -> f32 {
     const GAP: usize = 4;
     let (w, h) = (image.w, image.h);
-    let smooth = binomial5(image);
+    let smooth = image.binomial_smoothed().px;
     let opaque = |i: usize| opacity.is_none_or(|o| o[i] >= 1.0);
     let mut steps: Vec<f32> = Vec::with_capacity(2 * w * h);
     let diff = |i: usize, j: usize| {
@@ -178,33 +178,6 @@ pub(super) fn image_step(image: &Img, opacity: Option<&[f32]>) -> f32 {
     let k = ((steps.len() - 1) as f32 * 0.99) as usize;
     let (_, v, _) = steps.select_nth_unstable_by(k, f32::total_cmp);
     v.max(1.0 / 255.0)
-}
-
-/// The image smoothed by the separable binomial [1 4 6 4 1] / 16 (edges clamped).
-fn binomial5(image: &Img) -> Vec<[f32; 3]> {
-    const K: [f32; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
-    let (w, h) = (image.w, image.h);
-    let pass = |src: &[[f32; 3]], horizontal: bool| -> Vec<[f32; 3]> {
-        (0..w * h)
-            .map(|i| {
-                let (x, y) = ((i % w) as i64, (i / w) as i64);
-                let mut out = [0.0f32; 3];
-                for (k, &wk) in K.iter().enumerate() {
-                    let d = k as i64 - 2;
-                    let j = if horizontal {
-                        (y * w as i64 + (x + d).clamp(0, w as i64 - 1)) as usize
-                    } else {
-                        ((y + d).clamp(0, h as i64 - 1) * w as i64 + x) as usize
-                    };
-                    for (o, v) in out.iter_mut().zip(src[j]) {
-                        *o += wk * v;
-                    }
-                }
-                out
-            })
-            .collect()
-    };
-    pass(&pass(&image.px, true), false)
 }
 
 #[cfg(test)]

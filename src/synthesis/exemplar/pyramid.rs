@@ -340,6 +340,38 @@ impl Img {
         s.map(|x| (x / n) as f32)
     }
 
+    /// The image smoothed by the separable binomial [1 4 6 4 1] / 16 (a Gaussian of one
+    /// pixel), its border clamped.
+    pub fn binomial_smoothed(&self) -> Img {
+        const K: [f32; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
+        let pass = |img: &Img, dx: isize, dy: isize| -> Vec<[f32; 3]> {
+            (0..img.w * img.h)
+                .map(|i| {
+                    let (x, y) = ((i % img.w) as isize, (i / img.w) as isize);
+                    let mut o = [0.0f32; 3];
+                    for (t, k) in K.iter().enumerate() {
+                        let d = t as isize - 2;
+                        let p = img.at(x + d * dx, y + d * dy);
+                        for c in 0..3 {
+                            o[c] += k * p[c];
+                        }
+                    }
+                    o
+                })
+                .collect()
+        };
+        let rows = Img {
+            w: self.w,
+            h: self.h,
+            px: pass(self, 1, 0),
+        };
+        Img {
+            w: self.w,
+            h: self.h,
+            px: pass(&rows, 0, 1),
+        }
+    }
+
     /// Half-resolution Gaussian level: separable [1 3 3 1]/8 filter centred between pixel pairs,
     /// so level-(k+1) pixel X sits at level-k coordinate 2X + 1/2.
     pub fn downsample(&self) -> Img {
