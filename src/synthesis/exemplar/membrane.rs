@@ -134,12 +134,8 @@ impl Offsets {
             return [0.0; 3];
         }
         // interpolated between the angles' centres
-        let n = self.offset.len();
-        let x = angle.rem_euclid(TAU) / TAU * n as f32 - 0.5;
-        let i0 = x.floor();
-        let f = x - i0;
-        let i0 = (i0 as i64).rem_euclid(n as i64) as usize;
-        let (a, b) = (self.offset[i0], self.offset[(i0 + 1) % n]);
+        let (i0, i1, f) = super::seam::around(self.offset.len(), angle);
+        let (a, b) = (self.offset[i0], self.offset[i1]);
         [0, 1, 2].map(|k| w * (a[k] * (1.0 - f) + b[k] * f))
     }
 }

@@ -220,13 +220,19 @@ impl Seam {
 
     /// A per-angle value at `angle`, interpolated between the angles' centres.
     fn lerp(&self, v: &[f32], angle: f32) -> f32 {
-        let n = v.len();
-        let x = angle.rem_euclid(std::f32::consts::TAU) / std::f32::consts::TAU * n as f32 - 0.5;
-        let i0 = x.floor();
-        let t = x - i0;
-        let i0 = (i0 as i64).rem_euclid(n as i64) as usize;
-        v[i0] * (1.0 - t) + v[(i0 + 1) % n] * t
+        let (i0, i1, t) = around(v.len(), angle);
+        v[i0] * (1.0 - t) + v[i1] * t
     }
+}
+
+/// Where `angle` (radians) falls among `n` values per angle, each at the centre of its turn's
+/// `n`th: the two neighbouring indices and the weight of the second.
+pub(super) fn around(n: usize, angle: f32) -> (usize, usize, f32) {
+    let x = angle.rem_euclid(std::f32::consts::TAU) / std::f32::consts::TAU * n as f32 - 0.5;
+    let i0 = x.floor();
+    let t = x - i0;
+    let i0 = (i0 as i64).rem_euclid(n as i64) as usize;
+    (i0, (i0 + 1) % n, t)
 }
 
 #[cfg(test)]
