@@ -22,7 +22,7 @@ use super::pyramid::Img;
 /// The kernel's bandwidth squared, as a fraction of the image's colour variance (summed over
 /// the channels): cells whose mean colours differ by about a fifth of the image's spread count
 /// as the same colour.
-const BANDWIDTH2: f32 = 0.05;
+pub(super) const BANDWIDTH2: f32 = 0.05;
 
 /// A cell holding less than this share of a cell's mean opaque area (a cell inside a hole) is
 /// left neutral: its mean colour says nothing.

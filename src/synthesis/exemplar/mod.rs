@@ -11,6 +11,7 @@
 //! per level: parent level only, then current + parent level.
 
 pub mod anisotropy;
+mod border_reach;
 pub mod character;
 mod colour_balance;
 mod levels;

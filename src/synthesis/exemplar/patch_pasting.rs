@@ -41,7 +41,9 @@
 //!    overlap matching alone drifts away from, are drawn in until the texture's colour
 //!    distribution is the image's), and one for the transparent share of the disc in an image
 //!    with holes (a disc that is mostly hole leaves a crescent, and a surface pieced from
-//!    crescents is all seams), refined by a pattern search.
+//!    crescents is all seams), refined by a pattern search. Centres stay half a radius inside
+//!    the image, nearer a side whose band holds colours the rest lacks (a sky's deepest blue
+//!    along its top: [`super::border_reach`]).
 //! 7. **Paste**: each texel of the patch's faces reads the full-resolution image at its
 //!    coordinate (bilinear). Where something is already there, the patch shows only inside a
 //!    closed seam around its seed that runs where old and new agree best (Efros & Freeman's
@@ -60,7 +62,8 @@ use rand::Rng;
 use rand::seq::SliceRandom;
 use rayon::prelude::*;
 
-use super::colour_balance::ColourBalance;
+use super::border_reach::Side;
+use super::colour_balance::{BANDWIDTH2, ColourBalance};
 use super::membrane::Membrane;
 use super::pyramid::{Img, stage_rng};
 use super::seam::SeamCosts;
@@ -109,6 +112,10 @@ pub struct PatchParams {
     /// ([`super::membrane`]), so that patches of an image whose colour changes across it (a
     /// gradient, a sky) meet without a visible step.
     pub membrane: bool,
+    /// Let patch centres come nearer a side of the image whose band holds colours the rest of
+    /// the image lacks (a sky's deepest blue along its top, [`super::border_reach`]); without
+    /// it every centre stays half a radius inside the image.
+    pub border_reach: bool,
 }
 
 impl Default for PatchParams {
@@ -124,6 +131,7 @@ impl Default for PatchParams {
             distortion_limit: 0.1,
             smallest: 0.25,
             membrane: true,
+            border_reach: true,
         }
     }
 }
@@ -222,6 +230,13 @@ pub fn paste_patches(
         pp,
         balance: ColourBalance::new(&image, opacity.as_deref(), USAGE, variance),
         image_step: super::membrane::image_step(&image, opacity.as_deref()),
+        reach: if pp.border_reach {
+            let margin = CENTRE_MARGIN * radius / pixel;
+            let op = opacity.as_deref();
+            super::border_reach::side_factors(&image, op, margin, variance, BANDWIDTH2)
+        } else {
+            [1.0; 4]
+        },
     };
     let (canvas, patches, shrunk) =
         ctx.paste_all(&turn, params.synth.seed, &total, sink, cancel)?;
@@ -523,6 +538,9 @@ struct Context<'a> {
     pp: &'a PatchParams,
     /// The texture's colour make-up against the image's, by usage cell.
     balance: ColourBalance,
+    /// Per side of the image (left, right, top, bottom), the factor on a patch centre's margin
+    /// from it ([`super::border_reach`]).
+    reach: [f32; 4],
 }
 
 /// The composited texture so far: premultiplied colour and alpha per texel, and how often each
@@ -958,16 +976,21 @@ impl Context<'_> {
         let overlap = self.overlap(patch, canvas);
         let (w, h) = (self.image.w as f32, self.image.h as f32);
         // centres within half a radius of the border: a patch may run off the image (it fades
-        // there and other patches cover the rest), so every part of the image can be a core
-        let margin = 0.5 * splotch.radius / self.pixel;
-        let span = |len: f32| -> (f32, f32) {
+        // there and other patches cover the rest), so every part of the image can be a core;
+        // nearer a side whose band holds colours the rest of the image lacks
+        let margin = CENTRE_MARGIN * splotch.radius / self.pixel;
+        let span = |len: f32, lo: f32, hi: f32| -> (f32, f32) {
             if len > 2.0 * margin {
-                (margin, len - margin)
+                (margin * lo, len - margin * hi)
             } else {
                 (0.5 * len, 0.5 * len)
             }
         };
-        let (xs, ys) = (span(w), span(h));
+        let r = |s: Side| self.reach[s as usize];
+        let (xs, ys) = (
+            span(w, r(Side::Left), r(Side::Right)),
+            span(h, r(Side::Top), r(Side::Bottom)),
+        );
         // without a field a patch turns freely; with one it keeps the field's direction up to
         // the field's symmetry
         let free_rotation = symmetry == 0;
@@ -1314,6 +1337,10 @@ fn colour_variance(image: &Img, opacity: Option<&[f32]>) -> f32 {
     let var: f64 = (0..3).map(|k| sq[k] / w - (sum[k] / w).powi(2)).sum();
     (var as f32).max(1e-4)
 }
+
+/// A patch centre's margin from the image's border, in patch radii, before
+/// [`super::border_reach`]'s factors.
+const CENTRE_MARGIN: f32 = 0.5;
 
 /// The mean of a `USAGE²` grid's values (the cells' use, or their colour ratios) over the cells
 /// within `r` pixels of `c` (the nearest cell's when none is).
