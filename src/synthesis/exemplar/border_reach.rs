@@ -42,7 +42,7 @@ pub(super) enum Side {
     Bottom = 3,
 }
 
-/// For each side (left, right, top, bottom: [`Side`]), the factor in (0, 1] on a patch centre's
+/// For each side (left, right, top, bottom: [`Side`]), the factor in [0, 1] on a patch centre's
 /// margin of `margin` pixels from that side, for `image` weighted by `opacity` (its colour
 /// variance `variance`, the kernel's scale as for the colour balance's `bandwidth2`).
 pub(super) fn side_factors(
@@ -233,7 +233,13 @@ mod tests {
             }
         });
         let opacity: Vec<f32> = (0..128 * 128)
-            .map(|i| if (24..104).contains(&(i / 128)) { 1.0 } else { 0.0 })
+            .map(|i| {
+                if (24..104).contains(&(i / 128)) {
+                    1.0
+                } else {
+                    0.0
+                }
+            })
             .collect();
         let f = side_factors(&img, Some(&opacity), 20.0, variance(&img), 0.05);
         assert_eq!(f[Side::Top as usize], 1.0, "{f:?}");
