@@ -5,7 +5,7 @@
 //! reproduced, element pairs whose surfaces cross, coverage and run time.
 //! `cargo run --release --example quilt_finite` (`KIND=rings-patch|weave-patch|pebbles`,
 //! `BASE=bunny|horse|saddle|cylinder` (a limb of radius 1 and length 12, only when named), `DETECT=0` for the box tiling without detection, `LATTICE=0` for the
-//! paper's matching on every patch, `FILL=0` without the gap filling, `TRIM=0` with whole threads only, `OUT=dir` to write each quilt as OBJ, with `CROP=x,y,z` also the elements and base faces within
+//! paper's matching on every patch, `FILL=0` without the gap filling, `TRIM=0` with whole threads only, `RELINK=0` without relinking broken chains, `SEED=n` the run's seed, `OUT=dir` to write each quilt as OBJ, with `CROP=x,y,z` also the elements and base faces within
 //! 1.2 swatch widths of that point, for close-up renders, and with `CENTRES=1` each element's
 //! vertex centroid and share of its swatch element, for density maps).
 use glam::Vec3;
@@ -63,6 +63,11 @@ fn main() {
                 lattice: !std::env::var("LATTICE").is_ok_and(|v| v == "0"),
                 fill: !std::env::var("FILL").is_ok_and(|v| v == "0"),
                 trim: !std::env::var("TRIM").is_ok_and(|v| v == "0"),
+                relink: !std::env::var("RELINK").is_ok_and(|v| v == "0"),
+                seed: std::env::var("SEED")
+                    .ok()
+                    .and_then(|s| s.parse().ok())
+                    .unwrap_or(1),
                 ..Params::default()
             };
             let input = Input {
@@ -113,6 +118,34 @@ fn main() {
                             let c = *c / (*n).max(1) as f32;
                             format!("{} {} {} {w}\n", c.x, c.y, c.z)
                         })
+                        .collect();
+                    // each element's links (by the linking number of centre curves)
+                    let curves: Vec<Option<Vec<Vec3>>> = (0..out.num_elements())
+                        .map(|e| {
+                            let vs: Vec<usize> = (0..out.element_id.len())
+                                .filter(|&v| out.element_id[v] as usize == e)
+                                .collect();
+                            let (v0, v1) = (vs[0], vs[vs.len() - 1] + 1);
+                            let ps = &out.elements.positions[v0..v1];
+                            let fs: Vec<[u32; 3]> = out
+                                .elements
+                                .faces
+                                .iter()
+                                .filter(|f| (v0..v1).contains(&(f[0] as usize)))
+                                .map(|f| f.map(|v| v - v0 as u32))
+                                .collect();
+                            quilting::links::centre_curve(ps, &fs)
+                        })
+                        .collect();
+                    let mut degree = vec![0u32; out.num_elements()];
+                    for (a, b) in quilting::links::linked_pairs(&curves) {
+                        degree[a as usize] += 1;
+                        degree[b as usize] += 1;
+                    }
+                    let text: String = text
+                        .lines()
+                        .zip(&degree)
+                        .map(|(l, d)| format!("{l} {d}\n"))
                         .collect();
                     let path = std::path::Path::new(dir)
                         .join(format!("{}_{name}_centres.txt", kind.as_str()));

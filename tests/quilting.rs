@@ -1145,6 +1145,37 @@ fn a_limb_thinner_than_a_patch_is_covered_and_its_gaps_filled() {
 }
 
 #[test]
+fn chains_broken_where_patches_meet_on_a_limb_are_relinked() {
+    // rings a third of the limb's radius across, as on a horse's neck and legs at a tenth of
+    // its diagonal: the matched patches around the limb meet at seams where chains end on a
+    // ring that threads nothing; relinking gives those rings their partners back
+    let (rings, unlinked, out) = on_a_limb(quilting::PatchKind::Rings, 1.85, |p| p.relink = false);
+    check_integrity(&out, &rings);
+    let (a, b) = (&unlinked.stats, &out.stats);
+    eprintln!(
+        "limb: {}, {} relinked\n  without relinking: {}",
+        b.arrangement_summary(),
+        b.relinked,
+        a.arrangement_summary()
+    );
+    let share = |s: &quilting::QuiltStats| s.link_share.expect("rings link");
+    assert!(share(a) < 0.8, "{}", a.arrangement_summary());
+    assert!(
+        b.relinked > 0 && share(b) >= 0.8,
+        "{}",
+        b.arrangement_summary()
+    );
+    // partners go where they add links, never more densely than the swatch allows, and never
+    // through another element
+    assert!(
+        (0.85..=1.15).contains(&b.density_ratio) && b.coverage >= a.coverage,
+        "{}",
+        b.arrangement_summary()
+    );
+    assert_eq!(quilting::crossing_pairs(&out).len(), 0);
+}
+
+#[test]
 fn a_weave_over_a_limb_keeps_the_clear_parts_of_its_strands() {
     // a finite weave whose strands are longer than the limb is wide (as on a horse's legs at
     // a tenth of its diagonal): whole strands wrapped around it tear off the patch's chart or

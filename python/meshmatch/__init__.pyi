@@ -211,6 +211,7 @@ def quilt(
     nudge: bool = True,
     fill: bool = True,
     trim: bool = True,
+    relink: bool = True,
     lattice: bool = True,
     progress: Progress | None = None,
     cancel: CancelToken | None = None,

@@ -641,7 +641,7 @@ enum SwatchArg {
 #[pyfunction]
 #[pyo3(signature = (base, swatch=SwatchArg::Spec(PathBuf::from("chain")), *, swatch_size=None, thickness=None,
     swatch_up="z".to_string(), seed=quilting::Params::default().seed, merge=false, nudge=true,
-    fill=true, trim=true, lattice=true, progress=None, cancel=None))]
+    fill=true, trim=true, relink=true, lattice=true, progress=None, cancel=None))]
 #[allow(clippy::too_many_arguments)]
 fn quilt<'py>(
     py: Python<'py>,
@@ -655,6 +655,7 @@ fn quilt<'py>(
     nudge: bool,
     fill: bool,
     trim: bool,
+    relink: bool,
     lattice: bool,
     progress: Option<&Bound<'py, PyAny>>,
     cancel: Option<&Bound<'py, CancelToken>>,
@@ -687,6 +688,7 @@ fn quilt<'py>(
         nudge,
         fill,
         trim,
+        relink,
         lattice,
         ..quilting::Params::default()
     };

@@ -41,6 +41,8 @@ pub struct QuiltDialog {
     pub fill: bool,
     /// Keep the clear part of a thread no whole copy fits.
     pub trim: bool,
+    /// Give rings that end a chain at a seam their missing partners.
+    pub relink: bool,
     /// Place patches on one global lattice.
     pub lattice: bool,
 }
@@ -56,6 +58,7 @@ impl Default for QuiltDialog {
             nudge: Params::default().nudge,
             fill: Params::default().fill,
             trim: Params::default().trim,
+            relink: Params::default().relink,
             lattice: Params::default().lattice,
         }
     }
@@ -137,6 +140,12 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
                  or too long for a gap keeps its longest clear part, cut across and capped \
                  (at least a quarter of it); compact elements are never cut",
             );
+        ui.checkbox(&mut self.relink, "relink chains broken at seams")
+            .on_hover_text(
+                "A ring with fewer links than in the swatch (a chain ending where two patches \
+                 meet) gets its missing partner where that adds links, replacing at most one \
+                 element",
+            );
         ui.checkbox(&mut self.lattice, "one lattice over the surface")
             .on_hover_text(
                 "Patches are laid on one global lattice (two stripe patterns along the \
@@ -178,6 +187,7 @@ impl<P: AppParams> SystemTool<P> for QuiltDialog {
             nudge: self.nudge,
             fill: self.fill,
             trim: self.trim,
+            relink: self.relink,
             lattice: self.lattice,
             ..Params::default()
         };

@@ -60,6 +60,11 @@ pub struct QuiltArgs {
     /// cut).
     #[arg(long)]
     pub no_trim: bool,
+    /// Do not relink chains broken at seams: an element with fewer links than in the swatch
+    /// (a ring ending a chain where two patches meet) otherwise gets its missing partner
+    /// where that adds links, replacing at most one element (on by default).
+    #[arg(long)]
+    pub no_relink: bool,
     /// Match every patch to its neighbours as the paper does instead of placing patches on one
     /// global lattice (two stripe patterns along the orientation field and across it). The
     /// lattice, on by default, lines up threads and crossings across seams.
@@ -130,6 +135,7 @@ impl QuiltArgs {
             nudge: !a.no_nudge,
             fill: !a.no_fill,
             trim: !a.no_trim,
+            relink: !a.no_relink,
             lattice: !a.no_lattice,
             ..Params::default()
         };
@@ -145,7 +151,7 @@ impl QuiltArgs {
         let s = &out.stats;
         eprintln!(
             "quilted {} elements ({} faces; {} copies merged into others, {} moved into gaps, {} \
-             placed in gaps after the patches, {} threads cut short) in \
+             placed in gaps after the patches, {} threads cut short, {} partners relinked) in \
              {:.2} s: {} patches ({} on the global lattice), \
              {:.1}% of the base covered, swatch {:.4} wide, shell {:.4} thick, shell stretch L2 \
              {:.3} -> {:.3}",
@@ -155,6 +161,7 @@ impl QuiltArgs {
             s.nudged,
             s.filled,
             s.trimmed,
+            s.relinked,
             s.seconds,
             s.patches,
             s.lattice_patches,

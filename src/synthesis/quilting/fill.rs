@@ -273,7 +273,7 @@ impl Neighbours {
 /// Two copies of tile elements `a` and `b` keep centres at least this far apart: what the
 /// covering pass's cut demands ([`Setup::conflict_dist`]) and 0.9 of their classes' closest
 /// pair in the swatch, as a nudged thread.
-fn spacing(setup: &Setup, a: u32, b: u32) -> f32 {
+pub(super) fn spacing(setup: &Setup, a: u32, b: u32) -> f32 {
     let (ca, cb) = (
         setup.sw.elements[a as usize].class,
         setup.sw.elements[b as usize].class,

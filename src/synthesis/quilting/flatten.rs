@@ -86,6 +86,36 @@ pub(super) fn flatten(
     }
 }
 
+/// The patch seeded on face `seed` flattened by the exponential map alone (shrunk while
+/// distorted, as a matched patch is), whatever the lattice.
+pub(super) fn by_exp_map_at(
+    setup: &Setup,
+    base: &Base,
+    seed: usize,
+    rp: f32,
+    stats: &mut QuiltStats,
+) -> Patch {
+    let (r_elem, mean_edge, tau) = (setup.r_elem, setup.mean_edge, setup.tau);
+    let disc_seed = seed_frame(base, seed);
+    let disc = |rp: f32| {
+        exp_map(
+            base.p,
+            &base.vn,
+            &base.adj,
+            &disc_seed,
+            rp + 2.0 * r_elem + 2.0 * mean_edge + tau,
+        )
+    };
+    let (flat, rho, rp) = by_exp_map(setup, base, None, disc, rp, stats);
+    Patch {
+        seed,
+        flat,
+        rho,
+        rp,
+        lattice_t: None,
+    }
+}
+
 /// The exponential map's seed on face `seed`: its centroid, its normal and the orientation
 /// field there.
 fn seed_frame(base: &Base, seed: usize) -> DiscSeed {

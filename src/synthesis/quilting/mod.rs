@@ -177,6 +177,7 @@ pub mod merging;
 mod nudge;
 mod output;
 pub mod periodicity;
+mod relink;
 mod seed;
 mod setup;
 mod shell;
@@ -247,6 +248,11 @@ pub struct Params {
     /// is too small for it): cut across the thread and capped, at least a third of its
     /// length ([`trim`]; the paper's cut, §2.7). Compact elements are never cut.
     pub trim: bool,
+    /// Once the gaps are filled, give each element with fewer links than its tile element has
+    /// in the swatch (a chain broken at a seam) its missing partners where that adds links:
+    /// a partner copy placed at the swatch's offset from it, replacing at most one element it
+    /// clashes with, and only when it makes more links than that element had ([`relink`]).
+    pub relink: bool,
     /// Place every patch on one global lattice: two stripe patterns along the orientation field
     /// and across it (Knöppel et al. 2015, period one swatch) give each patch its flattening,
     /// so that neighbouring patches lay their copies on the same lattice and threads meet
@@ -291,6 +297,7 @@ impl Default for Params {
             nudge: true,
             fill: true,
             trim: true,
+            relink: true,
             lattice: true,
             lattice_scale: 1.25,
             merge_min_aspect: 3.0,
@@ -332,6 +339,9 @@ pub struct QuiltStats {
     /// Threads cut short to fit where no whole copy fits ([`Params::trim`]), after a patch's
     /// cut or in a gap (then also counted in `filled`).
     pub trimmed: usize,
+    /// Partners placed where a chain was broken ([`Params::relink`]); each replaced at most one
+    /// element (counted in `replaced_old`).
+    pub relinked: usize,
     /// Candidates dropped because part of them fell off the flattened base.
     pub dropped_unmapped: usize,
     /// Elements dropped at the end because a vertex lay outside the shell (distorted or
@@ -689,6 +699,15 @@ fn run_unit(
         )?;
         stats.filled = filled;
         stats.trimmed += trimmed;
+    }
+
+    // chains broken at seams
+    if params.relink {
+        let guard = output::ShellGuard::new(&mesh.positions, base.faces, &stats);
+        let (placed, removed) =
+            relink::relink(&setup, &base, &mut elements, &guard, (sink, &clock, cancel))?;
+        stats.relinked = placed;
+        stats.replaced_old += removed;
     }
 
     // the output: the shell guard, then the arrangement measured

@@ -10,6 +10,34 @@ use super::{QuiltOutput, QuiltStats};
 use crate::geometry::TriangleBvh;
 use crate::mesh::TriMesh;
 
+/// The shell guard: an element mapped through a strongly distorted or extrapolated patch
+/// (thin parts such as ears, legs and a giraffe's horns) can be flung away from the surface; an
+/// element is kept only when every vertex lies within the shell, at most 1.5 H (plus a
+/// twentieth of the swatch width for the base's chordal error) from the base.
+pub(super) struct ShellGuard {
+    bvh: TriangleBvh,
+    limit: f32,
+}
+
+impl ShellGuard {
+    /// The guard over the base `positions`/`faces`, with `stats`' thickness and swatch size.
+    pub(super) fn new(positions: &[[f32; 3]], faces: &[[u32; 3]], stats: &QuiltStats) -> Self {
+        ShellGuard {
+            bvh: TriangleBvh::new(positions, faces),
+            limit: 1.5 * stats.thickness + 0.05 * stats.swatch_size,
+        }
+    }
+
+    /// Whether every point lies within the shell.
+    pub(super) fn inside(&self, ps: &[[f32; 3]]) -> bool {
+        ps.iter().all(|q| {
+            self.bvh
+                .closest_point(*q)
+                .is_some_and(|(_, _, d)| d <= self.limit)
+        })
+    }
+}
+
 /// The alive elements within the shell over `base_positions`/`faces`, merged in one mesh,
 /// their sources named in the given swatch (`found`: its detected tile's).
 pub(super) fn assemble(
@@ -27,17 +55,8 @@ pub(super) fn assemble(
     let mut element_source = Vec::new();
     let mut element_pieces = Vec::new();
     let mut element_share = Vec::new();
-    // Shell guard: an element mapped through a strongly distorted or extrapolated patch (thin
-    // parts such as ears, legs and a giraffe's horns) can be flung away from the surface; keep
-    // only elements whose every vertex lies within the shell, at most 1.5 H (plus a twentieth
-    // of the swatch width for the base's chordal error) from the base.
-    let bvh = TriangleBvh::new(base_positions, faces);
-    let limit = 1.5 * stats.thickness + 0.05 * stats.swatch_size;
-    let inside = |pe: &&Placed| {
-        pe.positions
-            .iter()
-            .all(|q| bvh.closest_point(*q).is_some_and(|(_, _, d)| d <= limit))
-    };
+    let guard = ShellGuard::new(base_positions, faces, &stats);
+    let inside = |pe: &&Placed| guard.inside(&pe.positions);
     let before = placed.iter().filter(|p| p.alive).count();
     let kept: Vec<&Placed> = placed.iter().filter(|p| p.alive).filter(inside).collect();
     stats.dropped_outside_shell = before - kept.len();
