@@ -713,8 +713,14 @@ fn run_unit(
     // chains broken at seams
     if params.relink {
         let guard = output::ShellGuard::new(&mesh.positions, base.faces, &stats);
-        let (placed, removed) =
-            relink::relink(&setup, &base, &mut elements, &guard, (sink, &clock, cancel))?;
+        let (placed, removed) = relink::relink(
+            &setup,
+            &base,
+            &mut elements,
+            &guard,
+            stats.patches,
+            (sink, &clock, cancel),
+        )?;
         stats.relinked = placed;
         stats.replaced_old += removed;
     }

@@ -144,13 +144,16 @@ impl Links {
 }
 
 /// Gives elements short of links their swatch partners where that adds links (module
-/// documentation); returns how many partners were placed and how many elements they replaced.
+/// documentation), visiting at most twice as many elements as are short of links at the start
+/// and at most `patches` (the covering pass's count); returns how many partners were placed and
+/// how many elements they replaced.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn relink(
     setup: &Setup,
     base: &Base,
     elements: &mut Placement,
     guard: &ShellGuard,
+    patches: usize,
     (sink, clock, cancel): (&dyn Fn(Event), &Stopwatch, &CancelToken),
 ) -> Result<(usize, usize)> {
     let partners = Partners::of_tile(setup);
@@ -166,7 +169,8 @@ pub(super) fn relink(
     let mut queue: VecDeque<u32> = (0..elements.placed.len() as u32)
         .filter(|&e| short(&links, elements, e))
         .collect();
-    let budget = 2 * queue.len();
+    // each visit costs about what a patch of the covering pass costs
+    let budget = (2 * queue.len()).min(patches.max(1));
     // the patch around an element reaches its farthest partner
     let reach = partners
         .of
@@ -308,22 +312,27 @@ impl Move {
                 })
             })
             .collect();
-        tries
-            .par_iter()
-            .enumerate()
-            .filter_map(|(k, &(turn, i, d))| {
-                let (b, off) = of[i];
-                let (mapper, shift) = mapper_at(turn);
-                // the copy's centre, roughly, first: mapping it whole costs more
-                let (anchor, _) = mapper.anchor(centre_xy(setup, b), shift + off + d)?;
-                if crowded(setup, elements, a, b, rough_centre(setup, base, b, anchor)) {
-                    return None;
-                }
-                let p = mapper.map(b as usize, shift + off + d, &mut QuiltStats::default())?;
-                Move::evaluate(setup, elements, links, a, p, guard).map(|m| (k, m))
-            })
-            .min_by_key(|(k, m)| (-m.gain, *k))
-            .map(|x| x.1)
+        // the lattice along the element's own axis first; turned only when that fails
+        let split = tries.partition_point(|t| t.0 == 0.0);
+        let stage = |range: std::ops::Range<usize>| {
+            tries[range.clone()]
+                .par_iter()
+                .zip(range)
+                .filter_map(|(&(turn, i, d), k)| {
+                    let (b, off) = of[i];
+                    let (mapper, shift) = mapper_at(turn);
+                    // the copy's centre, roughly, first: mapping it whole costs more
+                    let (anchor, _) = mapper.anchor(centre_xy(setup, b), shift + off + d)?;
+                    if crowded(setup, elements, a, b, rough_centre(setup, base, b, anchor)) {
+                        return None;
+                    }
+                    let p = mapper.map(b as usize, shift + off + d, &mut QuiltStats::default())?;
+                    Move::evaluate(setup, elements, links, a, p, guard).map(|m| (k, m))
+                })
+                .min_by_key(|(k, m)| (-m.gain, *k))
+                .map(|x| x.1)
+        };
+        stage(0..split).or_else(|| stage(split..tries.len()))
     }
 }
 
