@@ -34,19 +34,7 @@ pub(super) fn flatten(
     rp: f32,
     stats: &mut QuiltStats,
 ) -> Patch {
-    let (r_elem, mean_edge, tau) = (setup.r_elem, setup.mean_edge, setup.tau);
-    let disc_seed = seed_frame(base, seed);
-    // the disc flattened by the exponential map, out to where elements centred within `rp`
-    // still land on flattened triangles
-    let disc = |rp: f32| {
-        exp_map(
-            base.p,
-            &base.vn,
-            &base.adj,
-            &disc_seed,
-            rp + 2.0 * r_elem + 2.0 * mean_edge + tau,
-        )
-    };
+    let disc = disc_of(setup, base, seed);
     // the lattice's try computes the disc at the full radius; the fallback starts from it
     let mut first_disc = None;
     if let Some(lat) = lattice
@@ -95,9 +83,22 @@ pub(super) fn by_exp_map_at(
     rp: f32,
     stats: &mut QuiltStats,
 ) -> Patch {
+    let (flat, rho, rp) = by_exp_map(setup, base, None, disc_of(setup, base, seed), rp, stats);
+    Patch {
+        seed,
+        flat,
+        rho,
+        rp,
+        lattice_t: None,
+    }
+}
+
+/// The disc around face `seed` of placement radius `rp` flattened by the exponential map, out
+/// to where elements centred within `rp` still land on flattened triangles.
+fn disc_of<'a>(setup: &'a Setup, base: &'a Base, seed: usize) -> impl Fn(f32) -> ExpMap + 'a {
     let (r_elem, mean_edge, tau) = (setup.r_elem, setup.mean_edge, setup.tau);
     let disc_seed = seed_frame(base, seed);
-    let disc = |rp: f32| {
+    move |rp: f32| {
         exp_map(
             base.p,
             &base.vn,
@@ -105,14 +106,6 @@ pub(super) fn by_exp_map_at(
             &disc_seed,
             rp + 2.0 * r_elem + 2.0 * mean_edge + tau,
         )
-    };
-    let (flat, rho, rp) = by_exp_map(setup, base, None, disc, rp, stats);
-    Patch {
-        seed,
-        flat,
-        rho,
-        rp,
-        lattice_t: None,
     }
 }
 
