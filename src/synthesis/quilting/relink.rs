@@ -13,8 +13,10 @@
 //! partner that links the element is placed when the links it makes with the elements it keeps
 //! clear of outnumber the links of the at most one element it clashes with (vertex clearance,
 //! the fill's centre distances, crossing surfaces), which is then removed. Placing a partner
-//! never costs an element, and every accepted move adds a link, so the pass ends; it is also
-//! limited to twice as many tries as elements.
+//! never costs an element, and every accepted move adds a link, so the pass ends; its visits
+//! are also limited to twice the elements short of links at the start and to the covering
+//! pass's patch count. The lattice is laid along the element's own axis first, and turned by
+//! 10 and 20 degrees either way only where that yields no move.
 
 use std::collections::VecDeque;
 
@@ -147,7 +149,6 @@ impl Links {
 /// documentation), visiting at most twice as many elements as are short of links at the start
 /// and at most `patches` (the covering pass's count); returns how many partners were placed and
 /// how many elements they replaced.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn relink(
     setup: &Setup,
     base: &Base,
@@ -171,7 +172,8 @@ pub(super) fn relink(
         .collect();
     // each visit costs about what a patch of the covering pass costs
     let budget = (2 * queue.len()).min(patches.max(1));
-    // the patch around an element reaches its farthest partner
+    // the disc around an element: as wide as the farthest partner's centre lies from the tile's
+    // origin (a partner that falls off it does not map and is not tried)
     let reach = partners
         .of
         .iter()
