@@ -37,8 +37,11 @@ use super::shell::Base;
 use crate::error::Result;
 use crate::work::{CancelToken, Event, Progress, Stopwatch};
 
-/// Per tile element, its partners in the swatch: the tile elements, shifted by a multiple of
-/// the tile's period when it repeats, whose centre curves link its own.
+/// Per tile element, its partners in the swatch: the tile elements, shifted by one of the
+/// tile's periodic images ([`Swatch::images`]) when it repeats, whose centre curves link its
+/// own.
+///
+/// [`Swatch::images`]: super::swatch::Swatch::images
 pub(super) struct Partners {
     pub(super) of: Vec<Vec<(u32, Vec2)>>,
 }
@@ -50,14 +53,8 @@ impl Partners {
         let curves: Vec<Option<Vec<Vec3>>> = (0..ne)
             .map(|e| centre_curve(sw.element_positions(e), &sw.element_faces(e)))
             .collect();
-        let offsets: Vec<Vec2> = if sw.periodic {
-            let p = setup.period;
-            (-2..=2)
-                .flat_map(|j| (-2..=2).map(move |i| Vec2::new(i as f32 * p[0], j as f32 * p[1])))
-                .collect()
-        } else {
-            vec![Vec2::ZERO]
-        };
+        // the copies the swatch's own link rate counts ([`super::measure`])
+        let offsets: Vec<Vec2> = sw.images().into_iter().map(Vec2::from).collect();
         let mut of = vec![Vec::new(); ne];
         for (a, ca) in curves.iter().enumerate() {
             let Some(ca) = ca else { continue };
@@ -92,7 +89,8 @@ impl Partners {
 struct Links {
     curve: Vec<Option<Vec<Vec3>>>,
     adj: Vec<Vec<u32>>,
-    /// Every placed element's vertices (the dead's too), in cells of the clearance.
+    /// The vertices of the elements alive at the start and of those placed since, in cells of
+    /// the clearance (removed ones stay in it; their ids are skipped as dead).
     verts: VertexHash,
 }
 
