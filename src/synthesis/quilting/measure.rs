@@ -6,7 +6,8 @@
 //!   in swatch units (divided by `s^2`), a thread cut short ([`super::trim`]) counting for the
 //!   share of its faces it kept. Also split by the sign of the base's Gaussian curvature
 //!   (angle defects summed over a ball half a swatch wide around each face): convex and saddle.
-//!   An element counts for the base face nearest its centre.
+//!   An element counts for the base faces nearest its vertices, each for an equal part of it
+//!   (a strand lies over several regions).
 //! - **Links per element**: twice the number of linked pairs ([`super::links`]) over the
 //!   element count. On a lattice tile the swatch's count includes its copies around it (links
 //!   across the tile's border are the swatch's own); on a tile from spacing only the swatch's
@@ -220,8 +221,14 @@ pub fn quilt_measures(
         let n: f64 = home
             .iter()
             .enumerate()
-            .filter(|(_, f)| f.is_some_and(|f| sign[f as usize] == want))
-            .map(|(e, _)| share(e))
+            .map(|(e, at)| {
+                let part: f32 = at
+                    .iter()
+                    .filter(|(f, _)| sign[*f as usize] == want)
+                    .map(|x| x.1)
+                    .sum();
+                share(e) * part as f64
+            })
             .sum();
         Some((n / a / expected) as f32)
     };
@@ -340,26 +347,39 @@ fn curvature_signs(base: &TriMesh, l: f32) -> Vec<i8> {
         .collect()
 }
 
-/// The base face nearest each element's vertex centroid (`None` for an empty element).
+/// Where each element lies over the base: the base faces nearest [`HOME_SAMPLES`] of its
+/// vertices at most (evenly strided over them), each sample with an equal part of the element.
+/// A strand as long as a swatch is wide lies over several curvature regions, and its vertex
+/// centroid, a chord's midpoint, sits off the surface (inside an ear it wraps round); its
+/// vertices lie on it.
 fn element_homes(
     out: &super::QuiltOutput,
     base: &TriMesh,
     ranges: &ElementRanges,
-) -> Vec<Option<u32>> {
+) -> Vec<Vec<(u32, f32)>> {
     let bvh = TriangleBvh::new(&base.positions, &base.faces);
     (0..out.num_elements())
         .into_par_iter()
         .map(|e| {
             let (v0, v1) = ranges.vertices[e];
             if v0 >= v1 {
-                return None;
+                return Vec::new();
             }
             let ps = &out.elements.positions[v0 as usize..v1 as usize];
-            let c = ps.iter().map(|p| Vec3::from(*p)).sum::<Vec3>() / ps.len() as f32;
-            bvh.closest_point(c.to_array()).map(|x| x.0)
+            let stride = ps.len().div_ceil(HOME_SAMPLES);
+            let picks: Vec<u32> = ps
+                .iter()
+                .step_by(stride)
+                .filter_map(|p| bvh.closest_point(*p).map(|x| x.0))
+                .collect();
+            let w = 1.0 / picks.len().max(1) as f32;
+            picks.into_iter().map(|f| (f, w)).collect()
         })
         .collect()
 }
+
+/// Most vertices of an element [`element_homes`] places it by.
+const HOME_SAMPLES: usize = 16;
 
 /// The area of the base faces whose centroid lies within `reach` of an output vertex.
 fn covered_area(out: &super::QuiltOutput, base: &TriMesh, area: &[f64], reach: f32) -> f64 {
