@@ -648,38 +648,14 @@ fn run_unit(
         let Some(seed) = coverage.next_seed(first_patch.then_some(first)) else {
             break;
         };
-        let rp = params.patch_radius * size.l;
-        let patch = flatten::flatten(&setup, &base, &mut lattice, seed, rp, &mut stats);
-        // 3. matching
-        let (rot, t) = matching::register(&setup, &base, &patch, &elements, &mut rng);
-        // 4. candidates, the cut (with merging), nudge
-        let mapper = candidates::Mapper {
-            setup: &setup,
-            base: &base,
-            patch: &patch,
-            rot,
-        };
-        let (mut cands, unmapped) =
-            candidates::candidates(&mapper, t, &setup.elongated, &mut stats);
-        let mut selection = cut::select(&setup, &mut elements, &cands, &mut stats);
-        if params.nudge {
-            nudge::nudge(&mapper, &elements, &mut selection, &mut cands, &mut stats);
-        }
-        // threads the cut dropped, or that did not map whole, keep their clear part
-        let dropped: Vec<usize> = if params.trim && axes.any() {
-            let mut taken = vec![false; cands.len()];
-            for &j in &selection.accepted {
-                taken[j] = true;
-            }
-            (0..cands.len()).filter(|&j| !taken[j]).collect()
-        } else {
-            Vec::new()
-        };
-        elements.place(&mut cands, &selection, sw, params.max_faces)?;
-        if params.trim && axes.any() {
-            stats.trimmed +=
-                trim::after_cut(&axes, &mapper, &mut elements, &cands, dropped, unmapped);
-        }
+        let patch = cover_patch(
+            (&setup, &base, &axes),
+            &mut lattice,
+            &mut elements,
+            seed,
+            &mut rng,
+            &mut stats,
+        )?;
         // the patch's disc is covered
         stats.covered_fraction = coverage.cover(&base, &patch, &lattice);
         stats.patches += 1;
@@ -747,6 +723,50 @@ fn run_unit(
     out.stats.seconds = clock.secs();
     sink(Event::StageTime("quilt", out.stats.seconds));
     Ok(out)
+}
+
+/// Steps 2-4 for one patch seeded at face `seed`: flattened, registered, its candidates cut
+/// against the elements placed, nudged, placed, and its dropped threads cut short.
+fn cover_patch(
+    (setup, base, axes): (&setup::Setup, &shell::Base, &trim::Axes),
+    lattice: &mut lattice::Lattice,
+    elements: &mut elements::Placement,
+    seed: usize,
+    rng: &mut SmallRng,
+    stats: &mut QuiltStats,
+) -> Result<flatten::Patch> {
+    let (params, sw, size_l) = (setup.params, setup.sw, setup.l);
+    let rp = params.patch_radius * size_l;
+    let patch = flatten::flatten(setup, base, lattice, seed, rp, stats);
+    // 3. matching
+    let (rot, t) = matching::register(setup, base, &patch, elements, rng);
+    // 4. candidates, the cut (with merging), nudge
+    let mapper = candidates::Mapper {
+        setup,
+        base,
+        patch: &patch,
+        rot,
+    };
+    let (mut cands, unmapped) = candidates::candidates(&mapper, t, &setup.elongated, stats);
+    let mut selection = cut::select(setup, elements, &cands, stats);
+    if params.nudge {
+        nudge::nudge(&mapper, elements, &mut selection, &mut cands, stats);
+    }
+    // threads the cut dropped, or that did not map whole, keep their clear part
+    let dropped: Vec<usize> = if params.trim && axes.any() {
+        let mut taken = vec![false; cands.len()];
+        for &j in &selection.accepted {
+            taken[j] = true;
+        }
+        (0..cands.len()).filter(|&j| !taken[j]).collect()
+    } else {
+        Vec::new()
+    };
+    elements.place(&mut cands, &selection, sw, params.max_faces)?;
+    if params.trim && axes.any() {
+        stats.trimmed += trim::after_cut(axes, &mapper, elements, &cands, dropped, unmapped);
+    }
+    Ok(patch)
 }
 
 /// Most vertices [`split_long_faces`] adds to a base.
