@@ -414,3 +414,52 @@ fn covered_area(out: &super::QuiltOutput, base: &TriMesh, area: &[f64], reach: f
         .map(|f| area[f])
         .sum()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A strand lying over both halves of a flat strip counts half for each, not wholly for the
+    /// face nearest its vertex centroid.
+    #[test]
+    fn a_strand_counts_over_the_faces_it_lies_on() {
+        let base = TriMesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [2.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [2.0, 1.0, 0.0],
+            ],
+            vec![[0, 1, 4], [0, 4, 3], [1, 2, 5], [1, 5, 4]],
+        );
+        // 40 vertices from x = 0.05 to 1.95 along y = 0.5, in pairs forming a thin ribbon
+        let n = 20;
+        let mut positions = Vec::new();
+        for i in 0..n {
+            let x = 0.05 + 1.9 * i as f32 / (n - 1) as f32;
+            positions.push([x, 0.45, 0.01]);
+            positions.push([x, 0.55, 0.01]);
+        }
+        let faces: Vec<[u32; 3]> = (0..n as u32 - 1)
+            .flat_map(|i| [[2 * i, 2 * i + 2, 2 * i + 3], [2 * i, 2 * i + 3, 2 * i + 1]])
+            .collect();
+        let out = super::super::QuiltOutput {
+            element_id: vec![0; positions.len()],
+            elements: TriMesh::new(positions, faces),
+            element_source: vec![0],
+            element_pieces: vec![1],
+            element_share: vec![1.0],
+            stats: Default::default(),
+        };
+        let homes = element_homes(&out, &base, &element_ranges(&out));
+        let left: f32 = homes[0].iter().filter(|(f, _)| *f < 2).map(|x| x.1).sum();
+        let right: f32 = homes[0].iter().filter(|(f, _)| *f >= 2).map(|x| x.1).sum();
+        assert!((left + right - 1.0).abs() < 1e-5, "{left} + {right}");
+        assert!(
+            (left - 0.5).abs() <= 0.1 && (right - 0.5).abs() <= 0.1,
+            "{left} / {right}"
+        );
+    }
+}
