@@ -64,14 +64,7 @@ pub(super) fn flatten(
             };
         }
     }
-    let (flat, rho, rp) = by_exp_map(setup, base, first_disc, disc, rp, stats);
-    Patch {
-        seed,
-        flat,
-        rho,
-        rp,
-        lattice_t: None,
-    }
+    matched(setup, base, seed, first_disc, disc, rp, stats)
 }
 
 /// The patch seeded on face `seed` flattened by the exponential map alone (shrunk while
@@ -83,7 +76,29 @@ pub(super) fn by_exp_map_at(
     rp: f32,
     stats: &mut QuiltStats,
 ) -> Patch {
-    let (flat, rho, rp) = by_exp_map(setup, base, None, disc_of(setup, base, seed), rp, stats);
+    matched(
+        setup,
+        base,
+        seed,
+        None,
+        disc_of(setup, base, seed),
+        rp,
+        stats,
+    )
+}
+
+/// The patch on `disc` (starting from `first_disc` when computed already) flattened by the
+/// exponential map, shrunk while distorted: a patch for the paper's matching.
+fn matched(
+    setup: &Setup,
+    base: &Base,
+    seed: usize,
+    first_disc: Option<ExpMap>,
+    disc: impl Fn(f32) -> ExpMap,
+    rp: f32,
+    stats: &mut QuiltStats,
+) -> Patch {
+    let (flat, rho, rp) = by_exp_map(setup, base, first_disc, disc, rp, stats);
     Patch {
         seed,
         flat,

@@ -367,13 +367,14 @@ fn element_homes(
             }
             let ps = &out.elements.positions[v0 as usize..v1 as usize];
             let stride = ps.len().div_ceil(HOME_SAMPLES);
-            let picks: Vec<u32> = ps
+            let mut at: Vec<(u32, f32)> = ps
                 .iter()
                 .step_by(stride)
-                .filter_map(|p| bvh.closest_point(*p).map(|x| x.0))
+                .filter_map(|p| bvh.closest_point(*p).map(|x| (x.0, 0.0)))
                 .collect();
-            let w = 1.0 / picks.len().max(1) as f32;
-            picks.into_iter().map(|f| (f, w)).collect()
+            let w = 1.0 / at.len().max(1) as f32;
+            at.iter_mut().for_each(|x| x.1 = w);
+            at
         })
         .collect()
 }
